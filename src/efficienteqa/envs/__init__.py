@@ -1,0 +1,1 @@
+"""Environments: one contract (``base``), one adapter per simulator or robot."""

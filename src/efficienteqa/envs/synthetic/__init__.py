@@ -1,0 +1,1 @@
+"""Procedural synthetic houses: the embedded default environment."""
