@@ -1,0 +1,302 @@
+"""Room-appropriate furniture placement without collisions.
+
+Objects stand against walls, in front of / beside / facing other objects, around tables, or on
+surfaces. Yaws are multiples of 90 deg, so footprints are axis-aligned boxes and collision tests
+are exact. Doorways (1 m each side) and the start area stay clear.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from efficienteqa.envs.synthetic.catalog import SMALL_CATEGORIES, Catalog, CatalogEntry
+from efficienteqa.envs.synthetic.house import PlacedObject
+from efficienteqa.envs.synthetic.layout import WALL_THICKNESS_M, Layout, Room
+
+DOOR_CLEARANCE_M = 1.0
+START_CLEARANCE_M = 1.0
+
+
+@dataclass(frozen=True)
+class Rule:
+    """Place one of ``categories`` (first available) ``placement``-wise, relative to ``anchor``.
+
+    placement: "wall", "centre", "front" (in front of the anchor, same yaw), "faces" (in front,
+    turned towards it), "opposite" (on the wall the anchor faces), "beside" (next to it on the
+    same wall), "around" (chairs around a table), "on" (on top of the anchor).
+    """
+
+    categories: tuple[str, ...]
+    placement: str = "wall"
+    anchor: str | None = None
+    count: tuple[int, int] = (1, 1)
+    p: float = 1.0
+
+
+R = Rule
+ROOM_RULES: dict[str, tuple[Rule, ...]] = {
+    "living room": (
+        R(("sofa",)), R(("coffee table",), "front", "sofa"), R(("tv stand",), "opposite", "sofa"),
+        R(("tv",), "on", "tv stand"), R(("armchair",), count=(0, 2)), R(("bookshelf",), p=0.6),
+        R(("floor lamp",), "beside", "sofa", p=0.8), R(("plant",), count=(1, 2)),
+        R(("piano",), p=0.25),
+    ),
+    "kitchen": (
+        R(("refrigerator",)), R(("stove", "oven")), R(("kitchen sink", "sink")),
+        R(("kitchen cabinet", "cabinet"), count=(1, 3)), R(("stool",), count=(0, 2), p=0.5),
+        R(("plant",), p=0.3),
+    ),
+    "dining room": (
+        R(("dining table", "table"), "centre"), R(("chair",), "around", "dining table"),
+        R(("cabinet", "bookshelf"), p=0.6), R(("plant",), p=0.7), R(("floor lamp",), p=0.5),
+    ),
+    "bedroom": (
+        R(("bed",)), R(("nightstand",), "beside", "bed", count=(1, 2)),
+        R(("desk lamp", "table lamp"), "on", "nightstand", p=0.8), R(("wardrobe",)),
+        R(("armchair", "chair"), p=0.4), R(("plant",), p=0.5), R(("tv",), "opposite", "bed", p=0.3),
+    ),
+    "bathroom": (
+        R(("toilet",)), R(("washbasin", "sink")), R(("shower", "bathtub")),
+        R(("towel rack",), p=0.5), R(("plant",), p=0.3),
+    ),
+    "office": (
+        R(("desk",)), R(("office chair", "chair"), "faces", "desk"),
+        R(("desk lamp", "table lamp"), "on", "desk", p=0.8), R(("bookshelf",)),
+        R(("armchair",), p=0.5), R(("plant",), p=0.6),
+    ),
+    "hallway": (
+        R(("plant",), count=(1, 2)), R(("cabinet", "bookshelf"), p=0.5), R(("floor lamp",), p=0.4),
+    ),
+}
+# Surfaces that get small objects, with how many.
+SURFACES = ("coffee table", "dining table", "table", "kitchen cabinet", "nightstand", "desk",
+            "cabinet", "tv stand", "bookshelf")
+SMALL_PER_SURFACE = (0, 2)
+
+
+@dataclass
+class _Box:
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+
+    def overlaps(self, other: _Box) -> bool:
+        return self.x0 < other.x1 and other.x0 < self.x1 and self.y0 < other.y1 and other.y0 < self.y1
+
+    def inside(self, other: _Box) -> bool:
+        return (self.x0 >= other.x0 - 1e-6 and self.y0 >= other.y0 - 1e-6
+                and self.x1 <= other.x1 + 1e-6 and self.y1 <= other.y1 + 1e-6)
+
+
+def _aabb(x: float, y: float, w: float, d: float, yaw: float, pad: float = 0.0) -> _Box:
+    quarter = round(yaw / (math.pi / 2)) % 2
+    hx, hy = ((w, d) if quarter == 0 else (d, w))
+    return _Box(x - hx / 2 - pad, y - hy / 2 - pad, x + hx / 2 + pad, y + hy / 2 + pad)
+
+
+def _front(yaw: float) -> np.ndarray:
+    """World direction of a model's front (local -y) at this yaw."""
+    return np.array([math.sin(yaw), -math.cos(yaw)])
+
+
+def _yaw_facing(direction: np.ndarray) -> float:
+    """The yaw that turns a model's front towards ``direction``."""
+    return math.atan2(direction[1], direction[0]) + math.pi / 2
+
+
+class _RoomFurnisher:
+    def __init__(self, room: Room, keep_out: list[_Box], catalog: Catalog,
+                 rng: np.random.Generator, next_id: int) -> None:
+        half = WALL_THICKNESS_M / 2
+        self.room, self.catalog, self.rng = room, catalog, rng
+        self.interior = _Box(room.x0 + half, room.y0 + half, room.x1 - half, room.y1 - half)
+        self.blocked = list(keep_out)
+        self.placed: list[PlacedObject] = []
+        self.next_id = next_id
+        self.tables: dict[int, list[int]] = {}
+
+    def run(self, rules: tuple[Rule, ...]) -> None:
+        for rule in rules:
+            if self.rng.random() > rule.p:
+                continue
+            count = int(self.rng.integers(rule.count[0], rule.count[1] + 1))
+            entry_cat = next((c for c in rule.categories if self.catalog.by_category(c)), None)
+            if entry_cat is None:
+                continue
+            anchors = [o for o in self.placed if rule.anchor and o.category in _aliases(rule.anchor)]
+            if rule.anchor and not anchors:
+                continue
+            if rule.placement == "around":
+                self._around(entry_cat, anchors[0])
+                continue
+            for i in range(count):
+                anchor = anchors[i % len(anchors)] if anchors else None
+                self._place(entry_cat, rule.placement, anchor)
+
+    def _entry(self, category: str) -> CatalogEntry:
+        options = self.catalog.by_category(category)
+        return options[int(self.rng.integers(len(options)))]
+
+    def _add(self, entry: CatalogEntry, x: float, y: float, yaw: float, z: float = 0.0,
+             support: PlacedObject | None = None, ignore: PlacedObject | None = None) -> PlacedObject | None:
+        w, d, _ = entry.size_m
+        box = _aabb(x, y, w, d, yaw)
+        if support is None:
+            if not box.inside(self.interior) or any(box.overlaps(b) for b in self.blocked):
+                return None
+            if any(box.overlaps(_aabb(*o.footprint())) for o in self.placed
+                   if o.support_id is None and o is not ignore):
+                return None
+        obj = PlacedObject(
+            id=self.next_id, category=entry.category, model_key=entry.key, name=entry.name,
+            room_id=self.room.id, x=round(x, 3), y=round(y, 3), z=round(z, 3),
+            yaw=round(yaw % (2 * math.pi), 4), size_m=entry.size_m, colour=entry.colour,
+            licence=entry.licence, support_id=support.id if support else None,
+        )
+        self.next_id += 1
+        self.placed.append(obj)
+        return obj
+
+    def _walls(self) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+        """(point on the inner wall line, inward normal, lo, hi along the wall) for 4 walls."""
+        b = self.interior
+        return [
+            (np.array([0.0, b.y0]), np.array([0.0, 1.0]), b.x0, b.x1),
+            (np.array([0.0, b.y1]), np.array([0.0, -1.0]), b.x0, b.x1),
+            (np.array([b.x0, 0.0]), np.array([1.0, 0.0]), b.y0, b.y1),
+            (np.array([b.x1, 0.0]), np.array([-1.0, 0.0]), b.y0, b.y1),
+        ]
+
+    def _against_wall(self, entry: CatalogEntry, wall, t: float) -> PlacedObject | None:
+        point, normal, _, _ = wall
+        along = 0 if normal[0] == 0 else 1
+        pos = point + normal * (entry.size_m[1] / 2 + 0.02)
+        pos[along] = t
+        return self._add(entry, pos[0], pos[1], _yaw_facing(normal))
+
+    def _place(self, category: str, placement: str, anchor: PlacedObject | None) -> None:
+        entry = self._entry(category)
+        w, d, _ = entry.size_m
+        if placement == "on" and anchor is not None:
+            self._on(entry, anchor)
+            return
+        for _ in range(40):
+            if placement == "wall":
+                wall = self._walls()[int(self.rng.integers(4))]
+                if wall[3] - wall[2] < w:
+                    continue
+                if self._against_wall(entry, wall, self.rng.uniform(wall[2] + w / 2, wall[3] - w / 2)):
+                    return
+            elif placement == "centre":
+                cx, cy = self.room.centre
+                long_x = (self.interior.x1 - self.interior.x0) >= (self.interior.y1 - self.interior.y0)
+                yaw = 0.0 if long_x == (w >= d) else math.pi / 2
+                if self._add(entry, cx + self.rng.normal(0, 0.2), cy + self.rng.normal(0, 0.2), yaw):
+                    return
+            elif placement in ("front", "faces") and anchor is not None:
+                f = _front(anchor.yaw)
+                gap = 0.4 if placement == "front" else -0.1  # a chair slides under its desk
+                c = np.array([anchor.x, anchor.y]) + f * (anchor.size_m[1] / 2 + gap + d / 2)
+                yaw = anchor.yaw if placement == "front" else anchor.yaw + math.pi
+                self._add(entry, c[0], c[1], yaw, ignore=anchor if placement == "faces" else None)
+                return
+            elif placement == "opposite" and anchor is not None:
+                f = _front(anchor.yaw)
+                wall = next(wl for wl in self._walls() if np.allclose(wl[1], -f))
+                along = 0 if wall[1][0] == 0 else 1
+                t = (anchor.x, anchor.y)[along] + self.rng.normal(0, 0.3)
+                if self._against_wall(entry, wall, t):
+                    return
+            elif placement == "beside" and anchor is not None:
+                side = np.array([math.cos(anchor.yaw), math.sin(anchor.yaw)])
+                c = np.array([anchor.x, anchor.y]) - _front(anchor.yaw) * (anchor.size_m[1] - d) / 2
+                for sign in self.rng.permutation([-1.0, 1.0]):
+                    pos = c + sign * side * (anchor.size_m[0] / 2 + w / 2 + 0.05)
+                    if self._add(entry, pos[0], pos[1], anchor.yaw):
+                        return
+                return
+            else:
+                return
+
+    def _on(self, entry: CatalogEntry, support: PlacedObject) -> PlacedObject | None:
+        top = self.catalog.entry(support.model_key).top_m or support.size_m[2]
+        sw, sd, _ = support.size_m
+        w, d, _ = entry.size_m
+        if w > sw * 0.9 or d > sd * 0.9:
+            return None
+        siblings = [o for o in self.placed if o.support_id == support.id]
+        rot = np.array([[math.cos(support.yaw), -math.sin(support.yaw)],
+                        [math.sin(support.yaw), math.cos(support.yaw)]])
+        for _ in range(20):
+            local = self.rng.uniform([-(sw - w) / 2 * 0.8, -(sd - d) / 2 * 0.8],
+                                     [(sw - w) / 2 * 0.8, (sd - d) / 2 * 0.8])
+            x, y = np.array([support.x, support.y]) + rot @ local
+            box = _aabb(x, y, w, d, support.yaw, pad=0.03)
+            if any(box.overlaps(_aabb(*o.footprint())) for o in siblings):
+                continue
+            return self._add(entry, x, y, support.yaw, z=support.z + top, support=support)
+        return None
+
+    def _around(self, category: str, table: PlacedObject) -> None:
+        """Chairs along the table's long sides, facing it; the count is recorded."""
+        entry = self._entry(category)
+        tw, td, _ = table.size_m
+        long_local = 0 if tw >= td else 1
+        length = max(tw, td)
+        per_side = max(1, int(length // 0.6))
+        rot = np.array([[math.cos(table.yaw), -math.sin(table.yaw)],
+                        [math.sin(table.yaw), math.cos(table.yaw)]])
+        seats = []
+        for side in (1.0, -1.0):
+            for k in range(per_side):
+                off = np.zeros(2)
+                off[long_local] = (k + 0.5) * length / per_side - length / 2
+                off[1 - long_local] = side * ((td if long_local == 0 else tw) / 2 + entry.size_m[1] / 2 - 0.1)
+                facing = -np.sign(off[1 - long_local]) * np.eye(2)[1 - long_local]
+                seats.append((np.array([table.x, table.y]) + rot @ off, rot @ facing))
+        wanted = int(self.rng.integers(2, len(seats) + 1))
+        chairs = []
+        for idx in self.rng.permutation(len(seats)):
+            if len(chairs) == wanted:
+                break
+            pos, facing = seats[int(idx)]
+            chair = self._add(entry, pos[0], pos[1], _yaw_facing(facing), ignore=table)
+            if chair:
+                chairs.append(chair.id)
+        self.tables[table.id] = chairs
+
+
+def _aliases(category: str) -> tuple[str, ...]:
+    return {"dining table": ("dining table", "table")}.get(category, (category,))
+
+
+def furnish(layout: Layout, catalog: Catalog, rng: np.random.Generator,
+            start_xy: tuple[float, float]) -> tuple[list[PlacedObject], dict[int, list[int]]]:
+    """Objects for every room, and {table id: chair ids} for the dining tables."""
+    keep_out = [
+        _Box(d.x - d.width_m / 2 - 0.1, d.y - DOOR_CLEARANCE_M, d.x + d.width_m / 2 + 0.1,
+             d.y + DOOR_CLEARANCE_M) if d.axis == "x" else
+        _Box(d.x - DOOR_CLEARANCE_M, d.y - d.width_m / 2 - 0.1, d.x + DOOR_CLEARANCE_M,
+             d.y + d.width_m / 2 + 0.1)
+        for d in layout.doors
+    ]
+    sx, sy = start_xy
+    keep_out.append(_Box(sx - START_CLEARANCE_M, sy - START_CLEARANCE_M,
+                         sx + START_CLEARANCE_M, sy + START_CLEARANCE_M))
+    objects: list[PlacedObject] = []
+    tables: dict[int, list[int]] = {}
+    small = sorted(c for c in catalog.categories() if c in SMALL_CATEGORIES)
+    for room in layout.rooms:
+        furnisher = _RoomFurnisher(room, keep_out, catalog, rng, next_id=len(objects) + 1)
+        furnisher.run(ROOM_RULES.get(room.type, ()))
+        for surface in [o for o in furnisher.placed if o.category in SURFACES and o.support_id is None]:
+            for _ in range(int(rng.integers(SMALL_PER_SURFACE[0], SMALL_PER_SURFACE[1] + 1))):
+                if small:
+                    furnisher._on(furnisher._entry(small[int(rng.integers(len(small)))]), surface)
+        objects += furnisher.placed
+        tables.update(furnisher.tables)
+    return objects, tables
