@@ -206,7 +206,7 @@ class _RoomFurnisher:
                 return
             elif placement == "opposite" and anchor is not None:
                 f = _front(anchor.yaw)
-                wall = next(wl for wl in self._walls() if np.allclose(wl[1], -f))
+                wall = next(wl for wl in self._walls() if np.allclose(wl[1], -f, atol=1e-3))
                 along = 0 if wall[1][0] == 0 else 1
                 t = (anchor.x, anchor.y)[along] + self.rng.normal(0, 0.3)
                 if self._against_wall(entry, wall, t):

@@ -230,7 +230,7 @@ def _place_doors(rng: np.random.Generator, rooms: list[Room]) -> list[Door]:
 
     doors: list[Door] = []
     loops = []
-    for weight, a, b, edge in edges:
+    for _, a, b, edge in edges:
         ra, rb = find(a), find(b)
         if ra != rb:
             parent[ra] = rb

@@ -1,0 +1,127 @@
+"""Seed -> house: plan, furniture, doors, states, colours, start pose, navigation grid."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from efficienteqa.envs.synthetic.build import DOOR_SIZE_M
+from efficienteqa.envs.synthetic.catalog import PALETTE, Catalog
+from efficienteqa.envs.synthetic.furnish import furnish
+from efficienteqa.envs.synthetic.house import House, PlacedObject
+from efficienteqa.envs.synthetic.layout import Door, Layout, Room, generate_layout
+from efficienteqa.envs.synthetic.navigation import GridSpec, OccupancyGrid, rasterise
+from efficienteqa.geometry import CameraSpec, Pose2D
+
+ROBOT_RADIUS_M = 0.2
+GRID_RESOLUTION_M = 0.05
+# Categories whose recolouring makes a natural colour question, and the colours used.
+COLOURABLE = ("sofa", "armchair", "bed", "chair", "office chair", "wardrobe", "refrigerator",
+              "vase", "cup", "rug", "cabinet", "desk", "stool", "towel")
+RECOLOURS = ("red", "blue", "green", "yellow", "orange", "purple", "pink", "white", "black")
+
+
+def generate_house(seed: int, catalog: Catalog, assets: str = "sh3d") -> House:
+    """The house of ``seed``: the same seed and catalogue always give the same house."""
+    rng = np.random.default_rng(seed)
+    layout = generate_layout(rng, int(rng.integers(5, 10)))
+    start_room = next((r for r in layout.rooms if r.type == "hallway"),
+                      next(r for r in layout.rooms if r.type == "living room"))
+    start_xy = _start_point(rng, start_room)
+    objects, tables = furnish(layout, catalog, rng, start_xy)
+    doors = _door_objects(layout, first_id=len(objects) + 1)
+    objects += doors
+    for obj in objects:
+        kind = catalog.entry(obj.model_key).state_kind if obj.category != "door" else None
+        if kind in ("tv", "lamp"):
+            obj.state = "on" if rng.random() < 0.5 else "off"
+    _recolour(rng, objects, layout)
+    house = House(seed, layout, objects, Pose2D(*start_xy, 0.0), assets,
+                  meta={"chairs_at_table": {str(k): v for k, v in tables.items()},
+                        "door_objects": {str(d.id): o.id for d, o in zip(layout.doors, doors)}})
+    house.start = Pose2D(*start_xy, _informative_yaw(house, navigation_grid(house)))
+    return house
+
+
+def navigation_grid(house: House, resolution_m: float = GRID_RESOLUTION_M) -> OccupancyGrid:
+    """Ground-truth occupancy of the floor: walls (lintels excepted) and floor-standing objects."""
+    spec = GridSpec.covering(0.0, 0.0, house.layout.width_m, house.layout.depth_m, resolution_m)
+    return rasterise(
+        spec,
+        [(r.x0, r.y0, r.x1, r.y1) for r in house.layout.rooms],
+        [(w.x0, w.y0, w.x1, w.y1, w.thickness_m) for w in house.layout.walls if w.z0 < 0.5],
+        [o.footprint() for o in house.objects if o.support_id is None],
+    )
+
+
+def _start_point(rng: np.random.Generator, room: Room) -> tuple[float, float]:
+    margin_x = min(1.1, (room.x1 - room.x0) / 2 - 0.01)
+    margin_y = min(1.1, (room.y1 - room.y0) / 2 - 0.01)
+    x = rng.uniform(room.x0 + margin_x, room.x1 - margin_x)
+    y = rng.uniform(room.y0 + margin_y, room.y1 - margin_y)
+    return round(float(x), 2), round(float(y), 2)
+
+
+def _door_objects(layout: Layout, first_id: int) -> list[PlacedObject]:
+    """A panel per door: in the opening when closed; swung 90 deg into room_a when open."""
+    w, d, h = DOOR_SIZE_M
+    out = []
+    for k, door in enumerate(layout.doors):
+        x, y, yaw = _door_panel_pose(layout, door)
+        out.append(PlacedObject(
+            id=first_id + k, category="door", model_key="builtin/door", name="Door",
+            room_id=door.room_a, x=x, y=y, z=0.0, yaw=yaw, size_m=(w, d, h), colour="brown",
+            licence="CC0-1.0", state="open" if door.open else "closed"))
+    return out
+
+
+def _door_panel_pose(layout: Layout, door: Door) -> tuple[float, float, float]:
+    along = np.array([1.0, 0.0]) if door.axis == "x" else np.array([0.0, 1.0])
+    if not door.open:
+        return door.x, door.y, 0.0 if door.axis == "x" else math.pi / 2
+    room_a = layout.rooms[door.room_a]
+    normal = np.array([0.0, 1.0]) if door.axis == "x" else np.array([1.0, 0.0])
+    if not room_a.contains(*(np.array([door.x, door.y]) + 0.3 * normal)):
+        normal = -normal
+    hinge = np.array([door.x, door.y]) - along * (door.width_m / 2 - 0.02)
+    centre = hinge + normal * (DOOR_SIZE_M[0] / 2 + 0.06) + along * (DOOR_SIZE_M[1] / 2 + 0.01)
+    yaw = math.pi / 2 if door.axis == "x" else 0.0
+    return round(float(centre[0]), 3), round(float(centre[1]), 3), yaw
+
+
+def _recolour(rng: np.random.Generator, objects: list[PlacedObject], layout: Layout) -> None:
+    """Give 2-3 uniquely-referable objects one clear palette colour (for colour questions)."""
+    counts: dict[tuple[int, str], int] = {}
+    for o in objects:
+        counts[(o.room_id, o.category)] = counts.get((o.room_id, o.category), 0) + 1
+    candidates = [o for o in objects
+                  if o.category in COLOURABLE and counts[(o.room_id, o.category)] == 1]
+    if o_chairs := [o for o in objects if o.category == "chair"]:
+        candidates = [o for o in candidates if o not in o_chairs]
+    for idx in rng.permutation(len(candidates))[: int(rng.integers(2, 4))]:
+        obj = candidates[int(idx)]
+        name = RECOLOURS[int(rng.integers(len(RECOLOURS)))]
+        obj.colour, obj.colour_rgb = name, tuple(PALETTE[name])
+
+
+def _informative_yaw(house: House, grid: OccupancyGrid, n_yaws: int = 16) -> float:
+    """Face open space where the most objects are in the field of view and in sight."""
+    start = np.array([house.start.x, house.start.y])
+    yaws = np.arange(n_yaws) * (2 * math.pi / n_yaws)
+    rays = grid.ray_length(start, yaws)
+    half_fov = math.radians(CameraSpec().hfov_deg) / 2 * 0.8
+    visible = np.zeros(n_yaws)
+    for o in house.objects:
+        offset = np.array([o.x, o.y]) - start
+        dist = float(np.hypot(*offset))
+        if not 1.0 <= dist <= 7.0:
+            continue
+        near_side = start + offset * (1 - (max(o.size_m[:2]) / 2 + 0.1) / dist)  # off its footprint
+        if not grid.line_of_sight(start, near_side):
+            continue
+        bearing = math.atan2(offset[1], offset[0])
+        diff = np.abs((yaws - bearing + math.pi) % (2 * math.pi) - math.pi)
+        visible += diff < half_fov
+    score = np.minimum(rays, 4.0) * (1.0 + visible)
+    return float(yaws[int(np.argmax(score))])

@@ -1,0 +1,50 @@
+"""Scene jobs: generate a synthetic house with its questions and pictures."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
+from efficienteqa.envs.synthetic.generate import generate_house
+from efficienteqa.envs.synthetic.oracle import annotate
+from efficienteqa.envs.synthetic.preview import contact_sheet, topdown_map
+from efficienteqa.envs.synthetic.questions import Question, generate_questions, save_questions
+
+
+@dataclass
+class SceneFiles:
+    house: Path
+    questions: Path
+    map_png: Path
+    views_png: Path
+    n_questions: int
+    n_objects: int
+    n_rooms: int
+
+
+def synthetic_questions(env: SyntheticEnv, per_category: int = 2) -> list[Question]:
+    """The house's questions with oracle step counts (seeded by the house seed)."""
+    rng = np.random.default_rng([env.house.seed, 7])
+    return annotate(env, generate_questions(env.house, rng, per_category))
+
+
+def write_scene(seed: int, out: Path, assets: str = "sh3d") -> SceneFiles:
+    """``house.json``, ``questions.jsonl``, ``map.png`` and ``views.png`` for ``seed``."""
+    out.mkdir(parents=True, exist_ok=True)
+    catalog = catalog_for(assets)
+    house = generate_house(seed, catalog, assets)
+    with SyntheticEnv(house, catalog) as env:
+        questions = synthetic_questions(env)
+        house.save(out / "house.json")
+        save_questions(questions, out / "questions.jsonl")
+        topdown_map(env, questions).save(out / "map.png")
+        contact_sheet(env, questions).save(out / "views.png")
+    attribution = catalog.attribution(sorted({o.model_key for o in house.objects if o.category != "door"}))
+    if attribution:
+        (out / "ATTRIBUTION.md").write_text(attribution)
+    return SceneFiles(out / "house.json", out / "questions.jsonl", out / "map.png",
+                      out / "views.png", len(questions), len(house.objects),
+                      len(house.layout.rooms))
