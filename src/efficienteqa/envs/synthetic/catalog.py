@@ -156,7 +156,8 @@ _SURFACES = frozenset({"table", "coffee table", "desk", "nightstand", "dresser",
                        "tv stand", "kitchen cabinet", "bookshelf", "freezer"})
 _LAMPS = frozenset({"floor lamp", "table lamp", "desk lamp", "ceiling lamp", "wall lamp"})
 _TV_MATERIAL = re.compile(r"screen|display|monitor|lcd", re.I)
-_LAMP_MATERIAL = re.compile(r"bulb|glass|shade|light|lamp|emi|lumin|paper|abat", re.I)
+# ("lamp" itself is too loose: Scopia names every material "..._multilamps")
+_LAMP_MATERIAL = re.compile(r"bulb|glass|shade|light|emi[st]|paper|pantalla|cristal|frosted", re.I)
 
 
 def canonical_category(name: str, height_m: float = 1.0, elevation_m: float = 0.0) -> str | None:
