@@ -250,6 +250,9 @@ def test_two_renderers_side_by_side(renderer: Renderer) -> None:
     with Renderer(CameraSpec(32, 24)) as other:
         other.set_scene(SceneGeometry([box]))
         assert np.any(other.render(pose).instance == 3)
+        # A one-off camera does not change the default one.
+        assert other.render(pose, SMALL).rgb.shape == (120, 160, 3)
+        assert other.render(pose).rgb.shape == (24, 32, 3)
         assert np.any(renderer.render(pose, SMALL).instance == 3)
     assert np.any(renderer.render(pose, SMALL).instance == 3)
 
