@@ -258,8 +258,8 @@ class Renderer:
         self.depth_prepass = depth_prepass
         self._batches: list[_Batch] = []
         self._scene: SceneGeometry | None = None
-        self._targets = self._make_targets(camera.width, camera.height)
-        self._target_size = (camera.width, camera.height)
+        # Render targets per (width, height), kept so that alternating sizes costs nothing.
+        self._targets: dict[tuple[int, int], dict[str, moderngl.Framebuffer]] = {}
 
     # -- resources -------------------------------------------------------------------------
     def _make_targets(self, width: int, height: int) -> dict[str, moderngl.Framebuffer]:
@@ -298,7 +298,8 @@ class Renderer:
             return
         with self._ctx:
             self._release_scene()
-            self._release_targets(self._targets)
+            for targets in self._targets.values():
+                self._release_targets(targets)
             for prog in (*self._programs.values(), self._depth_program):
                 prog.release()
         self._ctx.release()
@@ -497,23 +498,22 @@ class Renderer:
 
         ``camera`` (default: always the renderer's own ``self.camera``) may differ in
         resolution, e.g. ``camera.scaled(160, 120)`` for cheap visibility checks; targets are
-        reallocated when the size changes (alternating sizes costs ~1 ms per switch).
+        allocated once per size.
         """
         camera = camera or self.camera
-        if (camera.width, camera.height) != self._target_size:
-            self._release_targets(self._targets)
-            self._targets = self._make_targets(camera.width, camera.height)
-            self._target_size = (camera.width, camera.height)
+        size = (camera.width, camera.height)
+        if size not in self._targets:
+            self._targets[size] = self._make_targets(*size)
+        targets = self._targets[size]
         cam_to_world = np.asarray(cam_to_world, np.float64)
         view = np.linalg.inv(cam_to_world)
         view_proj = projection_matrix(camera) @ view
         self._set_uniforms(view, view_proj, cam_to_world[:3, 3], ortho=False)
-        self._ctx.viewport = (0, 0, camera.width, camera.height)
         prepass = self.depth_prepass
         if prepass is None:
             prepass = camera.width * camera.height > PREPASS_MIN_PIXELS
-        self._draw(self._targets, view_proj, prepass)
-        return self._read(self._targets["all"], camera.width, camera.height)
+        self._draw(targets, view_proj, prepass)
+        return self._read(targets["all"], camera.width, camera.height)
 
     @_current
     def render_topdown(self, bounds_min_xy: tuple[float, float] | np.ndarray,
@@ -542,7 +542,6 @@ class Renderer:
         targets = self._make_targets(width, height)
         try:
             self._set_uniforms(view, ortho @ view, np.array([0.0, 0.0, top]), ortho=True)
-            self._ctx.viewport = (0, 0, width, height)
             self._draw(targets, ortho @ view, prepass=True)
             return self._read(targets["all"], width, height).rgb
         finally:
