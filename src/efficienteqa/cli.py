@@ -23,13 +23,15 @@ def scenes_generate(
     seed: int = typer.Option(0, help="The house seed; a seed fully determines a house."),
     out: Path = typer.Option(Path("out/scene"), help="Output folder."),
     assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
+    cc_by: bool = typer.Option(False, "--cc-by", help="Also use the CC-BY catalogues "
+                               "(writes ATTRIBUTION.md)."),
 ) -> None:
     """Write house.json, questions.jsonl, map.png and views.png for one seed."""
     from efficienteqa.scenes import write_scene
 
     start = time.perf_counter()
     with console.status(f"generating house {seed}..."):
-        files = write_scene(seed, out, assets)
+        files = write_scene(seed, out, assets, cc_by)
     console.print(
         f"house {seed}: {files.n_rooms} rooms, {files.n_objects} objects, "
         f"{files.n_questions} questions in {time.perf_counter() - start:.1f} s"

@@ -31,10 +31,11 @@ def synthetic_questions(env: SyntheticEnv, per_category: int = 2) -> list[Questi
     return annotate(env, generate_questions(env.house, rng, per_category))
 
 
-def write_scene(seed: int, out: Path, assets: str = "sh3d") -> SceneFiles:
-    """``house.json``, ``questions.jsonl``, ``map.png`` and ``views.png`` for ``seed``."""
+def write_scene(seed: int, out: Path, assets: str = "sh3d", cc_by: bool = False) -> SceneFiles:
+    """``house.json``, ``questions.jsonl``, ``map.png`` and ``views.png`` for ``seed`` (and
+    ``ATTRIBUTION.md`` when CC-BY models are used)."""
     out.mkdir(parents=True, exist_ok=True)
-    catalog = catalog_for(assets)
+    catalog = catalog_for(assets, cc_by)
     house = generate_house(seed, catalog, assets)
     with SyntheticEnv(house, catalog) as env:
         questions = synthetic_questions(env)
@@ -42,7 +43,8 @@ def write_scene(seed: int, out: Path, assets: str = "sh3d") -> SceneFiles:
         save_questions(questions, out / "questions.jsonl")
         topdown_map(env, questions).save(out / "map.png")
         contact_sheet(env, questions).save(out / "views.png")
-    attribution = catalog.attribution(sorted({o.model_key for o in house.objects if o.category != "door"}))
+    used = sorted({o.model_key for o in house.objects if o.category != "door"})
+    attribution = catalog.attribution(used)
     if attribution:
         (out / "ATTRIBUTION.md").write_text(attribution)
     return SceneFiles(out / "house.json", out / "questions.jsonl", out / "map.png",

@@ -52,16 +52,21 @@ def object_parts(obj: PlacedObject, catalog: Catalog) -> list[MeshPart]:
     parts = door_parts() if obj.category == "door" else catalog.mesh(obj.model_key)
     if obj.colour_rgb is not None:
         parts = recoloured(parts, obj.colour_rgb)
-    if obj.state == "on":
+    if obj.state in ("on", "off"):
         lit = set(catalog.entry(obj.model_key).state_materials)
-        parts = [replace(p, emissive=1.0, colour=_glow(p.colour)) if p.material in lit else p
-                 for p in parts]
-    elif obj.state == "off" and obj.category == "tv":
-        lit = set(catalog.entry(obj.model_key).state_materials)
-        parts = [replace(p, colour=(0.02, 0.02, 0.02), texture=None) if p.material in lit else p
+        parts = [_switched(p, obj.state == "on", obj.category == "tv") if p.material in lit else p
                  for p in parts]
     matrix = pose_matrix(obj.x, obj.y, obj.z, obj.yaw)
     return [p.transformed(matrix, instance_id=obj.id) for p in parts]
+
+
+def _switched(part: MeshPart, on: bool, screen: bool) -> MeshPart:
+    """A screen or lamp shade: glowing when on; when off a screen is black and a shade dim."""
+    if on:
+        return replace(part, emissive=1.0, colour=_glow(part.colour))
+    if screen:
+        return replace(part, colour=(0.02, 0.02, 0.02), texture=None)
+    return replace(part, colour=tuple(0.55 * c for c in part.colour))
 
 
 def _glow(colour: tuple[float, float, float]) -> tuple[float, float, float]:
@@ -86,8 +91,9 @@ def build_geometry(house: House, catalog: Catalog) -> SceneGeometry:
     for obj in house.objects:
         parts += object_parts(obj, catalog)
     lights = [
-        PointLight((*r.centre, WALL_HEIGHT_M - 0.2), intensity=0.55,
-                   radius_m=1.2 * math.hypot(r.x1 - r.x0, r.y1 - r.y0))
+        # No shadows: the radius just reaches the room's floor corners, barely past its walls.
+        PointLight((*r.centre, WALL_HEIGHT_M - 0.2), intensity=0.6,
+                   radius_m=math.hypot(math.hypot(r.x1 - r.x0, r.y1 - r.y0) / 2, WALL_HEIGHT_M) + 0.3)
         for r in house.layout.rooms
     ]
     lights += [

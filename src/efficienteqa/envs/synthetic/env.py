@@ -17,12 +17,13 @@ from efficienteqa.envs.synthetic.render import Renderer
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 
 
-def catalog_for(assets: str) -> Catalog:
-    """"sh3d": the converted furniture package (CC0); "builtin": coloured boxes for tests."""
+def catalog_for(assets: str, cc_by: bool = False) -> Catalog:
+    """"sh3d": the converted furniture package (CC0, plus CC-BY catalogues when ``cc_by``);
+    "builtin": coloured boxes for tests."""
     if assets == "builtin":
         return builtin_catalog()
     if assets == "sh3d":
-        return load_catalog()
+        return load_catalog(("CC0-1.0", "CC-BY-3.0") if cc_by else ("CC0-1.0",))
     raise ValueError(f"unknown assets {assets!r}: use 'sh3d' or 'builtin'")
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from efficienteqa.envs.synthetic.catalog import SMALL_CATEGORIES, Catalog, CatalogEntry
-from efficienteqa.envs.synthetic.house import PlacedObject
+from efficienteqa.envs.synthetic.house import MOUNTED_Z_M, PlacedObject
 from efficienteqa.envs.synthetic.layout import WALL_THICKNESS_M, Layout, Room
 
 DOOR_CLEARANCE_M = 1.0
@@ -26,7 +26,8 @@ class Rule:
 
     placement: "wall", "centre", "front" (in front of the anchor, same yaw), "faces" (in front,
     turned towards it), "opposite" (on the wall the anchor faces), "beside" (next to it on the
-    same wall), "around" (chairs around a table), "on" (on top of the anchor).
+    same wall), "around" (chairs around a table), "on" (on top of the anchor), "above" (mounted
+    over the anchor at the model's elevation), "ceiling" (hanging at the room centre).
     """
 
     categories: tuple[str, ...]
@@ -37,20 +38,25 @@ class Rule:
 
 
 R = Rule
+# Alternatives cover both asset sets: the CC0 catalogue has no floor lamp, coffee table or
+# bathtub (the CC-BY ones and the built-in boxes do); its stoves are hobs that sit on counters.
 ROOM_RULES: dict[str, tuple[Rule, ...]] = {
     "living room": (
         R(("sofa",)), R(("coffee table",), "front", "sofa"), R(("tv stand",), "opposite", "sofa"),
         R(("tv",), "on", "tv stand"), R(("armchair",), count=(0, 2)), R(("bookshelf",), p=0.6),
-        R(("floor lamp",), "beside", "sofa", p=0.8), R(("plant",), count=(1, 2)),
-        R(("piano",), p=0.25),
+        R(("floor lamp",), "beside", "sofa", p=0.8), R(("ceiling lamp",), "ceiling", p=0.6),
+        R(("plant",), count=(1, 2)), R(("piano",), p=0.25),
     ),
     "kitchen": (
-        R(("refrigerator",)), R(("stove", "oven")), R(("kitchen sink", "sink")),
-        R(("kitchen cabinet", "cabinet"), count=(1, 3)), R(("stool",), count=(0, 2), p=0.5),
-        R(("plant",), p=0.3),
+        R(("refrigerator",)), R(("kitchen cabinet",)),
+        R(("kitchen cabinet",), "beside", "kitchen cabinet", count=(1, 3)),
+        R(("stove",), "on", "kitchen cabinet"), R(("oven",), p=0.6), R(("sink",)),
+        R(("wall cabinet",), "above", "kitchen cabinet", count=(1, 2)),
+        R(("stool",), count=(0, 2), p=0.5), R(("plant",), p=0.3),
     ),
     "dining room": (
         R(("dining table", "table"), "centre"), R(("chair",), "around", "dining table"),
+        R(("ceiling lamp",), "ceiling", "dining table", p=0.7),
         R(("cabinet", "bookshelf"), p=0.6), R(("plant",), p=0.7), R(("floor lamp",), p=0.5),
     ),
     "bedroom": (
@@ -65,10 +71,11 @@ ROOM_RULES: dict[str, tuple[Rule, ...]] = {
     "office": (
         R(("desk",)), R(("office chair", "chair"), "faces", "desk"),
         R(("desk lamp", "table lamp"), "on", "desk", p=0.8), R(("bookshelf",)),
-        R(("armchair",), p=0.5), R(("plant",), p=0.6),
+        R(("whiteboard",), p=0.3), R(("armchair",), p=0.5), R(("plant",), p=0.6),
     ),
     "hallway": (
         R(("plant",), count=(1, 2)), R(("cabinet", "bookshelf"), p=0.5), R(("floor lamp",), p=0.4),
+        R(("wall lamp",), p=0.5),
     ),
 }
 # Surfaces that get small objects, with how many.
@@ -141,15 +148,21 @@ class _RoomFurnisher:
         options = self.catalog.by_category(category)
         return options[int(self.rng.integers(len(options)))]
 
-    def _add(self, entry: CatalogEntry, x: float, y: float, yaw: float, z: float = 0.0,
-             support: PlacedObject | None = None, ignore: PlacedObject | None = None) -> PlacedObject | None:
+    def _add(self, entry: CatalogEntry, x: float, y: float, yaw: float, z: float | None = None,
+             support: PlacedObject | None = None, ignore: PlacedObject | None = None
+             ) -> PlacedObject | None:
+        """Place ``entry`` if its footprint is free; mounted objects only avoid each other."""
         w, d, _ = entry.size_m
+        z = entry.elevation_m if z is None else z
         box = _aabb(x, y, w, d, yaw)
         if support is None:
-            if not box.inside(self.interior) or any(box.overlaps(b) for b in self.blocked):
+            mounted = z >= MOUNTED_Z_M
+            if not box.inside(self.interior):
+                return None
+            if not mounted and any(box.overlaps(b) for b in self.blocked):
                 return None
             if any(box.overlaps(_aabb(*o.footprint())) for o in self.placed
-                   if o.support_id is None and o is not ignore):
+                   if o.support_id is None and (o.z >= MOUNTED_Z_M) == mounted and o is not ignore):
                 return None
         obj = PlacedObject(
             id=self.next_id, category=entry.category, model_key=entry.key, name=entry.name,
@@ -191,6 +204,14 @@ class _RoomFurnisher:
                     continue
                 if self._against_wall(entry, wall, self.rng.uniform(wall[2] + w / 2, wall[3] - w / 2)):
                     return
+            elif placement == "ceiling":
+                cx, cy = (anchor.x, anchor.y) if anchor else self.room.centre
+                self._add(entry, cx, cy, anchor.yaw if anchor else 0.0, z=max(entry.elevation_m, 1.9))
+                return
+            elif placement == "above" and anchor is not None:
+                back = np.array([anchor.x, anchor.y]) - _front(anchor.yaw) * (anchor.size_m[1] - d) / 2
+                self._add(entry, back[0], back[1], anchor.yaw, z=max(entry.elevation_m, MOUNTED_Z_M))
+                return
             elif placement == "centre":
                 cx, cy = self.room.centre
                 long_x = (self.interior.x1 - self.interior.x0) >= (self.interior.y1 - self.interior.y0)
@@ -226,14 +247,14 @@ class _RoomFurnisher:
         top = self.catalog.entry(support.model_key).top_m or support.size_m[2]
         sw, sd, _ = support.size_m
         w, d, _ = entry.size_m
-        if w > sw * 0.9 or d > sd * 0.9:
+        if w > sw + 0.02 or d > sd + 0.02:
             return None
         siblings = [o for o in self.placed if o.support_id == support.id]
         rot = np.array([[math.cos(support.yaw), -math.sin(support.yaw)],
                         [math.sin(support.yaw), math.cos(support.yaw)]])
         for _ in range(20):
-            local = self.rng.uniform([-(sw - w) / 2 * 0.8, -(sd - d) / 2 * 0.8],
-                                     [(sw - w) / 2 * 0.8, (sd - d) / 2 * 0.8])
+            half_free = np.maximum([(sw - w) / 2 * 0.8, (sd - d) / 2 * 0.8], 0.0)
+            local = self.rng.uniform(-half_free, half_free)
             x, y = np.array([support.x, support.y]) + rot @ local
             box = _aabb(x, y, w, d, support.yaw, pad=0.03)
             if any(box.overlaps(_aabb(*o.footprint())) for o in siblings):

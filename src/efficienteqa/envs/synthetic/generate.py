@@ -51,7 +51,7 @@ def navigation_grid(house: House, resolution_m: float = GRID_RESOLUTION_M) -> Oc
         spec,
         [(r.x0, r.y0, r.x1, r.y1) for r in house.layout.rooms],
         [(w.x0, w.y0, w.x1, w.y1, w.thickness_m) for w in house.layout.walls if w.z0 < 0.5],
-        [o.footprint() for o in house.objects if o.support_id is None],
+        [o.footprint() for o in house.objects if o.on_floor],
     )
 
 

@@ -12,6 +12,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
 
 HOUSE_FORMAT = 1
+MOUNTED_Z_M = 1.0  # objects hung at least this high (wall cabinets, lamps) leave the floor free
 
 
 @dataclass
@@ -35,6 +36,11 @@ class PlacedObject:
     state: str | None = None
     colour_rgb: tuple[float, float, float] | None = None  # set when recoloured
     support_id: int | None = None
+
+    @property
+    def on_floor(self) -> bool:
+        """Stands on the floor (not on another object, not mounted on a wall or ceiling)."""
+        return self.support_id is None and self.z < MOUNTED_Z_M
 
     @property
     def top_z(self) -> float:
