@@ -19,7 +19,8 @@ def egl_available() -> bool:
         return False
 
 
-needs_egl = pytest.mark.skipif(not egl_available(), reason="no EGL (apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri)")
+needs_egl = pytest.mark.skipif(
+    not egl_available(), reason="no EGL (apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri)")
 
 
 @pytest.fixture(scope="session")

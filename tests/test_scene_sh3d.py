@@ -6,13 +6,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import needs_egl
 from efficienteqa.envs.synthetic.catalog import DEFAULT_SOURCE
 from efficienteqa.envs.synthetic.house import House
 from efficienteqa.envs.synthetic.questions import evidence_visible, load_questions
 from efficienteqa.geometry import Pose2D
 from efficienteqa.scenes import write_scene
-
-from conftest import needs_egl
 
 pytestmark = [
     needs_egl,

@@ -42,7 +42,8 @@ class MeshPart:
     @property
     def area_m2(self) -> float:
         tri = self.positions[self.faces]
-        return float(0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum())
+        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        return float(0.5 * np.linalg.norm(cross, axis=1).sum())
 
 
 def pose_matrix(x: float, y: float, z: float, yaw_rad: float) -> np.ndarray:
