@@ -104,3 +104,27 @@ def test_json_round_trip_and_broken_file(catalog, tmp_path):
     path.write_text("{not json")
     with pytest.raises(EfficientEQAError, match="cannot read house file"):
         House.load(path)
+
+
+REQUIRED = {"bedroom": "bed", "guest bedroom": "bed", "kitchen": "refrigerator",
+            "bathroom": "toilet", "guest bathroom": "toilet", "living room": "sofa"}
+
+
+@pytest.mark.parametrize("assets", ["builtin", "sh3d"])
+def test_every_room_gets_its_key_furniture(assets):
+    from pathlib import Path
+
+    from efficienteqa.envs.synthetic.catalog import DEFAULT_SOURCE
+    from efficienteqa.envs.synthetic.env import catalog_for
+
+    if assets == "sh3d" and not Path(DEFAULT_SOURCE).exists():
+        pytest.skip("apt-get install sweethome3d-furniture")
+    catalog = catalog_for(assets)
+    missing = []
+    for seed in range(15):
+        house = generate_house(seed, catalog, assets)
+        for room in house.layout.rooms:
+            want = REQUIRED.get(room.name)
+            if want and not any(o.category == want and o.room_id == room.id for o in house.objects):
+                missing.append((seed, room.name, want))
+    assert not missing

@@ -16,7 +16,7 @@ from efficienteqa.envs.synthetic.catalog import SMALL_CATEGORIES, Catalog, Catal
 from efficienteqa.envs.synthetic.house import MOUNTED_Z_M, PlacedObject
 from efficienteqa.envs.synthetic.layout import WALL_THICKNESS_M, Layout, Room
 
-DOOR_CLEARANCE_M = 1.0
+DOOR_CLEARANCE_M = 0.9
 START_CLEARANCE_M = 1.0
 
 
@@ -192,56 +192,64 @@ class _RoomFurnisher:
         return self._add(entry, pos[0], pos[1], _yaw_facing(normal))
 
     def _place(self, category: str, placement: str, anchor: PlacedObject | None) -> None:
-        entry = self._entry(category)
+        """A random model of the category; if it does not fit, the others, smallest first."""
+        first = self._entry(category)
+        others = sorted((e for e in self.catalog.by_category(category) if e is not first),
+                        key=lambda e: e.size_m[0] * e.size_m[1])
+        for entry in (first, *others):
+            if self._try(entry, placement, anchor) is not None:
+                return
+
+    def _try(self, entry: CatalogEntry, placement: str, anchor: PlacedObject | None
+             ) -> PlacedObject | None:
         w, d, _ = entry.size_m
-        if placement == "on" and anchor is not None:
-            self._on(entry, anchor)
-            return
-        for _ in range(40):
+        if anchor is None and placement not in ("wall", "centre", "ceiling"):
+            return None
+        if placement == "on":
+            return self._on(entry, anchor)
+        if placement == "ceiling":
+            cx, cy = (anchor.x, anchor.y) if anchor else self.room.centre
+            return self._add(entry, cx, cy, anchor.yaw if anchor else 0.0,
+                             z=max(entry.elevation_m, 1.9))
+        if placement == "above":
+            back = np.array([anchor.x, anchor.y]) - _front(anchor.yaw) * (anchor.size_m[1] - d) / 2
+            return self._add(entry, back[0], back[1], anchor.yaw, z=max(entry.elevation_m, MOUNTED_Z_M))
+        if placement in ("front", "faces"):
+            f = _front(anchor.yaw)
+            gap = 0.4 if placement == "front" else -0.1  # a chair slides under its desk
+            c = np.array([anchor.x, anchor.y]) + f * (anchor.size_m[1] / 2 + gap + d / 2)
+            yaw = anchor.yaw if placement == "front" else anchor.yaw + math.pi
+            return self._add(entry, c[0], c[1], yaw, ignore=anchor if placement == "faces" else None)
+        if placement == "beside":
+            side = np.array([math.cos(anchor.yaw), math.sin(anchor.yaw)])
+            c = np.array([anchor.x, anchor.y]) - _front(anchor.yaw) * (anchor.size_m[1] - d) / 2
+            for sign in self.rng.permutation([-1.0, 1.0]):
+                pos = c + sign * side * (anchor.size_m[0] / 2 + w / 2 + 0.05)
+                if obj := self._add(entry, pos[0], pos[1], anchor.yaw):
+                    return obj
+            return None
+        for _ in range(40):  # sampled placements
+            obj = None
             if placement == "wall":
                 wall = self._walls()[int(self.rng.integers(4))]
-                if wall[3] - wall[2] < w:
-                    continue
-                if self._against_wall(entry, wall, self.rng.uniform(wall[2] + w / 2, wall[3] - w / 2)):
-                    return
-            elif placement == "ceiling":
-                cx, cy = (anchor.x, anchor.y) if anchor else self.room.centre
-                self._add(entry, cx, cy, anchor.yaw if anchor else 0.0, z=max(entry.elevation_m, 1.9))
-                return
-            elif placement == "above" and anchor is not None:
-                back = np.array([anchor.x, anchor.y]) - _front(anchor.yaw) * (anchor.size_m[1] - d) / 2
-                self._add(entry, back[0], back[1], anchor.yaw, z=max(entry.elevation_m, MOUNTED_Z_M))
-                return
+                if wall[3] - wall[2] >= w:
+                    t = self.rng.uniform(wall[2] + w / 2, wall[3] - w / 2)
+                    obj = self._against_wall(entry, wall, t)
             elif placement == "centre":
                 cx, cy = self.room.centre
                 long_x = (self.interior.x1 - self.interior.x0) >= (self.interior.y1 - self.interior.y0)
                 yaw = 0.0 if long_x == (w >= d) else math.pi / 2
-                if self._add(entry, cx + self.rng.normal(0, 0.2), cy + self.rng.normal(0, 0.2), yaw):
-                    return
-            elif placement in ("front", "faces") and anchor is not None:
-                f = _front(anchor.yaw)
-                gap = 0.4 if placement == "front" else -0.1  # a chair slides under its desk
-                c = np.array([anchor.x, anchor.y]) + f * (anchor.size_m[1] / 2 + gap + d / 2)
-                yaw = anchor.yaw if placement == "front" else anchor.yaw + math.pi
-                self._add(entry, c[0], c[1], yaw, ignore=anchor if placement == "faces" else None)
-                return
-            elif placement == "opposite" and anchor is not None:
+                obj = self._add(entry, cx + self.rng.normal(0, 0.2), cy + self.rng.normal(0, 0.2), yaw)
+            elif placement == "opposite":
                 f = _front(anchor.yaw)
                 wall = next(wl for wl in self._walls() if np.allclose(wl[1], -f, atol=1e-3))
                 along = 0 if wall[1][0] == 0 else 1
-                t = (anchor.x, anchor.y)[along] + self.rng.normal(0, 0.3)
-                if self._against_wall(entry, wall, t):
-                    return
-            elif placement == "beside" and anchor is not None:
-                side = np.array([math.cos(anchor.yaw), math.sin(anchor.yaw)])
-                c = np.array([anchor.x, anchor.y]) - _front(anchor.yaw) * (anchor.size_m[1] - d) / 2
-                for sign in self.rng.permutation([-1.0, 1.0]):
-                    pos = c + sign * side * (anchor.size_m[0] / 2 + w / 2 + 0.05)
-                    if self._add(entry, pos[0], pos[1], anchor.yaw):
-                        return
-                return
+                obj = self._against_wall(entry, wall, (anchor.x, anchor.y)[along] + self.rng.normal(0, 0.3))
             else:
-                return
+                raise ValueError(f"unknown placement {placement!r}")
+            if obj is not None:
+                return obj
+        return None
 
     def _on(self, entry: CatalogEntry, support: PlacedObject) -> PlacedObject | None:
         top = self.catalog.entry(support.model_key).top_m or support.size_m[2]

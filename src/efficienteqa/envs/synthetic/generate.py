@@ -85,7 +85,7 @@ def _door_panel_pose(layout: Layout, door: Door) -> tuple[float, float, float]:
     if not room_a.contains(*(np.array([door.x, door.y]) + 0.3 * normal)):
         normal = -normal
     hinge = np.array([door.x, door.y]) - along * (door.width_m / 2 - 0.02)
-    centre = hinge + normal * (DOOR_SIZE_M[0] / 2 + 0.06) + along * (DOOR_SIZE_M[1] / 2 + 0.01)
+    centre = hinge + normal * (DOOR_SIZE_M[0] / 2 + 0.03) + along * (DOOR_SIZE_M[1] / 2 + 0.01)
     yaw = math.pi / 2 if door.axis == "x" else 0.0
     return round(float(centre[0]), 3), round(float(centre[1]), 3), yaw
 

@@ -14,7 +14,7 @@ WALL_THICKNESS_M = 0.1
 WALL_HEIGHT_M = 2.7
 DOOR_WIDTH_M = 0.9
 DOOR_HEIGHT_M = 2.1
-MIN_ROOM_SIDE_M = 2.6
+MIN_ROOM_SIDE_M = 2.8
 HALLWAY_WIDTH_M = 1.6
 
 # Non-hallway room types in the order they are added as houses grow.
@@ -154,7 +154,9 @@ def _bsp(rng: np.random.Generator, rect: Rect, n: int) -> list[Rect]:
 
 def _corridor_plan(rng: np.random.Generator, width: float, depth: float, n: int) -> list[Rect]:
     """Rooms on both sides of a hallway that runs along x; the hallway rectangle comes last."""
-    y_hall = round(float(rng.uniform(MIN_ROOM_SIDE_M, depth - MIN_ROOM_SIDE_M - HALLWAY_WIDTH_M)), 1)
+    rooms_depth = depth - HALLWAY_WIDTH_M  # split between the two sides, neither too shallow
+    y_hall = round(float(np.clip(rng.uniform(0.42, 0.58) * rooms_depth, MIN_ROOM_SIDE_M,
+                                 rooms_depth - MIN_ROOM_SIDE_M)), 1)
     y_top = y_hall + HALLWAY_WIDTH_M
     n_south = n // 2 + int(rng.random() < 0.5 and n % 2 == 1)
     rects: list[Rect] = []

@@ -76,11 +76,27 @@ def generate_questions(house: House, rng: np.random.Generator, per_category: int
     out: list[Question] = []
     for kind in CATEGORIES:
         options = by_kind[kind]
-        for idx in sorted(rng.permutation(len(options))[:per_category].tolist()):
+        if kind == "existence":  # balance the answers: "yes" and "no" alternate
+            picks = _balanced(rng, options, per_category)
+        else:
+            picks = sorted(rng.permutation(len(options))[:per_category].tolist())
+        for idx in picks:
             text, answer, alternatives, evidence = options[idx]
+            alternatives = [a for a in dict.fromkeys(alternatives) if a != answer]
             out.append(Question(f"syn-{house.seed}-{len(out):02d}", house.seed, kind, text,
                                 answer, alternatives, evidence))
     return out
+
+
+def _balanced(rng: np.random.Generator, options: list[Template], k: int) -> list[int]:
+    """Up to k option indices alternating between "yes" and "no" answers."""
+    pools = [[i for i, t in enumerate(options) if t[1] == answer] for answer in ("yes", "no")]
+    pools = [list(rng.permutation(p)) for p in pools]
+    picks: list[int] = []
+    while len(picks) < k and any(pools):
+        pool = pools[len(picks) % 2] or pools[(len(picks) + 1) % 2]
+        picks.append(int(pool.pop()))
+    return sorted(picks)
 
 
 Template = tuple[str, str, list[str], list[int]]
@@ -129,10 +145,7 @@ def _existence(house: House, rng: np.random.Generator) -> list[Template]:
             cat = absent[int(rng.integers(len(absent)))]
             out.append((f"Is there a {cat} in the {room.name}?", "no",
                         [f"no, there is no {cat}"], []))
-    # As many "no" as "yes" options, so sampling keeps both answers likely.
-    yes, no = [t for t in out if t[1] == "yes"], [t for t in out if t[1] == "no"]
-    k = min(len(yes), len(no))
-    return [item for pair in zip(yes[:k], no[:k]) for item in pair]
+    return out
 
 
 def _state(house: House) -> list[Template]:
