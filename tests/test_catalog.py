@@ -10,19 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from efficienteqa.envs.synthetic.catalog import (
-    PALETTE,
-    SMALL_CATEGORIES,
-    Catalog,
-    canonical_category,
-    colour_name,
-    load_catalog,
-    mesh_colour,
-    parse_properties,
-    recoloured,
-)
+from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog, parse_properties
+from efficienteqa.envs.synthetic.colours import PALETTE, colour_name, mesh_colour, recoloured
 from efficienteqa.envs.synthetic.mesh import MeshPart
 from efficienteqa.envs.synthetic.primitives import builtin_catalog, cylinder_part
+from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES, canonical_category
 from efficienteqa.errors import EfficientEQAError
 
 SOURCE = Path("/usr/share/sweethome3d/furniture")

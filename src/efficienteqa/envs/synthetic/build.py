@@ -7,7 +7,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from efficienteqa.envs.synthetic.catalog import Catalog, recoloured
+from efficienteqa.envs.synthetic.catalog import Catalog
+from efficienteqa.envs.synthetic.colours import recoloured
 from efficienteqa.envs.synthetic.house import House, PlacedObject
 from efficienteqa.envs.synthetic.layout import WALL_HEIGHT_M, Wall
 from efficienteqa.envs.synthetic.mesh import MeshPart, box_part, pose_matrix

@@ -11,7 +11,6 @@ v = 0 at the image bottom) and ``p{i}_texture`` ((h, w, 3) uint8, top row first,
 
 from __future__ import annotations
 
-import colorsys
 import contextlib
 import json
 import os
@@ -29,152 +28,25 @@ from pathlib import Path
 import numpy as np
 
 from efficienteqa.cache import cache_dir
+from efficienteqa.envs.synthetic.colours import colour_name, mesh_colour, part_mean_rgb
 from efficienteqa.envs.synthetic.mesh import MeshPart
+from efficienteqa.envs.synthetic.vocabulary import (
+    EXCLUDED_SOURCE_CATEGORIES,
+    LAMP_CATEGORIES,
+    SMALL_CATEGORIES,
+    SURFACE_CATEGORIES,
+    canonical_category,
+)
 from efficienteqa.errors import EfficientEQAError
 
 CACHE_VERSION = "v1"  # bump when the npz/index format changes
 DEFAULT_SOURCE = "/usr/share/sweethome3d/furniture"
 TEXTURE_MAX_PX = 256
 
-# --- vocabulary ------------------------------------------------------------------------------
-# canonical category -> lower-cased catalogue names. Anything not listed is left out (vehicles,
-# people, doors/windows, outdoor things, sockets...). Catalogue *source* categories in
-# EXCLUDED_SOURCE_CATEGORIES are dropped even when the name matches ("Chair" under "Exterior").
-_NAMES: dict[str, tuple[str, ...]] = {
-    "sofa": ("couch", "sofa", "corner sofa", "winchester sofa", "clear sofa", "sofa 2 seats",
-             "sofa 3 seats", "burlap sofa", "futon couch", "convertible sofa bz"),
-    "armchair": ("armchair", "winchester armchair", "modern armchair", "armchair ottoman"),
-    "chair": ("chair", "oak chair", "chair with cushion", "osaka chair", "folding chair",
-              "plastic chair", "class seat", "child chair", "children chair", "ryokan chair"),
-    "stool": ("stool", "bar stool", "bar chair", "piano bench"),
-    "ottoman": ("puff",),
-    "table": ("table", "oak table", "table with tablecloth", "round table", "glass table",
-              "black table", "bar table", "folding table", "table on trestles", "wooden table",
-              "wooden alder table", "wooden teak table", "children table"),
-    "coffee table": ("coffee table",),
-    "desk": ("desk", "wooden desk", "desk table", "technical table"),
-    "bed": ("bed", "iron bed", "bunk bed", "child bed", "captain's bed", "mezzanine bed",
-            "day bed", "futon"),
-    "crib": ("baby bed", "crib"),
-    "nightstand": ("bedside table",),
-    "wardrobe": ("wardrobe",),
-    "dresser": ("dresser with drawers", "chest", "dressing table"),
-    "cabinet": ("cupboard", "filing cabinet"),
-    "bookshelf": ("bookcase", "shelves", "vertical shelves", "full bookcase"),
-    "tv stand": ("television cabinet", "tv stand"),
-    "tv": ("tv", "tv 16:9", "wall flat tv"),
-    "piano": ("grand piano", "upright piano"),
-    "refrigerator": ("refrigerator", "large fridge", "fridge"),
-    "freezer": ("chest freezer",),
-    "stove": ("stove", "cooktop", "large stove", "propane stove", "induction cooker 2 zones",
-              "induction cooker 4 zones"),
-    "oven": ("oven", "double oven", "small oven"),
-    "microwave": ("microwave",),
-    "range hood": ("range hood", "hood"),
-    "kitchen cabinet": ("drawers cabinet", "lower cabinet", "lower corner cabinet", "island",
-                        "small lower cabinet", "island extension", "high cabinet"),
-    "wall cabinet": ("upper cabinet", "upper corner cabinet", "small upper cabinet",
-                     "upper shelves cabinet", "glass door cabinet"),
-    "sink": ("washbasin", "sink", "sink cabinet", "small lavatory", "vanity", "double vanity"),
-    "washing machine": ("washing machine", "clothes washing machine"),
-    "dryer": ("dryer machine",),
-    "toilet": ("toilets unit",),
-    "bidet": ("bidet",),
-    "bathtub": ("bath", "corner bathtub", "island bath"),
-    "shower": ("shower stall",),
-    "towel rack": ("towel rack",),
-    "radiator": ("radiator",),
-    "fireplace": ("fireplace",),
-    "plant": ("plant", "decorative plant", "indoor plant", "spathiphyllum", "yucca", "ficus",
-              "spider plant", "little plant", "bamboo", "bonsai tree"),
-    "flowers": ("orchids", "tulips", "white lily", "flowers"),
-    "cactus": ("cactus", "succulent plant"),
-    "christmas tree": ("christmas tree",),
-    "lamp": ("lamp", "little lamp", "pedestal vase lamp", "japanese lantern"),  # split by size
-    "desk lamp": ("desk lamp",),
-    "ceiling lamp": ("ceiling lamp", "hanging light", "pendant lamp", "chandelier lamp"),
-    "wall lamp": ("wall light",),
-    "ceiling fan": ("ceiling fan",),
-    "fan": ("table fan", "rigged fan"),
-    "rug": ("round carpet", "oriental rug", "bathmat"),
-    "pool table": ("pool table",),
-    "foosball table": ("football table",),
-    "treadmill": ("treadmill",),
-    "aquarium": ("aquarium",),
-    "whiteboard": ("white board",),
-    "guitar": ("electric guitar",),
-    "trash can": ("dustbin", "bullet trash can", "recycling bin"),
-    "suitcase": ("suitcase", "briefcase"),
-    "bag": ("handbag", "backpack"),
-    "clock": ("cuckoo clock", "clock"),
-    "cup": ("coffee cup", "plastic cup", "cup", "coffee mug"),
-    "glass": ("beer glass", "glass", "cocktail glass"),
-    "bottle": ("wine bottle", "beer bottle", "bottle", "yogurt bottle", "milk", "baby bottle"),
-    "book": ("book",),
-    "laptop": ("laptop", "apple ibook"),
-    "computer": ("apple imac 1998", "apple imac 2004"),
-    "phone": ("apple iphone", "mobile phone"),
-    "telephone": ("wireless phone", "phone"),
-    "tablet": ("tablet",),
-    "vase": ("vase",),
-    "bowl": ("bowl", "bowl with fruits", "bowl with salad"),
-    "fruit": ("apples",),
-    "bread": ("bread",),
-    "cake": ("cup cake", "birthday cake"),
-    "teapot": ("teapot", "espresso kettle"),
-    "coffee maker": ("coffee brewer", "coffee maker", "coffee machine", "coffee press"),
-    "blender": ("mixer", "blender"),
-    "toaster": ("toaster",),
-    "plate": ("plate", "oval plate"),
-    "candle": ("candle",),
-    "teddy bear": ("teddy bear",),
-    "toy": ("rocking horse", "toy train", "wood toy", "puzzle", "rubik's cube", "xylophone",
-            "car model", "biplane"),
-    "ball": ("basketball", "soccer ball"),
-    "headphones": ("headphones",),
-    "speaker": ("speaker",),
-    "radio": ("radio", "mini stereo"),
-    "remote control": ("tv remote control",),
-    "game console": ("playstation",),
-    "printer": ("inkjet printer and scanner",),
-    "towel": ("towel",),
-    "shoes": ("slippers", "sneakers", "woman shoes", "bootie", "mocassin"),
-    "scissors": ("scissors",),
-    "keyboard": ("keyboard",),
-}
-VOCABULARY: dict[str, str] = {n: cat for cat, names in _NAMES.items() for n in names}
-EXCLUDED_SOURCE_CATEGORIES = frozenset(
-    {"Exterior", "Vehicles", "Characters", "Staircases", "Doors and windows"})
-SMALL_CATEGORIES: frozenset[str] = frozenset({
-    "cup", "glass", "bottle", "book", "laptop", "computer", "phone", "telephone", "tablet",
-    "vase", "bowl", "fruit", "bread", "cake", "teapot", "coffee maker", "blender", "toaster",
-    "microwave", "plate", "candle", "flowers", "cactus", "potted plant", "table lamp",
-    "desk lamp", "teddy bear", "toy", "headphones", "speaker", "radio", "remote control",
-    "game console", "printer", "scissors", "clock", "fan", "keyboard"})
-# Categories whose top surface holds things even without dropOnTopElevation (top = height).
-_SURFACES = frozenset({"table", "coffee table", "desk", "nightstand", "dresser", "cabinet",
-                       "tv stand", "kitchen cabinet", "bookshelf", "freezer"})
-_LAMPS = frozenset({"floor lamp", "table lamp", "desk lamp", "ceiling lamp", "wall lamp"})
+
 _TV_MATERIAL = re.compile(r"screen|display|monitor|lcd", re.I)
 # ("lamp" itself is too loose: Scopia names every material "..._multilamps")
 _LAMP_MATERIAL = re.compile(r"bulb|glass|shade|light|emi[st]|paper|pantalla|cristal|frosted", re.I)
-
-
-def canonical_category(name: str, height_m: float = 1.0, elevation_m: float = 0.0) -> str | None:
-    """The canonical category of a catalogue name, or None when it does not belong in a house.
-
-    A few names are split by size (metres): lamps by height/mounting; low "tables" are coffee
-    tables; small "plants" are potted plants that stand on surfaces.
-    """
-    cat = VOCABULARY.get(name.strip().lower())
-    if cat == "lamp":  # "Lamp" covers chandeliers, floor lamps and bedside lamps alike
-        cat = "ceiling lamp" if elevation_m > 1.2 else "floor lamp" if height_m >= 1.0 \
-            else "table lamp"
-    elif cat == "table" and height_m < 0.6:
-        cat = "coffee table"
-    elif cat == "plant" and height_m < 0.45:
-        cat = "potted plant"
-    return cat
 
 
 @dataclass(frozen=True)
@@ -197,88 +69,6 @@ class CatalogEntry:
     state_materials: tuple[str, ...] = ()
     top_m: float | None = None
     elevation_m: float = 0.0
-
-
-# --- colours ---------------------------------------------------------------------------------
-PALETTE: dict[str, tuple[float, float, float]] = {
-    "white": (0.92, 0.92, 0.92), "black": (0.05, 0.05, 0.05), "grey": (0.5, 0.5, 0.5),
-    "brown": (0.45, 0.28, 0.14), "beige": (0.87, 0.78, 0.6), "red": (0.8, 0.1, 0.1),
-    "orange": (0.95, 0.55, 0.1), "yellow": (0.95, 0.85, 0.15), "green": (0.15, 0.6, 0.2),
-    "blue": (0.15, 0.3, 0.8), "purple": (0.5, 0.2, 0.65), "pink": (0.95, 0.6, 0.75),
-}
-
-
-def colour_name(rgb: Sequence[float]) -> str:
-    """Name an RGB in [0, 1] with one word of PALETTE (HSV rules, tuned for furniture)."""
-    h, s, v = colorsys.rgb_to_hsv(*(float(np.clip(c, 0.0, 1.0)) for c in rgb[:3]))
-    hue = h * 360
-    if v < 0.2:
-        return "black"
-    if s < 0.15 or (s < 0.25 and v < 0.45):
-        return "white" if v > 0.8 else "grey"
-    if 15 <= hue < 50 and s < 0.5 and v >= 0.6:
-        return "beige"  # pale warm tones: light wood, cream, sand
-    if 10 <= hue < 70 and v < 0.6:
-        return "brown"  # dark orange/yellow is what wood and leather look like
-    if hue < 15 or hue >= 340:
-        return "pink" if s < 0.5 and v > 0.7 else "red"
-    if hue < 45:
-        return "orange"
-    if hue < 70:
-        return "yellow"
-    if hue < 170:
-        return "green"
-    if hue < 260:
-        return "blue"
-    if hue < 300:
-        return "purple"
-    return "pink" if v > 0.5 else "purple"
-
-
-def _part_mean_rgb(part: MeshPart) -> np.ndarray:
-    rgb = np.asarray(part.colour, np.float64)
-    if part.texture is not None:  # Kd multiplies the texture
-        rgb = rgb * part.texture[..., :3].reshape(-1, 3).mean(0) / 255.0
-    return rgb
-
-
-def _dominant(parts: Sequence[MeshPart], share: float = 0.6) -> list[int]:
-    """Indices of the largest parts that together cover at least ``share`` of the area."""
-    areas = np.array([p.area_m2 for p in parts])
-    order, total, chosen = np.argsort(-areas), areas.sum(), []
-    for i in order:
-        chosen.append(int(i))
-        if areas[chosen].sum() >= share * total:
-            break
-    return chosen
-
-
-def mesh_colour(parts: Sequence[MeshPart]) -> tuple[float, float, float]:
-    """Area-weighted mean RGB of the dominant parts (those covering >= 60 % of the surface)."""
-    idx = _dominant(parts)
-    w = np.array([parts[i].area_m2 for i in idx]) + 1e-12
-    rgb = sum(wi * _part_mean_rgb(parts[i]) for wi, i in zip(w, idx, strict=True)) / w.sum()
-    return tuple(float(c) for c in rgb)  # type: ignore[return-value]
-
-
-def recoloured(parts: Sequence[MeshPart], rgb: Sequence[float]) -> list[MeshPart]:
-    """Copies of ``parts`` with the dominant parts tinted to ``rgb`` (others unchanged)."""
-    target = np.clip(np.asarray(rgb[:3], np.float64), 0, 1)
-    out = list(parts)
-    for i in _dominant(parts):
-        p = parts[i]
-        if p.texture is None:
-            out[i] = replace(p, colour=tuple(float(c) for c in target))
-            continue
-        # keep the texture's detail as luminance with mean 0.85 (Kd = rgb / 0.85 restores the
-        # target); contrast is reduced just enough that no texel clips at 1
-        lum = p.texture[..., :3].astype(np.float32) @ np.array([0.299, 0.587, 0.114], np.float32)
-        rel = lum / max(float(lum.mean()), 1.0) - 1.0
-        k = min(1.0, (1 / 0.85 - 1) / max(float(rel.max()), 1e-6))
-        lum = np.clip(0.85 * 255 * (1 + k * rel), 0, 255).astype(np.uint8)
-        out[i] = replace(p, texture=np.repeat(lum[..., None], 3, axis=2),
-                         colour=tuple(float(c) for c in np.clip(target / 0.85, 0, 1)))
-    return out
 
 
 # --- properties and OBJ/MTL parsing ----------------------------------------------------------
@@ -471,13 +261,13 @@ def _state_materials(category: str, parts: list[MeshPart]) -> tuple[str, ...]:
     """Materials that light up when the object is on: a TV's screen; a lamp's bulbs/shades."""
     if category == "tv":
         return tuple(p.material for p in parts if _TV_MATERIAL.search(p.material))
-    if category not in _LAMPS:
+    if category not in LAMP_CATEGORIES:
         return ()
     names = {p.material for p in parts if _LAMP_MATERIAL.search(p.material)}
     if not names and len(parts) > 1:
         # no telling name: the shade/bulb is usually the lightest material (checked on the CC0
         # lamps; the catalogue's light-source points sit inside metal bodies as often as not)
-        lum = [float(_part_mean_rgb(p) @ [0.299, 0.587, 0.114]) for p in parts]
+        lum = [float(part_mean_rgb(p) @ [0.299, 0.587, 0.114]) for p in parts]
         names = {parts[int(np.argmax(lum))].material}
     return tuple(sorted(names))
 
@@ -492,7 +282,7 @@ def _entry_fields(category: str, piece: dict[str, str]) -> dict:
             # small or negative values mean "drop inside" (bins, boxes) or "nothing on top"
             if float(drop) >= max(5.0, 0.2 * height):
                 top = round(float(drop) / 100, 4)
-        elif category in _SURFACES:
+        elif category in SURFACE_CATEGORIES:
             top = round(height / 100, 4)
     return {"top_m": top, "elevation_m": round(float(piece.get("elevation") or 0) / 100, 4)}
 
@@ -530,7 +320,7 @@ def _convert_job(job: tuple[str, str, dict, str, str, str]) -> dict:
         with zipfile.ZipFile(zip_path) as zf:
             parts = convert_model(zf, piece)
         _save_parts(Path(out), parts)
-        kind = "tv" if category == "tv" else "lamp" if category in _LAMPS else None
+        kind = "tv" if category == "tv" else "lamp" if category in LAMP_CATEGORIES else None
         state = _state_materials(category, parts)
         entry = CatalogEntry(
             key=key, name=piece["name"], category=category, size_m=_size_m(piece),

@@ -12,9 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from efficienteqa.envs.synthetic.catalog import SMALL_CATEGORIES, Catalog, CatalogEntry
+from efficienteqa.envs.synthetic.catalog import Catalog, CatalogEntry
 from efficienteqa.envs.synthetic.house import MOUNTED_Z_M, PlacedObject
 from efficienteqa.envs.synthetic.layout import WALL_THICKNESS_M, Layout, Room
+from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
 
 DOOR_CLEARANCE_M = 0.9
 START_CLEARANCE_M = 1.0

@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from efficienteqa.envs.synthetic.build import DOOR_SIZE_M
-from efficienteqa.envs.synthetic.catalog import PALETTE, Catalog
+from efficienteqa.envs.synthetic.catalog import Catalog
+from efficienteqa.envs.synthetic.colours import PALETTE
 from efficienteqa.envs.synthetic.furnish import furnish
 from efficienteqa.envs.synthetic.house import House, PlacedObject
 from efficienteqa.envs.synthetic.layout import Door, Layout, Room, generate_layout

@@ -11,7 +11,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from efficienteqa.envs.synthetic.catalog import Catalog, CatalogEntry, colour_name, mesh_colour
+from efficienteqa.envs.synthetic.catalog import Catalog, CatalogEntry
+from efficienteqa.envs.synthetic.colours import colour_name, mesh_colour
 from efficienteqa.envs.synthetic.mesh import MeshPart, box_part
 
 RGB = tuple[float, float, float]
