@@ -29,6 +29,7 @@ import numpy as np
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.envs.synthetic.colours import colour_name, mesh_colour, part_mean_rgb
+from efficienteqa.envs.synthetic.decimate import decimate
 from efficienteqa.envs.synthetic.mesh import MeshPart
 from efficienteqa.envs.synthetic.vocabulary import (
     EXCLUDED_SOURCE_CATEGORIES,
@@ -39,7 +40,8 @@ from efficienteqa.envs.synthetic.vocabulary import (
 )
 from efficienteqa.errors import EfficientEQAError
 
-CACHE_VERSION = "v1"  # bump when the npz/index format changes
+CACHE_VERSION = "v2"  # bump when the npz/index format or the conversion changes
+MAX_TRIANGLES = 8000  # per model: a 640x480 frame shows no more detail (see decimate.py)
 DEFAULT_SOURCE = "/usr/share/sweethome3d/furniture"
 TEXTURE_MAX_PX = 256
 
@@ -318,7 +320,7 @@ def _convert_job(job: tuple[str, str, dict, str, str, str]) -> dict:
     zip_path, key, piece, category, licence, out = job
     try:
         with zipfile.ZipFile(zip_path) as zf:
-            parts = convert_model(zf, piece)
+            parts = decimate(convert_model(zf, piece), MAX_TRIANGLES)
         _save_parts(Path(out), parts)
         kind = "tv" if category == "tv" else "lamp" if category in LAMP_CATEGORIES else None
         state = _state_materials(category, parts)
