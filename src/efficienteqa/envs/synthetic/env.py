@@ -14,6 +14,7 @@ from efficienteqa.envs.synthetic.house import House
 from efficienteqa.envs.synthetic.layout import WALL_HEIGHT_M
 from efficienteqa.envs.synthetic.primitives import builtin_catalog
 from efficienteqa.envs.synthetic.render import Renderer
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 
 
@@ -24,7 +25,7 @@ def catalog_for(assets: str, cc_by: bool = False) -> Catalog:
         return builtin_catalog()
     if assets == "sh3d":
         return load_catalog(("CC0-1.0", "CC-BY-3.0") if cc_by else ("CC0-1.0",))
-    raise ValueError(f"unknown assets {assets!r}: use 'sh3d' or 'builtin'")
+    raise EfficientEQAError(f"unknown assets {assets!r}", fix="use 'sh3d' or 'builtin'")
 
 
 class SyntheticEnv:
