@@ -4,11 +4,13 @@ Prints one row per house and the medians. Back-ends: synthetic environment, Swee
 furniture (or --assets builtin), moderngl on EGL/llvmpipe (CPU).
 
     python benchmarks/scene_bench.py --seeds 0 1 2 3 4
+    python benchmarks/scene_bench.py --rooms 6      # five 6-room houses
 """
 
 from __future__ import annotations
 
 import argparse
+import resource
 import time
 
 import numpy as np
@@ -56,13 +58,21 @@ def bench(seed: int, assets: str, frames: int, camera: CameraSpec) -> dict[str, 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    parser.add_argument("--rooms", type=int, default=None,
+                        help="only houses with this many rooms (seeds are searched upwards)")
     parser.add_argument("--assets", default="sh3d", choices=["sh3d", "builtin"])
     parser.add_argument("--frames", type=int, default=30)
     parser.add_argument("--size", default="640x480")
     args = parser.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
     camera = CameraSpec().scaled(w, h)
-    rows = [bench(s, args.assets, args.frames, camera) for s in args.seeds]
+    seeds = args.seeds
+    if args.rooms is not None:
+        catalog = catalog_for(args.assets)
+        seeds = [s for s in range(500)
+                 if len(generate_house(s, catalog, args.assets).layout.rooms) == args.rooms]
+        seeds = seeds[: len(args.seeds)]
+    rows = [bench(s, args.assets, args.frames, camera) for s in seeds]
     keys = list(rows[0])
     print(f"assets={args.assets} size={args.size} frames/house={args.frames}")
     print(" ".join(f"{k:>13}" for k in keys))
@@ -71,6 +81,8 @@ def main() -> None:
                        for k in keys))
     print(" ".join(f"{'median':>13}" if k == "seed" else f"{np.median([r[k] for r in rows]):>13.2f}"
                    for k in keys))
+    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak resident memory of this process: {peak_mib:.0f} MiB")
 
 
 if __name__ == "__main__":
