@@ -6,8 +6,8 @@ from efficienteqa.envs.base import Environment
 from efficienteqa.envs.checks import check_env
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
-from efficienteqa.envs.synthetic.navigation import truncate_path
 from efficienteqa.geometry import CameraSpec, Pose2D, backproject
+from efficienteqa.mapping.navgrid import truncate_path
 
 pytestmark = needs_egl
 

@@ -8,17 +8,11 @@ import time
 import numpy as np
 import pytest
 
-from efficienteqa.envs.synthetic.navigation import (
-    GridSpec,
-    OccupancyGrid,
-    oracle_moves,
-    path_length,
-    rasterise,
-    sample_start_pose,
-    truncate_path,
-)
+from efficienteqa.envs.synthetic.navigation import oracle_moves, rasterise, sample_start_pose
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
+from efficienteqa.mapping.grid import GridSpec
+from efficienteqa.mapping.navgrid import OccupancyGrid, path_length, truncate_path
 
 RES = 0.05
 T = 0.1  # wall thickness

@@ -12,8 +12,10 @@ from efficienteqa.envs.synthetic.colours import PALETTE
 from efficienteqa.envs.synthetic.furnish import furnish
 from efficienteqa.envs.synthetic.house import House, PlacedObject
 from efficienteqa.envs.synthetic.layout import Door, Layout, Room, generate_layout
-from efficienteqa.envs.synthetic.navigation import GridSpec, OccupancyGrid, rasterise
+from efficienteqa.envs.synthetic.navigation import rasterise
 from efficienteqa.geometry import CameraSpec, Pose2D
+from efficienteqa.mapping.grid import GridSpec
+from efficienteqa.mapping.navgrid import OccupancyGrid
 
 ROBOT_RADIUS_M = 0.2
 GRID_RESOLUTION_M = 0.05

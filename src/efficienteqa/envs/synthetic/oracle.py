@@ -13,9 +13,10 @@ import numpy as np
 
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
-from efficienteqa.envs.synthetic.navigation import OccupancyGrid, oracle_moves, rasterise
+from efficienteqa.envs.synthetic.navigation import oracle_moves, rasterise
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.geometry import Pose2D, camera_to_world
+from efficienteqa.mapping.navgrid import OccupancyGrid
 
 STEP_M = 3.0
 RING_M = (0.8, 5.0)
