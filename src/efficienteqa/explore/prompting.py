@@ -1,0 +1,153 @@
+"""Visual prompting (SPEC 3.3): pick up to three floor points in view and letter them on the frame.
+
+Geometry is pure (``project_floor_points``, ``candidate_points``); ``draw_prompts`` only draws.
+Pixels follow OpenCV: u right, v down, continuous, pixel (col k, row l) spans [k, k+1) x [l, l+1)
+so its centre is (k + 0.5, l + 0.5) — the convention of ``geometry.backproject``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+from efficienteqa.mapping.navgrid import OccupancyGrid
+from efficienteqa.mapping.state import MapState
+
+LETTERS = "ABC"
+CIRCLE_RADIUS_PX = 18
+CIRCLE_FILL = (220, 220, 220)  # light grey
+_LOS_CHUNK = 2048  # candidates per vectorised line-of-sight batch (bounds memory)
+
+
+@dataclass(frozen=True)
+class PromptPoint:
+    """A lettered candidate: world floor point ``xy`` (m, z = 0) and its ``pixel`` (u, v)."""
+
+    letter: str
+    xy: tuple[float, float]
+    pixel: tuple[float, float]
+
+
+def project_floor_points(xy: np.ndarray, cam_to_world: np.ndarray, intrinsics: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (N, 2) of floor points xy (N, 2) metres at z = 0, and whether each is in front.
+
+    ``cam_to_world`` is 4x4 with OpenCV camera axes; points behind the camera get NaN pixels.
+    """
+    p = np.asarray(xy, dtype=float).reshape(-1, 2)
+    world = np.concatenate([p, np.zeros((len(p), 1))], axis=1)
+    cam = (world - cam_to_world[:3, 3]) @ cam_to_world[:3, :3]  # R^T (p - t), row form
+    in_front = cam[:, 2] > 1e-6
+    z = np.where(in_front, cam[:, 2], np.nan)
+    u = intrinsics[0, 0] * cam[:, 0] / z + intrinsics[0, 2]
+    v = intrinsics[1, 1] * cam[:, 1] / z + intrinsics[1, 2]
+    return np.stack([u, v], axis=-1), in_front
+
+
+def _sampled_line_of_sight(free: np.ndarray, state: MapState, targets: np.ndarray) -> np.ndarray:
+    """Fast pre-filter: every sample (spacing <= res/2) from the robot to each target is free."""
+    spec, robot = state.spec, np.asarray(state.robot_xy, dtype=float)
+    ok = np.zeros(len(targets), dtype=bool)
+    if not len(targets):
+        return ok
+    longest = float(np.linalg.norm(targets - robot, axis=1).max())
+    t = np.linspace(0.0, 1.0, int(np.ceil(longest / (spec.resolution_m / 2))) + 2)
+    for s in range(0, len(targets), _LOS_CHUNK):
+        seg = targets[s:s + _LOS_CHUNK] - robot
+        pts = robot + t[None, :, None] * seg[:, None, :]
+        i, j = spec.world_to_cell(pts)
+        inside = spec.contains((i, j))
+        hit = np.zeros_like(inside)
+        hit[inside] = free[i[inside], j[inside]]
+        ok[s:s + _LOS_CHUNK] = hit.all(axis=1)
+    return ok
+
+
+def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrinsics: np.ndarray,
+                     image_size: tuple[int, int], rng_or_seed: np.random.Generator | int | None,
+                     radius_m: float = 0.2, min_m: float = 2.0, max_m: float = 10.0, n: int = 3,
+                     merge_m: float = 1.0, margin_px: float = 20.0) -> list[PromptPoint]:
+    """Up to ``n`` lettered floor points to prompt the VLM with; [] unless at least 2 remain.
+
+    Candidates are island cell centres navigable for a disk robot of ``radius_m`` in the robot's
+    component, ``min_m``-``max_m`` metres (straight line) from ``state.robot_xy``, projecting at
+    least ``margin_px`` inside the ``image_size`` = (w, h) frame, and in line of sight from the
+    robot on ``state.free``. Farthest-point sampling starts from a candidate drawn uniformly with
+    the seeded RNG (deterministic for a seed), then adds the candidate farthest from those chosen;
+    a point within ``merge_m`` of an earlier one is dropped. Letters A, B, C go left to right in
+    the image: "A" is the leftmost point.
+    """
+    rng = np.random.default_rng(rng_or_seed)
+    island = OccupancyGrid(state.spec, state.island)
+    start = island.snap(state.robot_xy, radius_m)
+    if start is None:
+        return []
+    labels, _ = island.components(radius_m)
+    ii, jj = np.nonzero(labels == labels[start])
+    xy = state.spec.cell_to_world(np.stack([ii, jj], axis=-1))
+    dist = np.linalg.norm(xy - np.asarray(state.robot_xy, dtype=float), axis=1)
+    xy = xy[(dist >= min_m) & (dist <= max_m)]
+    uv, front = project_floor_points(xy, obs_pose_cam_to_world, intrinsics)
+    w, h = image_size
+    with np.errstate(invalid="ignore"):
+        view = front & (uv[:, 0] >= margin_px) & (uv[:, 0] <= w - margin_px) & (
+            uv[:, 1] >= margin_px) & (uv[:, 1] <= h - margin_px)
+    xy, uv = xy[view], uv[view]
+    sight = _sampled_line_of_sight(state.free, state, xy)
+    xy, uv = xy[sight], uv[sight]
+    chosen = _farthest_points(xy, OccupancyGrid(state.spec, state.free), state.robot_xy, n, rng)
+    kept: list[int] = []
+    for k in chosen:
+        if all(np.linalg.norm(xy[k] - xy[m]) >= merge_m for m in kept):
+            kept.append(k)
+    if len(kept) < 2:
+        return []
+    kept.sort(key=lambda k: uv[k, 0])
+    return [PromptPoint(letter, (float(xy[k, 0]), float(xy[k, 1])),
+                        (float(uv[k, 0]), float(uv[k, 1]))) for letter, k in zip(LETTERS, kept)]
+
+
+def _farthest_points(xy: np.ndarray, free: OccupancyGrid, robot_xy: Sequence[float], n: int,
+                     rng: np.random.Generator) -> list[int]:
+    """Indices of up to n farthest-point samples; each pick is confirmed with the exact
+    (conservative) ``line_of_sight``, and rejected picks leave the pool."""
+    valid = np.ones(len(xy), dtype=bool)
+    min_d = np.full(len(xy), np.inf)
+    chosen: list[int] = []
+    while len(chosen) < n and valid.any():
+        if chosen:
+            k = int(np.argmax(np.where(valid, min_d, -np.inf)))
+        else:
+            k = int(rng.choice(np.flatnonzero(valid)))
+        valid[k] = False
+        if not free.line_of_sight(robot_xy, xy[k]):
+            continue
+        chosen.append(k)
+        min_d = np.minimum(min_d, np.linalg.norm(xy - xy[k], axis=1))
+    return chosen
+
+
+def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+    try:
+        return ImageFont.load_default(size=size)  # Pillow >= 10.1
+    except TypeError:
+        return ImageFont.load_default()
+
+
+def draw_prompts(rgb: np.ndarray, points: Sequence[PromptPoint],
+                 radius_px: int = CIRCLE_RADIUS_PX) -> np.ndarray:
+    """A copy of ``rgb`` (H, W, 3) uint8 with each point as a light grey disk, black outline and
+    its letter centred in black."""
+    image = Image.fromarray(np.ascontiguousarray(rgb, dtype=np.uint8))
+    draw = ImageDraw.Draw(image)
+    font = _font(int(radius_px * 1.3))
+    for p in points:
+        cu, cv = p.pixel[0] - 0.5, p.pixel[1] - 0.5  # Pillow puts pixel centres on integers
+        draw.ellipse((cu - radius_px, cv - radius_px, cu + radius_px, cv + radius_px),
+                     fill=CIRCLE_FILL, outline=(0, 0, 0), width=2)
+        x0, y0, x1, y1 = draw.textbbox((0, 0), p.letter, font=font)
+        draw.text((cu - (x0 + x1) / 2, cv - (y0 + y1) / 2), p.letter, fill=(0, 0, 0), font=font)
+    return np.asarray(image).copy()
