@@ -1,0 +1,183 @@
+"""Semantic-value-weighted frontier exploration, SFE (SPEC 3.2; paper "Exploration - SFE").
+
+Each step: find the frontiers, weight them (semantic values optional), sample one in proportion
+to its weight, stand ``backoff_m`` behind it along its normal, plan on the island grid for a disk
+robot and move at most ``max_step_m`` along the path, facing the frontier. A chosen target is
+kept across steps until reached, its frontier vanishes, or it becomes unreachable.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from efficienteqa.explore.base import Decision, Frontier
+from efficienteqa.explore.frontiers import (
+    FrontierConfig,
+    frontier_cells,
+    frontier_weights,
+    frontiers_from_cells,
+)
+from efficienteqa.geometry import Pose2D
+from efficienteqa.mapping.navgrid import OccupancyGrid, path_length, truncate_path
+from efficienteqa.mapping.state import MapState
+
+
+@dataclass(frozen=True)
+class SFEConfig:
+    """Frontier explorer constants (metres unless named otherwise)."""
+
+    frontier: FrontierConfig = field(default_factory=FrontierConfig)
+    use_values: bool = True  # False: the "frontier-only" baseline
+    backoff_m: float = 1.5  # stand this far behind the frontier, against its normal
+    robot_radius_m: float = 0.2  # planning clearance from walls and furniture
+    snap_m: float = 0.5  # robot off the navigable cells: snap this far, else plan at radius 0
+    max_stand_shift_m: float = 1.0  # a standing point moved further than this: unreachable
+    max_step_m: float = 3.0  # longest move per step, along the path
+    reached_m: float = 0.3  # committed target reached within this
+    vanish_m: float = 1.0  # committed frontier gone: no frontier cell within this
+    face_min_m: float = 0.2  # closer to the frontier than this: keep the path direction
+
+
+@dataclass
+class _Target:
+    frontier: Frontier
+    stand_xy: np.ndarray
+
+
+class FrontierExplorer:
+    """SFE (``name`` "sfe") or, with ``use_values=False``, the "frontier-only" baseline."""
+
+    def __init__(self, config: SFEConfig | None = None) -> None:
+        self.config = config or SFEConfig()
+        self.name = "sfe" if self.config.use_values else "frontier-only"
+        self.reset(0)
+
+    def reset(self, seed: int) -> None:
+        """Seed the sampling and forget the committed target."""
+        self._rng = np.random.default_rng(seed)
+        self._target: _Target | None = None
+
+    def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
+               step: int) -> Decision:
+        """The next pose (see the module docstring); ``done`` when no frontier is reachable."""
+        cfg = self.config
+        cells = frontier_cells(state.island, state.unexplored, cfg.frontier)
+        frontiers = frontiers_from_cells(state, cells, cfg.frontier)
+        weights = frontier_weights(state, frontiers, pose, values if cfg.use_values else None,
+                                   step, cfg.frontier)
+        stay = Decision(pose, pose.xy[None, :].copy(), frontiers=frontiers, weights=weights,
+                        done=True)
+        if not frontiers:
+            self._target = None
+            stay.reason = "no frontier"
+            return stay
+        grid = OccupancyGrid(state.spec, state.island)
+        start = (pose.x, pose.y)
+        radius = cfg.robot_radius_m
+        if grid.snap(start, radius, cfg.snap_m) is None:
+            radius = 0.0
+        dist = grid.distance_field(start, radius, cfg.snap_m)
+        reachable = grid.navigable(radius) & np.isfinite(dist)
+        if not reachable.any():
+            self._target = None
+            stay.reason = "robot off the island"
+            return stay
+
+        reason = "committed"
+        if self._target is not None and not self._keep_target(state, cells, reachable, pose):
+            self._target = None
+        if self._target is None:
+            reason = "new frontier"
+            stands, ok = self._standing_points(state, frontiers, reachable)
+            if not ok.any():
+                stay.reason = "no reachable frontier"
+                return stay
+            k = sample_index(self._rng, np.where(ok, weights, 0.0), ok)
+            self._target = _Target(frontiers[k], stands[k])
+
+        goal = (float(self._target.stand_xy[0]), float(self._target.stand_xy[1]))
+        path = grid.shortest_path(start, goal, radius, cfg.snap_m)
+        if path is None:  # the snapped robot cell and the target share a component: defensive
+            self._target = None
+            stay.reason = "no path"
+            return stay
+        if np.linalg.norm(path[0] - pose.xy) > 1e-9:
+            path = np.vstack([pose.xy, path])
+        path = cut_path(path, cfg.max_step_m)
+        target = self._target
+        yaw = self._facing(path, np.asarray(target.frontier.xy), pose.yaw)
+        end = path[-1]
+        return Decision(Pose2D(float(end[0]), float(end[1]), yaw), path,
+                        target_xy=(float(target.stand_xy[0]), float(target.stand_xy[1])),
+                        frontier=target.frontier, frontiers=frontiers, weights=weights,
+                        reason=reason)
+
+    # ----- helpers -------------------------------------------------------------------------
+    def _keep_target(self, state: MapState, cells: np.ndarray, reachable: np.ndarray,
+                     pose: Pose2D) -> bool:
+        """Whether the committed target is still pending, alive and reachable."""
+        t, cfg = self._target, self.config
+        assert t is not None
+        if np.linalg.norm(pose.xy - t.stand_xy) <= cfg.reached_m or not len(cells):
+            return False
+        cell_xy = state.spec.cell_to_world(cells)
+        if np.linalg.norm(cell_xy - np.asarray(t.frontier.xy), axis=1).min() > cfg.vanish_m:
+            return False
+        i, j = state.spec.world_to_cell(t.stand_xy)
+        return bool(state.spec.contains((i, j)) and reachable[i, j])
+
+    def _standing_points(self, state: MapState, frontiers: list[Frontier],
+                         reachable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Standing points (K, 2) m, ``backoff_m`` behind each frontier against its normal,
+        moved to the nearest reachable cell centre when not on one; ok (K,) is False where that
+        move exceeds ``max_stand_shift_m``."""
+        spec, cfg = state.spec, self.config
+        xy = np.array([f.xy for f in frontiers]) - cfg.backoff_m * np.array(
+            [f.normal for f in frontiers])
+        i, j = spec.world_to_cell(xy)
+        i = np.clip(i, 0, spec.shape[0] - 1)
+        j = np.clip(j, 0, spec.shape[1] - 1)
+        on_cell = spec.contains(spec.world_to_cell(xy)) & reachable[i, j]
+        _, (ni, nj) = ndimage.distance_transform_edt(~reachable, return_indices=True)
+        snapped = spec.cell_to_world(np.stack([ni[i, j], nj[i, j]], axis=-1))
+        stands = np.where(on_cell[:, None], xy, snapped)
+        ok = np.linalg.norm(stands - xy, axis=1) <= cfg.max_stand_shift_m
+        return stands, ok
+
+    def _facing(self, path: np.ndarray, frontier_xy: np.ndarray, yaw: float) -> float:
+        """Yaw (rad) from the path end towards the frontier; the last path direction when the
+        frontier is closer than ``face_min_m``; the current yaw if the path has no length."""
+        d = frontier_xy - path[-1]
+        if np.linalg.norm(d) >= self.config.face_min_m:
+            return math.atan2(d[1], d[0])
+        seg = np.diff(path, axis=0)
+        seg = seg[np.linalg.norm(seg, axis=1) > 1e-9]
+        return math.atan2(seg[-1][1], seg[-1][0]) if len(seg) else yaw
+
+
+def sample_index(rng: np.random.Generator, weights: np.ndarray,
+                 allowed: np.ndarray | None = None) -> int:
+    """An index drawn with probability proportional to ``weights`` (one draw from ``rng``);
+    uniform over ``allowed`` (default: all) when the weights do not sum to a positive number."""
+    w = np.asarray(weights, dtype=float)
+    total = w.sum()
+    if np.isfinite(total) and total > 0:
+        p = w / total
+    else:
+        ok = np.ones(len(w), bool) if allowed is None else np.asarray(allowed, bool)
+        p = ok / ok.sum()
+    return int(rng.choice(len(p), p=p))
+
+
+def cut_path(path: np.ndarray, max_m: float) -> np.ndarray:
+    """The first ``max_m`` metres of a polyline (K, 2): its waypoints up to there plus the end
+    point ``truncate_path`` gives."""
+    path = np.asarray(path, dtype=float)
+    if path_length(path) <= max_m:
+        return path
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    return np.vstack([path[cum < max_m], truncate_path(path, max_m)])
