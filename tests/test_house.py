@@ -128,3 +128,17 @@ def test_every_room_gets_its_key_furniture(assets):
             if want and not any(o.category == want and o.room_id == room.id for o in house.objects):
                 missing.append((seed, room.name, want))
     assert not missing
+
+
+def test_start_is_in_the_open_living_room(catalog):
+    for seed in range(10):
+        house = generate_house(seed, catalog, "builtin")
+        grid = navigation_grid(house)
+        room = house.layout.room_at(house.start.x, house.start.y)
+        assert room is not None and room.type == "living room"
+        i, j = grid.spec.world_to_cell((house.start.x, house.start.y))
+        # The most open spot of the furnished room: at least 1 m where the room allows it.
+        xs, ys = grid.spec.centres()
+        inside = (xs > room.x0) & (xs < room.x1) & (ys > room.y0) & (ys < room.y1)
+        best = grid.clearance()[inside].max()
+        assert grid.clearance()[i, j] >= min(1.0, best - 0.1) - 1e-9

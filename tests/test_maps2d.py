@@ -128,7 +128,7 @@ def test_mapper_on_an_empty_floor():
     assert state.occupied[wall] and not state.free[wall]
     occupied_x = spec.grid.cell_to_world(np.argwhere(state.occupied))[:, 0]
     assert occupied_x.min() > 7.4  # the wall and the shell behind it, nothing in the room
-    ahead = spec.grid.world_to_cell((4.0, 4.0))
+    ahead = spec.grid.world_to_cell((7.0, 4.0))  # 6 m ahead: seen, beyond the window's 5.4 m reach
     near = spec.grid.world_to_cell((2.0, 4.0))  # ~1 m ahead: in the bottom-centre window
     behind = spec.grid.world_to_cell((0.0, 7.5))
     assert state.free[ahead] and state.island[ahead] and not state.explored[ahead]

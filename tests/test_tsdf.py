@@ -7,7 +7,7 @@ import pytest
 
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.mapping.grid import GridSpec
-from efficienteqa.mapping.tsdf import TSDFVolume, VolumeSpec
+from efficienteqa.mapping.tsdf import BEHIND_WEIGHT, TSDFVolume, VolumeSpec
 
 # 64x48 pinhole, 90 deg hfov: fx = fy = 32. The camera sits at (1.05, 2.05, 1.05), a voxel
 # centre, and looks along +x, so the optical axis runs through voxels [20, ix, 10].
@@ -46,7 +46,8 @@ def test_wall_zero_crossing_signs_and_truncation():
     crossing = xs[k] + line[k] / (line[k] - line[k + 1]) * SPEC.voxel_m
     assert crossing == pytest.approx(4.0, abs=SPEC.voxel_m)
     assert line[39] == pytest.approx(0.05 / 0.5) and line[40] == pytest.approx(-0.05 / 0.5)
-    assert (line[11:40] > 0).all() and (w[11:45] == 1).all()  # in front, up to -0.45 m behind
+    assert (line[11:40] > 0).all() and (w[11:40] == 1).all()  # in front: weight 1 per frame
+    assert w[40:45] == pytest.approx(np.full(5, BEHIND_WEIGHT))  # behind: down-weighted
     assert (line[40:45] < 0).all()
     assert (w[45:] == 0).all() and (line[45:] == 1).all()  # beyond trunc: untouched
     assert w[10] == 0  # the voxel holding the camera centre (z = 0) is not in view
@@ -56,8 +57,12 @@ def test_weighted_running_average_of_two_frames():
     vol = fused(wall_depth(4.0), wall_depth(4.2))
     line, w = vol.tsdf[AXIS_IY, :, AXIS_IZ], vol.weight[AXIS_IY, :, AXIS_IZ]
     assert line[39] == pytest.approx((0.1 + 0.5) / 2) and w[39] == 2  # sdf 0.05 then 0.25 m
-    assert line[44] == pytest.approx((-0.9 - 0.5) / 2) and w[44] == 2
-    assert line[46] == pytest.approx(-0.9) and w[46] == 1  # only the second frame reaches it
+    assert line[44] == pytest.approx((-0.9 - 0.5) / 2) and w[44] == pytest.approx(2 * BEHIND_WEIGHT)
+    assert line[46] == pytest.approx(-0.9) and w[46] == pytest.approx(BEHIND_WEIGHT)  # 2nd only
+    # A voxel behind the first wall but in front of the second (4.1 m): free-space evidence wins.
+    mixed = fused(wall_depth(4.0), wall_depth(4.6)).tsdf[AXIS_IY, 41, AXIS_IZ]
+    expected = (BEHIND_WEIGHT * (-0.15 / 0.5) + 1.0 * (0.45 / 0.5)) / (BEHIND_WEIGHT + 1.0)
+    assert mixed == pytest.approx(expected, abs=1e-5) and mixed > 0
 
 
 def test_depth_zero_changes_nothing():
@@ -83,8 +88,16 @@ def test_explored_only_in_bottom_centre_window():
     assert vol.weight[20, 39, 5] == 1 and vol.explored[20, 39, 5]
     # Top half: observed but not explored.
     assert vol.weight[20, 39, 15] == 1 and not vol.explored[20, 39, 15]
-    # On the optical axis: row 24 of 48 (50%) is above the window.
-    assert vol.weight[20, 39, AXIS_IZ] == 1 and not vol.explored[20, 39, AXIS_IZ]
+    # On the optical axis: row 24 of 48 (50%) is inside the window (rows from 40% down).
+    assert vol.weight[20, 39, AXIS_IZ] == 1 and vol.explored[20, 39, AXIS_IZ]
     # Bottom rows but 1.5 m to the left: column 15.4 of 64 (24%), outside the window.
     assert vol.weight[35, 39, 5] == 1 and not vol.explored[35, 39, 5]
-    assert not vol.explored[:, :, AXIS_IZ + 1:].any()
+    # Every explored voxel projects into the window; every observed one inside it is explored.
+    iy, ix, iz = np.nonzero(vol.weight > 0)
+    centres = np.array(SPEC.origin) + (np.stack([ix, iy, iz], axis=1) + 0.5) * SPEC.voxel_m
+    cam = (centres - camera_to_world(POSE, CAMERA)[:3, 3]) @ camera_to_world(POSE, CAMERA)[:3, :3]
+    k = CAMERA.intrinsics
+    u = k[0, 0] * cam[:, 0] / cam[:, 2] + k[0, 2]
+    v = k[1, 1] * cam[:, 1] / cam[:, 2] + k[1, 2]
+    inside = (u >= 0.25 * 64) & (u < 0.75 * 64) & (v >= 0.4 * 48) & (v < 48)
+    assert (vol.explored[iy, ix, iz] == inside).all()

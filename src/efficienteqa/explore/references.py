@@ -25,7 +25,7 @@ class RandomConfig:
     """Random-walk constants (metres)."""
 
     max_step_m: float = 3.0  # goal within this path distance
-    robot_radius_m: float = 0.2
+    robot_radius_m: float = 0.25  # as in SFEConfig
     snap_m: float = 0.5
 
 

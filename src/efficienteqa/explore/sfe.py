@@ -33,13 +33,19 @@ class SFEConfig:
     frontier: FrontierConfig = field(default_factory=FrontierConfig)
     use_values: bool = True  # False: the "frontier-only" baseline
     backoff_m: float = 1.5  # stand this far behind the frontier, against its normal
-    robot_radius_m: float = 0.2  # planning clearance from walls and furniture
+    # Planning clearance: a 0.2 m robot plus half a 0.1 m map cell, since the map cannot place
+    # a wall more precisely (0.2 m ran into walls; blocked moves are reported back anyway).
+    robot_radius_m: float = 0.25
     snap_m: float = 0.5  # robot off the navigable cells: snap this far, else plan at radius 0
     max_stand_shift_m: float = 1.0  # a standing point moved further than this: unreachable
     max_step_m: float = 3.0  # longest move per step, along the path
     reached_m: float = 0.3  # committed target reached within this
     vanish_m: float = 1.0  # committed frontier gone: no frontier cell within this
     face_min_m: float = 0.2  # closer to the frontier than this: keep the path direction
+    # Frontiers already looked at from their standing point keep their unexplored side when it
+    # is occluded (behind a sofa, under a bed): penalise them like the close-and-facing rule.
+    looked_m: float = 1.0
+    looked_factor: float = 1e-3
 
 
 @dataclass
@@ -60,6 +66,7 @@ class FrontierExplorer:
         """Seed the sampling and forget the committed target."""
         self._rng = np.random.default_rng(seed)
         self._target: _Target | None = None
+        self._looked: list[tuple[float, float]] = []  # frontiers reached and looked at
 
     def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
                step: int) -> Decision:
@@ -69,6 +76,10 @@ class FrontierExplorer:
         frontiers = frontiers_from_cells(state, cells, cfg.frontier)
         weights = frontier_weights(state, frontiers, pose, values if cfg.use_values else None,
                                    step, cfg.frontier)
+        if self._looked and frontiers:
+            xy = np.array([f.xy for f in frontiers])
+            gap = np.linalg.norm(xy[:, None] - np.array(self._looked)[None], axis=2).min(axis=1)
+            weights = np.where(gap <= cfg.looked_m, weights * cfg.looked_factor, weights)
         stay = Decision(pose, pose.xy[None, :].copy(), frontiers=frontiers, weights=weights,
                         done=True)
         if not frontiers:
@@ -122,7 +133,10 @@ class FrontierExplorer:
         """Whether the committed target is still pending, alive and reachable."""
         t, cfg = self._target, self.config
         assert t is not None
-        if np.linalg.norm(pose.xy - t.stand_xy) <= cfg.reached_m or not len(cells):
+        if np.linalg.norm(pose.xy - t.stand_xy) <= cfg.reached_m:
+            self._looked.append(t.frontier.xy)
+            return False
+        if not len(cells):
             return False
         cell_xy = state.spec.cell_to_world(cells)
         if np.linalg.norm(cell_xy - np.asarray(t.frontier.xy), axis=1).min() > cfg.vanish_m:

@@ -15,7 +15,7 @@ from scipy import ndimage
 from efficienteqa.envs.base import Observation
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState
-from efficienteqa.mapping.tsdf import TSDFVolume, VolumeSpec
+from efficienteqa.mapping.tsdf import EXPLORED_WINDOW, TSDFVolume, VolumeSpec
 
 MAX_INVALID_FRACTION = 0.5  # SPEC 3.1: frames with at least this share of no-depth pixels
 
@@ -103,14 +103,17 @@ class Mapper:
 
     def __init__(self, spec: VolumeSpec, floor_z: float, start_xy: Sequence[float],
                  trunc_m: float = 0.5, start_radius_m: float = 1.0,
-                 robot_height_m: float = 1.5, robot_radius_m: float = 0.2) -> None:
+                 robot_height_m: float = 1.5, robot_radius_m: float = 0.2,
+                 explored_window: tuple[float, float, float, float] = EXPLORED_WINDOW) -> None:
         self.volume = TSDFVolume(spec, trunc_m)
+        self.explored_window = explored_window
         self.floor_z = floor_z
         self.robot_height_m = robot_height_m
         self.robot_radius_m = robot_radius_m
         self.start_disk = disk(spec.grid, start_xy, start_radius_m)
         shape = spec.shape[:2]
-        self._stood = self.start_disk.copy()  # free by fiat: start disk and robot footprints
+        self._stood = np.zeros(shape, dtype=bool)  # free by fiat: the robot's footprints
+        self._blocked = np.zeros(shape, dtype=bool)  # where a move failed: not free
         self._free = np.zeros(shape, dtype=bool)
         self._occupied = np.zeros(shape, dtype=bool)
         self._explored = np.zeros(shape, dtype=bool)
@@ -129,7 +132,8 @@ class Mapper:
         """Fuse obs into the volume; False (nothing fused) for frames that are >= 50% invalid."""
         if obs.invalid_fraction >= MAX_INVALID_FRACTION:
             return False
-        region = self.volume.integrate(obs.depth_m, obs.intrinsics, obs.cam_to_world)
+        region = self.volume.integrate(obs.depth_m, obs.intrinsics, obs.cam_to_world,
+                                       window=self.explored_window)
         if region is not None:
             self._dirty.append(region)
         return True
@@ -141,12 +145,18 @@ class Mapper:
         self._dirty.clear()
         xy = (float(robot_xy[0]), float(robot_xy[1]))
         self._stood |= disk(self.spec, xy, self.robot_radius_m)
-        free = self._free | self._stood
-        occupied = self._occupied & ~self._stood
+        # The start disk is free unless an obstacle was seen there (a wall within 1 m).
+        start = self.start_disk & ~self._occupied
+        free = (self._free | self._stood | start) & ~self._blocked
+        occupied = (self._occupied & ~self._stood) | self._blocked
         explored = self._explored | self.start_disk
         i, j = self.spec.world_to_cell(xy)
         return MapState(spec=self.spec, free=free, occupied=occupied, explored=explored,
                         island=island(free, (int(i), int(j))), robot_xy=xy)
+
+    def block(self, xy: Sequence[float], radius_m: float) -> None:
+        """Mark a disk (world metres) not free: the robot could not move there."""
+        self._blocked |= disk(self.spec, xy, radius_m) & ~self._stood
 
     def _refresh(self, region: tuple[slice, slice]) -> None:
         """Recompute the cached 2-D maps on the (rows, cols) window the last frame visited."""

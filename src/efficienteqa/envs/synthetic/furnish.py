@@ -2,7 +2,7 @@
 
 Objects stand against walls, in front of / beside / facing other objects, around tables, or on
 surfaces. Yaws are multiples of 90 deg, so footprints are axis-aligned boxes and collision tests
-are exact. Doorways (1 m each side) and the start area stay clear.
+are exact. Doorways (0.9 m each side) stay clear.
 """
 
 from __future__ import annotations
@@ -18,7 +18,6 @@ from efficienteqa.envs.synthetic.layout import WALL_THICKNESS_M, Layout, Room
 from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
 
 DOOR_CLEARANCE_M = 0.9
-START_CLEARANCE_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -304,9 +303,10 @@ def _aliases(category: str) -> tuple[str, ...]:
     return {"dining table": ("dining table", "table")}.get(category, (category,))
 
 
-def furnish(layout: Layout, catalog: Catalog, rng: np.random.Generator,
-            start_xy: tuple[float, float]) -> tuple[list[PlacedObject], dict[int, list[int]]]:
-    """Objects for every room, and {table id: chair ids} for the dining tables."""
+def furnish(layout: Layout, catalog: Catalog, rng: np.random.Generator
+            ) -> tuple[list[PlacedObject], dict[int, list[int]]]:
+    """Objects for every room, and {table id: chair ids} for the dining tables. Doorways stay
+    clear; the start pose is chosen afterwards where the floor is open."""
     keep_out = [
         _Box(d.x - d.width_m / 2 - 0.1, d.y - DOOR_CLEARANCE_M, d.x + d.width_m / 2 + 0.1,
              d.y + DOOR_CLEARANCE_M) if d.axis == "x" else
@@ -314,9 +314,6 @@ def furnish(layout: Layout, catalog: Catalog, rng: np.random.Generator,
              d.y + d.width_m / 2 + 0.1)
         for d in layout.doors
     ]
-    sx, sy = start_xy
-    keep_out.append(_Box(sx - START_CLEARANCE_M, sy - START_CLEARANCE_M,
-                         sx + START_CLEARANCE_M, sy + START_CLEARANCE_M))
     objects: list[PlacedObject] = []
     tables: dict[int, list[int]] = {}
     small = sorted(c for c in catalog.categories() if c in SMALL_CATEGORIES)

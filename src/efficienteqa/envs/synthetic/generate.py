@@ -18,6 +18,7 @@ from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.navgrid import OccupancyGrid
 
 ROBOT_RADIUS_M = 0.2
+START_CLEARANCE_M = 1.0
 GRID_RESOLUTION_M = 0.05
 # Categories whose recolouring makes a natural colour question, and the colours used.
 COLOURABLE = ("sofa", "armchair", "bed", "chair", "office chair", "wardrobe", "refrigerator",
@@ -29,10 +30,7 @@ def generate_house(seed: int, catalog: Catalog, assets: str = "sh3d") -> House:
     """The house of ``seed``: the same seed and catalogue always give the same house."""
     rng = np.random.default_rng(seed)
     layout = generate_layout(rng, int(rng.integers(5, 10)))
-    start_room = next((r for r in layout.rooms if r.type == "hallway"),
-                      next(r for r in layout.rooms if r.type == "living room"))
-    start_xy = _start_point(rng, start_room)
-    objects, tables = furnish(layout, catalog, rng, start_xy)
+    objects, tables = furnish(layout, catalog, rng)
     doors = _door_objects(layout, first_id=len(objects) + 1)
     objects += doors
     for obj in objects:
@@ -40,10 +38,13 @@ def generate_house(seed: int, catalog: Catalog, assets: str = "sh3d") -> House:
         if kind in ("tv", "lamp"):
             obj.state = "on" if rng.random() < 0.5 else "off"
     _recolour(rng, objects, layout)
-    house = House(seed, layout, objects, Pose2D(*start_xy, 0.0), assets,
+    house = House(seed, layout, objects, Pose2D(0.0, 0.0, 0.0), assets,
                   meta={"chairs_at_table": {str(k): v for k, v in tables.items()},
                         "door_objects": {str(d.id): o.id for d, o in zip(layout.doors, doors)}})
-    house.start = Pose2D(*start_xy, _informative_yaw(house, navigation_grid(house)))
+    grid = navigation_grid(house)
+    start_xy = _start_point(rng, grid, next(r for r in layout.rooms if r.type == "living room"))
+    house.start = Pose2D(*start_xy, 0.0)
+    house.start = Pose2D(*start_xy, _informative_yaw(house, grid))
     return house
 
 
@@ -58,11 +59,16 @@ def navigation_grid(house: House, resolution_m: float = GRID_RESOLUTION_M) -> Oc
     )
 
 
-def _start_point(rng: np.random.Generator, room: Room) -> tuple[float, float]:
-    margin_x = min(1.1, (room.x1 - room.x0) / 2 - 0.01)
-    margin_y = min(1.1, (room.y1 - room.y0) / 2 - 0.01)
-    x = rng.uniform(room.x0 + margin_x, room.x1 - margin_x)
-    y = rng.uniform(room.y0 + margin_y, room.y1 - margin_y)
+def _start_point(rng: np.random.Generator, grid: OccupancyGrid, room: Room
+                 ) -> tuple[float, float]:
+    """A point of the furnished living room with START_CLEARANCE_M of free floor around it
+    (SPEC 3.2 treats that disk as free), or the most open points when the room has none."""
+    xs, ys = grid.spec.centres()
+    inside = (xs > room.x0) & (xs < room.x1) & (ys > room.y0) & (ys < room.y1)
+    clearance = np.where(inside, grid.clearance(), 0.0)
+    ok = clearance >= min(START_CLEARANCE_M, clearance.max() - 0.1)
+    cells = np.argwhere(ok)
+    x, y = grid.spec.cell_to_world(cells[int(rng.integers(len(cells)))])
     return round(float(x), 2), round(float(y), 2)
 
 

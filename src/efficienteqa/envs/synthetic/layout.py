@@ -12,7 +12,7 @@ import numpy as np
 
 WALL_THICKNESS_M = 0.1
 WALL_HEIGHT_M = 2.7
-DOOR_WIDTH_M = 0.9
+DOOR_WIDTH_M = 1.0  # wide enough for a robot planning on a 0.1 m map
 DOOR_HEIGHT_M = 2.1
 MIN_ROOM_SIDE_M = 2.8
 HALLWAY_WIDTH_M = 1.6

@@ -1,0 +1,211 @@
+"""Exploration benchmarks (issue 3): per-step cost, coverage, and semantic steering.
+
+Back-ends: synthetic environment (Sweet Home 3D CC0 furniture, or --assets builtin), depth and
+instance buffers rendered with moderngl/EGL on the CPU; no model: semantic values are either
+absent (frontier-only, random) or the ground-truth oracle (explore/oracle.py).
+
+    python benchmarks/explore_bench.py cost      # ms per step in a 6-room house
+    python benchmarks/explore_bench.py coverage  # explored floor vs step, frontier-only vs random
+    python benchmarks/explore_bench.py steering  # steps to see the evidence, oracle SFE vs frontier-only
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
+from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
+from efficienteqa.envs.synthetic.questions import Question, evidence_visible
+from efficienteqa.explore.module import ExploreModule, SemanticScorer
+from efficienteqa.explore.oracle import OracleScorer
+from efficienteqa.explore.references import make_explorer
+from efficienteqa.mapping.maps2d import Mapper
+from efficienteqa.mapping.tsdf import VolumeSpec
+from efficienteqa.scenes import synthetic_questions
+
+
+def step_budget(env: SyntheticEnv) -> int:
+    return int(math.sqrt(env.floor_area_m2) * 3)
+
+
+WINDOW: tuple[float, float, float, float] | None = None  # --window: explored window override
+
+
+def make_mapper(env: SyntheticEnv) -> Mapper:
+    lo, hi = env.bounds
+    spec = VolumeSpec.around(lo[:2], hi[:2], floor_z=0.0)
+    extra = {"explored_window": WINDOW} if WINDOW else {}
+    return Mapper(spec, floor_z=0.0, start_xy=(env.house.start.x, env.house.start.y), **extra)
+
+
+def truth_floor(env: SyntheticEnv, mapper: Mapper) -> np.ndarray:
+    """Ground-truth free floor sampled at the map's cell centres."""
+    xs, ys = mapper.spec.centres()
+    i, j = env.grid.spec.world_to_cell(np.stack([xs, ys], axis=-1))
+    ok = env.grid.spec.contains((i, j))
+    out = np.zeros(xs.shape, bool)
+    out[ok] = env.grid.free[i[ok], j[ok]]
+    return out
+
+
+@dataclass
+class Episode:
+    coverage: list[float] = field(default_factory=list)
+    first_seen: int | None = None
+    steps: int = 0
+    step_ms: list[float] = field(default_factory=list)
+
+
+def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
+        scorer: SemanticScorer | None = None, seen: Callable[[np.ndarray], bool] | None = None,
+        coverage: bool = False) -> Episode:
+    mapper = make_mapper(env)
+    module = ExploreModule(mapper, make_explorer(explorer), scorer, seed=seed)
+    floor = truth_floor(env, mapper) if coverage else None
+    obs, _ = env.reset()
+    ep = Episode()
+    for step in range(1, budget + 1):
+        ep.steps = step
+        if seen is not None and seen(obs.instance):
+            ep.first_seen = step
+            break
+        start = time.perf_counter()
+        out = module.step(obs, step)
+        ep.step_ms.append(1e3 * (time.perf_counter() - start))
+        if floor is not None:
+            ep.coverage.append(out.state.explored_floor_share(floor))
+        if out.decision.done:
+            break
+        obs, _, _, _, info = env.step(out.decision.pose)
+        if info["blocked"]:
+            module.blocked((out.decision.pose.x, out.decision.pose.y))
+    return ep
+
+
+def houses(n: int, assets: str, rooms: int | None = None) -> list[int]:
+    catalog = catalog_for(assets)
+    seeds = [s for s in range(1000)
+             if rooms is None or len(generate_house(s, catalog, assets).layout.rooms) == rooms]
+    return seeds[:n]
+
+
+def cmd_cost(args: argparse.Namespace) -> None:
+    seed = houses(1, args.assets, rooms=6)[0]
+    with SyntheticEnv.from_seed(seed, args.assets) as env:
+        ep = run(env, "frontier-only", 40, seed=0)  # warm-up (numba compilation)
+        ep = run(env, "frontier-only", 40, seed=0)
+    ms = np.array(ep.step_ms)
+    print(f"house {seed} (6 rooms), 640x480, frontier-only, {len(ms)} steps; "
+          "map update + frontiers + planning per step (rendering excluded)")
+    print(f"median {np.median(ms):.1f} ms, p95 {np.percentile(ms, 95):.1f} ms; "
+          f"steps 1-10 median {np.median(ms[:10]):.1f} ms, last 10 median {np.median(ms[-10:]):.1f} ms")
+
+
+def cmd_coverage(args: argparse.Namespace) -> None:
+    curves: dict[str, list[list[float]]] = {"frontier-only": [], "random": []}
+    for seed in houses(args.houses, args.assets):
+        with SyntheticEnv.from_seed(seed, args.assets) as env:
+            budget = step_budget(env)
+            for name in curves:
+                ep = run(env, name, budget, seed=seed, coverage=True)
+                curves[name].append(ep.coverage + [ep.coverage[-1]] * (budget - len(ep.coverage)))
+                print(f"house {seed}: {name:13s} explored {ep.coverage[-1]:.0%} of the floor "
+                      f"after {len(ep.coverage)} steps (budget {budget})")
+    length = min(len(c) for cs in curves.values() for c in cs)
+    mean = {k: np.mean([c[:length] for c in v], axis=0) for k, v in curves.items()}
+    print("\nstep  " + "  ".join(f"{k:>13s}" for k in mean))
+    for s in (1, 5, 10, 15, 20, length):
+        if s <= length:
+            print(f"{s:4d}  " + "  ".join(f"{mean[k][s - 1]:13.1%}" for k in mean))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for k, m in mean.items():
+        ax.plot(np.arange(1, length + 1), 100 * m, label=k)
+    ax.set_xlabel("step")
+    ax.set_ylabel("explored floor (%)")
+    ax.set_title(f"Coverage over {len(curves['random'])} synthetic houses ({args.assets})")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / "coverage.png", dpi=120)
+    print(f"plot: {out / 'coverage.png'}")
+
+
+def cmd_steering(args: argparse.Namespace) -> None:
+    rows = []
+    for seed in houses(10_000, args.assets):
+        if len(rows) >= args.questions:
+            break
+        with SyntheticEnv.from_seed(seed, args.assets) as env:
+            budget = step_budget(env)
+            for q in synthetic_questions(env):
+                if not q.evidence or len(rows) >= args.questions:
+                    continue
+                rows.append(_steer(env, q, budget, seed))
+                r = rows[-1]
+                print(f"{q.id} {q.category:14s} oracle {r['oracle']:2d}  frontier-only "
+                      f"{r['frontier-only']:3d}  oracle-SFE {r['sfe']:3d}  {q.question}")
+    fo = np.array([r["frontier-only"] for r in rows], float)
+    sfe = np.array([r["sfe"] for r in rows], float)
+    oracle = np.array([r["oracle"] for r in rows], float)
+    print(f"\n{len(rows)} questions ({args.assets}); steps until the evidence is first in view "
+          "(budget + 1 when never seen):")
+    print(f"  oracle steps   mean {oracle.mean():.2f}")
+    print(f"  frontier-only  mean {fo.mean():.2f}  (x{fo.mean() / oracle.mean():.2f} oracle), "
+          f"unseen {int((fo > [r['budget'] for r in rows]).sum())}")
+    print(f"  oracle SFE     mean {sfe.mean():.2f}  (x{sfe.mean() / oracle.mean():.2f} oracle), "
+          f"unseen {int((sfe > [r['budget'] for r in rows]).sum())}")
+    print(f"  oracle SFE needs {1 - sfe.mean() / fo.mean():.0%} fewer steps than frontier-only")
+
+
+def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int) -> dict:
+    centre = np.mean([[env.house.object(e).x, env.house.object(e).y] for e in q.evidence], axis=0)
+    field_m = env.grid.distance_field(centre, ROBOT_RADIUS_M, snap_m=2.0)
+
+    def distance_m(xy) -> float:
+        i, j = env.grid.spec.world_to_cell(np.asarray(xy))
+        return float(field_m[i, j]) if env.grid.spec.contains((i, j)) else math.inf
+
+    def seen(instance: np.ndarray) -> bool:
+        return evidence_visible(instance, q.evidence)
+
+    def glimpsed(instance: np.ndarray) -> bool:  # GSV: any evidence in view, even small
+        return any(evidence_visible(instance, [e], min_pixels=20) for e in q.evidence)
+
+    row = {"oracle": q.oracle_steps, "budget": budget}
+    for name, scorer in (("frontier-only", None), ("sfe", OracleScorer(distance_m, glimpsed))):
+        ep = run(env, name, budget, seed=seed, scorer=scorer, seen=seen)
+        row[name] = ep.first_seen if ep.first_seen is not None else budget + 1
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("job", choices=["cost", "coverage", "steering"])
+    parser.add_argument("--assets", default="sh3d", choices=["sh3d", "builtin"])
+    parser.add_argument("--houses", type=int, default=10)
+    parser.add_argument("--questions", type=int, default=30)
+    parser.add_argument("--out", default="out/bench")
+    parser.add_argument("--window", type=float, nargs=4, default=None,
+                        metavar=("U0", "U1", "V0", "V1"),
+                        help="explored window as image fractions (default: the Mapper's)")
+    args = parser.parse_args()
+    global WINDOW
+    WINDOW = tuple(args.window) if args.window else None
+    {"cost": cmd_cost, "coverage": cmd_coverage, "steering": cmd_steering}[args.job](args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,86 @@
+"""The explore module of the paper, one step at a time (SPEC 3.2-3.3).
+
+Per observation: fuse the frame into the map, pick lettered candidate directions, ask the
+semantic scorer for the local (per letter) and global values, paint SV = LSV * GSV into the
+value map, and let the explorer choose the next pose. The scorer is a protocol: a VLM with
+verbalized confidence in the agent, ground truth in the benchmarks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from efficienteqa.envs.base import Observation
+from efficienteqa.explore.base import Decision, Explorer
+from efficienteqa.explore.prompting import PromptPoint, candidate_points
+from efficienteqa.mapping.maps2d import Mapper
+from efficienteqa.mapping.state import MapState
+from efficienteqa.mapping.values import SemanticValueMap, gsv_from_yes, lsv_from_confidences
+
+VALUE_WARMUP_STEPS = 2  # SPEC 3.2: value terms are off for the first 2 steps
+
+
+@dataclass
+class SemanticScore:
+    """What the scorer said about one frame: confidence per letter and P(worth exploring)."""
+
+    letters: dict[str, float]
+    p_yes: float
+    info: dict = field(default_factory=dict)
+
+
+class SemanticScorer(Protocol):
+    def score(self, obs: Observation, prompts: list[PromptPoint], question: str) -> SemanticScore:
+        ...
+
+
+@dataclass
+class ExploreStep:
+    """Everything the explore module did on one observation."""
+
+    step: int
+    state: MapState
+    decision: Decision
+    prompts: list[PromptPoint]
+    lsv: dict[str, float]
+    gsv: float | None
+    score: SemanticScore | None
+
+
+class ExploreModule:
+    """Map + prompts + semantic values + explorer. ``scorer=None`` explores without semantics
+    (the frontier-only and random references)."""
+
+    def __init__(self, mapper: Mapper, explorer: Explorer, scorer: SemanticScorer | None = None,
+                 values: SemanticValueMap | None = None, seed: int = 0) -> None:
+        self.mapper, self.explorer, self.scorer = mapper, explorer, scorer
+        self.values = values if values is not None else SemanticValueMap(mapper.spec)
+        self.seed = seed
+        explorer.reset(seed)
+
+    def step(self, obs: Observation, step: int, question: str = "") -> ExploreStep:
+        state = self.mapper.update(obs)
+        prompts: list[PromptPoint] = []
+        lsv: dict[str, float] = {}
+        gsv = score = None
+        if self.scorer is not None and obs.invalid_fraction < 0.5:
+            h, w = obs.depth_m.shape
+            prompts = candidate_points(state, obs.cam_to_world, obs.intrinsics, (w, h),
+                                       np.random.default_rng([self.seed, step]))
+            if prompts:
+                score = self.scorer.score(obs, prompts, question)
+                letters = [p.letter for p in prompts]
+                lsv = lsv_from_confidences(score.letters, letters)
+                gsv = gsv_from_yes(score.p_yes)
+                self.values.paint([p.xy for p in prompts], [lsv[p.letter] * gsv for p in prompts])
+        use_values = self.scorer is not None and step > VALUE_WARMUP_STEPS
+        decision = self.explorer.decide(state, obs.pose,
+                                        self.values.smoothed() if use_values else None, step)
+        return ExploreStep(step, state, decision, prompts, lsv, gsv, score)
+
+    def blocked(self, pose_xy: tuple[float, float], radius_m: float = 0.3) -> None:
+        """The environment refused a move there: keep the planner away from it."""
+        self.mapper.block(pose_xy, radius_m)
