@@ -92,7 +92,7 @@ def test_explored_only_in_bottom_centre_window():
     assert vol.weight[20, 39, AXIS_IZ] == 1 and vol.explored[20, 39, AXIS_IZ]
     # Bottom rows but 1.5 m to the left: column 15.4 of 64 (24%), outside the window.
     assert vol.weight[35, 39, 5] == 1 and not vol.explored[35, 39, 5]
-    # Every explored voxel projects into the window; every observed one inside it is explored.
+    # Explored = observed, in the window, and in front of or at the surface.
     iy, ix, iz = np.nonzero(vol.weight > 0)
     centres = np.array(SPEC.origin) + (np.stack([ix, iy, iz], axis=1) + 0.5) * SPEC.voxel_m
     cam = (centres - camera_to_world(POSE, CAMERA)[:3, 3]) @ camera_to_world(POSE, CAMERA)[:3, :3]
@@ -100,4 +100,6 @@ def test_explored_only_in_bottom_centre_window():
     u = k[0, 0] * cam[:, 0] / cam[:, 2] + k[0, 2]
     v = k[1, 1] * cam[:, 1] / cam[:, 2] + k[1, 2]
     inside = (u >= 0.25 * 64) & (u < 0.75 * 64) & (v >= 0.4 * 48) & (v < 48)
-    assert (vol.explored[iy, ix, iz] == inside).all()
+    at_or_before_surface = (4.0 - POSE.x) - cam[:, 2] >= -SPEC.voxel_m  # deeper: not seen
+    assert (vol.explored[iy, ix, iz] == (inside & at_or_before_surface)).all()
+    assert (inside & ~at_or_before_surface).any()  # the band behind the wall is observed too

@@ -146,20 +146,40 @@ class FrontierExplorer:
 
     def _standing_points(self, state: MapState, frontiers: list[Frontier],
                          reachable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Standing points (K, 2) m, ``backoff_m`` behind each frontier against its normal,
-        moved to the nearest reachable cell centre when not on one; ok (K,) is False where that
-        move exceeds ``max_stand_shift_m``."""
+        """Standing points (K, 2) m, ``backoff_m`` behind each frontier against its normal.
+
+        Where that point is not a reachable cell (outside the house past an oblique doorway,
+        inside furniture), shorter back-offs are tried (2/3, 1/3, 0 of it); failing those, the
+        reachable cell nearest the full back-off point, then the one nearest the frontier
+        point. ok (K,) is False where no reachable cell lies within ``max_stand_shift_m``."""
         spec, cfg = state.spec, self.config
-        xy = np.array([f.xy for f in frontiers]) - cfg.backoff_m * np.array(
-            [f.normal for f in frontiers])
-        i, j = spec.world_to_cell(xy)
+        points = np.array([f.xy for f in frontiers])
+        normals = np.array([f.normal for f in frontiers])
+
+        def on_reachable(xy: np.ndarray) -> np.ndarray:
+            i, j = spec.world_to_cell(xy)
+            inside = spec.contains((i, j))
+            out = np.zeros(len(xy), bool)
+            out[inside] = reachable[i[inside], j[inside]]
+            return out
+
+        full = points - cfg.backoff_m * normals
+        i, j = spec.world_to_cell(full)
         i = np.clip(i, 0, spec.shape[0] - 1)
         j = np.clip(j, 0, spec.shape[1] - 1)
-        on_cell = spec.contains(spec.world_to_cell(xy)) & reachable[i, j]
         _, (ni, nj) = ndimage.distance_transform_edt(~reachable, return_indices=True)
-        snapped = spec.cell_to_world(np.stack([ni[i, j], nj[i, j]], axis=-1))
-        stands = np.where(on_cell[:, None], xy, snapped)
-        ok = np.linalg.norm(stands - xy, axis=1) <= cfg.max_stand_shift_m
+        stands = spec.cell_to_world(np.stack([ni[i, j], nj[i, j]], axis=-1))
+        ok = np.linalg.norm(stands - full, axis=1) <= cfg.max_stand_shift_m
+        # Next: the reachable cell nearest the frontier point itself (an oblique doorway edge).
+        fi, fj = (np.clip(a, 0, n - 1) for a, n in zip(spec.world_to_cell(points), spec.shape))
+        near = spec.cell_to_world(np.stack([ni[fi, fj], nj[fi, fj]], axis=-1))
+        use = ~ok & (np.linalg.norm(near - points, axis=1) <= cfg.max_stand_shift_m)
+        stands[use], ok = near[use], ok | use
+        for fraction in (0.0, 1 / 3, 2 / 3, 1.0):  # the longest back-off that works wins
+            xy = points - fraction * cfg.backoff_m * normals
+            hit = on_reachable(xy)
+            stands[hit] = xy[hit]
+            ok |= hit
         return stands, ok
 
     def _facing(self, path: np.ndarray, frontier_xy: np.ndarray, yaw: float) -> float:

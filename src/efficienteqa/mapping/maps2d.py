@@ -30,7 +30,8 @@ class Voxels(Protocol):
 
 
 def free_and_occupied(volume: Voxels, floor_z: float, robot_height_m: float = 1.5,
-                      free_z_m: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
+                      free_z_m: float = 0.2, surface_tsdf: float = -0.3
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """(free, occupied) bool masks (ny, nx); heights in world metres.
 
     free: every voxel of the column from floor_z + free_z_m up to floor_z + robot_height_m has
@@ -38,7 +39,10 @@ def free_and_occupied(volume: Voxels, floor_z: float, robot_height_m: float = 1.
     voxel from floor-0.2 m to floor+0.1 m has weight > 0). This extends SPEC 3.2's "TSDF > 0
     at 0.2 m" with the robot's body height, so the planner never drives under tables or
     shelves, and keeps SPEC's "unobserved counts as occupied" for the whole body band.
-    occupied: some observed obstacle voxel (weight > 0, tsdf <= 0) in that height band.
+    occupied: some observed surface voxel (weight > 0, surface_tsdf <= tsdf <= 0: at most
+    0.15 m behind a surface with the defaults) in that height band. Voxels deeper behind a
+    surface were not really seen: around the view's edges past a door jamb they are mostly
+    empty space, and counting them as obstacles walls off doorways and hides frontiers.
     Cells that are neither have not been observed enough to tell.
     """
     spec = volume.spec
@@ -47,7 +51,7 @@ def free_and_occupied(volume: Voxels, floor_z: float, robot_height_m: float = 1.
     k_floor_lo, k_floor_hi = spec.z_index(floor_z - 0.2), spec.z_index(floor_z + 0.1)
     band_t, band_w = volume.tsdf[..., k_free:k_top], volume.weight[..., k_free:k_top]
     seen = band_w > 0
-    occupied = np.any(seen & (band_t <= 0), axis=2)
+    occupied = np.any(seen & (band_t <= 0) & (band_t >= surface_tsdf), axis=2)
     empty = np.all(seen & (band_t > 0), axis=2)
     floor_seen = np.any(volume.weight[..., k_floor_lo:max(k_floor_hi, k_floor_lo + 1)] > 0, axis=2)
     return np.asarray(empty & floor_seen), np.asarray(occupied)
@@ -161,7 +165,9 @@ class Mapper:
     def _refresh(self, region: tuple[slice, slice]) -> None:
         """Recompute the cached 2-D maps on the (rows, cols) window the last frame visited."""
         sub = _SubVolume(self.volume, region)
-        free, occupied = free_and_occupied(sub, self.floor_z, self.robot_height_m)
+        surface = -1.5 * self.volume.spec.voxel_m / self.volume.trunc_m  # 1.5 voxels behind
+        free, occupied = free_and_occupied(sub, self.floor_z, self.robot_height_m,
+                                           surface_tsdf=surface)
         self._free[region] = free
         self._occupied[region] = occupied
         self._explored[region] = explored_2d(sub)

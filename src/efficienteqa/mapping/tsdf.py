@@ -171,5 +171,7 @@ def _integrate(tsdf, weight, explored, depth, fxfycxcy, world_to_cam, origin, vo
                 wt = weight[iy, ix, iz]
                 tsdf[iy, ix, iz] = (tsdf[iy, ix, iz] * wt + obs * wo) / (wt + wo)
                 weight[iy, ix, iz] = wt + wo
-                if win_px[0] <= u < win_px[1] and win_px[2] <= v < win_px[3]:
+                # Explored: seen in the window, in front of or at the surface (not deep in the
+                # band behind it, which the camera did not really see).
+                if sdf >= -voxel_m and win_px[0] <= u < win_px[1] and win_px[2] <= v < win_px[3]:
                     explored[iy, ix, iz] = True
