@@ -42,16 +42,20 @@ class SFEConfig:
     reached_m: float = 0.3  # committed target reached within this
     vanish_m: float = 1.0  # committed frontier gone: no frontier cell within this
     face_min_m: float = 0.2  # closer to the frontier than this: keep the path direction
-    # Frontiers already looked at from their standing point keep their unexplored side when it
-    # is occluded (behind a sofa, under a bed): penalise them like the close-and-facing rule.
+    # A frontier reached and looked at may keep its unexplored side (occluded behind a sofa,
+    # or seen too obliquely). The close-and-facing rule cannot catch it at a 1.5 m back-off:
+    # it gets a second look from the frontier itself, then is never chosen again.
     looked_m: float = 1.0
-    looked_factor: float = 1e-3
+    looked_factor: float = 1e-3  # their weight, as reported
+    max_looks: int = 2  # looked at this often (from the back-off, then up close): never again
+    tight_radius_m: float = 0.1  # second try when nothing is reachable at robot_radius_m
 
 
 @dataclass
 class _Target:
     frontier: Frontier
     stand_xy: np.ndarray
+    radius_m: float  # the planning radius it was found reachable with
 
 
 class FrontierExplorer:
@@ -66,7 +70,7 @@ class FrontierExplorer:
         """Seed the sampling and forget the committed target."""
         self._rng = np.random.default_rng(seed)
         self._target: _Target | None = None
-        self._looked: list[tuple[float, float]] = []  # frontiers reached and looked at
+        self._looked: list[list] = []  # [frontier xy, times reached and looked at]
 
     def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
                step: int) -> Decision:
@@ -76,42 +80,46 @@ class FrontierExplorer:
         frontiers = frontiers_from_cells(state, cells, cfg.frontier)
         weights = frontier_weights(state, frontiers, pose, values if cfg.use_values else None,
                                    step, cfg.frontier)
-        if self._looked and frontiers:
-            xy = np.array([f.xy for f in frontiers])
-            gap = np.linalg.norm(xy[:, None] - np.array(self._looked)[None], axis=2).min(axis=1)
-            weights = np.where(gap <= cfg.looked_m, weights * cfg.looked_factor, weights)
         stay = Decision(pose, pose.xy[None, :].copy(), frontiers=frontiers, weights=weights,
                         done=True)
         if not frontiers:
             self._target = None
             stay.reason = "no frontier"
             return stay
+        looks = self._looks(np.array([f.xy for f in frontiers]))
+        # Looked at once from the back-off point: one more look, from the frontier itself.
+        backoff = np.where(looks == 0, cfg.backoff_m, 0.0)
+        stay.weights = weights = np.where(looks == 0, weights, weights * cfg.looked_factor)
         grid = OccupancyGrid(state.spec, state.island)
         start = (pose.x, pose.y)
-        radius = cfg.robot_radius_m
-        if grid.snap(start, radius, cfg.snap_m) is None:
-            radius = 0.0
-        dist = grid.distance_field(start, radius, cfg.snap_m)
-        reachable = grid.navigable(radius) & np.isfinite(dist)
-        if not reachable.any():
-            self._target = None
-            stay.reason = "robot off the island"
-            return stay
 
         reason = "committed"
-        if self._target is not None and not self._keep_target(state, cells, reachable, pose):
-            self._target = None
+        if self._target is not None:
+            reachable, _ = self._reachable(grid, start, self._target.radius_m)
+            if reachable is None or not self._keep_target(state, cells, reachable, pose):
+                self._target = None
         if self._target is None:
             reason = "new frontier"
-            stands, ok = self._standing_points(state, frontiers, reachable)
-            if not ok.any():
+            # Through a doorway seen at an angle only a sliver of floor is mapped: when nothing
+            # fresh is reachable at the planning radius, try the tight one (a wrong guess comes
+            # back as a blocked move and is mapped).
+            for wanted in (cfg.robot_radius_m, cfg.tight_radius_m):
+                reachable, radius = self._reachable(grid, start, wanted)
+                if reachable is None:
+                    continue
+                stands, ok = self._standing_points(state, frontiers, reachable, backoff)
+                ok &= looks < cfg.max_looks
+                if ok.any():
+                    k = sample_index(self._rng, np.where(ok, weights, 0.0), ok)
+                    self._target = _Target(frontiers[k], stands[k], radius)
+                    break
+            else:
                 stay.reason = "no reachable frontier"
                 return stay
-            k = sample_index(self._rng, np.where(ok, weights, 0.0), ok)
-            self._target = _Target(frontiers[k], stands[k])
 
-        goal = (float(self._target.stand_xy[0]), float(self._target.stand_xy[1]))
-        path = grid.shortest_path(start, goal, radius, cfg.snap_m)
+        target = self._target
+        goal = (float(target.stand_xy[0]), float(target.stand_xy[1]))
+        path = grid.shortest_path(start, goal, target.radius_m, cfg.snap_m)
         if path is None:  # the snapped robot cell and the target share a component: defensive
             self._target = None
             stay.reason = "no path"
@@ -119,13 +127,22 @@ class FrontierExplorer:
         if np.linalg.norm(path[0] - pose.xy) > 1e-9:
             path = np.vstack([pose.xy, path])
         path = cut_path(path, cfg.max_step_m)
-        target = self._target
         yaw = self._facing(path, np.asarray(target.frontier.xy), pose.yaw)
         end = path[-1]
         return Decision(Pose2D(float(end[0]), float(end[1]), yaw), path,
-                        target_xy=(float(target.stand_xy[0]), float(target.stand_xy[1])),
-                        frontier=target.frontier, frontiers=frontiers, weights=weights,
-                        reason=reason)
+                        target_xy=goal, frontier=target.frontier, frontiers=frontiers,
+                        weights=weights, reason=reason)
+
+    def _reachable(self, grid: OccupancyGrid, start: tuple[float, float], radius_m: float
+                   ) -> tuple[np.ndarray | None, float]:
+        """(cells reachable from the robot, the radius used): radius 0 when the robot's own
+        cell is too tight for ``radius_m``; None when no cell is reachable."""
+        cfg = self.config
+        if grid.snap(start, radius_m, cfg.snap_m) is None:
+            radius_m = 0.0
+        dist = grid.distance_field(start, radius_m, cfg.snap_m)
+        reachable = grid.navigable(radius_m) & np.isfinite(dist)
+        return (reachable if reachable.any() else None), radius_m
 
     # ----- helpers -------------------------------------------------------------------------
     def _keep_target(self, state: MapState, cells: np.ndarray, reachable: np.ndarray,
@@ -134,7 +151,7 @@ class FrontierExplorer:
         t, cfg = self._target, self.config
         assert t is not None
         if np.linalg.norm(pose.xy - t.stand_xy) <= cfg.reached_m:
-            self._looked.append(t.frontier.xy)
+            self._record_look(t.frontier.xy)
             return False
         if not len(cells):
             return False
@@ -144,9 +161,26 @@ class FrontierExplorer:
         i, j = state.spec.world_to_cell(t.stand_xy)
         return bool(state.spec.contains((i, j)) and reachable[i, j])
 
+    def _looks(self, xy: np.ndarray) -> np.ndarray:
+        """How often each frontier point (K, 2) was already reached and looked at."""
+        if not self._looked or not len(xy):
+            return np.zeros(len(xy), int)
+        points = np.array([p for p, _ in self._looked])
+        counts = np.array([c for _, c in self._looked])
+        near = np.linalg.norm(xy[:, None] - points[None], axis=2) <= self.config.looked_m
+        return np.where(near, counts[None], 0).max(axis=1)
+
+    def _record_look(self, xy: tuple[float, float]) -> None:
+        for entry in self._looked:
+            if np.hypot(entry[0][0] - xy[0], entry[0][1] - xy[1]) <= self.config.looked_m:
+                entry[1] += 1
+                return
+        self._looked.append([xy, 1])
+
     def _standing_points(self, state: MapState, frontiers: list[Frontier],
-                         reachable: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Standing points (K, 2) m, ``backoff_m`` behind each frontier against its normal.
+                         reachable: np.ndarray, backoff_m: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Standing points (K, 2) m, ``backoff_m`` (K,) behind each frontier against its normal.
 
         Where that point is not a reachable cell (outside the house past an oblique doorway,
         inside furniture), shorter back-offs are tried (2/3, 1/3, 0 of it); failing those, the
@@ -163,7 +197,7 @@ class FrontierExplorer:
             out[inside] = reachable[i[inside], j[inside]]
             return out
 
-        full = points - cfg.backoff_m * normals
+        full = points - backoff_m[:, None] * normals
         i, j = spec.world_to_cell(full)
         i = np.clip(i, 0, spec.shape[0] - 1)
         j = np.clip(j, 0, spec.shape[1] - 1)
@@ -176,7 +210,7 @@ class FrontierExplorer:
         use = ~ok & (np.linalg.norm(near - points, axis=1) <= cfg.max_stand_shift_m)
         stands[use], ok = near[use], ok | use
         for fraction in (0.0, 1 / 3, 2 / 3, 1.0):  # the longest back-off that works wins
-            xy = points - fraction * cfg.backoff_m * normals
+            xy = points - fraction * backoff_m[:, None] * normals
             hit = on_reachable(xy)
             stands[hit] = xy[hit]
             ok |= hit
