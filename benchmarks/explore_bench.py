@@ -153,15 +153,15 @@ def cmd_steering(args: argparse.Namespace) -> None:
             for q in synthetic_questions(env):
                 if not q.evidence or len(rows) >= args.questions:
                     continue
-                rows.append(_steer(env, q, budget, seed))
+                rows.append(_steer(env, q, budget, seed, args.repeats))
                 r = rows[-1]
                 print(f"{q.id} {q.category:14s} oracle {r['oracle']:2d}  frontier-only "
-                      f"{r['frontier-only']:3d}  oracle-SFE {r['sfe']:3d}  {q.question}")
+                      f"{r['frontier-only']:5.1f}  oracle-SFE {r['sfe']:5.1f}  {q.question}")
     fo = np.array([r["frontier-only"] for r in rows], float)
     sfe = np.array([r["sfe"] for r in rows], float)
     oracle = np.array([r["oracle"] for r in rows], float)
-    print(f"\n{len(rows)} questions ({args.assets}); steps until the evidence is first in view "
-          "(budget + 1 when never seen):")
+    print(f"\n{len(rows)} questions x {args.repeats} seeds ({args.assets}); steps until the "
+          "evidence is first in view (budget + 1 when never seen):")
     print(f"  oracle steps   mean {oracle.mean():.2f}")
     print(f"  frontier-only  mean {fo.mean():.2f}  (x{fo.mean() / oracle.mean():.2f} oracle), "
           f"unseen {int((fo > [r['budget'] for r in rows]).sum())}")
@@ -170,7 +170,8 @@ def cmd_steering(args: argparse.Namespace) -> None:
     print(f"  oracle SFE needs {1 - sfe.mean() / fo.mean():.0%} fewer steps than frontier-only")
 
 
-def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int) -> dict:
+def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int) -> dict:
+    """Mean steps over ``repeats`` explorer seeds for each method (SFE samples frontiers)."""
     centre = np.mean([[env.house.object(e).x, env.house.object(e).y] for e in q.evidence], axis=0)
     field_m = env.grid.distance_field(centre, ROBOT_RADIUS_M, snap_m=2.0)
 
@@ -186,8 +187,11 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int) -> dict:
 
     row = {"oracle": q.oracle_steps, "budget": budget}
     for name, scorer in (("frontier-only", None), ("sfe", OracleScorer(distance_m, glimpsed))):
-        ep = run(env, name, budget, seed=seed, scorer=scorer, seen=seen)
-        row[name] = ep.first_seen if ep.first_seen is not None else budget + 1
+        steps = []
+        for r in range(repeats):
+            ep = run(env, name, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen)
+            steps.append(ep.first_seen if ep.first_seen is not None else budget + 1)
+        row[name] = float(np.mean(steps))
     return row
 
 
@@ -197,6 +201,7 @@ def main() -> None:
     parser.add_argument("--assets", default="sh3d", choices=["sh3d", "builtin"])
     parser.add_argument("--houses", type=int, default=10)
     parser.add_argument("--questions", type=int, default=30)
+    parser.add_argument("--repeats", type=int, default=1, help="explorer seeds per question")
     parser.add_argument("--out", default="out/bench")
     parser.add_argument("--window", type=float, nargs=4, default=None,
                         metavar=("U0", "U1", "V0", "V1"),

@@ -124,3 +124,19 @@ def test_draw_prompts_marks_each_point_and_nothing_far_away():
     for p in points:
         near |= np.hypot(uu - p.pixel[0], vv - p.pixel[1]) <= 21
     assert (out[~near] == 30).all()
+
+
+def test_unexplored_candidates_are_preferred():
+    free = _room()
+    state = _state(free)
+    # Everything up to 5 m ahead of the robot explored: the prompts go beyond it.
+    xs, _ = state.spec.centres()
+    state.explored = free & (xs < ROBOT.x + 5.0)
+    points = _candidates(state)
+    assert len(points) >= 2
+    for p in points:
+        i, j = state.spec.world_to_cell(p.xy)
+        assert not state.explored[i, j]
+    # With everything explored the usual candidates come back.
+    state.explored = free.copy()
+    assert len(_candidates(state)) >= 2

@@ -69,7 +69,8 @@ def _sampled_line_of_sight(free: np.ndarray, state: MapState, targets: np.ndarra
 def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrinsics: np.ndarray,
                      image_size: tuple[int, int], rng_or_seed: np.random.Generator | int | None,
                      radius_m: float = 0.2, min_m: float = 2.0, max_m: float = 10.0, n: int = 3,
-                     merge_m: float = 1.0, margin_px: float = 20.0) -> list[PromptPoint]:
+                     merge_m: float = 1.0, margin_px: float = 20.0,
+                     prefer_unexplored: bool = True) -> list[PromptPoint]:
     """Up to ``n`` lettered floor points to prompt the VLM with; [] unless at least 2 remain.
 
     Candidates are island cell centres navigable for a disk robot of ``radius_m`` in the robot's
@@ -79,6 +80,11 @@ def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrins
     the seeded RNG (deterministic for a seed), then adds the candidate farthest from those chosen;
     a point within ``merge_m`` of an earlier one is dropped. Letters A, B, C go left to right in
     the image: "A" is the leftmost point.
+
+    With ``prefer_unexplored`` the candidates are the unexplored ones whenever at least 2 of
+    them qualify: the prompt asks which direction to explore, and values painted where the
+    robot has already looked sit away from every frontier, so they cannot steer (SPEC 3.2
+    weights frontiers by the value at and beyond them).
     """
     rng = np.random.default_rng(rng_or_seed)
     island = OccupancyGrid(state.spec, state.island)
@@ -98,6 +104,11 @@ def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrins
     xy, uv = xy[view], uv[view]
     sight = _sampled_line_of_sight(state.free, state, xy)
     xy, uv = xy[sight], uv[sight]
+    if prefer_unexplored and len(xy):
+        i, j = state.spec.world_to_cell(xy)
+        fresh = ~state.explored[i, j]
+        if fresh.sum() >= 2:
+            xy, uv = xy[fresh], uv[fresh]
     chosen = _farthest_points(xy, OccupancyGrid(state.spec, state.free), state.robot_xy, n, rng)
     kept: list[int] = []
     for k in chosen:
