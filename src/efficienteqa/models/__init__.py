@@ -1,0 +1,2 @@
+"""Model back-ends: chat models (VLM/LLM) behind one protocol, the local llama.cpp server,
+verbalized confidence."""
