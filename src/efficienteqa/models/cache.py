@@ -1,0 +1,141 @@
+"""Persistent chat-response cache: one sqlite file shared by every worker on a machine.
+
+The key is a sha256 over what determines a reply: model name, messages (each image replaced by
+the sha256 of its pixels, shape and dtype), ``max_tokens``, ``temperature``, ``logprobs``,
+``json_schema``, ``seed`` and the image encoding. It never includes the server address or the API
+key, so the same request against GPT-4o through two gateways is one entry, and the database holds
+no secret.
+
+Requests with ``temperature > 0`` are cached too, with the seed in the key: we prefer
+reproducible episodes over sampling diversity. To draw several samples, vary the seed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+import threading
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from efficienteqa.cache import cache_dir
+from efficienteqa.models.base import ChatResponse, Message, TokenLogprob
+
+_SCHEMA = """CREATE TABLE IF NOT EXISTS responses (
+    key TEXT PRIMARY KEY, model TEXT NOT NULL, created REAL NOT NULL, response TEXT NOT NULL)"""
+
+
+def image_sha256(image: np.ndarray) -> str:
+    """Hash of an image's pixels, shape and dtype (two crops with equal bytes differ)."""
+    array = np.ascontiguousarray(image)
+    digest = hashlib.sha256(f"{array.shape}|{array.dtype.str}|".encode())
+    digest.update(array.tobytes())
+    return digest.hexdigest()
+
+
+def request_key(model: str, messages: list[Message], *, max_tokens: int, temperature: float,
+                logprobs: int | None, json_schema: dict[str, Any] | None, seed: int | None,
+                image_encoding: str = "") -> str:
+    """The cache key of one chat request (hex sha256); see the module docstring."""
+    payload = {
+        "model": model,
+        "messages": [{"role": m.role, "text": m.text, "images": [image_sha256(i) for i in m.images]}
+                     for m in messages],
+        "max_tokens": max_tokens,
+        "temperature": float(temperature),
+        "logprobs": logprobs,
+        "json_schema": json_schema,
+        "seed": seed,
+        "image_encoding": image_encoding if any(m.images for m in messages) else "",
+    }
+    blob = json.dumps(payload, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def response_to_json(response: ChatResponse) -> str:
+    return json.dumps(asdict(response), ensure_ascii=False)
+
+
+def response_from_json(blob: str) -> ChatResponse:
+    data = json.loads(blob)
+    if data.get("logprobs") is not None:
+        data["logprobs"] = [TokenLogprob(token=t["token"], logprob=t["logprob"],
+                                         top=tuple((a, b) for a, b in t.get("top", ())))
+                            for t in data["logprobs"]]
+    return ChatResponse(**data)
+
+
+class ResponseCache:
+    """sqlite (WAL, busy timeout) at ``path`` or ``cache_dir("responses")/responses.sqlite``.
+
+    One connection per thread, opened on first use; several processes may share the file.
+    """
+
+    def __init__(self, path: str | Path | None = None, *, busy_timeout_s: float = 30.0) -> None:
+        self._path = Path(path) if path is not None else None
+        self._busy_timeout_s = busy_timeout_s
+        self._local = threading.local()
+        self._lock = threading.Lock()
+        self.hits = 0
+        self.misses = 0
+
+    @property
+    def path(self) -> Path:
+        if self._path is None:
+            self._path = cache_dir("responses") / "responses.sqlite"
+        return self._path
+
+    def _connection(self) -> sqlite3.Connection:
+        conn = getattr(self._local, "conn", None)
+        if conn is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            conn = sqlite3.connect(self.path, timeout=self._busy_timeout_s, isolation_level=None)
+            conn.execute(f"PRAGMA busy_timeout = {int(self._busy_timeout_s * 1000)}")
+            conn.execute("PRAGMA journal_mode = WAL")
+            conn.execute("PRAGMA synchronous = NORMAL")
+            conn.execute(_SCHEMA)
+            self._local.conn = conn
+        return conn
+
+    def get(self, key: str) -> ChatResponse | None:
+        """The stored response with ``cached=True`` and the lookup time as latency, or None."""
+        start = time.perf_counter()
+        row = self._connection().execute("SELECT response FROM responses WHERE key = ?",
+                                         (key,)).fetchone()
+        with self._lock:
+            if row is None:
+                self.misses += 1
+                return None
+            self.hits += 1
+        response = response_from_json(row[0])
+        response.cached = True
+        response.latency_s = time.perf_counter() - start
+        return response
+
+    def put(self, key: str, response: ChatResponse) -> None:
+        stored = response_to_json(replace(response, cached=False))
+        self._connection().execute(
+            "INSERT OR REPLACE INTO responses (key, model, created, response) VALUES (?, ?, ?, ?)",
+            (key, response.model, time.time(), stored))
+
+    def clear(self) -> None:
+        self._connection().execute("DELETE FROM responses")
+
+    def stats(self) -> dict[str, Any]:
+        """Entries and size on disk, and this object's hits and misses."""
+        (entries,) = self._connection().execute("SELECT COUNT(*) FROM responses").fetchone()
+        size = sum(p.stat().st_size for p in self.path.parent.glob(self.path.name + "*"))
+        return {"path": str(self.path), "entries": entries, "bytes": size,
+                "hits": self.hits, "misses": self.misses}
+
+    def close(self) -> None:
+        """Close this thread's connection (others close when their threads end)."""
+        conn = getattr(self._local, "conn", None)
+        if conn is not None:
+            conn.close()
+            self._local.conn = None
