@@ -1,0 +1,384 @@
+"""Verbalized confidence: parsers that never raise, grouping E(.), C_k, argmax, the two calls."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from efficienteqa.models.base import Message, TokenLogprob
+from efficienteqa.models.stub import StubChatModel
+from efficienteqa.models.vc import (
+    DEFAULT_P_YES,
+    AnswerClass,
+    Candidate,
+    ExactGrouper,
+    LLMGrouper,
+    RuleGrouper,
+    answer_with_confidence,
+    argmax,
+    blind_answer,
+    contradictory,
+    explore_scores,
+    group_answers,
+    letter_probs_from_logprobs,
+    load_prompt,
+    normalise,
+    parse_candidates,
+    parse_letters,
+    parse_worth_exploring,
+    yes_prob_from_logprobs,
+)
+
+# ---------------------------------------------------------------------------- fuzz
+
+FRAGMENTS = [
+    "A", "B", "C", "D", "a", "Z", ":", ";", " - ", "—", "%", "(", ")", "[", "]", "{", "}", ",", "\n",
+    " ", "60", "0.6", "-5", "150", "1e999", "-1e999", "NaN", "nan", "inf", "-inf", "Infinity",
+    "99999999999999999999999999", "0", ".5", "1.", "yes", "No", "worth exploring", "not worth",
+    "confidence", "conf:", "percent", "/100", '{"answers": [', '{"answer": "red", "confidence": ',
+    '"confidence": "80%"', '[{"direction": "A", "confidence": 0.7}]', '"A": 60', "```json", "```",
+    "1.", "2)", "- ", "**", "答案", "🙂", "\u2028", "\x00", "\t", "ⅷ", "٣", "１２", "Direction ",
+]
+adversarial = st.lists(st.sampled_from(FRAGMENTS), max_size=40).map("".join)
+replies = st.one_of(st.text(max_size=300), adversarial)
+
+
+def _check(result, m, allowed=None):
+    assert len(result.candidates) <= m
+    for c in result.candidates:
+        assert isinstance(c.text, str) and c.text
+        assert math.isfinite(c.confidence) and 0.0 <= c.confidence <= 100.0
+        if allowed is not None:
+            assert c.text in allowed
+    assert all(isinstance(p, str) for p in result.problems)
+
+
+@settings(max_examples=2500, deadline=None)
+@given(replies, st.integers(1, 5))
+def test_parse_candidates_never_raises(reply, m):
+    _check(parse_candidates(reply, m), m)
+
+
+@settings(max_examples=2500, deadline=None)
+@given(replies, st.sampled_from(["ABC", "AB", "A", "ABCD"]))
+def test_parse_letters_never_raises(reply, letters):
+    _check(parse_letters(reply, list(letters)), 3, set(letters))
+
+
+@settings(max_examples=2500, deadline=None)
+@given(replies)
+def test_parse_worth_exploring_never_raises(reply):
+    p, problems = parse_worth_exploring(reply)
+    assert math.isfinite(p) and 0.0 <= p <= 1.0
+    assert all(isinstance(x, str) for x in problems)
+
+
+def test_parsers_accept_non_strings_and_huge_replies():
+    for reply in (None, 42, b"A: 60", "[" * 50_000, "A: 60\n" * 10_000):
+        _check(parse_candidates(reply), 3)  # type: ignore[arg-type]
+        _check(parse_letters(reply, "ABC"), 3, set("ABC"))  # type: ignore[arg-type]
+        assert 0 <= parse_worth_exploring(reply)[0] <= 1  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("reply", [
+    "A" + " " * 20_000 + "x", "A" + " \t" * 10_000, ": 5" + " ." * 10_000 + "x", "(" * 20_000,
+    "A: 1 " * 5_000, "worth " * 5_000, "1" * 20_000, "{" + '"a": [' * 3_000, "\u2003" * 20_000 + "A",
+])
+def test_parsers_stay_fast_on_pathological_replies(reply):
+    start = time.perf_counter()
+    parse_candidates(reply)
+    parse_letters(reply, "ABC")
+    parse_worth_exploring(reply)
+    assert time.perf_counter() - start < 1.0
+
+
+# ---------------------------------------------------------------------------- parser tables
+
+def _pairs(result):
+    return [(c.text, pytest.approx(c.confidence)) for c in result.candidates]
+
+
+@pytest.mark.parametrize("reply, expected, clean", [
+    ("red sofa; 70\nblue sofa; 20\ngrey armchair; 10",
+     [("red sofa", 70), ("blue sofa", 20), ("grey armchair", 10)], True),
+    ("1. red sofa — 70%\n2. blue couch — 20%\n3. green (10%)",
+     [("red sofa", 70), ("blue couch", 20), ("green", 10)], True),
+    ("red (0.7)\nblue (0.3)", [("red", 70), ("blue", 30)], True),
+    ("kitchen: 0.5\nbedroom: 1", [("kitchen", 50), ("bedroom", 100)], True),  # fractions
+    ("red: 60, blue: 30, green: 10", [("red", 60), ("blue", 30), ("green", 10)], True),
+    ("Answer 1: the sofa (confidence: 80%)\nAnswer 2: a bed, confidence 20",
+     [("the sofa", 80), ("a bed", 20)], True),
+    ("4; 80\n5; 20", [("4", 80), ("5", 20)], True),
+    ("Here are my guesses:\n- 4 chairs: 0.5\n- four: 0.3\nHope this helps.",
+     [("4 chairs", 50), ("four", 30)], False),
+    ('```json\n{"answers": [{"answer": "red", "confidence": 80}, '
+     '{"answer": "blue", "confidence": "20%"}]}\n```', [("red", 80), ("blue", 20)], True),
+    ('Sure: [{"answer": "kitchen", "confidence": 0.9}]', [("kitchen", 90)], False),
+    ('[["sofa", 60], ["bed", 40]]', [("sofa", 60), ("bed", 40)], True),
+    ('{"question": "What?", "answers": {"sofa": "60%", "bed": 40}}', [("sofa", 60), ("bed", 40)], True),
+    ("red; 150\nblue; -5", [("red", 100), ("blue", 0)], False),  # clip, floor at 0
+    ("red; 1e999\nblue; 20", [("red", 100), ("blue", 20)], False),
+    ("kitchen\nbedroom\n", [("kitchen", 100 / 3), ("bedroom", 100 / 3)], False),  # default 100/m
+    ("red; 60\nred; 60\nblue; 40", [("red", 60), ("blue", 40)], False),  # exact duplicate line
+    ("a; 40\nb; 30\nc; 20\nd; 10", [("a", 40), ("b", 30), ("c", 20)], False),  # more than m
+    ("red; nan\nblue; 50", [("red", 100 / 3), ("blue", 50)], False),
+    ("", [], False),
+])
+def test_parse_candidates_table(reply, expected, clean):
+    result = parse_candidates(reply)
+    assert _pairs(result) == expected
+    assert (result.problems == []) is clean, result.problems
+
+
+@pytest.mark.parametrize("reply, expected, clean", [
+    ("A: 60\nC: 30\nB: 10\nworth exploring: yes 80", [("A", 60), ("C", 30), ("B", 10)], True),
+    ("A - 60%\nB - 40%", [("A", 60), ("B", 40)], True),
+    ("A (0.6)\nB (0.4)", [("A", 60), ("B", 40)], True),
+    ("A: 60, C: 30, B: 10, worth exploring: yes 80", [("A", 60), ("C", 30), ("B", 10)], True),
+    ("Sure! Here you go:\n**A**: 60\nB: 30", [("A", 60), ("B", 30)], True),
+    ("Direction B: 70%\nDirection A: 30%", [("B", 70), ("A", 30)], True),
+    ("a: 50\nb: 50", [("A", 50), ("B", 50)], True),
+    ('```json\n{"A": 60, "B": 30, "worth_exploring": "yes 70"}\n```', [("A", 60), ("B", 30)], True),
+    ('[{"direction": "B", "confidence": 0.7}, {"direction": "A", "confidence": 0.3}]',
+     [("B", 70), ("A", 30)], True),
+    ("A: 60\nD: 20\nB: 30", [("A", 60), ("B", 30)], False),  # unknown letter
+    ("A: 150\nB: -5\nC: nan", [("A", 100), ("B", 0), ("C", 100 / 3)], False),
+    ("I would go to B.", [("B", 100 / 3)], False),
+    ("A: 60\nA: 60\nB: 40", [("A", 60), ("B", 40)], False),
+    ("A (through the open door, 4 m): 60\nB - past the sofa: 40", [("A", 60), ("B", 40)], True),
+    ("A sofa is near the door\nB: 40", [("B", 40)], True),
+    ("nothing useful", [], False),
+])
+def test_parse_letters_table(reply, expected, clean):
+    result = parse_letters(reply, ["A", "B", "C"])
+    assert _pairs(result) == expected
+    assert (result.problems == []) is clean, result.problems
+
+
+@pytest.mark.parametrize("reply, p_yes, clean", [
+    ("A: 60\nworth exploring: yes 80", 0.8, True),
+    ("worth exploring: Yes (0.8)", 0.8, True),
+    ("worth exploring: no, 90", 0.1, True),
+    ("worth exploring: no 90%", 0.1, True),
+    ("Worth exploring?\nYes, 70", 0.7, True),
+    ('{"worth_exploring": "yes", "confidence": 60}', 0.6, True),
+    ("worth exploring: yes/no: no 75", 0.25, True),
+    ("worth exploring: yes", 0.75, False),  # bare yes
+    ("worth exploring: 30", 0.3, False),  # number alone = P(yes)
+    ("not worth exploring", 0.25, False),
+    ("worth exploring: yes 250", 1.0, False),
+    ("Yes 70", 0.7, False),  # no 'worth' line
+    ("A: 60\nB: 40", DEFAULT_P_YES, False),
+    ("", DEFAULT_P_YES, False),
+])
+def test_parse_worth_exploring_table(reply, p_yes, clean):
+    p, problems = parse_worth_exploring(reply)
+    assert p == pytest.approx(p_yes)
+    assert (problems == []) is clean, problems
+
+
+# ---------------------------------------------------------------------------- normalise, group, argmax
+
+def test_normalise():
+    assert [c.confidence for c in normalise([Candidate("a", 60), Candidate("b", 20)])] == [0.75, 0.25]
+    assert [c.confidence for c in normalise([Candidate("a", 0), Candidate("b", 0)])] == [0.5, 0.5]
+    assert normalise([]) == []
+
+
+def test_worked_example_from_the_paper():
+    # {r_i, c_i} = (sofa, 60), (couch, 30), (armchair, 30): c' = 0.5, 0.25, 0.25;
+    # E(sofa) = E(couch) -> C = 0.75 and 0.25; (R*, C*) = (sofa, 0.75).
+    stub = StubChatModel(lambda msgs: "yes")
+    cands = parse_candidates("sofa; 60\ncouch; 30\narmchair; 30").candidates
+    grouper = LLMGrouper(stub, embedder=_toy_embedder)
+    classes = group_answers("What can I sit on?", cands, grouper)
+    assert [(c.text, pytest.approx(c.confidence)) for c in classes] == [("sofa", 0.75), ("armchair", 0.25)]
+    assert [m.text for m in classes[0].members] == ["sofa", "couch"]
+    answer, conf = argmax(classes)
+    assert (answer, conf) == ("sofa", pytest.approx(0.75))
+    assert sum(c.confidence for c in classes) == pytest.approx(1.0)
+
+
+def test_argmax_ties_go_to_first_and_empty():
+    classes = [AnswerClass("x", [], 0.5), AnswerClass("y", [], 0.5)]
+    assert argmax(classes) == ("x", 0.5)
+    assert argmax([]) == ("", 0.0)
+
+
+def test_exact_grouper_for_letters():
+    labels, _ = ExactGrouper().partition("", ["A", "b", " a ", "B.", "C"])
+    assert labels == [0, 1, 0, 1, 2]
+
+
+def test_rule_grouper_numbers_yes_no_plurals():
+    rules = RuleGrouper()
+    q = "How many chairs are at the table?"
+    labels, _ = rules.partition(q, ["4", "four", "4 chairs", "There are 4 chairs", "5 chairs"])
+    assert labels == [0, 0, 0, 0, 1]
+    assert rules.partition("Is the light on?", ["yes", "Yes, it is on", "no", "No."])[0] == [0, 0, 1, 1]
+    assert rules.partition("", ["the sofas", "Sofa", "a red sofa", "red sofa"])[0] == [0, 0, 1, 1]
+    assert rules.partition("", ["the red one", "red"])[0] == [0, 1]  # "one" is no count here
+    # the numeric rule never merges contradicting colours
+    assert rules.partition("", ["4 red chairs", "4 blue chairs"])[0] == [0, 1]
+
+
+def test_veto_list():
+    assert contradictory("red", "dark red and blue")
+    assert contradictory("2", "three")
+    assert contradictory("yes", "no")
+    assert contradictory("in the kitchen", "in the bedroom")
+    assert not contradictory("sofa", "couch")
+    assert not contradictory("grey", "gray sofa")
+    assert not contradictory("4 chairs", "four")
+
+
+def _toy_embedder(texts):
+    vocab = {"sofa": 0, "couch": 0, "armchair": 1, "red": 2, "blue": 2, "kitchen": 3, "bedroom": 3}
+    out = np.zeros((len(texts), 5))
+    for i, t in enumerate(texts):
+        out[i, vocab.get(t.split()[-1].lower(), 4)] = 1.0
+    return out
+
+
+def test_llm_grouper_merges_synonyms_confirmed_by_the_model():
+    stub = StubChatModel(lambda msgs: "Yes")
+    grouper = LLMGrouper(stub, embedder=_toy_embedder)
+    labels, problems = grouper.partition("What is by the window?", ["sofa", "couch", "armchair"])
+    assert labels == [0, 0, 1] and problems == []
+    assert len(stub.requests) == 1  # armchair is not similar: no call
+    prompt = stub.requests[0].messages[0].text
+    assert "What is by the window?" in prompt and "sofa" in prompt and "couch" in prompt
+    grouper.partition("What is by the window?", ["couch", "sofa"])
+    assert len(stub.requests) == 1  # the verdict is cached
+
+
+def test_llm_grouper_veto_beats_a_wrong_model():
+    stub = StubChatModel(lambda msgs: "yes")  # says everything is the same
+    grouper = LLMGrouper(stub)  # no embedder: every non-vetoed pair is asked
+    assert grouper.partition("What colour is the sofa?", ["red", "blue", "red sofa"])[0] == [0, 1, 0]
+    assert grouper.partition("Is it on?", ["yes", "no"])[0] == [0, 1]
+    assert grouper.partition("How many?", ["2", "3"])[0] == [0, 1]
+    assert grouper.partition("Where?", ["kitchen", "bedroom"])[0] == [0, 1]
+    # a chain must not bridge a veto: red~thing, thing~blue, but red !~ blue
+    assert grouper.partition("Which?", ["red", "thing", "blue"])[0] in ([0, 0, 1], [0, 1, 1])
+
+
+def test_llm_grouper_rules_first_and_unreadable_replies():
+    stub = StubChatModel(lambda msgs: "hmm, hard to say")
+    labels, problems = LLMGrouper(stub).partition("How many?", ["4", "four", "4 chairs"])
+    assert labels == [0, 0, 0] and stub.requests == []  # no call for obvious cases
+    labels, problems = LLMGrouper(stub).partition("What?", ["sofa", "couch"])
+    assert labels == [0, 1] and problems and "unreadable" in problems[0]
+
+
+def test_llm_grouper_bad_embeddings_fall_back_to_asking():
+    stub = StubChatModel(lambda msgs: "no")
+    grouper = LLMGrouper(stub, embedder=lambda texts: np.full((len(texts), 3), np.nan))
+    labels, problems = grouper.partition("What?", ["sofa", "couch"])
+    assert labels == [0, 1] and len(stub.requests) == 1 and problems
+
+
+# ---------------------------------------------------------------------------- the model calls
+
+VIEW = "a grey sofa ahead, 2.1 m; a wooden coffee table at 1.5 m; an open door on the right"
+DIRECTIONS = {"A": "through the open door, 4 m", "B": "past the sofa, 3 m", "C": "back left, 5 m"}
+
+
+def test_explore_scores_prompt_and_normalisation():
+    stub = StubChatModel(["B: 60\nA: 30\nC: 30\nworth exploring: yes 80"])
+    score = explore_scores(stub, "Is the oven on?", VIEW, DIRECTIONS)
+    prompt = stub.requests[0].messages[0].text
+    assert "Is the oven on?" in prompt and VIEW in prompt and DIRECTIONS["A"] in prompt
+    assert score.letters == pytest.approx({"A": 0.25, "B": 0.5, "C": 0.25})
+    assert score.p_yes == pytest.approx(0.8)
+    assert score.info["problems"] == [] and score.info["raw"].startswith("B: 60")
+    assert score.info["usage"]["prompt_tokens"] > 0
+
+
+def test_explore_scores_two_letters_and_images():
+    stub = StubChatModel(["A: 90\nB: 10\nworth exploring: no 70"])
+    frame = np.zeros((4, 4, 3), np.uint8)
+    score = explore_scores(stub, "Where is the cat?", "", ["A", "B"], images=[frame])
+    msg: Message = stub.requests[0].messages[0]
+    assert len(msg.images) == 1 and "the image" in msg.text and "C:" not in msg.text
+    assert score.letters == pytest.approx({"A": 0.9, "B": 0.1})
+    assert score.p_yes == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize("reply, letters", [
+    ("", (1 / 3, 1 / 3, 1 / 3)), ("I cannot tell.", (1 / 3, 1 / 3, 1 / 3)),
+    ("D: 100", (1 / 3, 1 / 3, 1 / 3)), ("{{{", (1 / 3, 1 / 3, 1 / 3)), ("nan nan", (1 / 3, 1 / 3, 1 / 3)),
+    ("A: -3\nB: 0", (0.5, 0.5, 0.0)),  # all-zero confidences: uniform over the listed answers
+])
+def test_explore_scores_malformed_replies_give_defaults(reply, letters):
+    score = explore_scores(StubChatModel([reply]), "Where is the cat?", VIEW, DIRECTIONS)
+    assert score.letters == pytest.approx(dict(zip("ABC", letters)))
+    assert score.p_yes == DEFAULT_P_YES and score.info["problems"]
+
+
+def test_answer_with_confidence_groups_and_argmaxes():
+    def script(messages):
+        text = messages[0].text
+        if "Answer 1:" in text:  # the grouping prompt
+            return "yes"
+        return "Here you go:\n1. couch — 40%\n2. sofa — 40%\n3. armchair — 20%"
+    stub = StubChatModel(script)
+    evidence = ["a grey couch by the window", "a kitchen with a white fridge"]
+    result = answer_with_confidence(stub, "What is by the window?", evidence,
+                                    LLMGrouper(stub, embedder=_toy_embedder))
+    first = stub.requests[0].messages[0].text
+    assert "What is by the window?" in first and evidence[0] in first and evidence[1] in first
+    assert result.answer == "couch" and result.confidence == pytest.approx(0.8)
+    assert [c.confidence for c in result.candidates] == pytest.approx([0.4, 0.4, 0.2])
+    assert len(result.classes) == 2 and result.problems == ["ignored 1 line(s) without a confidence"]
+
+
+def test_answer_with_confidence_malformed_and_images():
+    stub = StubChatModel(["", "kitchen"])
+    frames = [np.zeros((4, 4, 3), np.uint8)] * 2
+    empty = answer_with_confidence(stub, "Where is the kettle?", frames, RuleGrouper())
+    assert (empty.answer, empty.confidence) == ("", 0.0) and empty.problems
+    assert len(stub.requests[0].messages[0].images) == 2
+    bare = answer_with_confidence(stub, "Where is the kettle?", ["a kettle on a counter"], RuleGrouper())
+    assert (bare.answer, bare.confidence) == ("kitchen", 1.0) and bare.problems
+
+
+def test_blind_answer_sends_only_the_question():
+    stub = StubChatModel(["kitchen; 50\nbedroom; 30\nkitchen; 20"])
+    result = blind_answer(stub, "Where is the kettle?", RuleGrouper())
+    msg = stub.requests[0].messages[0]
+    assert "Where is the kettle?" in msg.text and "guess" in msg.text and not msg.images
+    assert (result.answer, result.confidence) == ("kitchen", pytest.approx(0.7))
+
+
+def test_prompts_are_package_data_and_short():
+    for name in ("explore", "answer", "blind", "group"):
+        text = load_prompt(name)
+        assert text.strip() and len(text.split()) * 1.3 < 150
+
+
+# ---------------------------------------------------------------------------- token probabilities
+
+def test_letter_probs_from_logprobs():
+    top = [(" A", math.log(0.5)), ("b", math.log(0.25)), ("(A", math.log(0.1)), ("the", -0.1)]
+    probs = letter_probs_from_logprobs(top, ["A", "B", "C"])
+    assert probs == pytest.approx({"A": 0.6 / 0.85, "B": 0.25 / 0.85, "C": 0.0})
+    assert letter_probs_from_logprobs([], "AB") == {"A": 0.5, "B": 0.5}
+    assert letter_probs_from_logprobs({"ĠC": 0.0, "A": float("nan")}, "ABC")["C"] == 1.0
+
+
+def test_letter_probs_scan_token_positions():
+    tokens = [TokenLogprob("Direction", -0.1, (("Direction", -0.1), ("I", -3.0))),
+              TokenLogprob(" B", math.log(0.7), ((" B", math.log(0.7)), (" A", math.log(0.3))))]
+    assert letter_probs_from_logprobs(tokens, "AB") == pytest.approx({"A": 0.3, "B": 0.7})
+
+
+def test_yes_prob_from_logprobs():
+    assert yes_prob_from_logprobs([("Yes", math.log(0.6)), (" no", math.log(0.2))]) == pytest.approx(0.75)
+    assert yes_prob_from_logprobs(TokenLogprob("▁NO", 0.0)) == 0.0
+    assert yes_prob_from_logprobs(None) == DEFAULT_P_YES
