@@ -1,0 +1,350 @@
+"""Parsing verbalized confidence: replies in, candidates and repairs out; never raises."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+M = 3  # answers asked for per reply (the paper's M)
+DEFAULT_LETTERS = ("A", "B", "C")
+# A candidate listed without a confidence gets the uniform share 100 / m.
+# "worth exploring" with no yes/no at all: P(yes) = 0.5; a bare "yes"/"no" without a number
+# is read as 75 % sure.
+DEFAULT_P_YES = 0.5
+BARE_YES_NO_CONFIDENCE = 0.75
+MAX_REPLY_CHARS = 20_000  # longer replies are cut
+MAX_LINE_CHARS = 400  # and so are longer lines (no answer line is that long)
+
+_NUM = (r"(?P<num>[-+]?(?:[0-9]+(?:\.[0-9]+)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
+        r"|[-+]?(?<![A-Za-z])(?:nan|inf(?:inity)?)(?![A-Za-z]))")
+_PCT = r"[ \t]*(?P<pct>%|percent\b|/[ \t]*100\b)?"
+_KEYWORD = re.compile(r"(?:confidence|conf|probability|prob|certainty|likelihood|score)[ \t]*"
+                      r"(?:[:=]|is|of)?[ \t]*" + _NUM + _PCT, re.I)
+_PAREN = re.compile(r"[(\[][ \t]*" + _NUM + _PCT + r"[ \t]*[)\]][\s.*]*$", re.I)
+_SEPARATED = re.compile(r"(?:[:;,|=]|\s[-–—]|[-–—](?=\s))[ \t]*" + _NUM + _PCT + r"[\s.)*]*$", re.I)
+_BARE_PCT = re.compile(r"\s" + _NUM + r"[ \t]*(?P<pct>%|percent\b)[\s.)*]*$", re.I)
+_ANY_NUM = re.compile(_NUM + _PCT, re.I)
+_ENUMERATOR = re.compile(r"^\s*(?:[-*•·>]+|\(?[0-9]{1,2}[.)]|\(?[a-z][.)]|#[0-9]+:?)(?=\s)\s*")
+_LABEL = re.compile(r"^(?:answer|option|candidate|guess|response)\s*[0-9]*\s*[:.)\-]\s*", re.I)
+_PAIR = re.compile(r"(?<![A-Za-z0-9])(?:(?i:direction|option|point|letter)\s+)?[(\[]?(?P<letter>[A-Z])"
+                   r"[)\]]?(?![A-Za-z0-9])[ \t]*(?:[:=\-–—,]|\bis\b|\bwith\b)?[ \t]*[(\[]?[ \t]*"
+                   + _NUM + _PCT)
+_LETTER_HEAD = re.compile(r"^\W*(?:(?i:direction|option|point|letter)\s+)?[(\[]?(?P<letter>[A-Z])[)\]]?"
+                          r"(?![A-Za-z0-9]) ?[(:=\-–—]")
+_BARE_LETTER = re.compile(r"(?<![A-Za-z0-9'’])(?P<letter>[A-Z])(?![A-Za-z0-9'’])")
+_YES_NO = re.compile(r"(?<![A-Za-z])(yes|no|true|false)(?![A-Za-z])", re.I)
+_TEXT_KEYS = ("answer", "text", "direction", "letter", "option", "choice", "name", "label")
+_CONF_KEYS = ("confidence", "conf", "probability", "prob", "score", "certainty", "likelihood", "p")
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One answer ``r_i`` and its confidence ``c_i`` (0-100 parsed, 0-1 once normalised)."""
+
+    text: str
+    confidence: float
+
+
+@dataclass
+class ParseResult:
+    candidates: list[Candidate]
+    problems: list[str] = field(default_factory=list)
+
+
+@dataclass
+class AnswerClass:
+    """A semantic equivalence class ``R_k``: its representative text, members, ``C_k``."""
+
+    text: str
+    members: list[Candidate]
+    confidence: float
+
+
+@dataclass
+class AnswerResult:
+    answer: str
+    confidence: float
+    classes: list[AnswerClass]
+    candidates: list[Candidate]  # normalised
+    problems: list[str]
+    raw: str
+    usage: dict[str, Any] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------- parsing
+
+@dataclass
+class _Raw:
+    text: str
+    num: float | None  # as written
+    pct: bool = False
+
+
+def _prepare(reply: object, problems: list[str]) -> str:
+    text = reply if isinstance(reply, str) else ("" if reply is None else str(reply))
+    if len(text) > MAX_REPLY_CHARS:
+        problems.append(f"reply cut to {MAX_REPLY_CHARS} characters")
+        text = text[:MAX_REPLY_CHARS]
+    # One space per run and short lines keep every regex below linear-time.
+    lines = [re.sub(r"[^\S\n]+", " ", ln)[:MAX_LINE_CHARS] for ln in text.splitlines()]
+    return "\n".join(ln for ln in lines if not ln.lstrip().startswith("```"))
+
+
+def _to_float(s: object) -> float | None:
+    if isinstance(s, bool):
+        return None
+    if isinstance(s, (int, float)):
+        return float(s)
+    try:
+        return float(str(s).strip())
+    except (ValueError, OverflowError):
+        return None
+
+
+def _split_confidence(line: str) -> tuple[str, _Raw | None]:
+    """(text before the confidence, the confidence) of one line; (line, None) when it has none."""
+    hits = list(_KEYWORD.finditer(line))
+    match = hits[-1] if hits else None
+    for rx in (_PAREN, _SEPARATED, _BARE_PCT):
+        if match is None:
+            match = rx.search(line)
+    if match is None:
+        return line, None
+    return line[:match.start()], _Raw("", _to_float(match["num"]), bool(match["pct"]))
+
+
+def _clean_text(s: str) -> str:
+    s = s.replace("**", "").replace("`", "").strip()
+    s = _LABEL.sub("", _ENUMERATOR.sub("", s))
+    return s.strip(" \t\"'“”‘’:;,|=-–—([{").rstrip(" .!?").strip()
+
+
+def _from_json(text: str, problems: list[str]) -> list[_Raw] | None:
+    starts = [i for i in (text.find("{"), text.find("[")) if i >= 0]
+    for start in sorted(starts):
+        end = text.rfind("}" if text[start] == "{" else "]")
+        if end <= start:
+            continue
+        try:
+            obj = json.loads(text[start:end + 1])
+        except Exception:  # noqa: BLE001 - any malformed JSON (incl. RecursionError) falls back
+            continue
+        out: list[_Raw] = []
+        _walk_json(obj, out, 0)
+        if out:
+            if text[:start].strip() or text[end + 1:].strip():
+                problems.append("ignored text around the JSON")
+            return out
+    return None
+
+
+def _walk_json(obj: object, out: list[_Raw], depth: int) -> None:
+    if depth > 6:
+        return
+    if isinstance(obj, dict):
+        low = {str(k).lower(): v for k, v in obj.items()}
+        text = next((low[k] for k in _TEXT_KEYS if k in low and isinstance(low[k], (str, int, float))),
+                    None)
+        if text is not None and not isinstance(text, bool):
+            conf = next((low[k] for k in _CONF_KEYS if k in low), None)
+            out.append(_json_raw(str(text), conf))
+            return
+        for k, v in obj.items():
+            if "worth" in str(k).lower():
+                continue
+            if isinstance(v, (dict, list)):
+                _walk_json(v, out, depth + 1)
+            elif (isinstance(v, (int, float)) and not isinstance(v, bool)
+                  or isinstance(v, str) and _ANY_NUM.fullmatch(v.strip())) and len(str(k)) <= 60:
+                out.append(_json_raw(str(k), v))  # {"A": 60} or {"red": "60%"}
+    elif isinstance(obj, list):
+        for item in obj:
+            if isinstance(item, str):
+                head, raw = _split_confidence(item)
+                out.append(_Raw(head, raw.num, raw.pct) if raw else _Raw(item, None))
+            elif isinstance(item, list) and len(item) == 2 and isinstance(item[0], str):
+                out.append(_json_raw(item[0], item[1]))
+            else:
+                _walk_json(item, out, depth + 1)
+
+
+def _json_raw(text: str, conf: object) -> _Raw:
+    if isinstance(conf, str):
+        m = _ANY_NUM.search(conf)
+        return _Raw(text, _to_float(m["num"]) if m else None, bool(m and m["pct"]))
+    return _Raw(text, _to_float(conf))
+
+
+def _split_pairs(line: str) -> list[str]:
+    """``red: 60, blue: 30`` -> two lines, but only if every part carries a confidence."""
+    parts = re.split(r"(?<=[0-9%)])[ \t]*[,;|][ \t]+", line)
+    if len(parts) > 1 and all(_split_confidence(p)[1] is not None for p in parts):
+        return parts
+    return [line]
+
+
+def _from_lines(text: str, problems: list[str]) -> list[_Raw]:
+    rows: list[tuple[str, _Raw | None]] = []
+    for line in text.splitlines():
+        for part in _split_pairs(line):
+            if not re.search(r"\w", part):
+                continue
+            head, raw = _split_confidence(part)
+            rows.append((head, raw))
+    if any(raw is not None for _, raw in rows):
+        dropped = sum(raw is None for _, raw in rows)
+        if dropped:
+            problems.append(f"ignored {dropped} line(s) without a confidence")
+        return [_Raw(head, raw.num, raw.pct) for head, raw in rows if raw is not None]
+    # No confidences anywhere: every line that is not a header is an answer.
+    return [_Raw(head, None) for head, _ in rows if not head.rstrip().endswith(":")]
+
+
+def _finish(raws: list[_Raw], m: int, problems: list[str], allowed: Mapping[str, str] | None = None
+            ) -> ParseResult:
+    m = max(int(m), 1)
+    items: list[tuple[str, float | None, bool]] = []
+    for r in raws:
+        text = _clean_text(r.text)
+        if allowed is not None:
+            key = _letter_of(text, allowed)
+            if key is None:
+                problems.append(f"unknown letter {text[:20]!r} dropped")
+                continue
+            text = key
+        if not text:
+            problems.append("empty answer dropped")
+            continue
+        num = r.num
+        if num is not None and math.isnan(num):
+            problems.append("non-numeric confidence (NaN)")
+            num = None
+        items.append((text, num, r.pct))
+    finite = [n for _, n, _ in items if n is not None]
+    fractions = bool(finite) and not any(p for _, _, p in items) and all(n <= 1.0 for n in finite)
+    out: list[Candidate] = []
+    seen: set[tuple[str, float]] = set()
+    for text, num, _ in items:
+        if num is None:
+            problems.append(f"missing confidence for {text[:20]!r}: default {100.0 / m:.1f}")
+            conf = 100.0 / m
+        else:
+            conf = num * 100.0 if fractions else num
+            if conf > 100.0:
+                problems.append(f"confidence {num:g} clipped to 100")
+                conf = 100.0
+            elif conf < 0.0:
+                problems.append(f"negative confidence {num:g} set to 0")
+                conf = 0.0
+        line_key = (text.casefold(), conf)
+        if line_key in seen:
+            problems.append(f"duplicate line {text[:20]!r} dropped")
+            continue
+        seen.add(line_key)
+        out.append(Candidate(text, conf))
+    if len(out) > m:
+        problems.append(f"{len(out)} candidates, kept the first {m}")
+        out = out[:m]
+    return ParseResult(out, problems)
+
+
+def parse_candidates(reply: str, m: int = M) -> ParseResult:
+    """Free-form answers with confidences (0-100): ``answer; 45``, ``1. red sofa — 70%``,
+    ``red (0.7)``, JSON, prose around the list. At most ``m``; never raises."""
+    problems: list[str] = []
+    text = _prepare(reply, problems)
+    raws = _from_json(text, problems)
+    if raws is None:
+        raws = _from_lines(text, problems)
+    if not raws:
+        problems.append("no answers found")
+    return _finish(raws, m, problems)
+
+
+def _letter_of(text: str, allowed: Mapping[str, str]) -> str | None:
+    t = re.sub(r"^(?i:direction|option|point|letter)\s+", "", text.strip(" ()[]{}.:*\"'"))
+    if len(t) == 1:
+        return allowed.get(t.upper())
+    found = [allowed[x] for x in _BARE_LETTER.findall(t) if x in allowed]
+    return found[0] if len(set(found)) == 1 else None
+
+
+def parse_letters(reply: str, letters: Sequence[str] = DEFAULT_LETTERS, m: int = M) -> ParseResult:
+    """Lettered directions with confidences (``A: 60``, ``B - 30%``, ``C (0.1)``, JSON, one line or
+    many). Only ``letters`` count; the "worth exploring" part is ignored. Never raises."""
+    problems: list[str] = []
+    allowed = {str(x).strip().upper(): str(x).strip() for x in letters if str(x).strip()}
+    text = _prepare(reply, problems)
+    raws = _from_json(text, problems)
+    if raws is None:
+        raws = []
+        lines = [re.split(r"(?i)worth", ln)[0] for ln in text.splitlines()]
+        for line in lines:
+            line = re.sub(r"[*`]", "", line)
+            line = re.sub(r"^\s*([a-z])\s*(?=[:=)])", lambda g: g[1].upper(), line)
+            pairs = [_Raw(p["letter"], _to_float(p["num"]), bool(p["pct"])) for p in _PAIR.finditer(line)]
+            head = _LETTER_HEAD.match(line)
+            if not pairs and head:  # "A (through the door, 4 m): 60"
+                conf = _split_confidence(line)[1]
+                pairs = [_Raw(head["letter"], conf.num if conf else None, bool(conf and conf.pct))]
+            raws += pairs
+        if not raws:  # letters without numbers: "B, then A"
+            raws = [_Raw(x, None) for ln in lines for x in _BARE_LETTER.findall(ln) if x in allowed]
+    if not raws:
+        problems.append("no letters found")
+    return _finish(raws, m, problems, allowed)
+
+
+def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
+    """P(yes) in [0, 1] from ``worth exploring: yes 80`` / ``Yes (0.8)`` / ``no, 90`` (-> 0.1).
+
+    A bare yes/no reads as ``BARE_YES_NO_CONFIDENCE``; a number alone as P(yes); nothing readable
+    gives ``DEFAULT_P_YES``. Never raises."""
+    problems: list[str] = []
+    text = _prepare(reply, problems)
+    idx = text.lower().rfind("worth")
+    negated = False
+    if idx >= 0:
+        negated = bool(re.search(r"not\s*$", text[max(0, idx - 8):idx], re.I))
+        lines = text[idx + 5:].split("\n")
+        seg = lines[0]
+        for extra in lines[1:3]:
+            if _YES_NO.search(seg) or _ANY_NUM.search(seg):
+                break
+            seg += "\n" + extra
+    else:
+        seg = next((ln for ln in reversed(text.splitlines()) if _YES_NO.search(ln)), "")
+        if seg:
+            problems.append("no 'worth exploring' line; used the last yes/no")
+    words = list(_YES_NO.finditer(seg))
+    nums = list(_ANY_NUM.finditer(seg))
+    word = None
+    if words:
+        before = [w for w in words if not nums or w.start() < nums[0].start()]
+        word = (before[-1] if before else words[0])[1].lower()
+    conf = None
+    if nums:
+        value = _to_float(nums[0]["num"])
+        if value is not None and not math.isnan(value):
+            conf = value / 100.0 if nums[0]["pct"] or value > 1.0 else value
+            if not 0.0 <= conf <= 1.0:
+                problems.append(f"worth-exploring confidence {value:g} clipped")
+                conf = min(max(conf, 0.0), 1.0)
+    if word is None and negated:
+        word = "no"
+    if word is None and conf is None:
+        problems.append(f"no worth-exploring answer: default P(yes) = {DEFAULT_P_YES}")
+        return DEFAULT_P_YES, problems
+    if word is None:
+        problems.append("worth-exploring number without yes/no: read as P(yes)")
+        return float(conf), problems  # type: ignore[arg-type]
+    if conf is None:
+        problems.append(f"worth-exploring {word!r} without a confidence: {BARE_YES_NO_CONFIDENCE}")
+        conf = BARE_YES_NO_CONFIDENCE
+    return (conf if word in ("yes", "true") else 1.0 - conf), problems
+
+
