@@ -1,0 +1,314 @@
+"""Semantic-sensor perception (SPEC 5): the instance buffer of a frame as short factual text.
+
+No image model's weights can be installed here, so the offline default lets a text-only language
+model read what a frame shows instead of its pixels: the visible objects (category, colour,
+state, bearing, distance), the room the robot stands in and the rooms seen through doorways, and
+what lies towards each lettered prompt point. Everything is deterministic for a given frame.
+
+Bearings come from the pixel column of an object's centroid (degrees, positive = left of the
+optical axis); distances are the median depth of its pixels (metres along the optical axis).
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+from efficienteqa.geometry import backproject
+
+if TYPE_CHECKING:
+    from efficienteqa.envs.base import Observation
+    from efficienteqa.envs.synthetic.house import House
+    from efficienteqa.explore.prompting import PromptPoint
+
+REFERENCE_AREA_PX = 640 * 480
+REFERENCE_MIN_PIXELS = 150  # at 640x480; scaled with image area
+MAX_OBJECTS = 12
+AHEAD_DEG = 10.0  # |bearing| up to this is "ahead"
+SLIGHTLY_DEG = 30.0  # then "slightly left/right" up to this, "on the left/right" beyond
+FLOOR_TOLERANCE_M = 0.05  # structure pixels this close to z = 0 are floor
+ROOM_CELL_M = 0.1  # floor points are grouped on this grid before looking up their room
+WINDOW_FRACTION = 0.05  # half-width of the pixel window around a prompt point, share of width
+_NUMBER_WORDS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
+_DISPLAY = {"tv": "TV", "tv stand": "TV stand"}
+_CELL_OFFSET = 1 << 20  # keeps cell indices non-negative for the 1-D cell key
+
+
+@dataclass(frozen=True)
+class ObjectLabel:
+    """What the semantic sensor knows about an instance id. ``state`` only where the object has
+    one ("on"/"off", "open"/"closed"); ``room`` is the name of the room it stands in."""
+
+    category: str
+    colour: str | None
+    state: str | None
+    room: str | None
+
+
+class SceneLabels(Protocol):
+    """The semantic sensor of a scene: labels of instance ids and names of rooms at floor points."""
+
+    def label(self, instance_id: int) -> ObjectLabel | None: ...
+
+    def room_at(self, x: float, y: float) -> str | None: ...
+
+
+class HouseLabels:
+    """``SceneLabels`` of a synthetic house (doors are objects of category "door")."""
+
+    def __init__(self, house: House) -> None:
+        self._layout = house.layout
+        rooms = {r.id: r.name for r in house.layout.rooms}
+        self._labels = {o.id: ObjectLabel(o.category, o.colour or None, o.state, rooms.get(o.room_id))
+                        for o in house.objects}
+
+    def label(self, instance_id: int) -> ObjectLabel | None:
+        return self._labels.get(int(instance_id))
+
+    def room_at(self, x: float, y: float) -> str | None:
+        room = self._layout.room_at(x, y)
+        return room.name if room is not None else None
+
+
+def house_labels(house: House) -> HouseLabels:
+    return HouseLabels(house)
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """A crude detector-noise model for robustness studies: each listed object is dropped with
+    probability ``miss_rate`` and otherwise gets a wrong palette colour with probability
+    ``wrong_colour_rate``. Draws are seeded by (seed, robot pose, instance id), so a frame is
+    always described the same way."""
+
+    miss_rate: float = 0.0
+    wrong_colour_rate: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("miss_rate", "wrong_colour_rate"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class VisibleObject:
+    """One object in a frame: its label, pixel count, centroid (u, v) in pixels, bearing in
+    degrees (positive = left), the bearing in words and the median depth in metres."""
+
+    instance_id: int
+    label: ObjectLabel
+    pixels: int
+    centroid_px: tuple[float, float]
+    bearing_deg: float
+    bearing: str
+    distance_m: float
+
+    def phrase(self, robot_room: str | None = None) -> str:
+        """E.g. "a lamp (on) on the left, 3.4 m"; names the object's room when it differs."""
+        text = f"{_noun_phrase(self.label, 1)} {self.bearing}, {self.distance_m:.1f} m"
+        room = self.label.room
+        if room and robot_room and room != robot_room and self.label.category != "door":
+            text += f", in the {room}"
+        return text
+
+
+@dataclass(frozen=True)
+class FrameDescription:
+    """A frame in words (``text``) and as structure (near-to-far ``objects``)."""
+
+    text: str
+    room: str | None
+    objects: tuple[VisibleObject, ...]
+    rooms_through_doorways: tuple[str, ...]
+
+
+def scaled_min_pixels(height: int, width: int) -> int:
+    """REFERENCE_MIN_PIXELS at 640x480, proportional to image area, at least 1."""
+    return max(1, round(REFERENCE_MIN_PIXELS * height * width / REFERENCE_AREA_PX))
+
+
+def bearing_words(bearing_deg: float) -> str:
+    side = "left" if bearing_deg > 0 else "right"
+    if abs(bearing_deg) <= AHEAD_DEG:
+        return "ahead"
+    if abs(bearing_deg) <= SLIGHTLY_DEG:
+        return f"slightly {side}"
+    return f"on the {side}"
+
+
+def visible_objects(obs: Observation, labels: SceneLabels, min_pixels: int | None = None,
+                    noise: NoiseConfig | None = None) -> list[VisibleObject]:
+    """Labelled objects with at least ``min_pixels`` pixels (default: scaled with image area)
+    and valid depth, near to far (ties by instance id), after the optional noise model."""
+    if obs.instance is None:
+        raise ValueError("semantic perception needs an instance buffer (Observation.instance)")
+    h, w = obs.depth_m.shape
+    threshold = scaled_min_pixels(h, w) if min_pixels is None else min_pixels
+    valid = (obs.instance > 0) & (obs.depth_m > 0)
+    ids = obs.instance[valid]
+    rows, cols = np.nonzero(valid)
+    depths = obs.depth_m[valid]
+    order = np.argsort(ids, kind="stable")
+    ids, rows, cols, depths = ids[order], rows[order], cols[order], depths[order]
+    unique, starts, counts = np.unique(ids, return_index=True, return_counts=True)
+    fx, cx = float(obs.intrinsics[0, 0]), float(obs.intrinsics[0, 2])
+    found = []
+    for inst, s, n in zip(unique.tolist(), starts.tolist(), counts.tolist()):
+        label = labels.label(inst)
+        if n < threshold or label is None:
+            continue
+        u = float(cols[s:s + n].mean()) + 0.5
+        v = float(rows[s:s + n].mean()) + 0.5
+        bearing = -math.degrees(math.atan((u - cx) / fx))
+        distance = round(float(np.median(depths[s:s + n])), 1)
+        found.append(VisibleObject(inst, label, n, (u, v), bearing, bearing_words(bearing),
+                                   distance))
+    found.sort(key=lambda o: (o.distance_m, o.instance_id))
+    return _apply_noise(found, noise, obs) if noise is not None else found
+
+
+def describe_frame(obs: Observation, labels: SceneLabels, min_pixels: int | None = None,
+                   max_objects: int = MAX_OBJECTS, noise: NoiseConfig | None = None
+                   ) -> FrameDescription:
+    """The frame as a compact paragraph, e.g. "You are in the kitchen. Visible: a grey
+    refrigerator ahead, 2.1 m; a lamp (on) on the left, 3.4 m. Through a doorway: the hallway."
+    At most ``max_objects`` objects, the nearest."""
+    objects = tuple(visible_objects(obs, labels, min_pixels, noise)[:max_objects])
+    room = labels.room_at(obs.pose.x, obs.pose.y)
+    others = _rooms_in_view(obs, labels, room, min_pixels)
+    parts = [f"You are in the {room}." if room else "You are between rooms."]
+    if objects:
+        parts.append("Visible: " + "; ".join(o.phrase(room) for o in objects) + ".")
+    else:
+        parts.append("Visible: nothing but walls and floor.")
+    if others:
+        lead = "Through a doorway" if len(others) == 1 else "Through doorways"
+        parts.append(f"{lead}: " + ", ".join(f"the {r}" for r in others) + ".")
+    return FrameDescription(" ".join(parts), room, objects, others)
+
+
+def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels: SceneLabels,
+                        radius_m: float = 1.5, min_pixels: int | None = None,
+                        max_groups: int = 6, noise: NoiseConfig | None = None) -> dict[str, str]:
+    """For each lettered point, the room there, its distance from the robot and the objects seen
+    near it, e.g. "A: towards the dining room, 4.2 m away; a brown table, two brown chairs."
+
+    An object is near a point when some of its pixels back-project within ``radius_m`` (on the
+    floor plane) of the point, or lie in a small pixel window around the point's pixel.
+    """
+    objects = visible_objects(obs, labels, min_pixels, noise)
+    h, w = obs.depth_m.shape
+    xy = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[..., :2]
+    rows, cols = np.mgrid[0:h, 0:w]
+    half = max(2.0, WINDOW_FRACTION * w)
+    min_near = max(1, scaled_min_pixels(h, w) // 5)
+    robot_room = labels.room_at(obs.pose.x, obs.pose.y)
+    out = {}
+    for p in prompts:
+        px, py = float(p.xy[0]), float(p.xy[1])
+        planar = np.hypot(xy[..., 0] - px, xy[..., 1] - py)
+        near = (planar <= radius_m) | ((np.abs(cols + 0.5 - p.pixel[0]) <= half)
+                                       & (np.abs(rows + 0.5 - p.pixel[1]) <= half))
+        near &= obs.depth_m > 0
+        hits = []
+        for o in objects:
+            mask = near & (obs.instance == o.instance_id)
+            if int(mask.sum()) >= min(min_near, o.pixels):
+                hits.append((float(np.median(planar[mask])), o.instance_id, o.label))
+        hits.sort(key=lambda t: (t[0], t[1]))
+        room = labels.room_at(px, py)
+        where = "" if room is None else (f"in the {room}, " if room == robot_room
+                                         else f"towards the {room}, ")
+        distance = math.hypot(px - obs.pose.x, py - obs.pose.y)
+        seen = _group_phrases([label for _, _, label in hits], max_groups)
+        out[p.letter] = (f"{p.letter}: {where}{distance:.1f} m away; "
+                         + (", ".join(seen) if seen else "no objects seen there") + ".")
+    return out
+
+
+# -- helpers ---------------------------------------------------------------------------------
+def _rooms_in_view(obs: Observation, labels: SceneLabels, robot_room: str | None,
+                   min_pixels: int | None) -> tuple[str, ...]:
+    """Rooms other than the robot's whose floor is visible, nearest first."""
+    h, w = obs.depth_m.shape
+    threshold = scaled_min_pixels(h, w) if min_pixels is None else min_pixels
+    points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)
+    floor = (obs.depth_m > 0) & (np.abs(points[..., 2]) < FLOOR_TOLERANCE_M)
+    if obs.instance is not None:
+        floor &= obs.instance == 0
+    if not floor.any():
+        return ()
+    cells = np.floor(points[floor][:, :2] / ROOM_CELL_M).astype(np.int64) + _CELL_OFFSET
+    depth = obs.depth_m[floor]
+    unique, inverse = np.unique(cells[:, 0] * (2 * _CELL_OFFSET) + cells[:, 1],
+                                return_inverse=True)  # one int key per cell: a fast 1-D unique
+    i, j = np.divmod(unique, 2 * _CELL_OFFSET)
+    names = [labels.room_at((a - _CELL_OFFSET + 0.5) * ROOM_CELL_M,
+                            (b - _CELL_OFFSET + 0.5) * ROOM_CELL_M) for a, b in zip(i, j)]
+    codes = {name: k for k, name in enumerate(sorted({n for n in names if n is not None}))}
+    per_pixel = np.array([codes.get(n, -1) if n is not None else -1 for n in names])[inverse.ravel()]
+    rooms = []
+    for name, code in codes.items():
+        if name == robot_room:
+            continue
+        mask = per_pixel == code
+        if int(mask.sum()) >= threshold:
+            rooms.append((float(np.median(depth[mask])), name))
+    return tuple(name for _, name in sorted(rooms))
+
+
+def _apply_noise(objects: list[VisibleObject], noise: NoiseConfig, obs: Observation
+                 ) -> list[VisibleObject]:
+    from efficienteqa.envs.synthetic.colours import PALETTE
+
+    frame_key = zlib.crc32(f"{obs.pose.x:.3f},{obs.pose.y:.3f},{obs.pose.yaw:.3f}".encode())
+    out = []
+    for o in objects:
+        rng = np.random.default_rng([noise.seed, frame_key, o.instance_id])
+        missed, recolour = rng.random() < noise.miss_rate, rng.random() < noise.wrong_colour_rate
+        if missed:
+            continue
+        if recolour:
+            choices = sorted(c for c in PALETTE if c != o.label.colour)
+            colour = choices[int(rng.integers(len(choices)))]
+            o = replace(o, label=replace(o.label, colour=colour))
+        out.append(o)
+    return out
+
+
+def _noun_phrase(label: ObjectLabel, count: int) -> str:
+    noun = _DISPLAY.get(label.category, label.category)
+    words = ([label.colour] if label.colour else []) + [noun if count == 1 else _plural(noun)]
+    text = " ".join(words)
+    if count == 1:
+        text = ("an " if text[0].lower() in "aeiou" else "a ") + text
+    else:
+        text = f"{_NUMBER_WORDS[count] if count < len(_NUMBER_WORDS) else count} {text}"
+    return f"{text} ({label.state})" if label.state else text
+
+
+def _plural(noun: str) -> str:
+    if noun.endswith("shelf"):
+        return noun[:-1] + "ves"
+    if noun.endswith(("s", "sh", "ch", "x")):
+        return noun + "es"
+    if noun.endswith("y") and noun[-2:-1] not in tuple("aeiou"):
+        return noun[:-1] + "ies"
+    return noun + "s"
+
+
+def _group_phrases(labels: list[ObjectLabel], max_groups: int) -> list[str]:
+    """Identical labels (category, colour, state) counted together, in order of first sight."""
+    counts: dict[tuple[str, str | None, str | None], int] = {}
+    first: dict[tuple[str, str | None, str | None], ObjectLabel] = {}
+    for label in labels:
+        key = (label.category, label.colour, label.state)
+        counts[key] = counts.get(key, 0) + 1
+        first.setdefault(key, label)
+    return [_noun_phrase(first[k], n) for k, n in list(counts.items())[:max_groups]]

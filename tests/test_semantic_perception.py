@@ -1,0 +1,168 @@
+"""Semantic-sensor perception: a hand-made frame with known objects, then a rendered house.
+
+The hand-made camera: 64x48, 90 deg HFOV (fx = fy = 32, principal point (32, 24)), 1 m high,
+level, at (1, 1) looking along +x. A level camera sees floor at depth 32/(v + 0.5 - 24) on row v,
+so floor rows 30-34 lie beyond x = 4 (the fake "hallway") and rows 35-47 before it ("kitchen").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import needs_egl
+from efficienteqa.envs.base import Observation
+from efficienteqa.envs.synthetic.colours import PALETTE
+from efficienteqa.explore.prompting import PromptPoint, project_floor_points
+from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
+from efficienteqa.perception import (
+    NoiseConfig,
+    ObjectLabel,
+    describe_directions,
+    describe_frame,
+    house_labels,
+)
+from efficienteqa.perception.semantic import bearing_words, scaled_min_pixels
+
+CAMERA = CameraSpec(width=64, height=48, hfov_deg=90.0, height_m=1.0, pitch_deg=0.0)
+POSE = Pose2D(1.0, 1.0, 0.0)
+LABELS = {
+    5: ObjectLabel("sofa", "red", None, "hallway"),
+    7: ObjectLabel("lamp", "white", "on", "kitchen"),
+    9: ObjectLabel("cup", "blue", None, "kitchen"),
+    11: ObjectLabel("chair", "brown", None, "kitchen"),
+    12: ObjectLabel("chair", "brown", None, "kitchen"),
+}
+
+
+class FakeLabels:
+    def label(self, instance_id: int) -> ObjectLabel | None:
+        return LABELS.get(instance_id)
+
+    def room_at(self, x: float, y: float) -> str | None:
+        return "kitchen" if x < 4.0 else "hallway"
+
+
+def make_frame() -> Observation:
+    h, w = CAMERA.height, CAMERA.width
+    instance = np.full((h, w), -1, np.int32)  # rows 0-9: nothing (depth 0)
+    depth = np.zeros((h, w), np.float32)
+    instance[10:30], depth[10:30] = 0, 4.0  # a wall, never floor (z > 0.3 m)
+    rows = np.arange(30, h)
+    instance[30:], depth[30:] = 0, (32.0 / (rows + 0.5 - 24.0))[:, None]  # floor
+    instance[10:21, 5:15], depth[10:21, 5:15] = 5, 3.0  # sofa, left
+    depth[10:12, 5:15] = 9.0  # a few far pixels: the median ignores them
+    instance[10:21, 30:36], depth[10:21, 30:36] = 7, 2.0  # lamp, ahead
+    instance[10:21, 40:43], depth[10:21, 40:43] = 11, 2.5  # two chairs, slightly right
+    instance[10:21, 43:46], depth[10:21, 43:46] = 12, 2.5
+    instance[25:27, 50:52], depth[25:27, 50:52] = 9, 1.2  # a cup of 4 pixels
+    return Observation(rgb=np.zeros((h, w, 3), np.uint8), depth_m=depth,
+                       cam_to_world=camera_to_world(POSE, CAMERA), intrinsics=CAMERA.intrinsics,
+                       pose=POSE, instance=instance)
+
+
+def test_frame_text_is_exact():
+    d = describe_frame(make_frame(), FakeLabels(), min_pixels=10)
+    assert d.text == (
+        "You are in the kitchen. Visible: a white lamp (on) ahead, 2.0 m; "
+        "a brown chair slightly right, 2.5 m; a brown chair slightly right, 2.5 m; "
+        "a red sofa on the left, 3.0 m, in the hallway. Through a doorway: the hallway.")
+    assert d.room == "kitchen" and d.rooms_through_doorways == ("hallway",)
+    assert [o.instance_id for o in d.objects] == [7, 11, 12, 5]
+    sofa = d.objects[-1]
+    assert sofa.pixels == 110 and sofa.centroid_px == pytest.approx((10.0, 15.5))
+    assert sofa.bearing_deg == pytest.approx(np.degrees(np.arctan(22 / 32)))
+
+
+def test_small_objects_are_left_out_and_the_threshold_scales():
+    assert 9 not in [o.instance_id for o in describe_frame(make_frame(), FakeLabels(), 10).objects]
+    d = describe_frame(make_frame(), FakeLabels(), min_pixels=4)
+    assert d.objects[0].instance_id == 9 and "a blue cup on the right, 1.2 m" in d.text
+    assert scaled_min_pixels(480, 640) == 150 and scaled_min_pixels(120, 160) == 9
+    assert scaled_min_pixels(48, 64) == 2
+
+
+def test_max_objects_keeps_the_nearest():
+    d = describe_frame(make_frame(), FakeLabels(), min_pixels=10, max_objects=2)
+    assert [o.instance_id for o in d.objects] == [7, 11]
+
+
+def test_bearing_words():
+    assert [bearing_words(a) for a in (0.0, 9.9, -15.0, 25.0, 45.0, -59.0)] == [
+        "ahead", "ahead", "slightly right", "slightly left", "on the left", "on the right"]
+
+
+def test_nothing_visible_and_no_room():
+    obs = make_frame()
+    obs.instance[obs.instance > 0] = 0
+    d = describe_frame(obs, FakeLabels(), min_pixels=10)
+    assert "Visible: nothing but walls and floor." in d.text and d.objects == ()
+
+
+def _prompt(letter: str, xy: tuple[float, float]) -> PromptPoint:
+    obs = make_frame()
+    pixel, _ = project_floor_points(np.array([xy]), obs.cam_to_world, obs.intrinsics)
+    return PromptPoint(letter, xy, (float(pixel[0, 0]), float(pixel[0, 1])))
+
+
+def test_directions_name_the_objects_near_each_point():
+    prompts = [_prompt("A", (2.5, 1.0)), _prompt("B", (4.5, 3.0))]
+    out = describe_directions(make_frame(), prompts, FakeLabels(), min_pixels=10)
+    assert out == {
+        "A": "A: in the kitchen, 1.5 m away; a white lamp (on), two brown chairs.",
+        "B": "B: towards the hallway, 4.0 m away; a red sofa.",
+    }
+
+
+def test_directions_with_nothing_near():
+    out = describe_directions(make_frame(), [_prompt("C", (2.0, -3.0))], FakeLabels(),
+                              radius_m=0.5, min_pixels=10)
+    assert out["C"] == "C: in the kitchen, 4.1 m away; no objects seen there."
+
+
+def test_noise_drops_everything_at_rate_one():
+    d = describe_frame(make_frame(), FakeLabels(), min_pixels=10, noise=NoiseConfig(miss_rate=1.0))
+    assert d.objects == () and "nothing but walls and floor" in d.text
+
+
+def test_noise_recolours_everything_deterministically():
+    noise = NoiseConfig(wrong_colour_rate=1.0, seed=4)
+    a = describe_frame(make_frame(), FakeLabels(), min_pixels=10, noise=noise)
+    b = describe_frame(make_frame(), FakeLabels(), min_pixels=10, noise=noise)
+    assert a == b and len(a.objects) == 4
+    for o in a.objects:
+        assert o.label.colour in PALETTE and o.label.colour != LABELS[o.instance_id].colour
+        assert o.label.category == LABELS[o.instance_id].category
+    clean = describe_frame(make_frame(), FakeLabels(), min_pixels=10, noise=NoiseConfig())
+    assert clean == describe_frame(make_frame(), FakeLabels(), min_pixels=10)
+    with pytest.raises(ValueError):
+        NoiseConfig(miss_rate=1.5)
+
+
+def test_frame_without_instance_buffer_is_refused():
+    obs = make_frame()
+    obs.instance = None
+    with pytest.raises(ValueError, match="instance buffer"):
+        describe_frame(obs, FakeLabels())
+
+
+@needs_egl
+def test_synthetic_house_descriptions_match_the_instance_buffer():
+    from efficienteqa.envs.synthetic.env import SyntheticEnv
+
+    with SyntheticEnv.from_seed(3, assets="builtin", camera=CameraSpec().scaled(160, 120)) as env:
+        labels = house_labels(env.house)
+        obs, _ = env.reset()
+        for turn in range(4):
+            obs = env.observe(Pose2D(obs.pose.x, obs.pose.y, env.house.start.yaw + turn * 1.6))
+            d = describe_frame(obs, labels)
+            assert d.room == env.house.layout.room_at(obs.pose.x, obs.pose.y).name
+            ids, counts = np.unique(obs.instance[obs.depth_m > 0], return_counts=True)
+            big = {int(i) for i, n in zip(ids, counts) if i > 0 and n >= scaled_min_pixels(120, 160)}
+            assert {o.instance_id for o in d.objects} == big or len(d.objects) == 12
+            for o in d.objects:
+                truth = env.house.object(o.instance_id)
+                assert o.instance_id in ids and o.label.category == truth.category
+                assert o.label.colour == truth.colour and o.label.state == truth.state
+                assert o.phrase(d.room).split(",")[0] in d.text
+            assert describe_frame(obs, labels) == d  # deterministic
