@@ -33,7 +33,9 @@ stamp="$VENV/.efficienteqa-installed"
 want=$(sha256sum pyproject.toml | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   echo "==> installing efficienteqa and its test tools"
-  "$VENV/bin/pip" install -q -e ".[dev,local]"
+  # torch first, pinned: the CPU build on this kind of machine; any other spec pulls GBs of CUDA.
+  "$VENV/bin/pip" install -q torch==2.13.0
+  "$VENV/bin/pip" install -q -e ".[dev,local,minilm,vision]"
   echo "$want" > "$stamp"
 fi
 
