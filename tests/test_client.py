@@ -350,7 +350,7 @@ def _smollm2_gguf() -> Path | None:
 
 
 @pytest.fixture(scope="module")
-def llama_server():
+def llama_server(tmp_path_factory):
     if importlib.util.find_spec("llama_cpp") is None:
         pytest.skip("llama_cpp is not importable (see PLATFORM.md: build llama-cpp-python portable)")
     gguf = _smollm2_gguf()
@@ -360,23 +360,26 @@ def llama_server():
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     # our own process, stopped by its id: a shared server managed by name might be in use elsewhere
-    proc = subprocess.Popen([sys.executable, "-m", "llama_cpp.server", "--model", str(gguf),
-                             "--n_threads", "2", "--n_ctx", "2048", "--host", "127.0.0.1",
-                             "--port", str(port)],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    log = tmp_path_factory.mktemp("llama") / "server.log"
+    with log.open("wb") as out:  # a file, not a pipe: the server logs enough to fill a pipe and block
+        proc = subprocess.Popen([sys.executable, "-m", "llama_cpp.server", "--model", str(gguf),
+                                 "--n_threads", "2", "--n_ctx", "2048", "--host", "127.0.0.1",
+                                 "--port", str(port)],
+                                stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT)
     base_url = f"http://127.0.0.1:{port}/v1"
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
             if proc.poll() is not None:
-                pytest.skip(f"llama.cpp server exited: {proc.stderr.read().decode()[-300:]}")
+                pytest.skip(f"llama.cpp server exited: {log.read_text(errors='replace')[-300:]}")
             try:
                 if httpx.get(f"{base_url}/models", timeout=1).status_code == 200:
                     break
             except httpx.TransportError:
                 time.sleep(0.3)
         else:
-            pytest.fail("llama.cpp server did not answer within 120 s")
+            tail = log.read_text(errors="replace")[-300:]
+            pytest.fail(f"llama.cpp server did not answer within 120 s: {tail}")
         yield base_url
     finally:
         proc.terminate()
