@@ -305,7 +305,8 @@ def test_explore_scores_two_letters_and_images():
     frame = np.zeros((4, 4, 3), np.uint8)
     score = explore_scores(stub, "Where is the cat?", "", ["A", "B"], images=[frame])
     msg: Message = stub.requests[0].messages[0]
-    assert len(msg.images) == 1 and "the image" in msg.text and "C:" not in msg.text
+    assert len(msg.images) == 1 and "View: the image" in msg.text
+    assert msg.text.split("Directions:")[1].strip() == "A, B (the lettered circles in the image)"
     assert score.letters == pytest.approx({"A": 0.9, "B": 0.1})
     assert score.p_yes == pytest.approx(0.3)
 

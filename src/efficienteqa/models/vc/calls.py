@@ -33,15 +33,14 @@ def _usage(resp: ChatResponse) -> dict[str, Any]:
 
 def explore_prompt(question: str, view: str, letters: Sequence[str],
                    descriptions: Mapping[str, str] | None, m: int = M) -> str:
-    k = max(1, min(m, len(letters)))
+    """The exploration prompt. Its fixed part (instructions and example) comes first and the
+    question next: llama.cpp reuses the evaluated prefix shared with the previous request, so
+    within an episode only the view and the directions are new tokens."""
     if descriptions:
         directions = "\n".join(f"{x}: {descriptions.get(x) or 'no description'}" for x in letters)
     else:
         directions = ", ".join(letters) + " (the lettered circles in the image)"
-    order = list(letters[1:2]) + list(letters[:1]) + list(letters[2:])  # best first, not A-B-C
-    example = "\n".join(f"{x}: {c}" for x, c in zip(order[:k], {1: [100], 2: [70, 30]}.get(k, [60, 30, 10])))
-    return load_prompt("explore").format(question=question, view=view, directions=directions, k=k,
-                                         lines=k + 1, example=example)
+    return load_prompt("explore").format(question=question, view=view, directions=directions)
 
 
 def explore_scores(model: ChatModel, question: str, view: str,
