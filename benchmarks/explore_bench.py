@@ -36,12 +36,15 @@ def step_budget(env: SyntheticEnv) -> int:
 
 
 WINDOW: tuple[float, float, float, float] | None = None  # --window: explored window override
+EXPLORED_DEPTH: float | None = None  # --explored-depth override
 
 
 def make_mapper(env: SyntheticEnv) -> Mapper:
     lo, hi = env.bounds
     spec = VolumeSpec.around(lo[:2], hi[:2], floor_z=0.0)
-    extra = {"explored_window": WINDOW} if WINDOW else {}
+    extra: dict = {"explored_window": WINDOW} if WINDOW else {}
+    if EXPLORED_DEPTH is not None:
+        extra["explored_depth_m"] = EXPLORED_DEPTH
     return Mapper(spec, floor_z=0.0, start_xy=(env.house.start.x, env.house.start.y), **extra)
 
 
@@ -203,12 +206,15 @@ def main() -> None:
     parser.add_argument("--questions", type=int, default=30)
     parser.add_argument("--repeats", type=int, default=1, help="explorer seeds per question")
     parser.add_argument("--out", default="out/bench")
+    parser.add_argument("--explored-depth", type=float, default=None,
+                        help="metres along the optical axis within which floor counts as explored")
     parser.add_argument("--window", type=float, nargs=4, default=None,
                         metavar=("U0", "U1", "V0", "V1"),
                         help="explored window as image fractions (default: the Mapper's)")
     args = parser.parse_args()
-    global WINDOW
+    global WINDOW, EXPLORED_DEPTH
     WINDOW = tuple(args.window) if args.window else None
+    EXPLORED_DEPTH = args.explored_depth
     {"cost": cmd_cost, "coverage": cmd_coverage, "steering": cmd_steering}[args.job](args)
 
 

@@ -103,3 +103,13 @@ def test_explored_only_in_bottom_centre_window():
     at_or_before_surface = (4.0 - POSE.x) - cam[:, 2] >= -SPEC.voxel_m  # deeper: not seen
     assert (vol.explored[iy, ix, iz] == (inside & at_or_before_surface)).all()
     assert (inside & ~at_or_before_surface).any()  # the band behind the wall is observed too
+
+
+def test_explored_depth_limit():
+    vol = TSDFVolume(SPEC)
+    vol.integrate(wall_depth(4.0), CAMERA.intrinsics, camera_to_world(POSE, CAMERA),
+                  explored_depth_m=2.0)
+    iy, ix, iz = np.nonzero(vol.explored)
+    depth_along_axis = (ix + 0.5) * SPEC.voxel_m - POSE.x  # the camera looks along +x
+    assert len(ix) and depth_along_axis.max() <= 2.0 + 1e-6
+    assert (vol.weight[:, 31:, :] > 0).any()  # deeper voxels are still fused, just not explored

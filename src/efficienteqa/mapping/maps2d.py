@@ -6,6 +6,7 @@ All maps live on ``VolumeSpec.grid`` (row along y, column along x; see ``mapping
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Protocol
 
@@ -108,9 +109,11 @@ class Mapper:
     def __init__(self, spec: VolumeSpec, floor_z: float, start_xy: Sequence[float],
                  trunc_m: float = 0.5, start_radius_m: float = 1.0,
                  robot_height_m: float = 1.5, robot_radius_m: float = 0.2,
-                 explored_window: tuple[float, float, float, float] = EXPLORED_WINDOW) -> None:
+                 explored_window: tuple[float, float, float, float] = EXPLORED_WINDOW,
+                 explored_depth_m: float = math.inf) -> None:
         self.volume = TSDFVolume(spec, trunc_m)
         self.explored_window = explored_window
+        self.explored_depth_m = explored_depth_m
         self.floor_z = floor_z
         self.robot_height_m = robot_height_m
         self.robot_radius_m = robot_radius_m
@@ -137,7 +140,8 @@ class Mapper:
         if obs.invalid_fraction >= MAX_INVALID_FRACTION:
             return False
         region = self.volume.integrate(obs.depth_m, obs.intrinsics, obs.cam_to_world,
-                                       window=self.explored_window)
+                                       window=self.explored_window,
+                                       explored_depth_m=self.explored_depth_m)
         if region is not None:
             self._dirty.append(region)
         return True

@@ -86,11 +86,13 @@ class TSDFVolume:
 
     def integrate(self, depth_m: np.ndarray, intrinsics: np.ndarray, cam_to_world: np.ndarray,
                   window: tuple[float, float, float, float] = EXPLORED_WINDOW,
-                  max_depth_m: float = 10.0) -> tuple[slice, slice] | None:
+                  max_depth_m: float = 10.0, explored_depth_m: float = math.inf
+                  ) -> tuple[slice, slice] | None:
         """Fuse one depth frame (H, W) metres along the optical axis, 0 = no surface.
 
         intrinsics: 3x3 pinhole K (pixel centres at +0.5, as ``geometry.backproject``).
-        cam_to_world: 4x4, OpenCV camera axes. Pixels deeper than max_depth_m are ignored.
+        cam_to_world: 4x4, OpenCV camera axes. Pixels deeper than max_depth_m are ignored;
+        voxels deeper than explored_depth_m (along the optical axis) are not marked explored.
         Returns the (rows, cols) slices of the 2-D grid that were visited (only voxels in the
         bounding box of the frustum are), or None when the frame touches no voxel.
         """
@@ -111,7 +113,7 @@ class TSDFVolume:
                    np.array([k[0, 0], k[1, 1], k[0, 2], k[1, 2]]), world_to_cam[:3, :4].copy(),
                    np.asarray(self.spec.origin, dtype=np.float64), float(self.spec.voxel_m),
                    np.asarray(box, dtype=np.int64), float(self.trunc_m), float(max_depth_m),
-                   win_px, float(self.behind_weight))
+                   win_px, float(self.behind_weight), float(explored_depth_m))
         return slice(box[0], box[1]), slice(box[2], box[3])
 
     def _frustum_box(self, hw: tuple[int, int], intrinsics: np.ndarray, cam_to_world: np.ndarray,
@@ -139,7 +141,8 @@ class TSDFVolume:
 # (SPEC 6), where threads per kernel only oversubscribe the cores (measured 10x slower on 2).
 @njit(cache=True)
 def _integrate(tsdf, weight, explored, depth, fxfycxcy, world_to_cam, origin, voxel_m, box,
-               trunc_m, max_depth_m, win_px, behind_weight):  # pragma: no cover - compiled
+               trunc_m, max_depth_m, win_px, behind_weight, explored_depth_m
+               ):  # pragma: no cover - compiled
     h, w = depth.shape
     fx, fy, cx, cy = fxfycxcy[0], fxfycxcy[1], fxfycxcy[2], fxfycxcy[3]
     r = world_to_cam
@@ -173,5 +176,6 @@ def _integrate(tsdf, weight, explored, depth, fxfycxcy, world_to_cam, origin, vo
                 weight[iy, ix, iz] = wt + wo
                 # Explored: seen in the window, in front of or at the surface (not deep in the
                 # band behind it, which the camera did not really see).
-                if sdf >= -voxel_m and win_px[0] <= u < win_px[1] and win_px[2] <= v < win_px[3]:
+                if (sdf >= -voxel_m and zc <= explored_depth_m
+                        and win_px[0] <= u < win_px[1] and win_px[2] <= v < win_px[3]):
                     explored[iy, ix, iz] = True
