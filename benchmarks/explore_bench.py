@@ -62,13 +62,18 @@ def truth_floor(env: SyntheticEnv, mapper: Mapper) -> np.ndarray:
 class Episode:
     coverage: list[float] = field(default_factory=list)
     first_seen: int | None = None
+    first_near: int | None = None  # first step within NEAR_M (path) of the evidence
     steps: int = 0
     step_ms: list[float] = field(default_factory=list)
 
 
+NEAR_M = 2.0
+
+
 def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         scorer: SemanticScorer | None = None, seen: Callable[[np.ndarray], bool] | None = None,
-        coverage: bool = False) -> Episode:
+        coverage: bool = False, distance_m: Callable[[tuple[float, float]], float] | None = None
+        ) -> Episode:
     mapper = make_mapper(env)
     module = ExploreModule(mapper, make_explorer(explorer), scorer, seed=seed)
     floor = truth_floor(env, mapper) if coverage else None
@@ -76,6 +81,9 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
     ep = Episode()
     for step in range(1, budget + 1):
         ep.steps = step
+        if (ep.first_near is None and distance_m is not None
+                and distance_m((obs.pose.x, obs.pose.y)) <= NEAR_M):
+            ep.first_near = step
         if seen is not None and seen(obs.instance):
             ep.first_seen = step
             break
@@ -171,6 +179,10 @@ def cmd_steering(args: argparse.Namespace) -> None:
     print(f"  oracle SFE     mean {sfe.mean():.2f}  (x{sfe.mean() / oracle.mean():.2f} oracle), "
           f"unseen {int((sfe > [r['budget'] for r in rows]).sum())}")
     print(f"  oracle SFE needs {1 - sfe.mean() / fo.mean():.0%} fewer steps than frontier-only")
+    fo_near = np.mean([r["frontier-only near"] for r in rows])
+    sfe_near = np.mean([r["sfe near"] for r in rows])
+    print(f"  steps until within {NEAR_M} m (path) of the evidence or seeing it: frontier-only "
+          f"{fo_near:.2f}, oracle SFE {sfe_near:.2f} ({1 - sfe_near / fo_near:.0%} fewer)")
 
 
 def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int) -> dict:
@@ -190,11 +202,15 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int)
 
     row = {"oracle": q.oracle_steps, "budget": budget}
     for name, scorer in (("frontier-only", None), ("sfe", OracleScorer(distance_m, glimpsed))):
-        steps = []
+        steps, near = [], []
         for r in range(repeats):
-            ep = run(env, name, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen)
+            ep = run(env, name, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
+                     distance_m=distance_m)
             steps.append(ep.first_seen if ep.first_seen is not None else budget + 1)
+            # Seeing implies having got near enough; an episode stops when it sees.
+            near.append(ep.first_near or (ep.first_seen if ep.first_seen else budget + 1))
         row[name] = float(np.mean(steps))
+        row[name + " near"] = float(np.mean(near))
     return row
 
 
