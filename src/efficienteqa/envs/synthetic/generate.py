@@ -21,7 +21,7 @@ ROBOT_RADIUS_M = 0.2
 START_CLEARANCE_M = 1.0
 GRID_RESOLUTION_M = 0.05
 # Categories whose recolouring makes a natural colour question, and the colours used.
-COLOURABLE = ("sofa", "armchair", "bed", "chair", "office chair", "wardrobe", "refrigerator",
+COLOURABLE = ("sofa", "armchair", "bed", "office chair", "wardrobe", "refrigerator",
               "vase", "cup", "rug", "cabinet", "desk", "stool", "towel")
 RECOLOURS = ("red", "blue", "green", "yellow", "orange", "purple", "pink", "white", "black")
 
@@ -106,8 +106,6 @@ def _recolour(rng: np.random.Generator, objects: list[PlacedObject], layout: Lay
         counts[(o.room_id, o.category)] = counts.get((o.room_id, o.category), 0) + 1
     candidates = [o for o in objects
                   if o.category in COLOURABLE and counts[(o.room_id, o.category)] == 1]
-    if o_chairs := [o for o in objects if o.category == "chair"]:
-        candidates = [o for o in candidates if o not in o_chairs]
     for idx in rng.permutation(len(candidates))[: int(rng.integers(2, 4))]:
         obj = candidates[int(idx)]
         name = RECOLOURS[int(rng.integers(len(RECOLOURS)))]
