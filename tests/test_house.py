@@ -139,6 +139,69 @@ def test_start_is_in_the_open_living_room(catalog):
         i, j = grid.spec.world_to_cell((house.start.x, house.start.y))
         # The most open spot of the furnished room: at least 1 m where the room allows it.
         xs, ys = grid.spec.centres()
-        inside = (xs > room.x0) & (xs < room.x1) & (ys > room.y0) & (ys < room.y1)
+        labels, _ = grid.components(ROBOT_RADIUS_M)
+        main = labels == grid.label_at((house.start.x, house.start.y), ROBOT_RADIUS_M)
+        inside = (xs > room.x0) & (xs < room.x1) & (ys > room.y0) & (ys < room.y1) & main
         best = grid.clearance()[inside].max()
         assert grid.clearance()[i, j] >= min(1.0, best - 0.1) - 1e-9
+
+
+def test_overhead_mask_marks_parts_above_the_top_surface():
+    from efficienteqa.envs.synthetic.furnish import overhead_mask
+    from efficienteqa.envs.synthetic.mesh import box_part
+
+    top = box_part((1.0, 0.6, 0.05), (1, 1, 1), centre=(0.0, 0.0, 0.725))
+    side = box_part((0.2, 0.6, 1.5), (1, 1, 1), centre=(0.4, 0.0, 0.75))  # a tall side
+    shelf = box_part((1.0, 0.6, 0.02), (1, 1, 1), centre=(0.0, 0.0, 1.2))  # 0.45 m higher
+    mask = overhead_mask([top, side, shelf], 0.75, (1.0, 0.6, 1.5), clear_m=0.3)
+    xs = (np.arange(mask.shape[1]) + 0.5) * 0.05 - 0.5
+    assert mask[:, xs > 0.32].all() and not mask[:, xs < 0.28].any()
+    assert overhead_mask([top, side, shelf], 0.75, (1.0, 0.6, 1.5), clear_m=0.6).all()
+
+
+def test_small_objects_do_not_cut_into_their_supports():
+    from pathlib import Path
+
+    from efficienteqa.envs.synthetic.catalog import DEFAULT_SOURCE
+    from efficienteqa.envs.synthetic.env import catalog_for
+    from efficienteqa.envs.synthetic.furnish import overhead_mask
+
+    if not Path(DEFAULT_SOURCE).exists():
+        pytest.skip("apt-get install sweethome3d-furniture")
+    catalog = catalog_for("sh3d")
+    checked = 0
+    for seed in range(8):
+        house = generate_house(seed, catalog, "sh3d")
+        for obj in (o for o in house.objects if o.support_id is not None):
+            support = house.object(obj.support_id)
+            top = obj.z - support.z
+            mask = overhead_mask(catalog.mesh(support.model_key), top, support.size_m,
+                                 clear_m=obj.size_m[2])
+            c, s = math.cos(-support.yaw), math.sin(-support.yaw)
+            dx, dy = obj.x - support.x, obj.y - support.y
+            lx, ly = c * dx - s * dy, s * dx + c * dy  # object centre in the support's frame
+            j = int((lx + support.size_m[0] / 2) / 0.05)
+            i = int((ly + support.size_m[1] / 2) / 0.05)
+            assert not mask[min(max(i, 0), mask.shape[0] - 1), min(max(j, 0), mask.shape[1] - 1)]
+            checked += 1
+    assert checked >= 10
+
+
+@pytest.mark.parametrize("assets", ["builtin", "sh3d"])
+def test_start_and_every_open_doorway_share_one_component(assets):
+    from pathlib import Path
+
+    from efficienteqa.envs.synthetic.catalog import DEFAULT_SOURCE
+    from efficienteqa.envs.synthetic.env import catalog_for
+
+    if assets == "sh3d" and not Path(DEFAULT_SOURCE).exists():
+        pytest.skip("apt-get install sweethome3d-furniture")
+    catalog = catalog_for(assets)
+    for seed in range(12):
+        house = generate_house(seed, catalog, assets)
+        grid = navigation_grid(house)
+        start = grid.label_at((house.start.x, house.start.y), ROBOT_RADIUS_M)
+        assert start > 0
+        for door in house.layout.doors:
+            if door.open:
+                assert grid.label_at((door.x, door.y), ROBOT_RADIUS_M) == start, (seed, door)

@@ -11,13 +11,16 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from efficienteqa.envs.synthetic.catalog import Catalog, CatalogEntry
 from efficienteqa.envs.synthetic.house import MOUNTED_Z_M, PlacedObject
 from efficienteqa.envs.synthetic.layout import WALL_THICKNESS_M, Layout, Room
+from efficienteqa.envs.synthetic.mesh import MeshPart
 from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
 
 DOOR_CLEARANCE_M = 0.9
+OVERHEAD_CELL_M = 0.05  # resolution of the "something above the top surface" mask
 
 
 @dataclass(frozen=True)
@@ -125,6 +128,7 @@ class _RoomFurnisher:
         self.placed: list[PlacedObject] = []
         self.next_id = next_id
         self.tables: dict[int, list[int]] = {}
+        self._overhead: dict[tuple[str, float], np.ndarray] = {}
 
     def run(self, rules: tuple[Rule, ...]) -> None:
         for rule in rules:
@@ -252,17 +256,26 @@ class _RoomFurnisher:
         return None
 
     def _on(self, entry: CatalogEntry, support: PlacedObject) -> PlacedObject | None:
+        """On the support's top surface, clear of its siblings and of any part of the support
+        that rises above that surface (the upper shelves of a bookcase, a cabinet's tall side)."""
         top = self.catalog.entry(support.model_key).top_m or support.size_m[2]
         sw, sd, _ = support.size_m
         w, d, _ = entry.size_m
         if w > sw + 0.02 or d > sd + 0.02:
             return None
+        key = (support.model_key, round(entry.size_m[2], 2))
+        if key not in self._overhead:
+            self._overhead[key] = overhead_mask(self.catalog.mesh(support.model_key), top,
+                                                support.size_m, clear_m=entry.size_m[2] + 0.02)
+        overhead = self._overhead[key]
         siblings = [o for o in self.placed if o.support_id == support.id]
         rot = np.array([[math.cos(support.yaw), -math.sin(support.yaw)],
                         [math.sin(support.yaw), math.cos(support.yaw)]])
         for _ in range(20):
             half_free = np.maximum([(sw - w) / 2 * 0.8, (sd - d) / 2 * 0.8], 0.0)
             local = self.rng.uniform(-half_free, half_free)
+            if _covered(overhead, support.size_m, local, (w, d)):
+                continue
             x, y = np.array([support.x, support.y]) + rot @ local
             box = _aabb(x, y, w, d, support.yaw, pad=0.03)
             if any(box.overlaps(_aabb(*o.footprint())) for o in siblings):
@@ -297,6 +310,46 @@ class _RoomFurnisher:
             if chair:
                 chairs.append(chair.id)
         self.tables[table.id] = chairs
+
+
+def overhead_mask(parts: list[MeshPart], top_m: float, size_m: tuple[float, float, float],
+                  clear_m: float, cell_m: float = OVERHEAD_CELL_M) -> np.ndarray:
+    """(ny, nx) bool over a model's footprint in its local frame (cells of ``cell_m`` from
+    (-width/2, -depth/2)): True where part of the model lies between 3 cm and ``clear_m``
+    above ``top_m`` (the next shelf up, a cabinet's tall side), so an object that tall would
+    cut into it. Triangles are sampled densely enough that large panels leave no gaps."""
+    w, d, _ = size_m
+    nx, ny = max(1, math.ceil(w / cell_m)), max(1, math.ceil(d / cell_m))
+    mask = np.zeros((ny, nx), bool)
+    for part in parts:
+        tri = part.positions[part.faces]
+        z = tri[:, :, 2]
+        tri = tri[(z.max(axis=1) > top_m + 0.03) & (z.min(axis=1) < top_m + clear_m)]
+        tri = tri[:, :, :2].astype(float)
+        if not len(tri):
+            continue
+        longest = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+        for k in np.unique(np.clip(np.ceil(longest / cell_m), 1, 60).astype(int)):
+            u, v = np.meshgrid(np.linspace(0, 1, k + 1), np.linspace(0, 1, k + 1))
+            keep = u + v <= 1 + 1e-9
+            bary = np.stack([u[keep], v[keep], 1 - u[keep] - v[keep]], axis=1)
+            group = tri[np.ceil(np.clip(longest / cell_m, 1, 60)).astype(int) == k]
+            pts = np.einsum("sb,tbc->tsc", bary, group).reshape(-1, 2)
+            j = np.clip(((pts[:, 0] + w / 2) / cell_m).astype(int), 0, nx - 1)
+            i = np.clip(((pts[:, 1] + d / 2) / cell_m).astype(int), 0, ny - 1)
+            mask[i, j] = True
+    # A solid block crossing the band shows only its walls: its inside is enclosed, so fill it.
+    return ndimage.binary_fill_holes(mask)
+
+
+def _covered(mask: np.ndarray, support_size: tuple[float, float, float],
+             centre: np.ndarray, size: tuple[float, float]) -> bool:
+    """Whether a (w, d) box centred at ``centre`` (support frame) touches a masked cell."""
+    sw, sd, _ = support_size
+    ny, nx = mask.shape
+    j0, j1 = (int((centre[0] + s * size[0] / 2 + sw / 2) / OVERHEAD_CELL_M) for s in (-1, 1))
+    i0, i1 = (int((centre[1] + s * size[1] / 2 + sd / 2) / OVERHEAD_CELL_M) for s in (-1, 1))
+    return bool(mask[max(i0, 0):min(i1, ny - 1) + 1, max(j0, 0):min(j1, nx - 1) + 1].any())
 
 
 def _aliases(category: str) -> tuple[str, ...]:

@@ -19,6 +19,8 @@ from efficienteqa.mapping.navgrid import OccupancyGrid
 
 ROBOT_RADIUS_M = 0.2
 START_CLEARANCE_M = 1.0
+KEEP = frozenset({"bed", "sofa", "refrigerator", "toilet", "table", "dining table", "desk",
+                  "wardrobe", "shower", "bathtub"})
 GRID_RESOLUTION_M = 0.05
 # Categories whose recolouring makes a natural colour question, and the colours used.
 COLOURABLE = ("sofa", "armchair", "bed", "office chair", "wardrobe", "refrigerator",
@@ -41,7 +43,7 @@ def generate_house(seed: int, catalog: Catalog, assets: str = "sh3d") -> House:
     house = House(seed, layout, objects, Pose2D(0.0, 0.0, 0.0), assets,
                   meta={"chairs_at_table": {str(k): v for k, v in tables.items()},
                         "door_objects": {str(d.id): o.id for d, o in zip(layout.doors, doors)}})
-    grid = navigation_grid(house)
+    grid = _reconnect(house)
     start_xy = _start_point(rng, grid, next(r for r in layout.rooms if r.type == "living room"))
     house.start = Pose2D(*start_xy, 0.0)
     house.start = Pose2D(*start_xy, _informative_yaw(house, grid))
@@ -59,12 +61,44 @@ def navigation_grid(house: House, resolution_m: float = GRID_RESOLUTION_M) -> Oc
     )
 
 
+def _reconnect(house: House, max_removals: int = 12) -> OccupancyGrid:
+    """Remove furniture that walls off a doorway (a coffee table too close to a TV stand can
+    seal a room): while a doorway's floor lies outside the largest navigable component, the
+    floor-standing object nearest to that doorway goes, with what stands on it; key furniture
+    (KEEP) only when nothing else stands within 3 m. Floor merely cut off behind furniture is
+    left alone. Returns the final navigation grid."""
+    doorways = [(d.x, d.y) for d in house.layout.doors if d.open]
+    for _ in range(max_removals):
+        grid = navigation_grid(house)
+        labels, _ = grid.components(ROBOT_RADIUS_M)
+        main = np.argmax(np.bincount(labels.ravel())[1:]) + 1
+        cut = [xy for xy in doorways if grid.label_at(xy, ROBOT_RADIUS_M) not in (main, 0)]
+        if not cut:
+            return grid
+        movable = [o for o in house.objects if o.on_floor and o.category != "door"]
+        if not movable:
+            return grid
+        distance = {o.id: float(np.hypot(o.x - cut[0][0], o.y - cut[0][1])) for o in movable}
+        spare = [o for o in movable if o.category not in KEEP and distance[o.id] <= 3.0]
+        victim = min(spare or movable, key=lambda o: distance[o.id])
+        gone = {victim.id} | {o.id for o in house.objects if o.support_id == victim.id}
+        house.objects = [o for o in house.objects if o.id not in gone]
+        tables = house.meta["chairs_at_table"]
+        for key in list(tables):
+            tables[key] = [c for c in tables[key] if c not in gone]
+            if int(key) in gone or not tables[key]:
+                del tables[key]
+    return navigation_grid(house)
+
+
 def _start_point(rng: np.random.Generator, grid: OccupancyGrid, room: Room
                  ) -> tuple[float, float]:
     """A point of the furnished living room with START_CLEARANCE_M of free floor around it
     (SPEC 3.2 treats that disk as free), or the most open points when the room has none."""
     xs, ys = grid.spec.centres()
-    inside = (xs > room.x0) & (xs < room.x1) & (ys > room.y0) & (ys < room.y1)
+    labels, _ = grid.components(ROBOT_RADIUS_M)
+    main = labels == np.argmax(np.bincount(labels.ravel())[1:]) + 1
+    inside = (xs > room.x0) & (xs < room.x1) & (ys > room.y0) & (ys < room.y1) & main
     clearance = np.where(inside, grid.clearance(), 0.0)
     ok = clearance >= min(START_CLEARANCE_M, clearance.max() - 0.1)
     cells = np.argwhere(ok)
