@@ -84,15 +84,24 @@ def brute_force_dbscan(points: np.ndarray, eps: float = 1.0, min_samples: int = 
     return set(clusters)
 
 
+@pytest.mark.parametrize("eps", [1.0, 1.5])
 @pytest.mark.parametrize("seed", range(40))
-def test_clustering_equals_brute_force_dbscan(seed):
+def test_clustering_equals_brute_force_dbscan(seed, eps):
     rng = np.random.default_rng(seed)
     n = int(rng.integers(11, 70))
     flat = rng.choice(144, size=n, replace=False)
     cells = np.stack([flat // 12, flat % 12], axis=-1)
-    groups = cluster(cells)
-    assert {frozenset(g.tolist()) for g in groups} == brute_force_dbscan(cells.astype(float))
-    assert sum(len(g) for g in groups) == len(set().union(*brute_force_dbscan(cells.astype(float))))
+    groups = cluster(cells, FrontierConfig(cluster_eps_cells=eps))
+    expected = brute_force_dbscan(cells.astype(float), eps=eps)
+    assert {frozenset(g.tolist()) for g in groups} == expected
+    assert sum(len(g) for g in groups) == len(set().union(*expected))
+
+
+def test_a_diagonal_frontier_survives_clustering():
+    cells = np.array([[k, k] for k in range(12)])  # a staircase boundary: corner to corner
+    assert cluster(cells, FrontierConfig(cluster_eps_cells=1.0)) == []  # SPEC's eps: all noise
+    (group,) = cluster(cells)  # the default eps keeps it as one frontier
+    assert len(group) == 12
 
 
 def test_isolated_cells_are_dropped_only_when_clustering():
