@@ -266,3 +266,22 @@ def test_random_explorer_stays_on_island_within_3m():
         replay.append(pose)
     assert replay == trace
     assert len({(round(p.x, 3), round(p.y, 3)) for p in trace}) > 20
+
+
+def test_second_looks_go_up_close_at_the_tight_radius_then_frontiers_are_dropped():
+    state = corridor()
+    explorer = FrontierExplorer()
+    explorer.reset(0)
+    pose = Pose2D(6.0, 1.0, 0.0)
+    first = explorer.decide(state, pose, None, 1)
+    for f in first.frontiers:  # both ends looked at once from their back-off points
+        explorer._record_look(f.xy)
+    explorer._target = None
+    d = explorer.decide(state, pose, None, 2)
+    assert d.reason == "new frontier"
+    assert explorer._target.radius_m == explorer.config.tight_radius_m
+    assert np.linalg.norm(np.subtract(d.target_xy, d.frontier.xy)) < 0.5  # no back-off
+    for f in first.frontiers:  # looked at twice: never again
+        explorer._record_look(f.xy)
+    explorer._target = None
+    assert explorer.decide(state, pose, None, 3).reason == "no reachable frontier"

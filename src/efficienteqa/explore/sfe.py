@@ -103,12 +103,16 @@ class FrontierExplorer:
             # Through a doorway seen at an angle only a sliver of floor is mapped: when nothing
             # fresh is reachable at the planning radius, try the tight one (a wrong guess comes
             # back as a blocked move and is mapped).
-            for wanted in (cfg.robot_radius_m, cfg.tight_radius_m):
+            # Fresh frontiers first at the planning radius; then, at the tight radius, fresh
+            # ones and second looks (which would otherwise be planned back to the same spot).
+            tiers = ((cfg.robot_radius_m, looks == 0),
+                     (cfg.tight_radius_m, looks < cfg.max_looks))
+            for wanted, allowed in tiers:
                 reachable, radius = self._reachable(grid, start, wanted)
                 if reachable is None:
                     continue
                 stands, ok = self._standing_points(state, frontiers, reachable, backoff)
-                ok &= looks < cfg.max_looks
+                ok &= allowed
                 if ok.any():
                     k = sample_index(self._rng, np.where(ok, weights, 0.0), ok)
                     self._target = _Target(frontiers[k], stands[k], radius)
