@@ -45,8 +45,7 @@ def generate_house(seed: int, catalog: Catalog, assets: str = "sh3d") -> House:
                         "door_objects": {str(d.id): o.id for d, o in zip(layout.doors, doors)}})
     grid = _reconnect(house)
     start_xy = _start_point(rng, grid, next(r for r in layout.rooms if r.type == "living room"))
-    house.start = Pose2D(*start_xy, 0.0)
-    house.start = Pose2D(*start_xy, _informative_yaw(house, grid))
+    house.start = Pose2D(*start_xy, _informative_yaw(house, grid, start_xy))
     return house
 
 
@@ -146,9 +145,10 @@ def _recolour(rng: np.random.Generator, objects: list[PlacedObject], layout: Lay
         obj.colour, obj.colour_rgb = name, tuple(PALETTE[name])
 
 
-def _informative_yaw(house: House, grid: OccupancyGrid, n_yaws: int = 16) -> float:
+def _informative_yaw(house: House, grid: OccupancyGrid, start_xy: tuple[float, float],
+                     n_yaws: int = 16) -> float:
     """Face open space where the most objects are in the field of view and in sight."""
-    start = np.array([house.start.x, house.start.y])
+    start = np.array(start_xy)
     yaws = np.arange(n_yaws) * (2 * math.pi / n_yaws)
     rays = grid.ray_length(start, yaws)
     half_fov = math.radians(CameraSpec().hfov_deg) / 2 * 0.8

@@ -24,7 +24,8 @@ CANDIDATE_SPACING_M = 0.35
 MAX_RENDERS = 80
 
 
-def candidate_poses(env: SyntheticEnv, evidence: list[int]) -> list[tuple[float, Pose2D]]:
+def candidate_poses(env: SyntheticEnv, evidence: list[int], sight: OccupancyGrid | None = None
+                    ) -> list[tuple[float, Pose2D]]:
     """(geodesic metres from the start, pose facing the evidence) for reachable ring cells."""
     centre = np.mean([[env.house.object(e).x, env.house.object(e).y] for e in evidence], axis=0)
     field_m = env.grid.distance_field((env.house.start.x, env.house.start.y), ROBOT_RADIUS_M)
@@ -33,7 +34,7 @@ def candidate_poses(env: SyntheticEnv, evidence: list[int]) -> list[tuple[float,
     sub = (slice(None, None, stride), slice(None, None, stride))
     dist_to_evidence = np.hypot(xs[sub] - centre[0], ys[sub] - centre[1])
     ok = np.isfinite(field_m[sub]) & (dist_to_evidence >= RING_M[0]) & (dist_to_evidence <= RING_M[1])
-    sight = _sight_grid(env)
+    sight = sight if sight is not None else _sight_grid(env)
     out = []
     for x, y, d in zip(xs[sub][ok], ys[sub][ok], field_m[sub][ok]):
         offset = centre - (x, y)
@@ -55,7 +56,8 @@ def _sight_grid(env: SyntheticEnv) -> OccupancyGrid:
     )
 
 
-def oracle_steps(env: SyntheticEnv, question: Question) -> tuple[int | None, Pose2D | None]:
+def oracle_steps(env: SyntheticEnv, question: Question, sight: OccupancyGrid | None = None
+                 ) -> tuple[int | None, Pose2D | None]:
     """(observations until the evidence is in view, the pose that shows it) or (None, None)."""
     if not question.evidence:
         return None, None
@@ -64,7 +66,7 @@ def oracle_steps(env: SyntheticEnv, question: Question) -> tuple[int | None, Pos
     start_view = env.renderer.render(camera_to_world(env.house.start, full))
     if evidence_visible(start_view.instance, question.evidence):
         return 1, env.house.start
-    for rendered, (dist_m, pose) in enumerate(candidate_poses(env, question.evidence)):
+    for rendered, (dist_m, pose) in enumerate(candidate_poses(env, question.evidence, sight)):
         if rendered >= MAX_RENDERS:
             break
         frame = env.renderer.render(camera_to_world(pose, low), camera=low)
@@ -80,9 +82,10 @@ def oracle_steps(env: SyntheticEnv, question: Question) -> tuple[int | None, Pos
 
 def annotate(env: SyntheticEnv, questions: list[Question]) -> list[Question]:
     """Fill in oracle steps and poses; drop questions whose evidence can never be seen."""
+    sight = _sight_grid(env)  # one walls-and-doors grid for all questions of the house
     kept = []
     for q in questions:
-        steps, pose = oracle_steps(env, q)
+        steps, pose = oracle_steps(env, q, sight)
         if q.evidence and steps is None:
             continue
         q.oracle_steps = steps
