@@ -6,7 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # build-essential: the one-time portable build of llama-cpp-python when no wheel is cached.
-APT_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri sweethome3d-furniture build-essential)
+# chromium: the headless browser the tests open the episode report in.
+APT_PACKAGES=(libegl1 libegl-mesa0 libgl1-mesa-dri sweethome3d-furniture build-essential chromium)
 VENV=${VENV:-.venv}
 PYTHON=${PYTHON:-python3}
 

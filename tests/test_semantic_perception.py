@@ -109,15 +109,15 @@ def test_directions_name_the_objects_near_each_point():
     prompts = [_prompt("A", (2.5, 1.0)), _prompt("B", (4.5, 3.0))]
     out = describe_directions(make_frame(), prompts, FakeLabels(), min_pixels=10)
     assert out == {
-        "A": "A: in the kitchen, 1.5 m away; a white lamp (on), two brown chairs.",
-        "B": "B: towards the hallway, 4.0 m away; a red sofa.",
+        "A": "in the kitchen, 1.5 m away; a white lamp (on), two brown chairs.",
+        "B": "towards the hallway, 4.0 m away; a red sofa.",
     }
 
 
 def test_directions_with_nothing_near():
     out = describe_directions(make_frame(), [_prompt("C", (2.0, -3.0))], FakeLabels(),
                               radius_m=0.5, min_pixels=10)
-    assert out["C"] == "C: in the kitchen, 4.1 m away; no objects seen there."
+    assert out["C"] == "in the kitchen, 4.1 m away; no objects seen there."
 
 
 def test_noise_drops_everything_at_rate_one():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from pathlib import Path
@@ -10,6 +11,7 @@ import typer
 from rich.console import Console
 
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.geometry import Pose2D
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="EfficientEQA: explore a house, stop early, answer a question.")
@@ -19,6 +21,81 @@ models = typer.Typer(no_args_is_help=True,
                      help="Local language models (gguf from PyPI) and the llama.cpp server.")
 app.add_typer(models, name="models")
 console = Console()
+
+
+def _parse_start(text: str | None) -> Pose2D | None:
+    if text is None:
+        return None
+
+    try:
+        x, y, yaw_deg = (float(v) for v in text.split(","))
+    except ValueError:
+        raise EfficientEQAError(f"cannot read the start pose {text!r}",
+                                fix="give it as X,Y,YAW_DEG in metres and degrees, e.g. 2.5,3,90") from None
+    return Pose2D(x, y, math.radians(yaw_deg))
+
+
+@app.command("ask")
+def ask_command(
+    question: str = typer.Argument(..., help="The question, in free text."),
+    scene: str = typer.Option("synthetic:0", help="synthetic:SEED (a generated house)."),
+    out: Path = typer.Option(Path("out/ask"), help="Folder for episode.json and report.html."),
+    start: str | None = typer.Option(None, help="Start pose X,Y,YAW_DEG (default: the scene's)."),
+    z_th: float = typer.Option(3.0, "--z-th", help="Stop when a frame's relevancy z-score exceeds this."),
+    min_stop_step: int = typer.Option(10, help="Never stop before this step."),
+    no_early_stop: bool = typer.Option(False, "--no-early-stop", help="Explore to the budget."),
+    top_k: int = typer.Option(5, "--top-k", help="Frames retrieved for the answer."),
+    max_steps: int | None = typer.Option(None, help="Step budget (default int(sqrt(area)*3))."),
+    explorer: str = typer.Option("sfe", help="sfe | frontier-only | random."),
+    vlm: str = typer.Option("local:qwen2.5-coder-1.5b",
+                            help="local:MODEL, or openai:MODEL[@BASE_URL] (key in OPENAI_API_KEY)."),
+    perception: str = typer.Option("semantic", help="semantic (object labels as text) | rgb (pixels, "
+                                   "needs an image VLM)."),
+    relevancy: str = typer.Option("minilm", help="minilm | overlap | blip2-itm | clip | siglip."),
+    grouping: str = typer.Option("llm", help="How equivalent answers are grouped: llm | rules."),
+    seed: int = typer.Option(0, help="Seed of the explorer's frontier sampling."),
+    assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
+) -> None:
+    """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from efficienteqa.agent import AgentConfig, StepRecord
+    from efficienteqa.ask import ask
+    from efficienteqa.scenes import open_scene
+    from efficienteqa.stack import Stack
+    from efficienteqa.stop import StopConfig, step_budget
+
+    config = AgentConfig(explorer=explorer, top_k=top_k, max_steps=max_steps, seed=seed,
+                         stop=StopConfig(z_th=z_th, min_step=min_stop_step, enabled=not no_early_stop))
+    stack = Stack(vlm=vlm, perception=perception, relevancy=relevancy, grouping=grouping)
+    with console.status(f"opening {scene}..."):
+        opened = open_scene(scene, assets)
+    budget = max_steps or step_budget(opened.env.floor_area_m2)
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
+    with opened.env, Progress(*columns, console=console) as progress:
+        task = progress.add_task("exploring", total=budget, info="")
+
+        def on_step(record: StepRecord) -> None:
+            c = record.check
+            info = ("invalid frame" if c is None else
+                    f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
+            progress.update(task, completed=record.step, info=info)
+
+        done = ask(question, opened, out, stack=stack, config=config,
+                   start=_parse_start(start), on_step=on_step)
+    r, rec = done.result, done.record
+    oracle = rec.get("oracle_steps")
+    console.print(f"[bold]answer:[/bold] {r.answer or '(none)'}  (confidence {r.confidence:.2f})",
+                  highlight=False)
+    console.print(f"steps: {r.steps} of {r.budget}" + (f" (oracle {oracle})" if oracle else "")
+                  + f"   stop: {r.stop_reason}   time: {r.wall_s:.0f} s", highlight=False)
+    if rec.get("reference"):
+        console.print(f"reference answer: {rec['reference']['answer']}", highlight=False)
+    console.print(f"back-ends: {', '.join(f'{k}={v}' for k, v in rec['backends'].items() if v)}",
+                  highlight=False, soft_wrap=True)
+    console.print(f"episode: {done.episode_json}\nreport:  {done.report_html}", highlight=False,
+                  soft_wrap=True)
 
 
 @scenes.command("generate")

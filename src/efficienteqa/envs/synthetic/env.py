@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,6 +16,9 @@ from efficienteqa.envs.synthetic.primitives import builtin_catalog
 from efficienteqa.envs.synthetic.render import Renderer
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
+
+if TYPE_CHECKING:
+    from efficienteqa.perception.semantic import HouseLabels
 
 
 def catalog_for(assets: str, cc_by: bool = False) -> Catalog:
@@ -88,6 +91,12 @@ class SyntheticEnv:
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         lay = self.house.layout
         return np.array([0.0, 0.0, 0.0]), np.array([lay.width_m, lay.depth_m, WALL_HEIGHT_M])
+
+    def scene_labels(self) -> HouseLabels:
+        """The semantic sensor: object labels and room names (for semantic-sensor perception)."""
+        from efficienteqa.perception.semantic import HouseLabels
+
+        return HouseLabels(self.house)
 
     def close(self) -> None:
         self.renderer.close()

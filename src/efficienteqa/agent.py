@@ -1,0 +1,207 @@
+"""The EfficientEQA agent: explore -> stop -> answer, composed from injected parts.
+
+Per step t (the start view is step 1; SPEC 3.1):
+1. the frame's relevancy ``Sim(I_t, Q)`` is checked against the earlier frames (stop module);
+   an outlier after step 10 ends exploration;
+2. otherwise the explore module fuses the frame into the map, asks the scorer for semantic
+   values and picks the next pose, and the robot moves there.
+Then the K most relevant frames of the whole history answer the question (answer module).
+Frames with >= 50% invalid depth are mapped but never reach a model.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from efficienteqa.answer.rag import TOP_K, RagAnswerer, TopK
+from efficienteqa.envs.base import Environment, Observation
+from efficienteqa.explore.base import Decision
+from efficienteqa.explore.module import ExploreModule, ExploreStep, SemanticScorer
+from efficienteqa.explore.references import make_explorer
+from efficienteqa.geometry import Pose2D
+from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
+from efficienteqa.mapping.state import MapState
+from efficienteqa.mapping.tsdf import VolumeSpec
+from efficienteqa.models.recording import RecordingChatModel
+from efficienteqa.models.vc.parse import AnswerResult
+from efficienteqa.perception.base import Perception
+from efficienteqa.relevancy.base import RelevancyScorer, check_question
+from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig, step_budget
+
+STOP_REASONS = ("relevancy", "budget", "explored")
+
+
+@dataclass(frozen=True)
+class AgentConfig:
+    """Every knob of an episode; ablations are values here. ``max_steps`` None: the SPEC budget
+    ``int(sqrt(floor area) * 3)``."""
+
+    explorer: str = "sfe"  # "sfe" | "frontier-only" | "random"
+    stop: StopConfig = field(default_factory=StopConfig)
+    top_k: int = TOP_K
+    max_steps: int | None = None
+    seed: int = 0
+
+
+@dataclass
+class StepRecord:
+    """What happened at one step. Poses are (x, y, yaw) in metres and radians."""
+
+    step: int
+    pose: tuple[float, float, float]
+    valid: bool
+    check: StopCheck | None = None
+    prompts: list[dict[str, Any]] = field(default_factory=list)
+    lsv: dict[str, float] = field(default_factory=dict)
+    gsv: float | None = None
+    p_yes: float | None = None
+    frontier_xy: tuple[float, float] | None = None
+    target_xy: tuple[float, float] | None = None
+    n_frontiers: int = 0
+    decision: str = ""
+    blocked: bool = False
+    calls: list[int] = field(default_factory=list)  # indices into the model exchanges
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class EpisodeResult:
+    question: str
+    answer: str
+    confidence: float
+    steps: int
+    stop_reason: str
+    budget: int
+    records: list[StepRecord]
+    retrieved: list[tuple[int, float]]  # (step, Sim) of the top-K frames, best first
+    answer_result: AnswerResult
+    wall_s: float
+    answer_s: float
+    state: MapState  # the final map, for pictures
+    values: np.ndarray
+    last_decision: Decision | None
+
+    @property
+    def trajectory(self) -> list[Pose2D]:
+        return [Pose2D(*r.pose) for r in self.records]
+
+
+StepHook = Callable[[StepRecord, Observation, ExploreStep | None], None]
+
+
+def mapper_for(env: Environment, start_xy: tuple[float, float]) -> Mapper:
+    """A map over the scene's bounds with the floor at the bottom of the bounds."""
+    lo, hi = env.bounds
+    floor_z = float(lo[2])
+    return Mapper(VolumeSpec.around(lo[:2], hi[:2], floor_z=floor_z), floor_z=floor_z,
+                  start_xy=start_xy)
+
+
+class Agent:
+    """``scorer`` None explores without semantic values (the frontier-only reference).
+    ``exchanges``: the recording wrapper of the model the scorer and answerer call, so each
+    step knows its model calls."""
+
+    def __init__(self, perception: Perception, scorer: SemanticScorer | None,
+                 relevancy: RelevancyScorer, answerer: RagAnswerer,
+                 config: AgentConfig | None = None,
+                 exchanges: RecordingChatModel | None = None) -> None:
+        if relevancy.modality == "text" and perception.modality != "text":
+            raise ValueError(f"relevancy scorer {relevancy.name!r} reads text, but perception "
+                             f"{perception.name!r} gives images")
+        self.perception, self.scorer, self.relevancy = perception, scorer, relevancy
+        self.answerer = answerer
+        self.config = config or AgentConfig()
+        self.exchanges = exchanges
+
+    def _phase(self, name: str) -> AbstractContextManager[None]:
+        return self.exchanges.in_phase(name) if self.exchanges is not None else nullcontext()
+
+    def _calls_since(self, n: int) -> list[int]:
+        return list(range(n, len(self.exchanges.exchanges))) if self.exchanges is not None else []
+
+    def _n_calls(self) -> int:
+        return len(self.exchanges.exchanges) if self.exchanges is not None else 0
+
+    def run(self, env: Environment, question: str, start: Pose2D | None = None,
+            on_step: StepHook | None = None) -> EpisodeResult:
+        question = check_question(question)
+        cfg = self.config
+        t0 = time.perf_counter()
+        obs, _ = env.reset(options={"start": start} if start is not None else None)
+        budget = cfg.max_steps or step_budget(env.floor_area_m2)
+        explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)),
+                                make_explorer(cfg.explorer), self.scorer, seed=cfg.seed)
+        stopper = RelevancyStopper(cfg.stop)
+        top: TopK[str | np.ndarray] = TopK(cfg.top_k)
+        records: list[StepRecord] = []
+        decision: Decision | None = None
+        stop_reason = "budget"
+        for step in range(1, budget + 1):
+            record = StepRecord(step, (obs.pose.x, obs.pose.y, obs.pose.yaw),
+                                valid=obs.invalid_fraction < MAX_INVALID_FRACTION)
+            records.append(record)
+            if record.valid:
+                t = time.perf_counter()
+                frame = self.perception.frame(obs)
+                sim = self.relevancy.score(question, **{self.relevancy.modality: (
+                    obs.rgb if self.relevancy.modality == "image" else frame)})
+                record.check = stopper.check(step, sim)
+                top.push(sim, step, frame)
+                record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
+                if record.check.stop:
+                    stop_reason = "relevancy"
+            if stop_reason == "relevancy" or step == budget:
+                explore.mapper.update(obs)  # the last frame is on the final map too
+                _notify(on_step, record, obs, None)
+                break
+            t, n = time.perf_counter(), self._n_calls()
+            with self._phase(f"step {step}"):
+                out = explore.step(obs, step, question)
+            record.timings_ms["explore"] = 1e3 * (time.perf_counter() - t)
+            record.calls = self._calls_since(n)
+            decision = out.decision
+            _fill(record, out)
+            _notify(on_step, record, obs, out)
+            if decision.done:
+                stop_reason = "explored"
+                break
+            t = time.perf_counter()
+            obs, _, _, _, info = env.step(decision.pose)
+            record.timings_ms["env"] = 1e3 * (time.perf_counter() - t)
+            if info.get("blocked"):
+                record.blocked = True
+                explore.blocked((decision.pose.x, decision.pose.y))
+        t = time.perf_counter()
+        best = top.best()
+        with self._phase("answer"):
+            result = self.answerer.answer(question, [r.item for r in best])
+        answer_s = time.perf_counter() - t
+        state = explore.mapper.state((obs.pose.x, obs.pose.y))
+        return EpisodeResult(question, result.answer, result.confidence, len(records),
+                             stop_reason, budget, records, [(r.step, r.sim) for r in best],
+                             result, time.perf_counter() - t0, answer_s, state,
+                             explore.values.smoothed(), decision)
+
+
+def _fill(record: StepRecord, out: ExploreStep) -> None:
+    d = out.decision
+    record.prompts = [{"letter": p.letter, "xy": p.xy, "pixel": p.pixel} for p in out.prompts]
+    record.lsv, record.gsv = dict(out.lsv), out.gsv
+    record.p_yes = out.score.p_yes if out.score is not None else None
+    record.frontier_xy = d.frontier.xy if d.frontier is not None else None
+    record.target_xy = d.target_xy
+    record.n_frontiers = len(d.frontiers)
+    record.decision = d.reason
+
+
+def _notify(hook: StepHook | None, record: StepRecord, obs: Observation,
+            out: ExploreStep | None) -> None:
+    if hook is not None:
+        hook(record, obs, out)

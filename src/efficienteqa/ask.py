@@ -1,0 +1,86 @@
+"""The "ask" job: one question in one scene -> answer, ``episode.json`` and ``report.html``."""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from PIL import Image
+
+from efficienteqa.agent import AgentConfig, EpisodeResult, StepRecord
+from efficienteqa.envs.base import Observation
+from efficienteqa.envs.synthetic.questions import Question
+from efficienteqa.explore.module import ExploreStep
+from efficienteqa.geometry import Pose2D
+from efficienteqa.mapping.visualize import map_image
+from efficienteqa.models.base import ChatModel
+from efficienteqa.relevancy.base import RelevancyScorer
+from efficienteqa.report.episode import episode_record, write_json
+from efficienteqa.report.frames import FrameCollector
+from efficienteqa.report.html import write_report
+from efficienteqa.scenes import Scene, open_scene
+from efficienteqa.stack import Stack, build_agent
+
+
+@dataclass
+class AskResult:
+    result: EpisodeResult
+    record: dict
+    episode_json: Path
+    report_html: Path
+
+
+def known_question(questions: list[Question], text: str) -> Question | None:
+    """The scene's ground-truth question with this text (case and spacing ignored)."""
+    key = " ".join(text.lower().split())
+    return next((q for q in questions if " ".join(q.question.lower().split()) == key), None)
+
+
+def map_png(result: EpisodeResult) -> bytes:
+    d = result.last_decision
+    rgb = map_image(result.state, result.values, frontiers=d.frontiers if d else (),
+                    trajectory=result.trajectory, target_xy=d.target_xy if d else None)
+    buf = io.BytesIO()
+    Image.fromarray(rgb).save(buf, format="PNG", optimize=True)
+    return buf.getvalue()
+
+
+def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = None,
+        config: AgentConfig | None = None, start: Pose2D | None = None,
+        on_step: Callable[[StepRecord], None] | None = None, model: ChatModel | None = None,
+        relevancy: RelevancyScorer | None = None, assets: str = "sh3d") -> AskResult:
+    """Run one episode and write ``out/episode.json`` and ``out/report.html``. ``model`` and
+    ``relevancy`` replace the stack's back-ends (tests inject stubs)."""
+    stack, config = stack or Stack(), config or AgentConfig()
+    opened = open_scene(scene, assets) if isinstance(scene, str) else scene
+    try:
+        built = build_agent(opened.env, stack, config, opened.name, model=model,
+                            relevancy=relevancy)
+        perception = built.agent.perception
+        frames = FrameCollector(describe=perception.frame if perception.modality == "text" else None)
+
+        def hook(record: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
+            frames(record, obs, out_step)
+            if on_step is not None:
+                on_step(record)
+
+        result = built.agent.run(opened.env, question, start=start, on_step=hook)
+        truth = known_question(opened.questions, question)
+        reference = None
+        if truth is not None:
+            reference = {"id": truth.id, "answer": truth.answer,
+                         "alternatives": truth.alternatives, "category": truth.category}
+            if start is None:  # oracle step counts are from the scene's own start pose
+                reference["oracle_steps"] = truth.oracle_steps
+        record = episode_record(result, config=config, backends=built.backends,
+                                scene=opened.name, exchanges=built.model.exchanges,
+                                reference=reference)
+        episode_json = write_json(out / "episode.json", record)
+        report = write_report(out / "report.html", record, map_png(result), frames.frames,
+                              frames.descriptions)
+        return AskResult(result, record, episode_json, report)
+    finally:
+        if isinstance(scene, str):
+            opened.env.close()

@@ -1,0 +1,25 @@
+"""Semantic values from a (vision-)language model with verbalized confidence (SPEC 3.3)."""
+
+from __future__ import annotations
+
+from efficienteqa.envs.base import Observation
+from efficienteqa.explore.module import SemanticScore
+from efficienteqa.explore.prompting import PromptPoint
+from efficienteqa.models.base import ChatModel
+from efficienteqa.models.vc.calls import explore_scores
+from efficienteqa.models.vc.parse import M
+from efficienteqa.perception.base import Perception
+
+
+class VLMScorer:
+    """The ``SemanticScorer`` of the agent: one VC call per prompted frame gives the per-letter
+    LSV distribution and P(worth exploring) for the GSV. What the model reads (text or pixels)
+    is the perception back-end's business."""
+
+    def __init__(self, model: ChatModel, perception: Perception, m: int = M) -> None:
+        self.model, self.perception, self.m = model, perception, m
+
+    def score(self, obs: Observation, prompts: list[PromptPoint], question: str) -> SemanticScore:
+        request = self.perception.explore_request(obs, prompts)
+        return explore_scores(self.model, question, request.view, request.directions,
+                              request.images or None, m=self.m)

@@ -1,0 +1,40 @@
+"""What the models see of an observation: the perception contract.
+
+A perception back-end turns an observation into the input of the models: a text description for
+text-only language models (semantic-sensor perception, the offline default) or the RGB frame for
+a vision-language model. The relevancy scorer and the answerer get ``frame(obs)``; the
+exploration call gets ``explore_request(obs, prompts)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal, Protocol
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from efficienteqa.envs.base import Observation
+    from efficienteqa.explore.prompting import PromptPoint
+
+Modality = Literal["image", "text"]
+
+
+@dataclass(frozen=True)
+class ExploreRequest:
+    """The inputs of one exploration VC call: ``view`` (scene text, or "" with images),
+    ``directions`` (letter -> description for text models, letters for VLMs) and ``images``."""
+
+    view: str
+    directions: Mapping[str, str] | Sequence[str]
+    images: tuple[np.ndarray, ...] = ()
+
+
+class Perception(Protocol):
+    name: str  # recorded with every result, e.g. "semantic-sensor" or "rgb"
+    modality: Modality
+
+    def frame(self, obs: Observation) -> str | np.ndarray: ...
+
+    def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest: ...

@@ -1,0 +1,97 @@
+"""``episode.json``: one episode as plain JSON, with what produced it."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import tempfile
+from collections.abc import Sequence
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import efficienteqa
+from efficienteqa.agent import AgentConfig, EpisodeResult, StepRecord
+from efficienteqa.models.recording import Exchange
+
+
+def code_version() -> str:
+    """The package version, plus the git commit (and "-dirty") when run from a checkout."""
+    root = Path(__file__).resolve().parents[3]
+    try:
+        commit = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty"],
+                                capture_output=True, text=True, timeout=5, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        commit = ""
+    return f"{efficienteqa.__version__}+{commit}" if commit else efficienteqa.__version__
+
+
+def _plain(value: Any) -> Any:
+    """JSON-safe: dataclasses, tuples, numpy scalars and arrays; NaN/inf become None."""
+    if is_dataclass(value) and not isinstance(value, type):
+        return _plain(asdict(value))
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return _plain(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def step_dict(r: StepRecord) -> dict[str, Any]:
+    c = r.check
+    return _plain({
+        "step": r.step, "pose": r.pose, "valid": r.valid,
+        "sim": c.sim if c else None, "mu": c.mu if c else None, "sigma": c.sigma if c else None,
+        "z": c.z if c else None, "threshold": c.threshold if c else None,
+        "prompts": r.prompts, "lsv": r.lsv, "gsv": r.gsv, "p_yes": r.p_yes,
+        "frontier": r.frontier_xy, "target": r.target_xy, "n_frontiers": r.n_frontiers,
+        "decision": r.decision, "blocked": r.blocked, "calls": r.calls,
+        "timings_ms": {k: round(v, 2) for k, v in r.timings_ms.items()},
+    })
+
+
+def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict[str, Any],
+                   scene: str, exchanges: Sequence[Exchange] = (),
+                   reference: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The whole episode. ``backends``: which environment, perception, VLM, relevancy scorer
+    (and judge) produced it; ``reference``: ground truth where known (answer, oracle_steps)."""
+    a = result.answer_result
+    calls = list(exchanges)
+    return _plain({
+        "question": result.question, "answer": result.answer, "confidence": result.confidence,
+        "steps": result.steps, "stop_reason": result.stop_reason, "budget": result.budget,
+        "oracle_steps": (reference or {}).get("oracle_steps"),
+        "reference": reference, "scene": scene,
+        "retrieved": [{"step": s, "sim": sim} for s, sim in result.retrieved],
+        "answer_classes": [{"text": c.text, "confidence": c.confidence} for c in a.classes],
+        "answer_candidates": [{"text": c.text, "confidence": c.confidence} for c in a.candidates],
+        "answer_problems": a.problems,
+        "per_step": [step_dict(r) for r in result.records],
+        "model": {"calls": len(calls), "prompt_tokens": sum(e.prompt_tokens for e in calls),
+                  "completion_tokens": sum(e.completion_tokens for e in calls),
+                  "latency_s": round(sum(e.latency_s for e in calls), 3),
+                  "exchanges": [e.to_dict() for e in calls]},
+        "timing": {"wall_s": round(result.wall_s, 3), "answer_s": round(result.answer_s, 3),
+                   "per_step_s": round((result.wall_s - result.answer_s) / max(result.steps, 1), 3)},
+        "backends": backends, "config": config, "code_version": code_version(),
+    })
+
+
+def write_json(path: Path, data: dict[str, Any]) -> Path:
+    """Written atomically (temporary file, then rename): a reader never sees half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+    with os.fdopen(fd, "w") as f:
+        json.dump(data, f, indent=1, allow_nan=False)
+    os.replace(tmp, path)
+    return path

@@ -1,0 +1,107 @@
+"""Build an agent from back-end names: the one place that turns configuration into objects.
+
+The default stack is the offline one (SPEC 5): semantic-sensor perception, Qwen2.5-Coder-1.5B on
+the local llama.cpp server, MiniLM text relevancy. ``--vlm openai:gpt-4o --perception rgb
+--relevancy blip2-itm`` is the paper's stack, by configuration alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from efficienteqa.agent import Agent, AgentConfig
+from efficienteqa.answer.rag import RagAnswerer
+from efficienteqa.envs.base import Environment
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.explore.vlm_scorer import VLMScorer
+from efficienteqa.models.backends import ChatBackend, build_chat_model
+from efficienteqa.models.base import ChatModel
+from efficienteqa.models.recording import RecordingChatModel
+from efficienteqa.models.vc.grouping import Grouper, LLMGrouper, RuleGrouper
+from efficienteqa.perception.base import Perception
+from efficienteqa.relevancy.base import RelevancyScorer, make_scorer
+
+PERCEPTIONS = ("semantic", "rgb")
+GROUPINGS = ("llm", "rules")
+
+
+@dataclass(frozen=True)
+class Stack:
+    """Which back-ends an episode uses. ``vlm``: "local:MODEL" or "openai:MODEL[@BASE_URL]"."""
+
+    vlm: str = "local:qwen2.5-coder-1.5b"
+    perception: str = "semantic"
+    relevancy: str = "minilm"
+    grouping: str = "llm"
+
+
+def parse_vlm(spec: str, images: bool) -> ChatBackend:
+    kind, _, rest = spec.partition(":")
+    model, _, url = rest.partition("@")
+    if kind not in ("local", "openai") or not model:
+        raise EfficientEQAError(f"cannot read the VLM {spec!r}",
+                                fix="use local:MODEL or openai:MODEL[@BASE_URL], "
+                                    "e.g. local:qwen2.5-coder-1.5b or openai:gpt-4o")
+    return ChatBackend(kind=kind, model=model, base_url=url or None, images=images)
+
+
+def build_perception(name: str, env: Environment) -> Perception:
+    if name == "semantic":
+        labels = getattr(env, "scene_labels", None)
+        if labels is None:
+            raise EfficientEQAError(
+                f"semantic-sensor perception needs object labels, which {type(env).__name__} "
+                "does not give", fix="use --perception rgb with an image VLM")
+        from efficienteqa.perception.semantic import SemanticPerception
+
+        return SemanticPerception(labels())
+    if name == "rgb":
+        from efficienteqa.perception.image import ImagePerception
+
+        return ImagePerception()
+    raise EfficientEQAError(f"unknown perception {name!r}", fix=f"use one of {', '.join(PERCEPTIONS)}")
+
+
+def build_grouper(name: str, model: ChatModel, relevancy: RelevancyScorer) -> Grouper:
+    if name == "rules":
+        return RuleGrouper()
+    if name == "llm":
+        return LLMGrouper(model, embedder=getattr(relevancy, "embed", None))
+    raise EfficientEQAError(f"unknown grouping {name!r}", fix=f"use one of {', '.join(GROUPINGS)}")
+
+
+def build_relevancy(kind: str) -> RelevancyScorer:
+    # One torch thread is the fastest for a few short texts on a small busy CPU (relevancy.text).
+    return make_scorer(kind, num_threads=1) if kind == "minilm" else make_scorer(kind)
+
+
+@dataclass
+class BuiltAgent:
+    agent: Agent
+    model: RecordingChatModel
+    backends: dict[str, Any]
+
+
+def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment: str,
+                model: ChatModel | None = None, relevancy: RelevancyScorer | None = None
+                ) -> BuiltAgent:
+    """``environment`` names the scene back-end for the record; ``model``/``relevancy`` replace
+    the configured ones (tests pass stubs)."""
+    perception = build_perception(stack.perception, env)
+    vlm_backend = stack.vlm if model is None else "injected"
+    if model is None:
+        model = build_chat_model(parse_vlm(stack.vlm, images=perception.modality == "image"))
+    if perception.modality == "image" and not model.capabilities.images:
+        raise EfficientEQAError(f"model {model.name!r} cannot read images",
+                                fix="use --perception semantic, or an image VLM such as "
+                                    "--vlm openai:gpt-4o")
+    relevancy = relevancy or build_relevancy(stack.relevancy)
+    recorder = RecordingChatModel(model)
+    scorer = VLMScorer(recorder, perception) if config.explorer == "sfe" else None
+    answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy))
+    agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder)
+    backends = {"environment": environment, "perception": perception.name, "vlm": model.name,
+                "vlm_backend": vlm_backend,
+                "relevancy": relevancy.name, "grouping": stack.grouping, "judge": None}
+    return BuiltAgent(agent, recorder, backends)
