@@ -1,0 +1,186 @@
+"""End-to-end episodes of the agent in synthetic houses, with scripted models (deterministic)."""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from agent_stubs import MentionScorer, averse_model, seeking_model
+from conftest import needs_egl
+from efficienteqa.agent import Agent, AgentConfig
+from efficienteqa.ask import ask
+from efficienteqa.envs.synthetic.env import SyntheticEnv
+from efficienteqa.envs.synthetic.generate import generate_house
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.geometry import CameraSpec
+from efficienteqa.models.stub import StubChatModel
+from efficienteqa.relevancy.text import WordOverlapScorer
+from efficienteqa.scenes import Scene, synthetic_questions
+from efficienteqa.stack import Stack, build_agent, parse_vlm
+
+pytestmark = needs_egl
+CAMERA = CameraSpec().scaled(320, 240)
+
+
+@pytest.fixture(scope="module")
+def house4(catalog):
+    """Builtin house 4; its question syn-4-10 asks for the colour of the desk in the office."""
+    env = SyntheticEnv(generate_house(4, catalog, "builtin"), catalog, CAMERA)
+    questions = synthetic_questions(env)
+    yield Scene(env, "synthetic:4 (builtin)", questions), next(q for q in questions if q.id == "syn-4-10")
+    env.close()
+
+
+def _episode(scene, question, model, tmp_path, max_steps, **kw):
+    desk = scene.env.house.object(question.evidence[0])
+    room = scene.env.house.room(desk.room_id).name
+    return ask(question.question, scene, tmp_path, stack=Stack(grouping="rules"),
+               model=model(desk.category, room), relevancy=MentionScorer(desk.category, room),
+               config=AgentConfig(max_steps=max_steps, **kw))
+
+
+def test_a_model_that_points_at_the_evidence_stops_early_and_answers_right(house4, tmp_path):
+    scene, q = house4
+    assert q.answer == "black"
+    done = _episode(scene, q, seeking_model, tmp_path, max_steps=30)
+    r = done.result
+    assert r.stop_reason == "relevancy" and 10 <= r.steps < 30
+    assert r.answer == "black"
+    stop = r.records[-1].check
+    assert stop.stop and stop.z > 3 and stop.sim == 1.0
+    assert r.retrieved[0] == (r.steps, 1.0)  # the outlier frame is the best evidence
+    record = json.loads(done.episode_json.read_text())
+    assert record["stop_reason"] == "relevancy" and record["oracle_steps"] == q.oracle_steps
+    assert record["reference"]["answer"] == "black" and record["answer"] == "black"
+    assert len(record["per_step"]) == r.steps and record["model"]["calls"] >= 2
+    assert record["backends"]["relevancy"] == "mention-stub"
+    assert record["backends"]["perception"] == "semantic-sensor"
+
+
+def test_a_model_that_never_points_at_it_runs_to_the_budget(house4, tmp_path):
+    scene, q = house4
+    r = _episode(scene, q, averse_model, tmp_path, max_steps=20).result
+    assert r.stop_reason == "budget" and r.steps == 20
+    assert r.answer == "unknown"
+    assert all(not rec.check.stop for rec in r.records if rec.check)
+
+
+def test_the_explore_calls_carry_the_question_and_the_directions(house4, tmp_path):
+    scene, q = house4
+    model = seeking_model("desk", "office")
+    built = build_agent(scene.env, Stack(grouping="rules"), AgentConfig(max_steps=4),
+                        "test", model=model, relevancy=WordOverlapScorer())
+    r = built.agent.run(scene.env, q.question)
+    explore = [e for e in built.model.exchanges if e.phase.startswith("step")]
+    assert explore and all(q.question in e.prompt and "Directions:" in e.prompt for e in explore)
+    assert sum(len(rec.calls) for rec in r.records) == len(explore)
+    assert [e.phase for e in built.model.exchanges][-1] == "answer"
+    assert [rec.step for rec in r.records] == [1, 2, 3, 4]
+
+
+def test_invalid_frames_never_reach_a_model(house4, tmp_path):
+    scene, q = house4
+
+    class BlindAtOddSteps:
+        """The house, but frames of odd steps have no depth at all (outside the mesh)."""
+
+        def __init__(self, env):
+            self.env, self.n = env, 0
+
+        def __getattr__(self, name):
+            return getattr(self.env, name)
+
+        def _blank(self, obs):
+            self.n += 1
+            return replace(obs, depth_m=np.zeros_like(obs.depth_m)) if self.n % 2 else obs
+
+        def reset(self, **kw):
+            obs, info = self.env.reset(**kw)
+            return self._blank(obs), info
+
+        def step(self, action):
+            obs, *rest = self.env.step(action)
+            return (self._blank(obs), *rest)
+
+    env = BlindAtOddSteps(scene.env)
+    seen = []
+    model = StubChatModel(lambda msgs: seen.append(msgs[-1].text) or "A: 50\nworth exploring: no 0"
+                          if msgs[-1].text.startswith("You guide") else "unknown; 100")
+    built = build_agent(env, Stack(grouping="rules"), AgentConfig(max_steps=6), "test",
+                        model=model, relevancy=WordOverlapScorer())
+    r = built.agent.run(env, q.question)
+    assert [rec.valid for rec in r.records] == [False, True, False, True, False, True]
+    assert all(rec.check is None and not rec.calls for rec in r.records if not rec.valid)
+    assert {s for s, _ in r.retrieved} <= {2, 4, 6}
+
+
+def test_frontier_only_makes_no_explore_calls(house4, tmp_path):
+    scene, q = house4
+    model = StubChatModel(["unknown; 100"])
+    done = ask(q.question, scene, tmp_path, stack=Stack(grouping="rules"), model=model,
+               relevancy=WordOverlapScorer(), config=AgentConfig(explorer="frontier-only", max_steps=5))
+    assert len(model.requests) == 1 and done.result.steps == 5
+
+
+def test_text_relevancy_needs_text_perception(house4):
+    scene, _ = house4
+    with pytest.raises(EfficientEQAError, match="cannot read images"):
+        build_agent(scene.env, Stack(perception="rgb"), AgentConfig(), "test",
+                    model=StubChatModel([], capabilities=replace(
+                        StubChatModel([]).capabilities, images=False)),
+                    relevancy=WordOverlapScorer())
+    with pytest.raises(ValueError, match="reads text"):
+        from efficienteqa.perception.image import ImagePerception
+
+        Agent(ImagePerception(), None, WordOverlapScorer(), None)  # type: ignore[arg-type]
+
+
+def test_vlm_specs():
+    b = parse_vlm("openai:gpt-4o@http://localhost:8000/v1", images=True)
+    assert (b.kind, b.model, b.base_url, b.images) == ("openai", "gpt-4o", "http://localhost:8000/v1", True)
+    assert parse_vlm("local:smollm2-135m", images=False).base_url is None
+    for bad in ("gpt-4o", "ollama:llava", "local:"):
+        with pytest.raises(EfficientEQAError, match="cannot read the VLM"):
+            parse_vlm(bad, images=False)
+
+
+def _real_model_ready() -> str | None:
+    import importlib.util
+
+    from efficienteqa.models import local
+
+    if importlib.util.find_spec("llama_cpp") is None:
+        return "llama_cpp is not installed (run scripts/setup.sh)"
+    if not local.is_installed("smollm2-135m"):
+        return "SmolLM2 is not installed (run: efficienteqa models install smollm2-135m)"
+    return None
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(_real_model_ready() is not None, reason=str(_real_model_ready()))
+def test_smoke_episode_with_the_real_small_model(house4, tmp_path, monkeypatch):
+    """SmolLM2-135M on the local llama.cpp server: the whole path with real replies."""
+    from efficienteqa.models import local
+
+    model_file = local.model_path("smollm2-135m")
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))  # private server state
+    (tmp_path / "cache" / "models").mkdir(parents=True)
+    os.symlink(model_file, tmp_path / "cache" / "models" / model_file.name)
+    scene, q = house4
+    try:
+        done = ask(q.question, scene, tmp_path / "out", relevancy=WordOverlapScorer(),
+                   stack=Stack(vlm="local:smollm2-135m", grouping="rules"),
+                   config=AgentConfig(max_steps=3))
+    finally:
+        local.stop("smollm2-135m")
+    record = json.loads(done.episode_json.read_text())
+    assert record["backends"]["vlm"] == "smollm2-135m" and record["steps"] == 3
+    replies = [e["reply"] for e in record["model"]["exchanges"]]
+    assert replies and all(isinstance(t, str) for t in replies)
+    assert record["model"]["completion_tokens"] > 0
+    assert 0.0 <= record["confidence"] <= 1.0
+    assert done.report_html.stat().st_size > 10_000

@@ -1,0 +1,44 @@
+"""Retrieval of the top-K frames and the RAG answer (SPEC 3.5)."""
+
+import pytest
+
+from efficienteqa.answer import RagAnswerer, TopK
+from efficienteqa.models.stub import StubChatModel
+from efficienteqa.models.vc.grouping import RuleGrouper
+
+
+def test_top_k_keeps_the_most_relevant_best_first():
+    top = TopK(3)
+    for step, sim in enumerate([0.2, 0.9, 0.1, 0.5, 0.7, 0.3], start=1):
+        top.push(sim, step, f"frame {step}")
+    assert [(r.step, r.sim) for r in top.best()] == [(2, 0.9), (5, 0.7), (4, 0.5)]
+    assert len(top) == 3
+
+
+def test_ties_keep_the_earlier_frame():
+    top = TopK(2)
+    for step in range(1, 6):
+        top.push(0.5, step, step)
+    assert [r.step for r in top.best()] == [1, 2]
+
+
+def test_fewer_frames_than_k():
+    top = TopK(5)
+    top.push(0.1, 1, "a")
+    assert [r.item for r in top.best()] == ["a"]
+    with pytest.raises(ValueError):
+        TopK(0)
+
+
+def test_answer_from_retrieved_descriptions():
+    model = StubChatModel(["blue; 60\nnavy; 30\nred; 10"])
+    result = RagAnswerer(model, RuleGrouper()).answer(
+        "What colour is the sofa?", ["You are in the living room. Visible: a blue sofa ahead."])
+    assert result.answer == "blue" and result.confidence == pytest.approx(0.6)
+    prompt = model.requests[0].messages[0].text
+    assert "view 1: You are in the living room" in prompt and "What colour is the sofa?" in prompt
+
+
+def test_malformed_reply_gives_no_answer_not_a_crash():
+    result = RagAnswerer(StubChatModel(["I cannot tell."]), RuleGrouper()).answer("Q?", ["x"])
+    assert result.confidence <= 1.0 and result.problems

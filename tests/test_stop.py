@@ -1,0 +1,88 @@
+"""The relevancy stopping rule (SPEC 3.4) on constructed Sim sequences."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from efficienteqa.stop import RelevancyStopper, StopConfig, step_budget
+
+
+def run(sims, **cfg):
+    stopper = RelevancyStopper(StopConfig(**cfg))
+    return [stopper.check(step, s) for step, s in enumerate(sims, start=1)]
+
+
+def test_budget_is_three_steps_per_root_square_metre():
+    assert step_budget(100.0) == 30
+    assert step_budget(120.28) == 32  # int(10.967 * 3) = int(32.9)
+    assert step_budget(0.01) == 1
+    with pytest.raises(ValueError):
+        step_budget(0.0)
+    with pytest.raises(ValueError):
+        step_budget(float("nan"))
+
+
+def test_no_stop_before_step_ten_however_high_the_outlier():
+    sims = [0.1, 0.2, 0.1, 0.2, 50.0, 0.1, 0.2, 0.1, 0.2]
+    checks = run(sims)
+    assert checks[4].z > 3 and not any(c.stop for c in checks)
+
+
+def test_stops_at_the_first_outlier_from_step_ten():
+    sims = [0.1, 0.2] * 5 + [0.15, 5.0, 9.0]
+    checks = run(sims)
+    assert [c.step for c in checks if c.stop] == [12, 13]
+    assert checks[11].z > 3
+
+
+def test_mean_and_sample_std_of_the_earlier_frames_only():
+    sims = [0.3, 0.5, 0.4, 0.9]
+    c = run(sims)[3]
+    assert c.mu == pytest.approx(np.mean(sims[:3]))
+    assert c.sigma == pytest.approx(np.std(sims[:3], ddof=1))
+    assert c.z == pytest.approx((0.9 - c.mu) / c.sigma)
+    assert c.threshold == pytest.approx(c.mu + 3 * c.sigma)
+
+
+def test_threshold_is_strict():
+    # history 0, 1, 2: mu = 1 and sample sigma = 1 exactly, so Sim 4 is exactly z = 3: no stop;
+    # a hair above stops.
+    at = run([0.0, 1.0, 2.0, 4.0], min_step=1)[-1]
+    above = run([0.0, 1.0, 2.0, 4.0 + 1e-9], min_step=1)[-1]
+    assert (at.mu, at.sigma, at.z, at.threshold) == (1.0, 1.0, 3.0, 4.0) and not at.stop
+    assert above.stop
+
+
+def test_zero_spread_never_stops():
+    checks = run([0.5] * 12 + [0.9])
+    assert checks[-1].sigma == 0.0 and checks[-1].z is None and not checks[-1].stop
+
+
+def test_first_two_frames_have_no_z():
+    checks = run([0.1, 0.9, 0.2])
+    assert checks[0].mu is None and checks[0].z is None
+    assert checks[1].sigma is None and checks[1].z is None
+    assert checks[2].z is not None
+
+
+def test_disabled_and_other_thresholds():
+    sims = [0.1, 0.2] * 5 + [0.25]
+    z = run(sims)[-1].z
+    assert 1 < z < 3
+    assert run(sims, z_th=1.0)[-1].stop
+    assert not run(sims, z_th=1.0, enabled=False)[-1].stop
+    assert run(sims, z_th=1.0, min_step=12)[-1].stop is False
+
+
+def test_non_finite_relevancy_is_an_error():
+    with pytest.raises(ValueError, match="finite"):
+        RelevancyStopper().check(1, float("nan"))
+
+
+@given(st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=60))
+def test_incremental_statistics_match_the_batch_ones(sims):
+    checks = run(sims)
+    for i, c in enumerate(checks[2:], start=2):
+        assert c.mu == pytest.approx(np.mean(sims[:i]), abs=1e-6)
+        assert c.sigma == pytest.approx(np.std(sims[:i], ddof=1), abs=1e-6)
