@@ -16,6 +16,7 @@ from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.explore.prompting import CIRCLE_FILL
 from efficienteqa.geometry import CameraSpec
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.relevancy.text import WordOverlapScorer
@@ -184,3 +185,37 @@ def test_smoke_episode_with_the_real_small_model(house4, tmp_path, monkeypatch):
     assert record["model"]["completion_tokens"] > 0
     assert 0.0 <= record["confidence"] <= 1.0
     assert done.report_html.stat().st_size > 10_000
+
+
+class BrightnessScorer:
+    """An image relevancy stand-in: the mean brightness of the frame."""
+
+    name = "brightness-stub"
+    modality = "image"
+
+    def score(self, question, *, image=None, text=None):  # noqa: ANN001, ANN201
+        return float(np.asarray(image, float).mean() / 255)
+
+    def score_many(self, question, items):  # noqa: ANN001, ANN201
+        return np.array([self.score(question, image=i) for i in items])
+
+
+def test_an_image_vlm_gets_marked_frames_and_the_top_k_images(house4, tmp_path):
+    scene, q = house4
+    model = StubChatModel(lambda msgs: "A: 70\nB: 30\nworth exploring: yes 80"
+                          if msgs[-1].text.startswith("You guide") else "black; 80\nbrown; 20\ngrey; 0")
+    done = ask(q.question, scene, tmp_path, stack=Stack(perception="rgb", grouping="rules"),
+               model=model, relevancy=BrightnessScorer(), config=AgentConfig(max_steps=6, top_k=3))
+    explore = [r for r in model.requests if r.messages[-1].text.startswith("You guide")]
+    assert explore, "no exploration call"
+    for request in explore:
+        (image,) = request.messages[-1].images
+        assert image.shape == (240, 320, 3) and "the image" in request.messages[-1].text
+        circles = (image == np.array(CIRCLE_FILL)).all(axis=2).sum()
+        assert circles > 500  # at least one lettered disk of radius 18 px is drawn
+        assert "(the lettered circles in the image)" in request.messages[-1].text
+    answer = model.requests[-1].messages[-1]
+    assert len(answer.images) == 3 and "the 3 attached images" in answer.text
+    assert done.result.answer == "black"
+    assert done.record["backends"]["perception"] == "rgb"
+    assert "Semantic-sensor perception" not in done.report_html.read_text()

@@ -2,6 +2,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from conftest import needs_egl
 
 
@@ -32,3 +34,40 @@ def test_missing_furniture_is_one_line_naming_the_fix(tmp_path):
     assert "apt-get install sweethome3d-furniture" in result.stdout
     assert "Traceback" not in result.stdout + result.stderr
     assert len(result.stdout.strip().splitlines()) == 1
+
+
+def test_ask_with_a_bad_scene_start_or_model_is_one_line():
+    for args, message in ((["--scene", "hm3d:00800"], "unknown scene"),
+                          (["--scene", "synthetic:x"], "needs an integer seed"),
+                          (["--start", "1,2"], "cannot read the start pose"),
+                          (["--vlm", "gpt-4o", "--assets", "builtin"], "cannot read the VLM")):
+        result = _run("ask", "Where is the sofa?", *args)
+        assert result.returncode == 1, (args, result.stdout, result.stderr)
+        assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
+
+
+@needs_egl
+@pytest.mark.slow
+def test_ask_runs_an_episode_with_the_small_real_model(tmp_path):
+    import os
+
+    from efficienteqa.models import local
+
+    if not local.is_installed("smollm2-135m"):
+        pytest.skip("SmolLM2 is not installed (run: efficienteqa models install smollm2-135m)")
+    model_file = local.model_path("smollm2-135m")
+    (tmp_path / "cache" / "models").mkdir(parents=True)
+    os.symlink(model_file, tmp_path / "cache" / "models" / model_file.name)
+    env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
+    try:
+        result = _run("ask", "What colour is the desk in the office?", "--scene", "synthetic:4",
+                      "--assets", "builtin", "--max-steps", "2", "--vlm", "local:smollm2-135m",
+                      "--relevancy", "overlap", "--grouping", "rules", "--out", str(tmp_path / "out"),
+                      env=env)
+    finally:
+        _run("models", "stop", "smollm2-135m", env=env)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "answer:" in result.stdout and "steps: 2 of 2" in result.stdout
+    assert "reference answer: black" in result.stdout and "report.html" in result.stdout
+    record = json.loads((tmp_path / "out" / "episode.json").read_text())
+    assert record["backends"]["vlm"] == "smollm2-135m" and record["backends"]["relevancy"] == "word-overlap"

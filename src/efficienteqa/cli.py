@@ -62,12 +62,14 @@ def ask_command(
     from efficienteqa.agent import AgentConfig, StepRecord
     from efficienteqa.ask import ask
     from efficienteqa.scenes import open_scene
-    from efficienteqa.stack import Stack
+    from efficienteqa.stack import Stack, parse_vlm
     from efficienteqa.stop import StopConfig, step_budget
 
     config = AgentConfig(explorer=explorer, top_k=top_k, max_steps=max_steps, seed=seed,
                          stop=StopConfig(z_th=z_th, min_step=min_stop_step, enabled=not no_early_stop))
     stack = Stack(vlm=vlm, perception=perception, relevancy=relevancy, grouping=grouping)
+    start_pose = _parse_start(start)
+    parse_vlm(vlm, images=perception == "rgb")  # bad input fails before the scene is built
     with console.status(f"opening {scene}..."):
         opened = open_scene(scene, assets)
     budget = max_steps or step_budget(opened.env.floor_area_m2)
@@ -83,7 +85,7 @@ def ask_command(
             progress.update(task, completed=record.step, info=info)
 
         done = ask(question, opened, out, stack=stack, config=config,
-                   start=_parse_start(start), on_step=on_step)
+                   start=start_pose, on_step=on_step)
     r, rec = done.result, done.record
     oracle = rec.get("oracle_steps")
     console.print(f"[bold]answer:[/bold] {r.answer or '(none)'}  (confidence {r.confidence:.2f})",

