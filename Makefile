@@ -1,14 +1,18 @@
 # The two commands of the README: `make demo` and `make test`. Both run the set-up first.
 VENV ?= .venv
 SEED ?= 0
+QUESTION ?= What colour is the stool in the kitchen?
 
-.PHONY: demo test setup lint bench
+.PHONY: demo scene test setup lint bench
 
 setup:
 	@scripts/setup.sh
 
 demo: setup
-	$(VENV)/bin/efficienteqa scenes generate --seed $(SEED) --out out/demo
+	$(VENV)/bin/efficienteqa ask "$(QUESTION)" --scene synthetic:$(SEED) --out out/demo
+
+scene: setup
+	$(VENV)/bin/efficienteqa scenes generate --seed $(SEED) --out out/scene
 
 test: setup
 	$(VENV)/bin/pytest -q

