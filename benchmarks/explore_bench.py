@@ -24,7 +24,7 @@ from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.module import ExploreModule, SemanticScorer
-from efficienteqa.explore.oracle import OracleScorer
+from efficienteqa.explore.oracle import OracleScorer, evidence_distance_field
 from efficienteqa.explore.references import make_explorer
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.tsdf import VolumeSpec
@@ -190,8 +190,12 @@ def cmd_steering(args: argparse.Namespace) -> None:
 
 def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int) -> dict:
     """Mean steps over ``repeats`` explorer seeds for each method (SFE samples frontiers)."""
-    centre = np.mean([[env.house.object(e).x, env.house.object(e).y] for e in q.evidence], axis=0)
-    field_m = env.grid.distance_field(centre, ROBOT_RADIUS_M, snap_m=2.0)
+    objects = [env.house.object(e) for e in q.evidence]
+    centre = np.mean([[o.x, o.y] for o in objects], axis=0)
+    rooms = {(r.x0, r.y0, r.x1, r.y1) for r in (env.house.room(o.room_id) for o in objects)}
+    # Path distance to the evidence from its own room(s): a plain snap to the nearest floor
+    # cell can land behind a wall (see evidence_distance_field).
+    field_m = evidence_distance_field(env.grid, centre, ROBOT_RADIUS_M, sorted(rooms), 2.0)
 
     def distance_m(xy) -> float:
         i, j = env.grid.spec.world_to_cell(np.asarray(xy))

@@ -12,10 +12,13 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
 
 from efficienteqa.envs.base import Observation
 from efficienteqa.explore.module import SemanticScore
 from efficienteqa.explore.prompting import PromptPoint
+from efficienteqa.mapping.navgrid import OccupancyGrid
 
 
 class OracleScorer:
@@ -34,3 +37,44 @@ class OracleScorer:
         closer = distances[best] < self.distance_m((obs.pose.x, obs.pose.y)) - self.gain_m
         return SemanticScore(letters, 1.0 if in_view or closer else 0.0,
                              {"distances_m": distances})
+
+
+def evidence_distance_field(grid: OccupancyGrid, centre_xy: Sequence[float], radius_m: float,
+                            rooms: Sequence[tuple[float, float, float, float]] = (),
+                            reach_m: float = 2.0) -> np.ndarray:
+    """Path metres from every cell centre to the evidence at ``centre_xy`` (inf: unreachable).
+
+    The walk ends on a navigable cell within ``reach_m`` of the evidence *inside one of its
+    rooms* (x0, y0, x1, y1) and goes straight on from there: the distance is the least
+    (path to such a cell + straight line from it to the centre). Snapping to the nearest
+    navigable cell instead crosses walls: a TV on a bedroom wall was "0.5 m away" from the
+    hallway behind that wall, and the oracle steered the robot there. Without rooms, or when
+    no navigable cell of the rooms lies within ``reach_m``, any navigable cell within
+    ``reach_m`` qualifies.
+    """
+    spec = grid.spec
+    nav = grid.navigable(radius_m)
+    xs, ys = spec.centres()
+    cx, cy = float(centre_xy[0]), float(centre_xy[1])
+    gap = np.hypot(xs - cx, ys - cy)
+    near = nav & (gap <= reach_m)
+    inside = np.zeros_like(near)
+    for x0, y0, x1, y1 in rooms:
+        inside |= (xs >= x0) & (xs <= x1) & (ys >= y0) & (ys <= y1)
+    seeds = near & inside if (near & inside).any() else near
+    field_m = np.full(spec.shape, np.inf)
+    if not seeds.any():
+        return field_m
+    graph, node = grid._graph(radius_m)
+    n = graph.shape[0]
+    si, sj = np.nonzero(seeds)
+    # One extra node (the evidence) joined to every seed by the straight-line remainder.
+    extra = coo_matrix((gap[si, sj] + 1e-9, (np.full(len(si), n), node[si, sj])),
+                       shape=(n + 1, n + 1))
+    g = graph.tocoo()
+    full = coo_matrix((np.concatenate([g.data, extra.data]),
+                       (np.concatenate([g.row, extra.row]), np.concatenate([g.col, extra.col]))),
+                      shape=(n + 1, n + 1)).tocsr()
+    dist = dijkstra(full, directed=False, indices=n)
+    field_m[node >= 0] = dist[node[node >= 0]]
+    return field_m
