@@ -18,13 +18,14 @@ import statistics
 import time
 from pathlib import Path
 
-from efficienteqa.agent import AgentConfig, StepRecord
+from efficienteqa.agent import StepRecord
+from efficienteqa.ask import ask
 from efficienteqa.envs.base import Observation
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.module import ExploreStep
 from efficienteqa.scenes import synthetic_questions
-from efficienteqa.stack import Stack, build_agent
+from efficienteqa.stack import Stack
 
 
 def normalise(text: str) -> str:
@@ -65,30 +66,31 @@ def main() -> None:
     rows = []
     stack = Stack(vlm=args.vlm)
     for seed, q in pick_questions(args.questions, args.per_house):
-        with SyntheticEnv.from_seed(seed) as env:
-            built = build_agent(env, stack, AgentConfig(), f"synthetic:{seed} (sh3d)")
-            first_seen: list[int] = []
+        first_seen: list[int] = []
 
-            def hook(record: StepRecord, obs: Observation, _: ExploreStep | None,
-                     q: Question = q, first_seen: list[int] = first_seen) -> None:
-                if not first_seen and evidence_visible(obs.instance, q.evidence):
-                    first_seen.append(record.step)
+        def hook(record: StepRecord, obs: Observation, _: ExploreStep | None,
+                 q: Question = q, first_seen: list[int] = first_seen) -> None:
+            if not first_seen and evidence_visible(obs.instance, q.evidence):
+                first_seen.append(record.step)
 
-            start = time.perf_counter()
-            r = built.agent.run(env, q.question, on_step=hook)
-            wall = time.perf_counter() - start
+        start = time.perf_counter()
+        done = ask(q.question, f"synthetic:{seed}", out / "agent" / q.id, stack=stack,
+                   on_step=hook)
+        wall = time.perf_counter() - start
+        r = done.result
         row = {"id": q.id, "category": q.category, "question": q.question, "reference": q.answer,
                "answer": r.answer, "confidence": round(r.confidence, 3), "correct": matches(r.answer, q),
                "steps": r.steps, "budget": r.budget, "oracle_steps": q.oracle_steps,
                "first_seen": first_seen[0] if first_seen else None, "stop_reason": r.stop_reason,
-               "wall_s": round(wall, 1), "s_per_step": round((wall - r.answer_s) / r.steps, 2),
-               "answer_s": round(r.answer_s, 1), "model_calls": len(built.model.exchanges),
-               "backends": built.backends}
+               "wall_s": round(r.wall_s, 1), "total_s": round(wall, 1),
+               "s_per_step": round((r.wall_s - r.answer_s) / r.steps, 2),
+               "answer_s": round(r.answer_s, 1), "model_calls": done.record["model"]["calls"],
+               "backends": done.record["backends"], "report": str(done.report_html)}
         rows.append(row)
         with log.open("a") as f:
             f.write(json.dumps(row) + "\n")
         print(f"{q.id} {q.category:14s} steps {r.steps:2d}/{r.budget} (oracle {q.oracle_steps}, "
-              f"seen at {row['first_seen']}) stop {r.stop_reason:9s} {wall:5.0f} s  "
+              f"seen at {row['first_seen']}) stop {r.stop_reason:9s} {r.wall_s:5.0f} s  "
               f"{'OK ' if row['correct'] else 'no '} {r.answer!r} vs {q.answer!r}", flush=True)
     print(f"\n{len(rows)} questions; back-ends: {rows[0]['backends']}")
     print(f"steps mean {statistics.mean(r['steps'] for r in rows):.1f} "
@@ -101,7 +103,10 @@ def main() -> None:
     print(f"answers matching the ground truth (string match): {sum(r['correct'] for r in rows)}"
           f"/{len(rows)}")
     walls = [r["wall_s"] for r in rows]
-    print(f"wall per episode median {statistics.median(walls):.0f} s, max {max(walls):.0f} s; "
+    print(f"episodes and reports: {out / 'agent'}")
+    print(f"episode wall time (explore + stop + answer) median {statistics.median(walls):.0f} s, "
+          f"max {max(walls):.0f} s; with opening the scene and writing the report, median "
+          f"{statistics.median(r['total_s'] for r in rows):.0f} s; "
           f"per step median {statistics.median(r['s_per_step'] for r in rows):.1f} s")
 
 

@@ -383,3 +383,13 @@ def test_yes_prob_from_logprobs():
     assert yes_prob_from_logprobs([("Yes", math.log(0.6)), (" no", math.log(0.2))]) == pytest.approx(0.75)
     assert yes_prob_from_logprobs(TokenLogprob("▁NO", 0.0)) == 0.0
     assert yes_prob_from_logprobs(None) == DEFAULT_P_YES
+
+
+def test_answer_and_confidence_on_separate_labelled_lines():
+    # Qwen2.5-Coder-1.5B wrote this for a count question in an agent episode
+    reply = ("answer: brown chair\nconfidence: 80\nanswer: dining room\nconfidence: 75\n"
+             "answer: yes\nconfidence: 90")
+    r = parse_candidates(reply)
+    assert [(c.text, c.confidence) for c in r.candidates] == [
+        ("brown chair", 80.0), ("dining room", 75.0), ("yes", 90.0)]
+    assert r.problems == []

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import io
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from PIL import Image
 
-from efficienteqa.agent import AgentConfig, EpisodeResult, StepRecord
+from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
 from efficienteqa.envs.base import Observation
 from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.explore.module import ExploreStep
@@ -49,7 +48,7 @@ def map_png(result: EpisodeResult) -> bytes:
 
 def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = None,
         config: AgentConfig | None = None, start: Pose2D | None = None,
-        on_step: Callable[[StepRecord], None] | None = None, model: ChatModel | None = None,
+        on_step: StepHook | None = None, model: ChatModel | None = None,
         relevancy: RelevancyScorer | None = None, assets: str = "sh3d") -> AskResult:
     """Run one episode and write ``out/episode.json`` and ``out/report.html``. ``model`` and
     ``relevancy`` replace the stack's back-ends (tests inject stubs)."""
@@ -64,7 +63,7 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         def hook(record: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
             frames(record, obs, out_step)
             if on_step is not None:
-                on_step(record)
+                on_step(record, obs, out_step)
 
         result = built.agent.run(opened.env, question, start=start, on_step=hook)
         truth = known_question(opened.questions, question)

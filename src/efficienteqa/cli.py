@@ -78,7 +78,7 @@ def ask_command(
     with opened.env, Progress(*columns, console=console) as progress:
         task = progress.add_task("exploring", total=budget, info="")
 
-        def on_step(record: StepRecord) -> None:
+        def on_step(record: StepRecord, *_: object) -> None:
             c = record.check
             info = ("invalid frame" if c is None else
                     f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))

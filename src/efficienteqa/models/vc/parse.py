@@ -179,6 +179,9 @@ def _json_raw(text: str, conf: object) -> _Raw:
     return _Raw(text, _to_float(conf))
 
 
+_CONF_LABEL = re.compile(r"(?i)(?:" + "|".join(_CONF_KEYS) + r")?")
+
+
 def _split_pairs(line: str) -> list[str]:
     """``red: 60, blue: 30`` -> two lines, but only if every part carries a confidence."""
     parts = re.split(r"(?<=[0-9%)])[ \t]*[,;|][ \t]+", line)
@@ -194,6 +197,11 @@ def _from_lines(text: str, problems: list[str]) -> list[_Raw]:
             if not re.search(r"\w", part):
                 continue
             head, raw = _split_confidence(part)
+            if (raw is not None and rows and rows[-1][1] is None
+                    and _CONF_LABEL.fullmatch(head.strip(" \t:=-*"))):
+                # "answer: red" then "confidence: 80" on the next line: one candidate
+                rows[-1] = (rows[-1][0], raw)
+                continue
             rows.append((head, raw))
     if any(raw is not None for _, raw in rows):
         dropped = sum(raw is None for _, raw in rows)
