@@ -4,7 +4,7 @@ Back-ends (the offline default stack): synthetic houses with Sweet Home 3D CC0 f
 by moderngl/EGL on the CPU; semantic-sensor perception (object labels as text, no pixels);
 Qwen2.5-Coder-1.5B Q4_K_M on the local llama.cpp server; MiniLM text relevancy; LLM grouping.
 Answers are compared with the ground truth by normalised string match, not LLM-Match (the
-judge is the evaluation issue's).
+judge is the evaluation issue's). The response cache is off, so every model call is timed.
 
     python benchmarks/agent_bench.py --questions 10 [--vlm local:smollm2-135m] [--out out/bench]
 """
@@ -64,7 +64,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     log = out / "agent.jsonl"
     rows = []
-    stack = Stack(vlm=args.vlm)
+    stack = Stack(vlm=args.vlm, cache=False)  # every call reaches the model: honest timings
     for seed, q in pick_questions(args.questions, args.per_house):
         first_seen: list[int] = []
 

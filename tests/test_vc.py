@@ -393,3 +393,18 @@ def test_answer_and_confidence_on_separate_labelled_lines():
     assert [(c.text, c.confidence) for c in r.candidates] == [
         ("brown chair", 80.0), ("dining room", 75.0), ("yes", 90.0)]
     assert r.problems == []
+
+
+@pytest.mark.parametrize("question, first_line", [
+    ("How many chairs are around the table?", "2; 60"),
+    ("What colour is the sofa in the living room?", "red; 60"),
+    ("what color is the bed?", "red; 60"),
+    ("Where is the wall lamp?", "in the kitchen; 70"),
+    ("Is the TV in the living room on?", "yes; 70"),
+    ("Are there chairs in the office?", "yes; 70"),
+    ("What is on the desk in the office?", "a book; 60"),
+])
+def test_the_answer_example_has_the_form_of_the_question(question, first_line):
+    from efficienteqa.models.vc.prompts import answer_example
+
+    assert answer_example(question).splitlines()[1] == first_line

@@ -55,6 +55,8 @@ def ask_command(
     grouping: str = typer.Option("llm", help="How equivalent answers are grouped: llm | rules."),
     seed: int = typer.Option(0, help="Seed of the explorer's frontier sampling."),
     assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
+    cache: bool = typer.Option(True, "--cache/--no-cache",
+                               help="Replay identical model requests from the response cache."),
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -67,7 +69,8 @@ def ask_command(
 
     config = AgentConfig(explorer=explorer, top_k=top_k, max_steps=max_steps, seed=seed,
                          stop=StopConfig(z_th=z_th, min_step=min_stop_step, enabled=not no_early_stop))
-    stack = Stack(vlm=vlm, perception=perception, relevancy=relevancy, grouping=grouping)
+    stack = Stack(vlm=vlm, perception=perception, relevancy=relevancy, grouping=grouping,
+                  cache=cache)
     start_pose = _parse_start(start)
     parse_vlm(vlm, images=perception == "rgb")  # bad input fails before the scene is built
     with console.status(f"opening {scene}..."):

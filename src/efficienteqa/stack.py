@@ -28,22 +28,24 @@ GROUPINGS = ("llm", "rules")
 
 @dataclass(frozen=True)
 class Stack:
-    """Which back-ends an episode uses. ``vlm``: "local:MODEL" or "openai:MODEL[@BASE_URL]"."""
+    """Which back-ends an episode uses. ``vlm``: "local:MODEL" or "openai:MODEL[@BASE_URL]";
+    ``cache``: replay identical model requests from the response cache (off for timings)."""
 
     vlm: str = "local:qwen2.5-coder-1.5b"
     perception: str = "semantic"
     relevancy: str = "minilm"
     grouping: str = "llm"
+    cache: bool = True
 
 
-def parse_vlm(spec: str, images: bool) -> ChatBackend:
+def parse_vlm(spec: str, images: bool, cache: bool = True) -> ChatBackend:
     kind, _, rest = spec.partition(":")
     model, _, url = rest.partition("@")
     if kind not in ("local", "openai") or not model:
         raise EfficientEQAError(f"cannot read the VLM {spec!r}",
                                 fix="use local:MODEL or openai:MODEL[@BASE_URL], "
                                     "e.g. local:qwen2.5-coder-1.5b or openai:gpt-4o")
-    return ChatBackend(kind=kind, model=model, base_url=url or None, images=images)
+    return ChatBackend(kind=kind, model=model, base_url=url or None, images=images, cache=cache)
 
 
 def build_perception(name: str, env: Environment) -> Perception:
@@ -91,7 +93,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     perception = build_perception(stack.perception, env)
     vlm_backend = stack.vlm if model is None else "injected"
     if model is None:
-        model = build_chat_model(parse_vlm(stack.vlm, images=perception.modality == "image"))
+        model = build_chat_model(parse_vlm(stack.vlm, images=perception.modality == "image",
+                                           cache=stack.cache))
     if perception.modality == "image" and not model.capabilities.images:
         raise EfficientEQAError(f"model {model.name!r} cannot read images",
                                 fix="use --perception semantic, or an image VLM such as "

@@ -21,7 +21,7 @@ from efficienteqa.models.vc.parse import (
     parse_letters,
     parse_worth_exploring,
 )
-from efficienteqa.models.vc.prompts import load_prompt
+from efficienteqa.models.vc.prompts import answer_example, load_prompt
 
 # ---------------------------------------------------------------------------- the model calls
 
@@ -97,14 +97,15 @@ def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[s
     else:
         images = tuple(e for e in items if isinstance(e, np.ndarray))
         text = f"the {len(images)} attached images" if images else "nothing"
-    prompt = load_prompt("answer").format(question=question, evidence=text, m=m)
+    prompt = load_prompt("answer").format(question=question, evidence=text, m=m,
+                                          example=answer_example(question))
     return _vc_answer(model, prompt, images, question, grouper, m, max_tokens)
 
 
 def blind_answer(model: ChatModel, question: str, grouper: Grouper, *, m: int = M,
                  max_tokens: int = 96) -> AnswerResult:
     """The Blind LLM baseline (SPEC 3.6): the question only; the model guesses when unsure."""
-    prompt = load_prompt("blind").format(question=question, m=m)
+    prompt = load_prompt("blind").format(question=question, m=m, example=answer_example(question))
     return _vc_answer(model, prompt, (), question, grouper, m, max_tokens)
 
 
