@@ -11,7 +11,7 @@ import pytest
 
 from agent_stubs import MentionScorer, averse_model, seeking_model
 from conftest import needs_egl
-from efficienteqa.agent import Agent, AgentConfig
+from efficienteqa.agent import STOP_REASONS, Agent, AgentConfig
 from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import generate_house
@@ -65,7 +65,7 @@ def test_a_model_that_points_at_the_evidence_stops_early_and_answers_right(house
 def test_a_model_that_never_points_at_it_runs_to_the_budget(house4, tmp_path):
     scene, q = house4
     r = _episode(scene, q, averse_model, tmp_path, max_steps=20).result
-    assert r.stop_reason == "budget" and r.steps == 20
+    assert r.stop_reason == "budget" and r.steps == 20 and r.stop_reason in STOP_REASONS
     assert r.answer == "unknown"
     assert all(not rec.check.stop for rec in r.records if rec.check)
 
@@ -219,3 +219,23 @@ def test_an_image_vlm_gets_marked_frames_and_the_top_k_images(house4, tmp_path):
     assert done.result.answer == "black"
     assert done.record["backends"]["perception"] == "rgb"
     assert "Semantic-sensor perception" not in done.report_html.read_text()
+
+
+def test_vlm_match_relevancy_is_a_recorded_model_call_per_frame(house4, tmp_path):
+    scene, q = house4
+
+    def reply(msgs):
+        text = msgs[-1].text
+        if text.startswith("Does this view"):
+            return "yes 90" if "desk" in text.split("View:")[1] else "no 80"
+        return "A: 50\nworth exploring: yes 50" if text.startswith("You guide") else "black; 90"
+
+    built = build_agent(scene.env, Stack(relevancy="vlm-match", grouping="rules"),
+                        AgentConfig(max_steps=5), "test", model=StubChatModel(reply))
+    r = built.agent.run(scene.env, q.question)
+    match = [e for e in built.model.exchanges if e.prompt.startswith("Does this view")]
+    assert len(match) == sum(rec.valid for rec in r.records)
+    assert all(any(built.model.exchanges[i].prompt.startswith("Does this view") for i in rec.calls)
+               for rec in r.records if rec.valid)
+    assert {round(rec.check.sim, 6) for rec in r.records if rec.check} <= {0.9, 0.2}
+    assert built.backends["relevancy"] == "vlm-match:stub"

@@ -34,6 +34,7 @@ from efficienteqa.perception.base import Perception
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
 from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig, step_budget
 
+# Why exploration ended: a relevancy outlier (z > Z_th), the step budget, or no frontier left.
 STOP_REASONS = ("relevancy", "budget", "explored")
 
 
@@ -147,11 +148,13 @@ class Agent:
             record = StepRecord(step, (obs.pose.x, obs.pose.y, obs.pose.yaw),
                                 valid=obs.invalid_fraction < MAX_INVALID_FRACTION)
             records.append(record)
+            n_calls = self._n_calls()
             if record.valid:
                 t = time.perf_counter()
                 frame = self.perception.frame(obs)
-                sim = self.relevancy.score(question, **{self.relevancy.modality: (
-                    obs.rgb if self.relevancy.modality == "image" else frame)})
+                with self._phase(f"step {step}"):  # relevancy may be a model call too
+                    sim = self.relevancy.score(question, **{self.relevancy.modality: (
+                        obs.rgb if self.relevancy.modality == "image" else frame)})
                 record.check = stopper.check(step, sim)
                 top.push(sim, step, frame)
                 record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
@@ -159,13 +162,14 @@ class Agent:
                     stop_reason = "relevancy"
             if stop_reason == "relevancy" or step == budget:
                 explore.mapper.update(obs)  # the last frame is on the final map too
+                record.calls = self._calls_since(n_calls)
                 _notify(on_step, record, obs, None)
                 break
-            t, n = time.perf_counter(), self._n_calls()
+            t = time.perf_counter()
             with self._phase(f"step {step}"):
                 out = explore.step(obs, step, question)
             record.timings_ms["explore"] = 1e3 * (time.perf_counter() - t)
-            record.calls = self._calls_since(n)
+            record.calls = self._calls_since(n_calls)
             decision = out.decision
             _fill(record, out)
             _notify(on_step, record, obs, out)

@@ -99,8 +99,12 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
         raise EfficientEQAError(f"model {model.name!r} cannot read images",
                                 fix="use --perception semantic, or an image VLM such as "
                                     "--vlm openai:gpt-4o")
-    relevancy = relevancy or build_relevancy(stack.relevancy)
     recorder = RecordingChatModel(model)
+    if relevancy is None and stack.relevancy == "vlm-match":  # the agent's own model as ITM
+        from efficienteqa.relevancy.vlm_match import VLMMatchScorer
+
+        relevancy = VLMMatchScorer(recorder, perception.modality)
+    relevancy = relevancy or build_relevancy(stack.relevancy)
     scorer = VLMScorer(recorder, perception) if config.explorer == "sfe" else None
     answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy))
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder)
