@@ -6,7 +6,7 @@ Qwen2.5-Coder-1.5B Q4_K_M on the local llama.cpp server; MiniLM text relevancy; 
 Answers are compared with the ground truth by normalised string match, not LLM-Match (the
 judge is the evaluation issue's). The response cache is off, so every model call is timed.
 
-    python benchmarks/agent_bench.py --questions 10 [--vlm local:smollm2-135m] [--out out/bench]
+    python benchmarks/agent_bench.py --questions 12 [--relevancy vlm-match] [--out out/bench]
 """
 
 from __future__ import annotations
@@ -58,13 +58,15 @@ def main() -> None:
     parser.add_argument("--questions", type=int, default=10)
     parser.add_argument("--per-house", type=int, default=2)
     parser.add_argument("--vlm", default="local:qwen2.5-coder-1.5b")
+    parser.add_argument("--relevancy", default="minilm", help="minilm | overlap | vlm-match | ...")
     parser.add_argument("--out", default="out/bench")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     log = out / "agent.jsonl"
     rows = []
-    stack = Stack(vlm=args.vlm, cache=False)  # every call reaches the model: honest timings
+    # The response cache is off: every call reaches the model, so the timings are honest.
+    stack = Stack(vlm=args.vlm, relevancy=args.relevancy, cache=False)
     for seed, q in pick_questions(args.questions, args.per_house):
         first_seen: list[int] = []
 
