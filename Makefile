@@ -1,7 +1,7 @@
 # The two commands of the README: `make demo` and `make test`. Both run the set-up first.
 VENV ?= .venv
 SEED ?= 0
-QUESTION ?= What colour is the stool in the kitchen?
+QUESTION ?= What is on the desk in the office?
 
 .PHONY: demo scene test setup lint bench
 

@@ -94,7 +94,8 @@ def main() -> None:
         print(f"{q.id} {q.category:14s} steps {r.steps:2d}/{r.budget} (oracle {q.oracle_steps}, "
               f"seen at {row['first_seen']}) stop {r.stop_reason:9s} {r.wall_s:5.0f} s  "
               f"{'OK ' if row['correct'] else 'no '} {r.answer!r} vs {q.answer!r}", flush=True)
-    print(f"\n{len(rows)} questions; back-ends: {rows[0]['backends']}")
+    backends = {k: v for k, v in rows[0]["backends"].items() if k != "environment"}
+    print(f"\n{len(rows)} questions in synthetic houses (sh3d); back-ends: {backends}")
     print(f"steps mean {statistics.mean(r['steps'] for r in rows):.1f} "
           f"(oracle mean {statistics.mean(r['oracle_steps'] for r in rows):.1f})")
     for reason in ("relevancy", "budget", "explored"):
