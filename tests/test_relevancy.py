@@ -221,3 +221,13 @@ def test_missing_weights_error_is_one_line_naming_the_model(torch, kind):
         make_scorer(kind, model_id_or_path=model_id)
     message = str(err.value)
     assert model_id in message and "\n" not in message and "hf download" in message
+
+
+def test_minilm_scores_the_best_line_of_a_description():
+    scorer = MiniLMScorer(CountingEncoder())
+    lines = "a bed in the bedroom\na grey sofa in the living room\na lamp"
+    best = scorer.score(QUESTION, text=lines)
+    assert best == pytest.approx(scorer.score(QUESTION, text="a grey sofa in the living room"))
+    assert best > scorer.score(QUESTION, text="a bed in the bedroom")
+    one_line = scorer.score_many(QUESTION, ["a sofa", lines, "a toilet"])
+    assert one_line[1] == pytest.approx(best) and len(one_line) == 3

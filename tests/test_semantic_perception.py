@@ -166,3 +166,14 @@ def test_synthetic_house_descriptions_match_the_instance_buffer():
                 assert o.label.colour == truth.colour and o.label.state == truth.state
                 assert o.phrase(d.room).split(",")[0] in d.text
             assert describe_frame(obs, labels) == d  # deterministic
+
+
+def test_relevancy_text_is_one_object_per_line_with_its_room():
+    from efficienteqa.perception.semantic import SemanticPerception
+
+    perception = SemanticPerception(FakeLabels())
+    obs = make_frame()
+    lines = perception.relevancy_text(obs).splitlines()
+    assert "a red sofa in the hallway" in lines and "a white lamp (on) in the kitchen" in lines
+    assert not any(w == "m" or "ahead" in w for line in lines for w in line.split())
+    assert perception.frame(obs).startswith("You are in the kitchen.")

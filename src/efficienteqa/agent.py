@@ -153,8 +153,10 @@ class Agent:
                 t = time.perf_counter()
                 frame = self.perception.frame(obs)
                 with self._phase(f"step {step}"):  # relevancy may be a model call too
-                    sim = self.relevancy.score(question, **{self.relevancy.modality: (
-                        obs.rgb if self.relevancy.modality == "image" else frame)})
+                    if self.relevancy.modality == "image":
+                        sim = self.relevancy.score(question, image=obs.rgb)
+                    else:
+                        sim = self.relevancy.score(question, text=self.perception.relevancy_text(obs))
                 record.check = stopper.check(step, sim)
                 top.push(sim, step, frame)
                 record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)

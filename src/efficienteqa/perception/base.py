@@ -2,8 +2,9 @@
 
 A perception back-end turns an observation into the input of the models: a text description for
 text-only language models (semantic-sensor perception, the offline default) or the RGB frame for
-a vision-language model. The relevancy scorer and the answerer get ``frame(obs)``; the
-exploration call gets ``explore_request(obs, prompts)``.
+a vision-language model. The answerer gets ``frame(obs)``; a text relevancy scorer gets
+``relevancy_text(obs)`` (an image scorer gets the RGB frame); the exploration call gets
+``explore_request(obs, prompts)``.
 """
 
 from __future__ import annotations
@@ -36,5 +37,9 @@ class Perception(Protocol):
     modality: Modality
 
     def frame(self, obs: Observation) -> str | np.ndarray: ...
+
+    def relevancy_text(self, obs: Observation) -> str:
+        """What a text relevancy scorer compares with the question: one line per thing in view."""
+        ...
 
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest: ...

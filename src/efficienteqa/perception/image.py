@@ -26,5 +26,8 @@ class ImagePerception:
     def frame(self, obs: Observation) -> np.ndarray:
         return obs.rgb
 
+    def relevancy_text(self, obs: Observation) -> str:
+        raise ValueError("RGB perception gives no text: use an image relevancy scorer")
+
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest:
         return ExploreRequest("", [p.letter for p in prompts], (draw_prompts(obs.rgb, prompts),))

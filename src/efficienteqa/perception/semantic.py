@@ -324,12 +324,23 @@ class SemanticPerception:
 
     def __init__(self, labels: SceneLabels, noise: NoiseConfig | None = None) -> None:
         self.labels, self.noise = labels, noise
-        self._last: tuple[Observation, str] | None = None
+        self._last: tuple[Observation, FrameDescription] | None = None
+
+    def describe(self, obs: Observation) -> FrameDescription:
+        if self._last is None or self._last[0] is not obs:  # described once per observation
+            self._last = (obs, describe_frame(obs, self.labels, noise=self.noise))
+        return self._last[1]
 
     def frame(self, obs: Observation) -> str:
-        if self._last is None or self._last[0] is not obs:  # described once per observation
-            self._last = (obs, describe_frame(obs, self.labels, noise=self.noise).text)
-        return self._last[1]
+        return self.describe(obs).text
+
+    def relevancy_text(self, obs: Observation) -> str:
+        """One line per object in view, "a blue stool in the kitchen": the regions an image
+        matcher would weigh, without the bearings and distances that only the planner needs."""
+        d = self.describe(obs)
+        lines = [f"{_noun_phrase(o.label, 1)} in the {o.label.room or d.room}"
+                 if (o.label.room or d.room) else _noun_phrase(o.label, 1) for o in d.objects]
+        return "\n".join(lines) or (f"walls and floor in the {d.room}" if d.room else "walls and floor")
 
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest:
         return ExploreRequest(self.frame(obs),

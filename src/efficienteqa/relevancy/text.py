@@ -29,7 +29,8 @@ class SentenceEncoder(Protocol):
 
 
 class MiniLMScorer:
-    """Cosine similarity of L2-normalised sentence embeddings of question and description.
+    """Cosine similarity of L2-normalised sentence embeddings of question and description (the
+    best line of a multi-line description).
 
     Embeddings are memoised per text (least recently used first out), so frames re-scored within
     an episode and the repeated question cost nothing.
@@ -88,11 +89,17 @@ class MiniLMScorer:
         return float(self.score_many(question, [str(observation_of(self, image, text))])[0])
 
     def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
+        """A text of several lines scores its best line: like an image matcher that responds to
+        the one region showing the thing asked about, however much else is in view."""
         texts = [str(t) for t in items]
         if not texts:
             return np.zeros(0)
-        vectors = self.embed([check_question(question), *texts])
-        return (vectors[1:] @ vectors[0]).astype(np.float64)
+        lines = [[ln for ln in t.splitlines() if ln.strip()] or [t] for t in texts]
+        flat = [ln for group in lines for ln in group]
+        vectors = self.embed([check_question(question), *flat])
+        sims = (vectors[1:] @ vectors[0]).astype(np.float64)
+        ends = np.cumsum([len(g) for g in lines])
+        return np.array([sims[e - len(g):e].max() for g, e in zip(lines, ends)])
 
 
 _WORD = re.compile(r"[a-z0-9]+")
