@@ -22,6 +22,7 @@ from efficienteqa.models.stub import StubChatModel
 from efficienteqa.relevancy.text import WordOverlapScorer
 from efficienteqa.scenes import Scene, synthetic_questions
 from efficienteqa.stack import Stack, build_agent, parse_vlm
+from test_relevancy import blip2, torch  # noqa: F401 - fixtures: a tiny random BLIP-2 ITM
 
 pytestmark = needs_egl
 CAMERA = CameraSpec().scaled(320, 240)
@@ -239,3 +240,19 @@ def test_vlm_match_relevancy_is_a_recorded_model_call_per_frame(house4, tmp_path
                for rec in r.records if rec.valid)
     assert {round(rec.check.sim, 6) for rec in r.records if rec.check} <= {0.9, 0.2}
     assert built.backends["relevancy"] == "vlm-match:stub"
+
+
+def test_the_papers_stack_rgb_frames_and_blip2_itm(house4, tmp_path, request):
+    """A VLM reading frames and BLIP-2 ITM relevancy (a tiny random one, no download): the
+    whole episode runs on images and records which back-ends produced it."""
+    pytest.importorskip("transformers", reason="needs the 'vision' extra")
+    itm = request.getfixturevalue("blip2")
+    scene, q = house4
+    model = StubChatModel(lambda msgs: "A: 60\nB: 40\nworth exploring: yes 70"
+                          if msgs[-1].text.startswith("You guide") else "black; 70\nbrown; 30")
+    done = ask(q.question, scene, tmp_path, stack=Stack(perception="rgb", grouping="rules"),
+               model=model, relevancy=itm, config=AgentConfig(max_steps=4, top_k=2))
+    sims = [rec.check.sim for rec in done.result.records if rec.check]
+    assert len(sims) == 4 and all(0.0 <= s <= 1.0 for s in sims)
+    assert done.record["backends"]["relevancy"] == itm.name
+    assert len(model.requests[-1].messages[-1].images) == 2 and done.result.answer == "black"
