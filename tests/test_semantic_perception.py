@@ -177,3 +177,18 @@ def test_relevancy_text_is_one_object_per_line_with_its_room():
     assert "a red sofa in the hallway" in lines and "a white lamp (on) in the kitchen" in lines
     assert not any(w == "m" or "ahead" in w for line in lines for w in line.split())
     assert perception.frame(obs).startswith("You are in the kitchen.")
+
+
+def test_doors_are_named_by_the_rooms_they_join(catalog):
+    from efficienteqa.envs.synthetic.generate import generate_house
+    from efficienteqa.perception.semantic import HouseLabels
+
+    house = generate_house(3, catalog, "builtin")
+    labels = HouseLabels(house)
+    rooms = {r.id: r.name for r in house.layout.rooms}
+    for door_id, obj in house.meta["door_objects"].items():
+        door = house.layout.doors[int(door_id)]
+        place = labels.label(obj).place
+        assert place.startswith(f"between the {rooms[door.room_a]} and the ")
+        assert place.endswith(rooms.get(door.room_b, "outside"))
+    assert all(labels.label(o.id).place is None for o in house.objects if o.category != "door")

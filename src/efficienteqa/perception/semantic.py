@@ -43,12 +43,15 @@ _CELL_OFFSET = 1 << 20  # keeps cell indices non-negative for the 1-D cell key
 @dataclass(frozen=True)
 class ObjectLabel:
     """What the semantic sensor knows about an instance id. ``state`` only where the object has
-    one ("on"/"off", "open"/"closed"); ``room`` is the name of the room it stands in."""
+    one ("on"/"off", "open"/"closed"); ``room`` is the name of the room it stands in; ``place``,
+    where set, says where it is in words that name it apart ("between the kitchen and the
+    hallway" for a door, as people and the questions refer to doors)."""
 
     category: str
     colour: str | None
     state: str | None
     room: str | None
+    place: str | None = None
 
 
 class SceneLabels(Protocol):
@@ -65,7 +68,13 @@ class HouseLabels:
     def __init__(self, house: House) -> None:
         self._layout = house.layout
         rooms = {r.id: r.name for r in house.layout.rooms}
-        self._labels = {o.id: ObjectLabel(o.category, o.colour or None, o.state, rooms.get(o.room_id))
+        doors = {int(obj): house.layout.doors[int(door)]
+                 for door, obj in house.meta.get("door_objects", {}).items()}
+        places = {obj: f"between the {rooms[d.room_a]} and "
+                       + (f"the {rooms[d.room_b]}" if d.room_b in rooms else "the outside")
+                  for obj, d in doors.items() if d.room_a in rooms}
+        self._labels = {o.id: ObjectLabel(o.category, o.colour or None, o.state,
+                                          rooms.get(o.room_id), places.get(o.id))
                         for o in house.objects}
 
     def label(self, instance_id: int) -> ObjectLabel | None:
@@ -114,7 +123,9 @@ class VisibleObject:
         """E.g. "a lamp (on) on the left, 3.4 m"; names the object's room when it differs."""
         text = f"{_noun_phrase(self.label, 1)} {self.bearing}, {self.distance_m:.1f} m"
         room = self.label.room
-        if room and robot_room and room != robot_room and self.label.category != "door":
+        if self.label.place:
+            text += f", {self.label.place}"
+        elif room and robot_room and room != robot_room and self.label.category != "door":
             text += f", in the {room}"
         return text
 
@@ -338,8 +349,11 @@ class SemanticPerception:
         """One line per object in view, "a blue stool in the kitchen": the regions an image
         matcher would weigh, without the bearings and distances that only the planner needs."""
         d = self.describe(obs)
-        lines = [f"{_noun_phrase(o.label, 1)} in the {o.label.room or d.room}"
-                 if (o.label.room or d.room) else _noun_phrase(o.label, 1) for o in d.objects]
+        lines = []
+        for o in d.objects:
+            room = o.label.room or d.room
+            where = o.label.place or (f"in the {room}" if room else "")
+            lines.append(f"{_noun_phrase(o.label, 1)} {where}".strip())
         return "\n".join(lines) or (f"walls and floor in the {d.room}" if d.room else "walls and floor")
 
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest:
