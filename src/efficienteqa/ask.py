@@ -50,8 +50,9 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         config: AgentConfig | None = None, start: Pose2D | None = None,
         on_step: StepHook | None = None, model: ChatModel | None = None,
         relevancy: RelevancyScorer | None = None, assets: str = "sh3d") -> AskResult:
-    """Run one episode and write ``out/episode.json`` and ``out/report.html``. ``model`` and
-    ``relevancy`` replace the stack's back-ends (tests inject stubs)."""
+    """Run one episode and write ``out/episode.json`` and ``out/report.html``. ``scene``: a
+    name such as "synthetic:3" (opened and closed here) or an opened ``Scene`` (left open for
+    the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests inject stubs)."""
     stack, config = stack or Stack(), config or AgentConfig()
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
     try:
