@@ -87,7 +87,7 @@ def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrins
     weights frontiers by the value at and beyond them).
     """
     rng = np.random.default_rng(rng_or_seed)
-    island = OccupancyGrid(state.spec, state.island)
+    island = state.island_grid
     start = island.snap(state.robot_xy, radius_m)
     if start is None:
         return []

@@ -16,7 +16,6 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.base import Decision, Explorer
 from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig, cut_path
 from efficienteqa.geometry import Pose2D
-from efficienteqa.mapping.navgrid import OccupancyGrid
 from efficienteqa.mapping.state import MapState
 
 
@@ -45,7 +44,7 @@ class RandomExplorer:
     def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
                step: int) -> Decision:
         cfg = self.config
-        grid = OccupancyGrid(state.spec, state.island)
+        grid = state.island_grid
         start = (pose.x, pose.y)
         radius = cfg.robot_radius_m if grid.snap(start, cfg.robot_radius_m, cfg.snap_m) else 0.0
         dist = grid.distance_field(start, radius, cfg.snap_m)

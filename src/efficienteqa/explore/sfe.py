@@ -90,7 +90,7 @@ class FrontierExplorer:
         # Looked at once from the back-off point: one more look, from the frontier itself.
         backoff = np.where(looks == 0, cfg.backoff_m, 0.0)
         stay.weights = weights = np.where(looks == 0, weights, weights * cfg.looked_factor)
-        grid = OccupancyGrid(state.spec, state.island)
+        grid = state.island_grid
         start = (pose.x, pose.y)
 
         reason = "committed"

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from efficienteqa.mapping.grid import GridSpec
+from efficienteqa.mapping.navgrid import OccupancyGrid
 
 
 @dataclass
@@ -26,6 +28,12 @@ class MapState:
     explored: np.ndarray
     island: np.ndarray
     robot_xy: tuple[float, float]
+
+    @cached_property
+    def island_grid(self) -> OccupancyGrid:
+        """The island as a planning grid, built once per state: its clearance and reachability
+        are memoised, so visual prompting and the explorer share them within a step."""
+        return OccupancyGrid(self.spec, self.island)
 
     @property
     def unexplored(self) -> np.ndarray:
