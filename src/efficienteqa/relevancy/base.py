@@ -26,8 +26,9 @@ class RelevancyScorer(Protocol):
 
     def score(self, question: str, *, image: np.ndarray | None = None,
               text: str | None = None) -> float:
-        """Sim of one observation: ``image`` (H, W, 3) uint8 RGB or ``text``, per ``modality``."""
-        ...
+        """Sim of one observation: ``image`` (H, W, 3) uint8 RGB or ``text``, per ``modality``.
+        Back-ends that subclass this protocol inherit this batch-of-one default."""
+        return float(self.score_many(question, [observation_of(self, image, text)])[0])
 
     def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
         """Sims (N,) float64 of N observations, in one batch where the back-end allows."""

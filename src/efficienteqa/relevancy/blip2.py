@@ -14,8 +14,8 @@ import numpy as np
 
 from efficienteqa.relevancy.base import (
     Modality,
+    RelevancyScorer,
     check_question,
-    observation_of,
     require,
     weights_missing,
 )
@@ -25,7 +25,7 @@ MAX_TEXT_TOKENS = 32
 EXTRA = "vision"
 
 
-class Blip2ItmScorer:
+class Blip2ItmScorer(RelevancyScorer):
     """BLIP-2 ITM relevancy of RGB frames (H, W, 3) uint8. Use ``from_pretrained`` for real
     weights or ``from_model`` to inject a model and processor (tests build tiny random ones)."""
 
@@ -62,10 +62,6 @@ class Blip2ItmScorer:
         except OSError as exc:
             raise weights_missing(model_id_or_path, exc) from exc
         return cls(model.to(device), processor, name=model_id_or_path, **kwargs)
-
-    def score(self, question: str, *, image: np.ndarray | None = None,
-              text: str | None = None) -> float:
-        return float(self.score_many(question, [np.asarray(observation_of(self, image, text))])[0])
 
     def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
         torch = require("torch", EXTRA)

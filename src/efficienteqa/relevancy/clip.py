@@ -14,8 +14,8 @@ import numpy as np
 
 from efficienteqa.relevancy.base import (
     Modality,
+    RelevancyScorer,
     check_question,
-    observation_of,
     require,
     weights_missing,
 )
@@ -28,7 +28,7 @@ DEFAULT_MODEL_IDS: dict[str, str] = {
 EXTRA = "vision"
 
 
-class ClipScorer:
+class ClipScorer(RelevancyScorer):
     """CLIP or SigLIP relevancy of RGB frames (H, W, 3) uint8. ``from_pretrained`` loads real
     weights; ``from_model`` injects a model and a processor (with ``tokenizer`` and
     ``image_processor``), as tests do with tiny random ones."""
@@ -66,10 +66,6 @@ class ClipScorer:
         except OSError as exc:
             raise weights_missing(model_id, exc) from exc
         return cls(model.to(device), processor, family, model_id, **kwargs)
-
-    def score(self, question: str, *, image: np.ndarray | None = None,
-              text: str | None = None) -> float:
-        return float(self.score_many(question, [np.asarray(observation_of(self, image, text))])[0])
 
     def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
         torch = require("torch", EXTRA)

@@ -16,7 +16,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from efficienteqa.relevancy.base import Modality, check_question, observation_of, require
+from efficienteqa.relevancy.base import Modality, RelevancyScorer, check_question, require
 
 MINILM_NAME = "sentence-transformers/all-MiniLM-L6-v2"
 EXTRA = "minilm"
@@ -28,7 +28,7 @@ class SentenceEncoder(Protocol):
     def encode(self, sentences: list[str], **kwargs: Any) -> Any: ...
 
 
-class MiniLMScorer:
+class MiniLMScorer(RelevancyScorer):
     """Cosine similarity of L2-normalised sentence embeddings of question and description (the
     best line of a multi-line description).
 
@@ -84,10 +84,6 @@ class MiniLMScorer:
             self._cache.popitem(last=False)
         return np.stack(out) if out else np.zeros((0, 0), np.float32)
 
-    def score(self, question: str, *, image: np.ndarray | None = None,
-              text: str | None = None) -> float:
-        return float(self.score_many(question, [str(observation_of(self, image, text))])[0])
-
     def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
         """A text of several lines scores its best line: like an image matcher that responds to
         the one region showing the thing asked about, however much else is in view."""
@@ -118,16 +114,12 @@ def content_words(text: str) -> set[str]:
     return words
 
 
-class WordOverlapScorer:
+class WordOverlapScorer(RelevancyScorer):
     """Share of the question's content words found in the description, in [0, 1]. No model,
     deterministic: for tests of the stopping rule and as a floor for the embedding scorer."""
 
     name = "word-overlap"
     modality: Modality = "text"
-
-    def score(self, question: str, *, image: np.ndarray | None = None,
-              text: str | None = None) -> float:
-        return float(self.score_many(question, [str(observation_of(self, image, text))])[0])
 
     def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
         wanted = content_words(check_question(question))
