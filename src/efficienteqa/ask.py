@@ -2,11 +2,8 @@
 
 from __future__ import annotations
 
-import io
 from dataclasses import dataclass
 from pathlib import Path
-
-from PIL import Image
 
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
 from efficienteqa.envs.base import Observation
@@ -15,6 +12,7 @@ from efficienteqa.explore.module import ExploreStep
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.visualize import map_image
 from efficienteqa.models.base import ChatModel
+from efficienteqa.models.client import encode_image
 from efficienteqa.relevancy.base import RelevancyScorer
 from efficienteqa.report.episode import episode_record, write_json
 from efficienteqa.report.frames import FrameCollector
@@ -37,13 +35,12 @@ def known_question(questions: list[Question], text: str) -> Question | None:
     return next((q for q in questions if " ".join(q.question.lower().split()) == key), None)
 
 
-def map_png(result: EpisodeResult) -> bytes:
+def map_url(result: EpisodeResult) -> str:
+    """The final top-down map as a PNG ``data:`` URL, at full size."""
     d = result.last_decision
     rgb = map_image(result.state, result.values, frontiers=d.frontiers if d else (),
                     trajectory=result.trajectory, target_xy=d.target_xy if d else None)
-    buf = io.BytesIO()
-    Image.fromarray(rgb).save(buf, format="PNG", optimize=True)
-    return buf.getvalue()
+    return encode_image(rgb, max_side=max(rgb.shape[:2]), fmt="png")
 
 
 def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = None,
@@ -78,7 +75,7 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
                                 scene=opened.name, exchanges=built.model.exchanges,
                                 reference=reference)
         episode_json = write_json(out / "episode.json", record)
-        report = write_report(out / "report.html", record, map_png(result), frames.frames,
+        report = write_report(out / "report.html", record, map_url(result), frames.frames,
                               frames.descriptions)
         return AskResult(result, record, episode_json, report)
     finally:

@@ -7,7 +7,6 @@ paper's Fig. 4); the retrieved top-K frames; every frame with its Sim; every mod
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 from collections.abc import Mapping, Sequence
@@ -32,8 +31,7 @@ pre{white-space:pre-wrap;background:#f6f6f6;padding:6px;font-size:.85em}
 """
 
 
-def _img(data: bytes, mime: str, alt: str, cls: str = "") -> str:
-    src = f"data:{mime};base64,{base64.b64encode(data).decode()}"
+def _img(src: str, alt: str, cls: str = "") -> str:
     return f'<img src="{src}" alt="{html.escape(alt)}"{f" class={cls!r}" if cls else ""}>'
 
 
@@ -111,9 +109,10 @@ def _fmt(v: float | None, digits: int = 3) -> str:
     return "-" if v is None else f"{v:.{digits}f}"
 
 
-def render_report(record: Mapping[str, Any], map_png: bytes, frames: Mapping[int, bytes],
+def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, str],
                   descriptions: Mapping[int, str] | None = None) -> str:
-    """The page for ``record`` (an ``episode.json`` dict). ``frames``: step -> JPEG."""
+    """The page for ``record`` (an ``episode.json`` dict). ``map_url`` and ``frames`` (step ->
+    frame) are ``data:`` URLs (``models.client.encode_image``), so the page needs no files."""
     descriptions = descriptions or {}
     per_step = record["per_step"]
     cfg = record["config"]
@@ -150,7 +149,7 @@ def render_report(record: Mapping[str, Any], map_png: bytes, frames: Mapping[int
               '<p class="note">Free floor light grey, explored green, obstacles black, unknown '
               "dark grey; semantic values as a yellow-red heat map; frontiers blue with their "
               "outward normals; trajectory orange, the robot red.</p>",
-              _img(map_png, "image/png", "top-down map", "map"),
+              _img(map_url, "top-down map", "map"),
               "<h2>Relevancy</h2>",
               relevancy_svg(per_step, stop_cfg.get("z_th", 3.0), stop_cfg.get("min_step", 10),
                             stop_step, retrieved),
@@ -183,18 +182,18 @@ def render_report(record: Mapping[str, Any], map_png: bytes, frames: Mapping[int
     return "\n".join(parts)
 
 
-def _figure(step: int, frames: Mapping[int, bytes], descriptions: Mapping[int, str],
+def _figure(step: int, frames: Mapping[int, str], descriptions: Mapping[int, str],
             caption: str, cls: str) -> str:
-    img = _img(frames[step], "image/jpeg", f"frame {step}") if step in frames else ""
+    img = _img(frames[step], f"frame {step}") if step in frames else ""
     desc = (f'<div class="desc">{html.escape(descriptions[step])}</div>'
             if step in descriptions else "")
     return (f'<figure class="{cls}">{img}<figcaption>{html.escape(caption)}</figcaption>'
             f"{desc}</figure>")
 
 
-def write_report(path: Path, record: Mapping[str, Any], map_png: bytes,
-                 frames: Mapping[int, bytes], descriptions: Mapping[int, str] | None = None
+def write_report(path: Path, record: Mapping[str, Any], map_url: str,
+                 frames: Mapping[int, str], descriptions: Mapping[int, str] | None = None
                  ) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(render_report(record, map_png, frames, descriptions), encoding="utf-8")
+    path.write_text(render_report(record, map_url, frames, descriptions), encoding="utf-8")
     return path
