@@ -19,6 +19,36 @@ def egl_available() -> bool:
         return False
 
 
+def small_model_missing() -> str | None:
+    """Why the real SmolLM2 server cannot run here, or None when it can."""
+    import importlib.util
+
+    from efficienteqa.models import local
+
+    if importlib.util.find_spec("llama_cpp") is None:
+        return "llama_cpp is not installed (run scripts/setup.sh or: efficienteqa models runtime)"
+    if not local.is_installed("smollm2-135m"):
+        return "SmolLM2 is not installed (run: efficienteqa models install smollm2-135m)"
+    return None
+
+
+needs_small_model = pytest.mark.skipif(small_model_missing() is not None,
+                                       reason=str(small_model_missing()))
+
+@pytest.fixture
+def small_model_cache(tmp_path, monkeypatch):
+    """A private cache (``EFFICIENTEQA_CACHE``) holding only a link to the installed SmolLM2, so
+    server state (pid files, logs, responses) never touches the user's running servers."""
+    from efficienteqa.models import local
+
+    model = local.model_path("smollm2-135m")
+    cache = tmp_path / "cache"
+    (cache / "models").mkdir(parents=True)
+    (cache / "models" / model.name).symlink_to(model)
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(cache))
+    return cache
+
+
 needs_egl = pytest.mark.skipif(
     not egl_available(), reason="no EGL (apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri)")
 

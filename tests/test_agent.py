@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from agent_stubs import MentionScorer, averse_model, seeking_model
-from conftest import needs_egl
+from conftest import needs_egl, needs_small_model
 from efficienteqa.agent import STOP_REASONS, Agent, AgentConfig
 from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
@@ -150,28 +149,12 @@ def test_vlm_specs():
             parse_vlm(bad, images=False)
 
 
-def _real_model_ready() -> str | None:
-    import importlib.util
-
-    from efficienteqa.models import local
-
-    if importlib.util.find_spec("llama_cpp") is None:
-        return "llama_cpp is not installed (run scripts/setup.sh)"
-    if not local.is_installed("smollm2-135m"):
-        return "SmolLM2 is not installed (run: efficienteqa models install smollm2-135m)"
-    return None
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(_real_model_ready() is not None, reason=str(_real_model_ready()))
-def test_smoke_episode_with_the_real_small_model(house4, tmp_path, monkeypatch):
+@needs_small_model
+def test_smoke_episode_with_the_real_small_model(house4, tmp_path, small_model_cache):
     """SmolLM2-135M on the local llama.cpp server: the whole path with real replies."""
     from efficienteqa.models import local
 
-    model_file = local.model_path("smollm2-135m")
-    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))  # private server state
-    (tmp_path / "cache" / "models").mkdir(parents=True)
-    os.symlink(model_file, tmp_path / "cache" / "models" / model_file.name)
     scene, q = house4
     try:
         done = ask(q.question, scene, tmp_path / "out", relevancy=WordOverlapScorer(),

@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from conftest import needs_egl
+from conftest import needs_egl, needs_small_model
 
 
 def _run(*args, env=None):
@@ -47,25 +47,15 @@ def test_ask_with_a_bad_scene_start_or_model_is_one_line():
 
 
 @needs_egl
+@needs_small_model
 @pytest.mark.slow
-def test_ask_runs_an_episode_with_the_small_real_model(tmp_path):
-    import os
-
-    from efficienteqa.models import local
-
-    if not local.is_installed("smollm2-135m"):
-        pytest.skip("SmolLM2 is not installed (run: efficienteqa models install smollm2-135m)")
-    model_file = local.model_path("smollm2-135m")
-    (tmp_path / "cache" / "models").mkdir(parents=True)
-    os.symlink(model_file, tmp_path / "cache" / "models" / model_file.name)
-    env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
+def test_ask_runs_an_episode_with_the_small_real_model(tmp_path, small_model_cache):
     try:
         result = _run("ask", "What colour is the desk in the office?", "--scene", "synthetic:4",
                       "--assets", "builtin", "--max-steps", "2", "--vlm", "local:smollm2-135m",
-                      "--relevancy", "overlap", "--grouping", "rules", "--out", str(tmp_path / "out"),
-                      env=env)
+                      "--relevancy", "overlap", "--grouping", "rules", "--out", str(tmp_path / "out"))
     finally:
-        _run("models", "stop", "smollm2-135m", env=env)
+        _run("models", "stop", "smollm2-135m")
     assert result.returncode == 0, result.stdout + result.stderr
     assert "answer:" in result.stdout and "steps: 2 of 2" in result.stdout
     assert "reference answer: black" in result.stdout and "report.html" in result.stdout

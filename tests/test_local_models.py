@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import json
-import os
 import signal
 import socket
 import subprocess
@@ -16,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import needs_small_model
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models import local
 from efficienteqa.models.local import LOCAL_MODELS, LocalModel, ServerInfo
@@ -152,23 +151,10 @@ def test_a_busy_port_is_refused_and_a_free_one_picked(cache, monkeypatch):
         assert local.free_port(port) != port
 
 
-def _real_server_ready() -> str | None:
-    if importlib.util.find_spec("llama_cpp") is None:
-        return "llama_cpp is not installed (run scripts/setup.sh or: efficienteqa models runtime)"
-    if not local.is_installed("smollm2-135m"):
-        return "SmolLM2 is not installed (run: efficienteqa models install smollm2-135m)"
-    return None
-
-
 @pytest.mark.slow
-@pytest.mark.skipif(_real_server_ready() is not None, reason=str(_real_server_ready()))
-def test_real_server_answers_a_chat_completion(tmp_path, monkeypatch):
+@needs_small_model
+def test_real_server_answers_a_chat_completion(small_model_cache):
     httpx = pytest.importorskip("httpx")
-    model = local.model_path("smollm2-135m")
-    # Server state (pid file, log) in a private cache so a user's running servers are untouched.
-    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path))
-    (tmp_path / "models").mkdir()
-    os.symlink(model, tmp_path / "models" / model.name)
     port = local.free_port(None)
     try:
         info = local.serve("smollm2-135m", port=port, ctx=512, timeout_s=60)
