@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from efficienteqa.agent import mapper_for
 from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
@@ -27,7 +28,6 @@ from efficienteqa.explore.module import ExploreModule, SemanticScorer
 from efficienteqa.explore.oracle import OracleScorer, evidence_distance_field
 from efficienteqa.explore.references import make_explorer
 from efficienteqa.mapping.maps2d import Mapper
-from efficienteqa.mapping.tsdf import VolumeSpec
 from efficienteqa.scenes import synthetic_questions
 
 
@@ -40,12 +40,10 @@ EXPLORED_DEPTH: float | None = None  # --explored-depth override
 
 
 def make_mapper(env: SyntheticEnv) -> Mapper:
-    lo, hi = env.bounds
-    spec = VolumeSpec.around(lo[:2], hi[:2], floor_z=0.0)
     extra: dict = {"explored_window": WINDOW} if WINDOW else {}
     if EXPLORED_DEPTH is not None:
         extra["explored_depth_m"] = EXPLORED_DEPTH
-    return Mapper(spec, floor_z=0.0, start_xy=(env.house.start.x, env.house.start.y), **extra)
+    return mapper_for(env, (env.house.start.x, env.house.start.y), **extra)
 
 
 def truth_floor(env: SyntheticEnv, mapper: Mapper) -> np.ndarray:

@@ -96,12 +96,13 @@ class EpisodeResult:
 StepHook = Callable[[StepRecord, Observation, ExploreStep | None], None]
 
 
-def mapper_for(env: Environment, start_xy: tuple[float, float]) -> Mapper:
-    """A map over the scene's bounds with the floor at the bottom of the bounds."""
+def mapper_for(env: Environment, start_xy: tuple[float, float], **options: Any) -> Mapper:
+    """A map over the scene's bounds with the floor at the bottom of the bounds; ``options``
+    go to ``Mapper`` (e.g. ``explored_window``)."""
     lo, hi = env.bounds
     floor_z = float(lo[2])
     return Mapper(VolumeSpec.around(lo[:2], hi[:2], floor_z=floor_z), floor_z=floor_z,
-                  start_xy=start_xy)
+                  start_xy=start_xy, **options)
 
 
 class Agent:
