@@ -36,7 +36,7 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   echo "==> installing efficienteqa and its test tools"
   # torch first, pinned: the CPU build on this kind of machine; any other spec pulls GBs of CUDA.
   "$VENV/bin/pip" install -q torch==2.13.0
-  "$VENV/bin/pip" install -q -e ".[dev,local,minilm,vision]"
+  "$VENV/bin/pip" install -q -e ".[dev,local,minilm,vision,ray]"
   echo "$want" > "$stamp"
 fi
 

@@ -7,6 +7,10 @@ Per step t (the start view is step 1; SPEC 3.1):
    values and picks the next pose, and the robot moves there.
 Then the K most relevant frames of the whole history answer the question (answer module).
 Frames with >= 50% invalid depth are mapped but never reach a model.
+
+The ExploreEQA baselines are configurations of the same loop (SPEC 3.6): no early stop, and
+``answer_at="best-step"``: the model answers from each frame as it comes, and the episode's
+answer is the one of the step with the highest relevancy x confidence.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.answer.rag import TOP_K, RagAnswerer, TopK
+from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
 from efficienteqa.explore.module import ExploreModule, ExploreStep, SemanticScorer
@@ -36,18 +40,28 @@ from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig,
 
 # Why exploration ended: a relevancy outlier (z > Z_th), the step budget, or no frontier left.
 STOP_REASONS = ("relevancy", "budget", "explored")
+# Where the answer comes from: the top-K frames at the end (EfficientEQA's RAG), or the best
+# per-step answer by relevancy x confidence (ExploreEQA).
+ANSWER_AT = ("retrieval", "best-step")
 
 
 @dataclass(frozen=True)
 class AgentConfig:
     """Every knob of an episode; ablations are values here. ``max_steps`` None: the SPEC budget
-    ``int(sqrt(floor area) * 3)``."""
+    ``int(sqrt(floor area) * 3)``. ``confidence``: how the model's confidence is read, in words
+    ("verbalized", black-box) or from token probabilities ("token", white-box)."""
 
     explorer: str = "sfe"  # "sfe" | "frontier-only" | "random"
     stop: StopConfig = field(default_factory=StopConfig)
     top_k: int = TOP_K
     max_steps: int | None = None
     seed: int = 0
+    confidence: Confidence = "verbalized"
+    answer_at: str = "retrieval"  # one of ANSWER_AT
+
+    def __post_init__(self) -> None:
+        if self.answer_at not in ANSWER_AT:
+            raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
 
 
 @dataclass
@@ -69,6 +83,7 @@ class StepRecord:
     blocked: bool = False
     calls: list[int] = field(default_factory=list)  # indices into the model exchanges
     timings_ms: dict[str, float] = field(default_factory=dict)
+    step_answer: dict[str, Any] | None = None  # answer_at="best-step": answer, confidence, value
 
 
 @dataclass
@@ -142,6 +157,7 @@ class Agent:
                                 make_explorer(cfg.explorer), self.scorer, seed=cfg.seed)
         stopper = RelevancyStopper(cfg.stop)
         top: TopK[str | np.ndarray] = TopK(cfg.top_k)
+        best_step: tuple[float, int, float, AnswerResult] | None = None  # value, step, Sim, answer
         records: list[StepRecord] = []
         decision: Decision | None = None
         stop_reason = "budget"
@@ -161,6 +177,14 @@ class Agent:
                 record.check = stopper.check(step, sim)
                 top.push(sim, step, frame)
                 record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
+                if cfg.answer_at == "best-step":
+                    with self._phase(f"step {step}"):
+                        said = self.answerer.answer(question, [frame])
+                    value = max(sim, 0.0) * said.confidence
+                    record.step_answer = {"answer": said.answer, "confidence": said.confidence,
+                                          "value": value}
+                    if best_step is None or value > best_step[0]:
+                        best_step = (value, step, sim, said)
                 if record.check.stop:
                     stop_reason = "relevancy"
             if stop_reason == "relevancy" or step == budget:
@@ -186,13 +210,23 @@ class Agent:
                 record.blocked = True
                 explore.blocked((decision.pose.x, decision.pose.y))
         t = time.perf_counter()
-        best = top.best()
-        with self._phase("answer"):
-            result = self.answerer.answer(question, [r.item for r in best])
+        if cfg.answer_at == "best-step":
+            if best_step is None:  # no valid frame at all: nothing was seen
+                with self._phase("answer"):
+                    result = self.answerer.answer(question, [])
+                retrieved = []
+            else:
+                _, step, sim, result = best_step
+                retrieved = [(step, sim)]
+        else:
+            best = top.best()
+            with self._phase("answer"):
+                result = self.answerer.answer(question, [r.item for r in best])
+            retrieved = [(r.step, r.sim) for r in best]
         answer_s = time.perf_counter() - t
         state = explore.mapper.state((obs.pose.x, obs.pose.y))
         return EpisodeResult(question, result.answer, result.confidence, len(records),
-                             stop_reason, budget, records, [(r.step, r.sim) for r in best],
+                             stop_reason, budget, records, retrieved,
                              result, time.perf_counter() - t0, answer_s, state,
                              explore.values.smoothed(), decision)
 

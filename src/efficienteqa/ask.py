@@ -26,7 +26,7 @@ class AskResult:
     result: EpisodeResult
     record: dict
     episode_json: Path
-    report_html: Path
+    report_html: Path | None
 
 
 def known_question(questions: list[Question], text: str) -> Question | None:
@@ -46,10 +46,12 @@ def map_url(result: EpisodeResult) -> str:
 def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = None,
         config: AgentConfig | None = None, start: Pose2D | None = None,
         on_step: StepHook | None = None, model: ChatModel | None = None,
-        relevancy: RelevancyScorer | None = None, assets: str = "sh3d") -> AskResult:
-    """Run one episode and write ``out/episode.json`` and ``out/report.html``. ``scene``: a
-    name such as "synthetic:3" (opened and closed here) or an opened ``Scene`` (left open for
-    the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests inject stubs)."""
+        relevancy: RelevancyScorer | None = None, assets: str = "sh3d",
+        report: bool = True) -> AskResult:
+    """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
+    ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``
+    (left open for the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests
+    inject stubs)."""
     stack, config = stack or Stack(), config or AgentConfig()
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
     try:
@@ -59,7 +61,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         frames = FrameCollector(describe=perception.frame if perception.modality == "text" else None)
 
         def hook(record: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
-            frames(record, obs, out_step)
+            if report:
+                frames(record, obs, out_step)
             if on_step is not None:
                 on_step(record, obs, out_step)
 
@@ -75,9 +78,9 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
                                 scene=opened.name, exchanges=built.model.exchanges,
                                 reference=reference)
         episode_json = write_json(out / "episode.json", record)
-        report = write_report(out / "report.html", record, map_url(result), frames.frames,
-                              frames.descriptions)
-        return AskResult(result, record, episode_json, report)
+        html = (write_report(out / "report.html", record, map_url(result), frames.frames,
+                             frames.descriptions) if report else None)
+        return AskResult(result, record, episode_json, html)
     finally:
         if isinstance(scene, str):
             opened.env.close()

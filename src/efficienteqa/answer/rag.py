@@ -2,7 +2,8 @@
 
 ``TopK`` keeps the K best frames in a min-heap as the episode runs, so memory stays flat however
 long the history grows; ``RagAnswerer`` asks the model for M candidate answers with verbalized
-confidences, groups equivalent ones and returns the argmax.
+confidences, groups equivalent ones and returns the argmax (or, for the white-box baseline, one
+greedy answer whose confidence is its token probability).
 """
 
 from __future__ import annotations
@@ -11,17 +12,20 @@ import heapq
 import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Generic, Literal, TypeVar
 
 import numpy as np
 
 from efficienteqa.models.base import ChatModel
-from efficienteqa.models.vc.calls import answer_with_confidence
+from efficienteqa.models.vc.calls import answer_token_probability, answer_with_confidence
 from efficienteqa.models.vc.grouping import Grouper
 from efficienteqa.models.vc.parse import AnswerResult, M
 
 T = TypeVar("T")
 TOP_K = 5
+# How a model's confidence is read: asked for in words (black-box), or from token probabilities.
+Confidence = Literal["verbalized", "token"]
+CONFIDENCES = ("verbalized", "token")
 
 
 @dataclass(frozen=True)
@@ -61,8 +65,11 @@ class TopK(Generic[T]):
 class RagAnswerer:
     """Answer from retrieved evidence: frame descriptions (text models) or RGB frames (VLMs)."""
 
-    def __init__(self, model: ChatModel, grouper: Grouper, m: int = M) -> None:
-        self.model, self.grouper, self.m = model, grouper, m
+    def __init__(self, model: ChatModel, grouper: Grouper, m: int = M,
+                 confidence: Confidence = "verbalized") -> None:
+        self.model, self.grouper, self.m, self.confidence = model, grouper, m, confidence
 
     def answer(self, question: str, evidence: Sequence[str] | Sequence[np.ndarray]) -> AnswerResult:
+        if self.confidence == "token":
+            return answer_token_probability(self.model, question, evidence)
         return answer_with_confidence(self.model, question, evidence, self.grouper, m=self.m)

@@ -30,18 +30,18 @@ def code_version() -> str:
     return f"{efficienteqa.__version__}+{commit}" if commit else efficienteqa.__version__
 
 
-def _plain(value: Any) -> Any:
+def plain(value: Any) -> Any:
     """JSON-safe: dataclasses, tuples, numpy scalars and arrays; NaN/inf become None."""
     if is_dataclass(value) and not isinstance(value, type):
-        return _plain(asdict(value))
+        return plain(asdict(value))
     if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
+        return plain(value.tolist())
     if isinstance(value, np.generic):
-        return _plain(value.item())
+        return plain(value.item())
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
@@ -49,13 +49,14 @@ def _plain(value: Any) -> Any:
 
 def step_dict(r: StepRecord) -> dict[str, Any]:
     c = r.check
-    return _plain({
+    return plain({
         "step": r.step, "pose": r.pose, "valid": r.valid,
         "sim": c.sim if c else None, "mu": c.mu if c else None, "sigma": c.sigma if c else None,
         "z": c.z if c else None, "threshold": c.threshold if c else None,
         "prompts": r.prompts, "lsv": r.lsv, "gsv": r.gsv, "p_yes": r.p_yes,
         "frontier": r.frontier_xy, "target": r.target_xy, "n_frontiers": r.n_frontiers,
         "decision": r.decision, "blocked": r.blocked, "calls": r.calls,
+        "step_answer": r.step_answer,
         "timings_ms": {k: round(v, 2) for k, v in r.timings_ms.items()},
     })
 
@@ -67,7 +68,7 @@ def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict
     (and judge) produced it; ``reference``: ground truth where known (answer, oracle_steps)."""
     a = result.answer_result
     calls = list(exchanges)
-    return _plain({
+    return plain({
         "question": result.question, "answer": result.answer, "confidence": result.confidence,
         "steps": result.steps, "stop_reason": result.stop_reason, "budget": result.budget,
         "oracle_steps": (reference or {}).get("oracle_steps"),

@@ -8,13 +8,16 @@ from typing import Any
 
 import numpy as np
 
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.module import SemanticScore
 from efficienteqa.models.base import ChatModel, ChatResponse, Message, TokenLogprob
 from efficienteqa.models.vc.grouping import ExactGrouper, Grouper, argmax, group_answers, normalise
 from efficienteqa.models.vc.parse import (
     DEFAULT_LETTERS,
     DEFAULT_P_YES,
+    AnswerClass,
     AnswerResult,
+    Candidate,
     M,
     _to_float,
     parse_candidates,
@@ -90,16 +93,19 @@ def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[s
                            grouper: Grouper, *, m: int = M, max_tokens: int = 96) -> AnswerResult:
     """The RAG answer (SPEC 3.5): ``evidence`` is the top-K frame descriptions (best first) or
     the top-K RGB frames; M guesses -> normalise -> group -> argmax."""
-    items = list(evidence)
-    images: tuple[np.ndarray, ...] = ()
-    if items and all(isinstance(e, str) for e in items):
-        text = "\n".join(f"view {i + 1}: {e}" for i, e in enumerate(items))
-    else:
-        images = tuple(e for e in items if isinstance(e, np.ndarray))
-        text = f"the {len(images)} attached images" if images else "nothing"
+    text, images = _evidence_text(evidence)
     prompt = load_prompt("answer").format(question=question, evidence=text, m=m,
                                           example=answer_example(question))
     return _vc_answer(model, prompt, images, question, grouper, m, max_tokens)
+
+
+def _evidence_text(evidence: Sequence[str] | Sequence[np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
+    """The evidence as prompt text, and the images to attach (for VLMs)."""
+    items = list(evidence)
+    if items and all(isinstance(e, str) for e in items):
+        return "\n".join(f"view {i + 1}: {e}" for i, e in enumerate(items)), ()
+    images = tuple(e for e in items if isinstance(e, np.ndarray))
+    return (f"the {len(images)} attached images" if images else "nothing"), images
 
 
 def blind_answer(model: ChatModel, question: str, grouper: Grouper, *, m: int = M,
@@ -169,3 +175,73 @@ def yes_prob_from_logprobs(top_logprobs: LogprobInput | None) -> float:
     """P(yes) over {yes, no} from token log-probabilities; ``DEFAULT_P_YES`` when neither is there."""
     probs = _softmax_first(top_logprobs, ["YES", "NO"])
     return probs["YES"] if probs else DEFAULT_P_YES
+
+
+# ---------------------------------------------------------------------------- white-box calls
+# ExploreEQA's white-box variant (SPEC 3.6) reads confidence from token probabilities instead of
+# asking for it: one greedy reply, with the top alternatives of every generated token.
+
+TOP_LOGPROBS = 10
+
+
+def require_logprobs(model: ChatModel) -> None:
+    if not model.capabilities.logprobs:
+        raise EfficientEQAError(f"model {model.name!r} does not return token log-probabilities",
+                                fix="use explore-eqa-blackbox (verbalized confidence), or a server "
+                                    "that gives logprobs (llama.cpp, vLLM)")
+
+
+def explore_token_scores(model: ChatModel, question: str, view: str,
+                         directions: Mapping[str, str] | Sequence[str] | None = None,
+                         images: Sequence[np.ndarray] | None = None) -> SemanticScore:
+    """One call, two lines (a letter, then yes/no): P(letter) is the softmax over the prompted
+    letters at the first token where any of them is among the alternatives (the LSV); P(yes)
+    likewise over yes/no (for the GSV). Uniform / ``DEFAULT_P_YES`` when absent."""
+    require_logprobs(model)
+    letters = list(directions) if directions else list(DEFAULT_LETTERS)
+    descriptions = directions if isinstance(directions, Mapping) else None
+    if descriptions:
+        listed = "\n".join(f"{x}: {descriptions.get(x) or 'no description'}" for x in letters)
+    else:
+        listed = ", ".join(letters) + " (the lettered circles in the image)"
+    prompt = load_prompt("explore_token").format(
+        question=question, view=view or ("the image" if images else "nothing visible"),
+        directions=listed)
+    resp = model.chat([Message("user", prompt, tuple(images or ()))], max_tokens=8,
+                      temperature=0.0, logprobs=TOP_LOGPROBS)
+    tokens = resp.logprobs or []
+    problems = [] if tokens else ["no logprobs in the reply: uniform"]
+    scores = letter_probs_from_logprobs(tokens, letters)
+    p_yes = yes_prob_from_logprobs(tokens)
+    return SemanticScore(scores, p_yes, {"raw": resp.text or "", "problems": problems,
+                                         "candidates": sorted(scores.items(), key=lambda kv: -kv[1]),
+                                         "usage": _usage(resp)})
+
+
+def answer_token_probability(model: ChatModel, question: str,
+                             evidence: Sequence[str] | Sequence[np.ndarray], *,
+                             max_tokens: int = 24) -> AnswerResult:
+    """A short greedy answer; its confidence (0-1, as VC's after normalising) is the model's
+    probability of that answer: the product of its tokens' probabilities, first line only."""
+    require_logprobs(model)
+    text, images = _evidence_text(evidence)
+    prompt = load_prompt("answer_token").format(question=question, evidence=text)
+    resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
+                      logprobs=1)
+    raw = resp.text or ""
+    problems: list[str] = []
+    logprob = 0.0
+    for token in resp.logprobs or []:
+        if "\n" in token.token and logprob != 0.0:
+            break
+        if math.isfinite(token.logprob):
+            logprob += token.logprob
+    if not resp.logprobs:
+        problems.append("no logprobs in the reply: confidence 0")
+    answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""
+    if not answer:
+        problems.append("empty answer")
+    confidence = math.exp(logprob) if resp.logprobs and answer else 0.0
+    candidates = [Candidate(answer, confidence)] if answer else []
+    classes = [AnswerClass(answer, candidates, confidence)] if answer else []
+    return AnswerResult(answer, confidence, classes, candidates, problems, raw, _usage(resp))
