@@ -7,6 +7,7 @@ the local llama.cpp server, MiniLM text relevancy. ``--vlm openai:gpt-4o --perce
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +20,7 @@ from efficienteqa.models.backends import ChatBackend, build_chat_model
 from efficienteqa.models.base import ChatModel
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.models.vc.grouping import Grouper, LLMGrouper, RuleGrouper
+from efficienteqa.models.vc.parse import M
 from efficienteqa.perception.base import Perception
 from efficienteqa.relevancy.base import RelevancyScorer, make_scorer
 
@@ -73,7 +75,10 @@ def build_grouper(name: str, model: ChatModel, relevancy: RelevancyScorer) -> Gr
     raise EfficientEQAError(f"unknown grouping {name!r}", fix=f"use one of {', '.join(GROUPINGS)}")
 
 
+@functools.cache
 def build_relevancy(kind: str) -> RelevancyScorer:
+    """One scorer per kind and process: loading a model takes seconds, and an evaluation runs
+    many episodes in each worker."""
     # One torch thread is the fastest for a few short texts on a small busy CPU (relevancy.text).
     return make_scorer(kind, num_threads=1) if kind == "minilm" else make_scorer(kind)
 
@@ -105,8 +110,16 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
 
         relevancy = VLMMatchScorer(recorder, perception.modality)
     relevancy = relevancy or build_relevancy(stack.relevancy)
-    scorer = VLMScorer(recorder, perception) if config.explorer == "sfe" else None
-    answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy))
+    scorer = (VLMScorer(recorder, perception, confidence=config.confidence)
+              if config.explorer == "sfe" else None)
+    if config.confidence == "token":
+        from efficienteqa.models.vc.calls import require_logprobs
+
+        require_logprobs(model)
+    # Answering every step (ExploreEQA) asks for one answer per frame, not M.
+    m = 1 if config.answer_at == "best-step" else M
+    answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy), m=m,
+                           confidence=config.confidence)
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder)
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,
                 "vlm_backend": vlm_backend,
