@@ -104,6 +104,91 @@ def ask_command(
                   soft_wrap=True)
 
 
+@app.command("eval")
+def eval_command(
+    method: str = typer.Option("efficienteqa", help="efficienteqa | explore-eqa | "
+                               "explore-eqa-blackbox | blind | frontier-only | random | module:function."),
+    dataset: str = typer.Option("synthetic", help="synthetic (the fixed split) | synthetic:SEEDS "
+                                "(e.g. synthetic:0-9) | hm-eqa."),
+    out: Path = typer.Option(..., help="Run folder: run.json, episodes.jsonl, episodes/ (resumed "
+                             "when it exists)."),
+    limit: int | None = typer.Option(None, help="Only the first N questions of the dataset."),
+    workers: int = typer.Option(1, help="Episodes in parallel; more than 1 runs on Ray."),
+    address: str | None = typer.Option(None, help="A Ray cluster address (default: a local Ray)."),
+    z_th: float = typer.Option(3.0, "--z-th", help="Stop when a frame's relevancy z-score exceeds this."),
+    top_k: int = typer.Option(5, "--top-k", help="Frames retrieved for the answer."),
+    max_steps: int | None = typer.Option(None, help="Step budget (default int(sqrt(area)*3))."),
+    seed: int = typer.Option(0, help="Seed of the explorer's frontier sampling."),
+    vlm: str = typer.Option("local:qwen2.5-coder-1.5b", help="local:MODEL, or openai:MODEL[@BASE_URL]."),
+    perception: str = typer.Option("semantic", help="semantic | rgb."),
+    relevancy: str = typer.Option("minilm", help="The relevancy scorer (see `ask --help`)."),
+    grouping: str = typer.Option("llm", help="llm | rules."),
+    judge: str = typer.Option("local:qwen2.5-coder-1.5b", help="The LLM-Match judge (a VLM spec), "
+                              "or 'none'."),
+    hm_eqa_path: Path | None = typer.Option(None, help="Folder with HM-EQA's questions.csv and "
+                                            "scene_init_poses.csv (default: downloaded)."),
+    reports: bool = typer.Option(False, "--reports", help="Also write each episode's report.html."),
+    assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
+    cache: bool = typer.Option(True, "--cache/--no-cache",
+                               help="Replay identical model requests from the response cache."),
+) -> None:
+    """Run a method on a dataset, resumably: one JSON line per episode, judged by LLM-Match."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from efficienteqa.agent import AgentConfig
+    from efficienteqa.datasets import load_dataset
+    from efficienteqa.eval.methods import RunSpec, resolve
+    from efficienteqa.eval.records import read_episodes
+    from efficienteqa.eval.runner import run_eval
+    from efficienteqa.stack import Stack, parse_vlm
+    from efficienteqa.stop import StopConfig
+
+    resolve(method)  # bad input fails before anything slow
+    parse_vlm(vlm, images=perception == "rgb")
+    judge_spec = None if judge == "none" else judge
+    if judge_spec:
+        parse_vlm(judge_spec, images=False)
+    questions = load_dataset(dataset, path=hm_eqa_path, limit=limit, assets=assets)
+    spec = RunSpec(method=method, dataset=dataset,
+                   stack=Stack(vlm=vlm, perception=perception, relevancy=relevancy,
+                               grouping=grouping, cache=cache),
+                   config=AgentConfig(top_k=top_k, max_steps=max_steps, seed=seed,
+                                      stop=StopConfig(z_th=z_th)),
+                   judge=judge_spec, reports=reports, assets=assets)
+    done_before = len(read_episodes(out / "episodes.jsonl").done)
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+               TextColumn("{task.fields[info]}"))
+    with Progress(*columns, console=console) as progress:
+        task = progress.add_task(method, total=len(questions), completed=min(done_before, len(questions)),
+                                 info="")
+        scores: list[float] = []
+
+        def on_episode(row: dict) -> None:
+            if row.get("judge"):
+                scores.append(row["judge"]["value"])
+            info = (f"LLM-Match {sum(scores) / len(scores):.1f}" if scores else "")
+            if row["status"] != "done":
+                console.print(f"[yellow]{row['id']} failed:[/yellow] {row.get('error')}",
+                              highlight=False, soft_wrap=True)
+            progress.update(task, advance=1, info=info)
+
+        result = run_eval(spec, questions, out, workers=workers, address=address,
+                          on_episode=on_episode)
+    console.print(f"{result.ran} episodes run, {result.skipped} already done, {result.failed} failed, "
+                  f"{result.wall_s:.0f} s ({result.episodes_per_hour:.0f} episodes/hour)",
+                  highlight=False)
+    console.print(f"results: {out / 'episodes.jsonl'}\nsummary: efficienteqa report {out}",
+                  highlight=False, soft_wrap=True)
+
+
 @scenes.command("generate")
 def scenes_generate(
     seed: int = typer.Option(0, help="The house seed; a seed fully determines a house."),

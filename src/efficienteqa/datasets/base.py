@@ -1,0 +1,38 @@
+"""What an evaluation runs on: one question in one scene, with its reference answer.
+
+Every dataset (the synthetic split, arbitrary synthetic seeds, HM-EQA) is read into a list of
+``EvalQuestion``; the runner, the methods and the judge never look at the source format.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True)
+class EvalQuestion:
+    """One episode to run.
+
+    ``id``: unique within its dataset and stable across versions of the code (the resume key).
+    ``scene``: what ``scenes.open_scene`` reads ("synthetic:SEED"; HM-EQA scenes are
+    "hm3d:<scene id>" and need the Habitat back-end). ``start``: canonical (x, y, yaw in
+    radians), None for the scene's own start. ``choices``: the closed-set options where the
+    dataset has them (HM-EQA), empty otherwise. ``source``: dataset-specific fields kept for
+    the record (e.g. HM-EQA's floor and Habitat start pose).
+    """
+
+    id: str
+    dataset: str
+    scene: str
+    question: str
+    answer: str
+    category: str
+    alternatives: tuple[str, ...] = ()
+    start: tuple[float, float, float] | None = None
+    oracle_steps: int | None = None
+    choices: tuple[str, ...] = ()
+    source: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)

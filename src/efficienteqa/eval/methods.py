@@ -1,0 +1,150 @@
+"""The methods an evaluation compares (SPEC 3.6), each as a configuration of the one agent.
+
+=====================  =========  ==========  ==========  ====================  ===========
+method                 explorer   confidence  early stop  answer                model calls
+=====================  =========  ==========  ==========  ====================  ===========
+efficienteqa           SFE        verbalized  z > Z_th    RAG over top-K        1 per step
+explore-eqa            SFE        token       none        best step (Sim x p)   2 per step
+explore-eqa-blackbox   SFE        verbalized  none        best step (Sim x C)   2 per step
+frontier-only          frontier   --          z > Z_th    RAG over top-K        0 per step
+random                 random     --          z > Z_th    RAG over top-K        0 per step
+blind                  --         verbalized  --          question only         1
+=====================  =========  ==========  ==========  ====================  ===========
+
+``frontier-only`` and ``random`` keep EfficientEQA's stop and answer and only drop the semantic
+values: they show what SFE's steering is worth. A method may also be given as
+``module:function`` (a user's own), called like ``run_agent_method``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from efficienteqa.agent import AgentConfig
+from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.stack import Stack
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """What every episode of a run shares. ``config`` holds the ablation values (Z_th, K, ...);
+    the method's own settings are applied on top by ``method_config``. ``judge``: a VLM spec
+    for LLM-Match ("local:MODEL", "openai:MODEL") or None for no judging."""
+
+    method: str
+    dataset: str
+    stack: Stack = field(default_factory=Stack)
+    config: AgentConfig = field(default_factory=AgentConfig)
+    judge: str | None = "local:qwen2.5-coder-1.5b"
+    reports: bool = False
+    assets: str = "sh3d"
+    closed_set: bool = False
+
+
+@dataclass
+class Outcome:
+    """What a method returns for one episode; the runner adds identity, timing and the judge."""
+
+    answer: str
+    confidence: float
+    steps: int
+    budget: int | None = None
+    stop_reason: str | None = None
+    usage: dict[str, Any] = field(default_factory=dict)  # calls, cached_calls, tokens, latency_s
+    backends: dict[str, Any] = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+MethodFn = Callable[[EvalQuestion, RunSpec, Path], Outcome]
+
+# Each agent method: (explorer, confidence, early stop, answer_at).
+_AGENT_METHODS: dict[str, tuple[str, str, bool, str]] = {
+    "efficienteqa": ("sfe", "verbalized", True, "retrieval"),
+    "explore-eqa": ("sfe", "token", False, "best-step"),
+    "explore-eqa-blackbox": ("sfe", "verbalized", False, "best-step"),
+    "frontier-only": ("frontier-only", "verbalized", True, "retrieval"),
+    "random": ("random", "verbalized", True, "retrieval"),
+}
+METHODS = (*_AGENT_METHODS, "blind")
+
+
+def method_config(method: str, config: AgentConfig) -> AgentConfig:
+    """``config`` with the method's explorer, confidence reading, stop and answer source."""
+    explorer, confidence, early_stop, answer_at = _AGENT_METHODS[method]
+    stop = config.stop if early_stop else replace(config.stop, enabled=False)
+    return replace(config, explorer=explorer, confidence=confidence, stop=stop,  # type: ignore[arg-type]
+                   answer_at=answer_at)
+
+
+def _usage(exchanges: list[dict[str, Any]]) -> dict[str, Any]:
+    return {"calls": len(exchanges), "cached_calls": sum(bool(e["cached"]) for e in exchanges),
+            "prompt_tokens": sum(e["prompt_tokens"] for e in exchanges),
+            "completion_tokens": sum(e["completion_tokens"] for e in exchanges),
+            "latency_s": round(sum(e["latency_s"] for e in exchanges), 3)}
+
+
+def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
+    """One episode of an agent method in the question's scene; ``out`` gets ``episode.json``
+    (and ``report.html`` with ``spec.reports``)."""
+    from efficienteqa.ask import ask
+    from efficienteqa.datasets.synthetic import check_question
+    from efficienteqa.geometry import Pose2D
+    from efficienteqa.scenes import open_scene
+
+    config = method_config(spec.method, spec.config)
+    scene = open_scene(q.scene, spec.assets)
+    try:
+        check_question(scene, q)
+        start = Pose2D(*q.start) if q.start is not None else None
+        done = ask(q.question, scene, out, stack=spec.stack, config=config, start=start,
+                   assets=spec.assets, report=spec.reports)
+    finally:
+        scene.env.close()
+    r = done.result
+    record = done.record
+    return Outcome(r.answer, r.confidence, r.steps, r.budget, r.stop_reason,
+                   usage=_usage(record["model"]["exchanges"]), backends=record["backends"],
+                   extra={"retrieved": record["retrieved"],
+                          "answer_problems": record["answer_problems"],
+                          "timing": record["timing"]})
+
+
+def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
+    """The Blind LLM: the question only, no scene and no steps."""
+    from efficienteqa.models.backends import build_chat_model
+    from efficienteqa.models.recording import RecordingChatModel
+    from efficienteqa.models.vc.calls import blind_answer
+    from efficienteqa.stack import build_grouper, build_relevancy, parse_vlm
+
+    model = RecordingChatModel(build_chat_model(parse_vlm(spec.stack.vlm, images=False,
+                                                          cache=spec.stack.cache)))
+    embedder = build_relevancy(spec.stack.relevancy) if spec.stack.grouping == "llm" else None
+    grouper = build_grouper(spec.stack.grouping, model, embedder)  # type: ignore[arg-type]
+    result = blind_answer(model, q.question, grouper)
+    backends = {"environment": None, "perception": None, "vlm": model.name,
+                "vlm_backend": spec.stack.vlm, "relevancy": None, "grouping": spec.stack.grouping}
+    return Outcome(result.answer, result.confidence, 0,
+                   usage=_usage([e.to_dict() for e in model.exchanges]),
+                   backends=backends, extra={"answer_problems": result.problems})
+
+
+def resolve(method: str) -> MethodFn:
+    """The function that runs one episode of ``method`` (a name, or ``module:function``)."""
+    if method == "blind":
+        return run_blind
+    if method in _AGENT_METHODS:
+        return run_agent_method
+    if ":" in method:
+        module, _, name = method.partition(":")
+        try:
+            return getattr(importlib.import_module(module), name)
+        except (ImportError, AttributeError) as exc:
+            raise EfficientEQAError(f"cannot load method {method!r}: {exc}",
+                                    fix="give module:function importable on every worker") from None
+    raise EfficientEQAError(f"unknown method {method!r}",
+                            fix=f"use one of {', '.join(METHODS)}, or module:function")

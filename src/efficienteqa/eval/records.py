@@ -1,0 +1,114 @@
+"""An evaluation run on disk: ``run.json`` (what was run) and ``episodes.jsonl`` (one line per
+finished episode).
+
+Only the driver process writes, one whole line per ``os.write`` on a file opened for appending,
+flushed to disk before the next episode is handed out. A run killed mid-write leaves at most one
+torn last line: readers skip it (and say so), and the next writer starts on a fresh line. Lines
+are keyed by the episode id; a later line for the same id (a retried failure) replaces the
+earlier one, so nothing is ever counted twice.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.report.episode import write_json
+
+RUN_FILE = "run.json"
+EPISODES_FILE = "episodes.jsonl"
+# What must be equal for a resumed run to continue an earlier one.
+RUN_IDENTITY = ("method", "dataset", "closed_set", "config", "stack", "judge")
+
+
+@dataclass
+class Episodes:
+    """The episodes of a run as read back: the last line of each id, in file order."""
+
+    by_id: dict[str, dict[str, Any]] = field(default_factory=dict)
+    torn: int = 0  # unreadable lines (a run killed mid-write)
+
+    @property
+    def done(self) -> set[str]:
+        return {k for k, v in self.by_id.items() if v.get("status") == "done"}
+
+    def rows(self) -> list[dict[str, Any]]:
+        return list(self.by_id.values())
+
+
+def read_episodes(path: Path) -> Episodes:
+    out = Episodes()
+    if not path.exists():
+        return out
+    with path.open("rb") as f:
+        for raw in f:
+            try:
+                row = json.loads(raw)
+                key = row["id"]
+            except (ValueError, KeyError, TypeError):
+                out.torn += 1
+                continue
+            out.by_id.pop(key, None)  # the later line wins and moves to the end
+            out.by_id[key] = row
+    return out
+
+
+def append_episode(path: Path, row: dict[str, Any]) -> None:
+    """Append one line atomically enough for one writer: a single ``write`` of the whole line,
+    then ``fsync``. A file that ends mid-line (a killed writer) gets a newline first."""
+    data = (json.dumps(row, allow_nan=False, separators=(",", ":")) + "\n").encode()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        size = os.fstat(fd).st_size
+        if size:
+            with path.open("rb") as f:
+                f.seek(size - 1)
+                if f.read(1) != b"\n":
+                    data = b"\n" + data
+        os.write(fd, data)
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
+    """Start a run in ``out`` or continue the one there. A folder holding a different run (another
+    method, dataset, configuration or back-end) is refused rather than mixed."""
+    run_file = out / RUN_FILE
+    if run_file.exists():
+        try:
+            earlier = json.loads(run_file.read_text())
+        except ValueError:
+            raise EfficientEQAError(f"{run_file} is not valid JSON",
+                                    fix="delete it, or use another --out folder") from None
+        differs = [k for k in RUN_IDENTITY if earlier.get(k) != manifest.get(k)]
+        if differs:
+            raise EfficientEQAError(
+                f"{out} holds a run with another {', '.join(differs)}",
+                fix="use a new --out folder for a new configuration")
+    else:
+        write_json(run_file, manifest)
+    return read_episodes(out / EPISODES_FILE)
+
+
+def read_run(out: Path) -> tuple[dict[str, Any], Episodes]:
+    """A run folder for reports: its manifest and its episodes."""
+    run_file = out / RUN_FILE
+    if not run_file.exists():
+        raise EfficientEQAError(f"{out} is not an evaluation run (no {RUN_FILE})",
+                                fix="pass folders written by `efficienteqa eval --out`")
+    try:
+        manifest = json.loads(run_file.read_text())
+    except ValueError:
+        raise EfficientEQAError(f"{run_file} is not valid JSON", fix="re-run the evaluation") from None
+    return manifest, read_episodes(out / EPISODES_FILE)
+
+
+def ids_in_order(rows: Iterable[dict[str, Any]]) -> list[str]:
+    return [r["id"] for r in rows]

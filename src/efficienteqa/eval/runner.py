@@ -1,0 +1,172 @@
+"""Run a method over a dataset: sequentially, or on Ray workers, resumably.
+
+An episode is the unit of work and of failure. ``run_episode`` runs one and returns its line
+for ``episodes.jsonl`` — the method's answer, steps and usage, the LLM-Match judgement, the wall
+time — or, when anything goes wrong, a ``failed`` line with the one-line error. Only the driver
+appends lines (``records``); a re-run in the same folder skips the episodes already done and
+retries the failed ones.
+
+Ray (SPEC 6): one task per episode, at most ``workers`` at a time, each task one CPU; a task
+whose worker process dies is retried by Ray. Workers share the machine's model server (the
+driver starts it first) and its response cache.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import sys
+import time
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.eval.methods import RunSpec, resolve
+from efficienteqa.eval.records import EPISODES_FILE, append_episode, open_run
+from efficienteqa.report.episode import code_version, plain
+
+Progress = Callable[[dict[str, Any]], None]
+
+
+def episode_folder(out: Path, episode_id: str) -> Path:
+    return out / "episodes" / episode_id.replace("/", "__")
+
+
+def _judge(spec: RunSpec, q: EvalQuestion, answer: str) -> dict[str, Any] | None:
+    if spec.judge is None:
+        return None
+    from efficienteqa.eval.judge import LLMMatchJudge
+    from efficienteqa.models.backends import build_chat_model
+    from efficienteqa.stack import parse_vlm
+
+    judge = LLMMatchJudge(build_chat_model(parse_vlm(spec.judge, images=False)))
+    return judge.judge(q.question, q.answer, answer, extra=q.alternatives).to_dict()
+
+
+def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
+    """One episode, never raising: its ``episodes.jsonl`` line."""
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {
+        "id": q.id, "dataset": q.dataset, "method": spec.method, "scene": q.scene,
+        "question": q.question, "reference": q.answer, "alternatives": list(q.alternatives),
+        "category": q.category, "oracle_steps": q.oracle_steps,
+        "worker": f"{platform.node()}:{os.getpid()}",
+    }
+    try:
+        outcome = resolve(spec.method)(q, spec, episode_folder(out, q.id))
+        row.update(status="done", answer=outcome.answer, confidence=outcome.confidence,
+                   steps=outcome.steps, budget=outcome.budget, stop_reason=outcome.stop_reason,
+                   usage=outcome.usage, backends=outcome.backends, extra=outcome.extra)
+        row["judge"] = _judge(spec, q, outcome.answer)
+    except Exception as exc:  # noqa: BLE001 - one episode's failure must not end the run
+        message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        row.update(status="failed", error=f"{type(exc).__name__}: {message}",
+                   traceback=traceback.format_exc(limit=6)[-2000:])
+    row["wall_s"] = round(time.perf_counter() - t0, 3)
+    row["finished"] = time.time()
+    return plain(row)
+
+
+@dataclass
+class RunResult:
+    out: Path
+    ran: int
+    skipped: int
+    failed: int
+    wall_s: float
+
+    @property
+    def episodes_per_hour(self) -> float:
+        return 3600.0 * self.ran / self.wall_s if self.wall_s > 0 else 0.0
+
+
+def manifest(spec: RunSpec, n_questions: int) -> dict[str, Any]:
+    return plain({"method": spec.method, "dataset": spec.dataset, "closed_set": spec.closed_set,
+                   "config": asdict(spec.config), "stack": asdict(spec.stack),
+                   "judge": spec.judge, "assets": spec.assets, "questions": n_questions,
+                   "code_version": code_version(), "created": time.time()})
+
+
+def _prepare(spec: RunSpec) -> None:
+    """Fail before the first episode on what would fail them all: an unknown method, a model
+    server that cannot start. The server started here is the one every worker then uses."""
+    resolve(spec.method)
+    from efficienteqa.models.backends import build_chat_model
+    from efficienteqa.stack import parse_vlm
+
+    for vlm in {spec.stack.vlm, spec.judge} - {None}:
+        build_chat_model(parse_vlm(vlm, images=False, cache=spec.stack.cache))  # type: ignore[arg-type]
+
+
+def run_eval(spec: RunSpec, questions: Sequence[EvalQuestion], out: Path, *, workers: int = 1,
+             address: str | None = None, on_episode: Progress | None = None,
+             prepare: bool = True) -> RunResult:
+    """Run ``spec`` on every question not yet done in ``out``. ``workers`` 1 and no
+    ``address``: in this process; otherwise on Ray (``address`` None starts a local Ray)."""
+    if len({q.id for q in questions}) != len(questions):
+        raise EfficientEQAError("the dataset has repeated episode ids", fix="fix the dataset")
+    earlier = open_run(out, manifest(spec, len(questions)))
+    todo = [q for q in questions if q.id not in earlier.done]
+    if prepare and todo:
+        _prepare(spec)
+    t0 = time.perf_counter()
+    failed = 0
+    lines = (_sequential(spec, todo, out) if workers <= 1 and address is None
+             else _on_ray(spec, todo, out, workers, address))
+    for row in lines:
+        append_episode(out / EPISODES_FILE, row)
+        failed += row["status"] != "done"
+        if on_episode is not None:
+            on_episode(row)
+    return RunResult(out, len(todo), len(questions) - len(todo), failed, time.perf_counter() - t0)
+
+
+def _sequential(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path) -> Iterator[dict[str, Any]]:
+    for q in todo:
+        yield run_episode(spec, q, out)
+
+
+def _on_ray(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path, workers: int,
+            address: str | None) -> Iterator[dict[str, Any]]:
+    try:
+        import ray
+    except ImportError:
+        raise EfficientEQAError("Ray is not installed",
+                                fix="pip install 'efficienteqa[ray]', or run with --workers 1") from None
+    started = not ray.is_initialized()
+    if started:
+        # Workers must import the same code and use the same caches as this process.
+        env = {k: v for k, v in os.environ.items()
+               if k.startswith("EFFICIENTEQA_") or k in ("OPENAI_API_KEY", "XDG_CACHE_HOME")}
+        env["PYTHONPATH"] = os.pathsep.join(p for p in [os.getcwd(), *sys.path] if p)
+        options: dict[str, Any] = {"runtime_env": {"env_vars": env}, "log_to_driver": False,
+                                   "configure_logging": False}
+        if address is None:
+            options.update(num_cpus=workers, include_dashboard=False)
+        ray.init(address=address, **options)
+    try:
+        task = ray.remote(num_cpus=1, max_retries=3)(run_episode)
+        pending: dict[Any, EvalQuestion] = {}
+        queue = list(todo)
+        while queue or pending:
+            while queue and len(pending) < workers:
+                q = queue.pop(0)
+                pending[task.remote(spec, q, out)] = q
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            for ref in ready:
+                q = pending.pop(ref)
+                try:
+                    yield ray.get(ref)
+                except Exception as exc:  # noqa: BLE001 - the worker died past its retries
+                    yield plain({"id": q.id, "dataset": q.dataset, "method": spec.method,
+                                  "question": q.question, "reference": q.answer,
+                                  "category": q.category, "status": "failed",
+                                  "error": f"{type(exc).__name__}: {str(exc).splitlines()[0]}",
+                                  "finished": time.time()})
+    finally:
+        if started:
+            ray.shutdown()

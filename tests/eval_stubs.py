@@ -1,0 +1,31 @@
+"""Methods for runner tests, given to the runner as ``eval_stubs:NAME`` (importable by Ray
+workers, which get the driver's ``sys.path``). They answer from the question itself, so they
+cost nothing; environment variables set by a test make them slow, fail or die."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from pathlib import Path
+
+from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.eval.methods import Outcome, RunSpec
+
+
+def echo(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
+    """Answers the reference after ``EQA_STUB_SLEEP`` seconds; the episode whose id is in
+    ``EQA_STUB_FAIL`` raises; the one in ``EQA_STUB_DIE`` kills its own process the first time
+    (a marker file under ``EQA_STUB_MARKS`` remembers the attempt)."""
+    time.sleep(float(os.environ.get("EQA_STUB_SLEEP", "0")))
+    if q.id == os.environ.get("EQA_STUB_FAIL"):
+        raise RuntimeError(f"scripted failure of {q.id}\nsecond line not shown")
+    if q.id == os.environ.get("EQA_STUB_DIE"):
+        mark = Path(os.environ["EQA_STUB_MARKS"]) / q.id.replace("/", "_")
+        if not mark.exists():
+            mark.write_text(str(os.getpid()))
+            os.kill(os.getpid(), signal.SIGKILL)
+    return Outcome(q.answer, 0.9, steps=3, budget=10, stop_reason="relevancy",
+                   usage={"calls": 1, "cached_calls": 0, "prompt_tokens": 10,
+                          "completion_tokens": 2, "latency_s": 0.01},
+                   backends={"environment": "stub", "vlm": "stub"}, extra={"pid": os.getpid()})

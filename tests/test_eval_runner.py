@@ -1,0 +1,137 @@
+"""The evaluation runner: one line per episode, resume without double counting, failures
+recorded per episode, a killed run resumed, and Ray on two local workers."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from efficienteqa.agent import AgentConfig
+from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.eval.methods import METHODS, RunSpec, method_config, resolve
+from efficienteqa.eval.records import EPISODES_FILE, append_episode, read_episodes
+from efficienteqa.eval.runner import run_eval
+
+TESTS = Path(__file__).parent
+
+
+def questions(n: int) -> list[EvalQuestion]:
+    return [EvalQuestion(id=f"toy/{i:03d}", dataset="toy", scene="synthetic:0",
+                         question=f"How many cups are on table {i}?", answer=str(i % 4),
+                         category="count") for i in range(n)]
+
+
+def spec(method: str = "eval_stubs:echo", **kwargs) -> RunSpec:
+    return RunSpec(method=method, dataset="toy", judge=None, **kwargs)
+
+
+def lines(out: Path) -> list[dict]:
+    return [json.loads(x) for x in (out / EPISODES_FILE).read_text().splitlines() if x.strip()]
+
+
+def test_sequential_run_writes_each_episode_once_and_resume_skips_them(tmp_path):
+    first = run_eval(spec(), questions(5), tmp_path, prepare=False)
+    assert (first.ran, first.skipped, first.failed) == (5, 0, 0)
+    rows = lines(tmp_path)
+    assert [r["id"] for r in rows] == [q.id for q in questions(5)]
+    assert all(r["status"] == "done" and r["answer"] == r["reference"] for r in rows)
+    again = run_eval(spec(), questions(8), tmp_path, prepare=False)  # a larger limit continues
+    assert (again.ran, again.skipped) == (3, 5)
+    assert sorted(r["id"] for r in lines(tmp_path)) == [q.id for q in questions(8)]
+
+
+def test_a_failing_episode_is_recorded_and_retried_on_resume(tmp_path, monkeypatch):
+    monkeypatch.setenv("EQA_STUB_FAIL", "toy/002")
+    result = run_eval(spec(), questions(4), tmp_path, prepare=False)
+    assert (result.ran, result.failed) == (4, 1)
+    failed = [r for r in lines(tmp_path) if r["status"] == "failed"]
+    assert [r["id"] for r in failed] == ["toy/002"]
+    assert failed[0]["error"] == "RuntimeError: scripted failure of toy/002"  # one line
+    monkeypatch.delenv("EQA_STUB_FAIL")
+    retry = run_eval(spec(), questions(4), tmp_path, prepare=False)
+    assert (retry.ran, retry.skipped, retry.failed) == (1, 3, 0)
+    episodes = read_episodes(tmp_path / EPISODES_FILE)
+    assert len(episodes.by_id) == 4 and episodes.done == {q.id for q in questions(4)}
+
+
+def test_a_folder_of_another_configuration_is_refused(tmp_path):
+    run_eval(spec(), questions(1), tmp_path, prepare=False)
+    other = spec(config=AgentConfig(top_k=3))
+    with pytest.raises(EfficientEQAError, match="another config"):
+        run_eval(other, questions(1), tmp_path, prepare=False)
+
+
+def test_a_torn_last_line_is_skipped_and_the_next_line_starts_fresh(tmp_path):
+    path = tmp_path / EPISODES_FILE
+    append_episode(path, {"id": "a", "status": "done"})
+    with path.open("ab") as f:
+        f.write(b'{"id": "b", "sta')  # a writer killed mid-line
+    append_episode(path, {"id": "c", "status": "done"})
+    episodes = read_episodes(path)
+    assert list(episodes.by_id) == ["a", "c"] and episodes.torn == 1
+
+
+def test_a_run_killed_mid_way_resumes_with_every_episode_exactly_once(tmp_path):
+    script = (f"import sys; sys.path.insert(0, {str(TESTS)!r})\n"
+              "from pathlib import Path\n"
+              "from test_eval_runner import questions, spec\n"
+              "from efficienteqa.eval.runner import run_eval\n"
+              f"run_eval(spec(), questions(12), Path({str(tmp_path)!r}), prepare=False)\n")
+    env = {**os.environ, "EQA_STUB_SLEEP": "0.15"}
+    proc = subprocess.Popen([sys.executable, "-c", script], env=env)
+    path = tmp_path / EPISODES_FILE
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(read_episodes(path).done) < 3:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    killed_at = len(read_episodes(path).done)
+    assert 3 <= killed_at < 12
+    result = run_eval(spec(), questions(12), tmp_path, prepare=False)
+    assert result.skipped == killed_at and result.ran == 12 - killed_at
+    ids = [r["id"] for r in lines(tmp_path)]
+    assert sorted(ids) == [q.id for q in questions(12)]  # each exactly once
+
+
+@pytest.mark.slow
+def test_ray_two_workers_survive_a_killed_worker(tmp_path, monkeypatch):
+    pytest.importorskip("ray")
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    out = tmp_path / "run"
+    monkeypatch.setenv("EQA_STUB_SLEEP", "0.3")
+    monkeypatch.setenv("EQA_STUB_DIE", "toy/003")
+    monkeypatch.setenv("EQA_STUB_MARKS", str(marks))
+    result = run_eval(spec(), questions(8), out, workers=2, prepare=False)
+    rows = lines(out)
+    assert sorted(r["id"] for r in rows) == [q.id for q in questions(8)]  # each exactly once
+    assert all(r["status"] == "done" for r in rows), [r.get("error") for r in rows]
+    assert (marks / "toy_003").exists()  # the worker did die once, and Ray ran it again
+    died = int((marks / "toy_003").read_text())
+    assert died != next(r for r in rows if r["id"] == "toy/003")["extra"]["pid"]
+    assert len({r["extra"]["pid"] for r in rows}) >= 2  # two workers did the work
+    assert result.failed == 0
+
+
+def test_methods_are_configurations_of_the_agent():
+    base = AgentConfig()
+    assert method_config("efficienteqa", base).stop.enabled
+    white = method_config("explore-eqa", base)
+    assert (white.confidence, white.answer_at, white.stop.enabled) == ("token", "best-step", False)
+    black = method_config("explore-eqa-blackbox", base)
+    assert (black.confidence, black.answer_at, black.explorer) == ("verbalized", "best-step", "sfe")
+    assert method_config("frontier-only", base).explorer == "frontier-only"
+    assert set(METHODS) >= {"efficienteqa", "explore-eqa", "explore-eqa-blackbox", "blind",
+                            "frontier-only", "random"}
+    with pytest.raises(EfficientEQAError, match="unknown method"):
+        resolve("nope")
+    with pytest.raises(EfficientEQAError, match="cannot load method"):
+        resolve("no_such_module:run")
