@@ -189,6 +189,29 @@ def eval_command(
                   highlight=False, soft_wrap=True)
 
 
+@app.command("report")
+def report_command(
+    folders: list[Path] = typer.Argument(..., help="Run folders written by `efficienteqa eval --out`."),
+    out: Path | None = typer.Option(None, help="Folder for report.md, its plots and report.html "
+                                    "(default: the run folder itself for one run, else "
+                                    "FIRST_FOLDER/../report)."),
+) -> None:
+    """Tables and plots across evaluation runs (the paper's Tables I-III in form): Markdown and HTML."""
+    from rich.table import Table
+
+    from efficienteqa.eval.tables import overview_rows, read_summaries, render_report
+
+    summaries = read_summaries(folders)
+    target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
+    md, page = render_report(summaries, target)
+    header, rows = overview_rows(summaries)
+    table = Table(*header)
+    for row in rows:
+        table.add_row(*row)
+    console.print(table)
+    console.print(f"markdown: {md}\nhtml:     {page}", highlight=False, soft_wrap=True)
+
+
 @scenes.command("generate")
 def scenes_generate(
     seed: int = typer.Option(0, help="The house seed; a seed fully determines a house."),

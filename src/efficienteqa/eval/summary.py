@@ -1,0 +1,242 @@
+"""One evaluation run in numbers: the figures the paper reports (LLM-Match, average steps) and the
+ones that say what they cost (steps against the oracle, stop reasons, model calls, tokens, time).
+
+Pure functions over a run's manifest and its episode rows (``records.read_run``), so the same
+summary backs the console, the Markdown and the HTML report. Conventions, stated once:
+
+- LLM-Match is the mean over *every* episode of the run: a failed episode, or a done one without
+  a grade, scores 0 like a missing answer (SPEC 3.7). A run with no grade at all has no score
+  (NaN): 0 would read as "everything was wrong".
+- Steps, steps/oracle, stop reasons and model usage are over the done episodes; wall time is over
+  every episode that recorded one (a failure costs time too).
+- Means skip missing values and are NaN when nothing is left, so an empty run never crashes.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections import Counter
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from functools import cache
+from typing import Any, TypeGuard
+
+from efficienteqa.eval.judge import score_value
+
+# The back-ends a table states, in the order it states them, from the rows' ``backends``.
+BACKEND_KEYS = ("environment", "perception", "vlm", "relevancy", "grouping")
+# Settings that change no result: left out when runs are compared for ablations.
+NEUTRAL_SETTINGS = frozenset({"cache"})
+# How a setting that differs from the default is written in a label (the paper's symbols).
+LABEL_NAMES = {"z_th": "Z_th", "top_k": "K", "max_steps": "budget", "min_step": "min step",
+               "sigma_eps": "sigma_eps", "seed": "seed"}
+UNCATEGORISED = "(none)"
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """A run's figures. LLM-Match values are 0-100; ``steps_over_oracle`` is the mean per-episode
+    ratio ``steps / oracle_steps``; times are seconds per episode; ``newest`` is the finish time
+    of the last episode (Unix seconds, None without episodes)."""
+
+    method: str
+    dataset: str
+    label: str
+    source: str
+    settings: dict[str, Any]
+    n: int
+    n_done: int
+    n_failed: int
+    n_judged: int
+    planned: int | None
+    torn: int
+    llm_match: float
+    by_category: dict[str, float]
+    n_by_category: dict[str, int]
+    mean_steps: float
+    steps_over_oracle: float
+    n_oracle: int
+    stop_reasons: dict[str, int]
+    calls: float
+    prompt_tokens: float
+    completion_tokens: float
+    model_latency_s: float
+    cached_fraction: float
+    wall_s_mean: float
+    wall_s_median: float
+    backends: dict[str, list[str]]
+    code_version: str
+    newest: float | None
+    errors: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def tokens(self) -> float:
+        """Prompt plus completion tokens per episode."""
+        return self.prompt_tokens + self.completion_tokens
+
+
+def mean(values: Iterable[Any]) -> float:
+    """The mean of the numbers among ``values`` (None and NaN skipped); NaN when none are left."""
+    numbers = [float(v) for v in values if _is_number(v)]
+    return math.fsum(numbers) / len(numbers) if numbers else math.nan
+
+
+def median(values: Iterable[Any]) -> float:
+    numbers = [float(v) for v in values if _is_number(v)]
+    return statistics.median(numbers) if numbers else math.nan
+
+
+def _is_number(v: Any) -> TypeGuard[float]:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def match_value(row: Mapping[str, Any]) -> float:
+    """One episode's LLM-Match (0-100): its grade's value; 0 when failed or not graded."""
+    judged = row.get("judge") if row.get("status") == "done" else None
+    if not isinstance(judged, Mapping):
+        return 0.0
+    value = judged.get("value")
+    if _is_number(value):
+        return float(value)
+    score = judged.get("score")
+    return score_value(score if isinstance(score, int) else None)
+
+
+def settings(manifest: Mapping[str, Any]) -> dict[str, Any]:
+    """The run's configuration as one flat dict (AgentConfig, its stop rule, the stack, judge):
+    what ablations compare and labels name. ``stop.enabled`` becomes ``early_stop``."""
+    config = dict(manifest.get("config") or {})
+    stop = dict(config.pop("stop", None) or {})
+    if "enabled" in stop:
+        stop["early_stop"] = stop.pop("enabled")
+    flat = {**config, **stop, **dict(manifest.get("stack") or {})}
+    for key in ("judge", "closed_set", "assets"):
+        if key in manifest:
+            flat[key] = manifest[key]
+    return flat
+
+
+@cache
+def _default_settings() -> tuple[tuple[str, Any], ...]:
+    from efficienteqa.agent import AgentConfig
+
+    return tuple(settings({"config": asdict(AgentConfig())}).items())
+
+
+def _fmt_setting(value: Any) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def label(manifest: Mapping[str, Any]) -> str:
+    """A short name for tables: the method plus the agent settings that differ from the defaults
+    ("efficienteqa Z_th=2", "efficienteqa K=10", "explore-eqa closed-set")."""
+    return settings_label(str(manifest.get("method", "?")), settings(manifest))
+
+
+def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = ()) -> str:
+    """``method`` plus the settings in ``flat`` (``settings``) that differ from the defaults,
+    leaving out ``skip`` (an ablation table names its own variable)."""
+    parts = [method]
+    skipped = set(skip)
+    for key, default in _default_settings():
+        if key in flat and key not in skipped and flat[key] != default:
+            if key == "early_stop":
+                parts.append("no early stop" if not flat[key] else "early stop")
+            else:
+                parts.append(f"{LABEL_NAMES.get(key, key)}={_fmt_setting(flat[key])}")
+    if flat.get("closed_set"):
+        parts.append("closed-set")
+    return " ".join(parts)
+
+
+def _distinct(values: Iterable[Any]) -> list[str]:
+    return sorted({str(v) for v in values if v not in (None, "")})
+
+
+def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *, torn: int = 0,
+              source: str = "") -> RunSummary:
+    """The figures of one run (see the module docstring for what each mean is over). ``torn``:
+    unreadable lines skipped in ``episodes.jsonl``; ``source``: where the run was read from."""
+    done = [r for r in rows if r.get("status") == "done"]
+    values = [match_value(r) for r in rows]
+    n_judged = sum(isinstance(r.get("judge"), Mapping) for r in done)
+    scored = n_judged > 0
+
+    categories: dict[str, list[float]] = {}
+    for r, v in zip(rows, values):
+        categories.setdefault(str(r.get("category") or UNCATEGORISED), []).append(v)
+
+    # A run in which no episode took a step (the Blind LLM) has no average steps, not 0.
+    explored = any((r.get("steps") or 0) > 0 or r.get("stop_reason") is not None for r in done)
+    ratios = [r["steps"] / r["oracle_steps"] for r in done
+              if _is_number(r.get("steps")) and _is_number(r.get("oracle_steps")) and r["oracle_steps"] > 0]
+    usage = [r.get("usage") or {} for r in done]
+    calls = sum(u.get("calls") or 0 for u in usage)
+    judges = [r["judge"].get("judge") for r in done if isinstance(r.get("judge"), Mapping)]
+    backends = {k: _distinct((r.get("backends") or {}).get(k) for r in done) for k in BACKEND_KEYS}
+    backends["judge"] = _distinct(judges) or _distinct([manifest.get("judge")])
+    finished = [float(r["finished"]) for r in rows if _is_number(r.get("finished"))]
+    planned = manifest.get("questions")
+
+    return RunSummary(
+        method=str(manifest.get("method", "?")), dataset=str(manifest.get("dataset", "?")),
+        label=label(manifest), source=source, settings=settings(manifest),
+        n=len(rows), n_done=len(done), n_failed=len(rows) - len(done), n_judged=n_judged,
+        planned=planned if isinstance(planned, int) else None, torn=torn,
+        llm_match=mean(values) if scored else math.nan,
+        by_category={c: (mean(v) if scored else math.nan) for c, v in sorted(categories.items())},
+        n_by_category={c: len(v) for c, v in sorted(categories.items())},
+        mean_steps=mean(r.get("steps") for r in done) if explored else math.nan,
+        steps_over_oracle=mean(ratios) if explored else math.nan, n_oracle=len(ratios) if explored else 0,
+        stop_reasons=dict(Counter(str(r.get("stop_reason") or "none") for r in done).most_common()),
+        calls=mean(u.get("calls") for u in usage),
+        prompt_tokens=mean(u.get("prompt_tokens") for u in usage),
+        completion_tokens=mean(u.get("completion_tokens") for u in usage),
+        model_latency_s=mean(u.get("latency_s") for u in usage),
+        cached_fraction=(sum(u.get("cached_calls") or 0 for u in usage) / calls if calls else math.nan),
+        wall_s_mean=mean(r.get("wall_s") for r in rows), wall_s_median=median(r.get("wall_s") for r in rows),
+        backends=backends, code_version=str(manifest.get("code_version") or "?"),
+        newest=max(finished) if finished else None,
+        errors=dict(Counter(str(r.get("error") or "unknown error") for r in rows
+                            if r.get("status") != "done").most_common()),
+    )
+
+
+def ablations(summaries: Sequence[RunSummary], key: str) -> list[list[RunSummary]]:
+    """Groups of at least two runs of one method on one dataset whose settings differ only in
+    ``key`` (e.g. "z_th", "top_k"), each sorted by that value: the paper's Tables II and III."""
+    groups: dict[tuple[Any, ...], list[RunSummary]] = {}
+    for s in summaries:
+        if key not in s.settings:
+            continue
+        rest = tuple(sorted((k, repr(v)) for k, v in s.settings.items()
+                            if k != key and k not in NEUTRAL_SETTINGS))
+        groups.setdefault((s.dataset, s.method, rest), []).append(s)
+    return [sorted(g, key=lambda s: _order(s.settings[key])) for g in groups.values()
+            if len({repr(s.settings[key]) for s in g}) > 1]
+
+
+def _order(value: Any) -> tuple[int, float, str]:
+    """Numbers first, ascending; anything else (None: the default budget) after, by name."""
+    return (0, float(value), "") if _is_number(value) else (1, 0.0, str(value))
+
+
+def distinct_labels(summaries: Sequence[RunSummary]) -> list[str]:
+    """Each run's label, made unique where two runs share one: first by the back-ends that tell
+    them apart (VLM, perception, relevancy), then by the folder they came from."""
+    out = [s.label for s in summaries]
+    for keys in (("vlm", "perception", "relevancy", "judge"), ("source",)):
+        counts = Counter(out)
+        for i, s in enumerate(summaries):
+            if counts[out[i]] > 1:
+                same = [t for t in summaries if t.label == s.label]
+                extra = [str(_lookup(s, k)) for k in keys
+                         if len({str(_lookup(t, k)) for t in same}) > 1]
+                if extra:
+                    out[i] = f"{out[i]} ({', '.join(extra)})"
+    return out
+
+
+def _lookup(s: RunSummary, key: str) -> Any:
+    return s.source if key == "source" else s.settings.get(key)

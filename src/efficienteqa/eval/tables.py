@@ -1,0 +1,426 @@
+"""``efficienteqa report``: evaluation runs side by side, in Markdown and in one HTML page.
+
+The paper's tables in form — Table I (method | LLM-Match | average steps, plus steps against the
+oracle), Tables II and III (the Z_th and K ablations, found by comparing the runs' settings) —
+plus what the paper leaves out: LLM-Match per question category, and the cost of every run (stop
+reasons, model calls and tokens, wall time, failures). Plots are SVG drawn here, so reports need
+no plotting library; the HTML page inlines them, the Markdown links them as files beside it.
+
+Every table carries the back-ends that produced its numbers and the date of its newest episode:
+a number without them cannot be compared with anything. The report is built as a list of
+sections of tables, figures and paragraphs once, then rendered twice.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+import re
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from efficienteqa.eval.records import read_run
+from efficienteqa.eval.summary import (
+    BACKEND_KEYS,
+    RunSummary,
+    ablations,
+    distinct_labels,
+    settings_label,
+    summarise,
+)
+
+SEMANTIC_SENSOR = "semantic-sensor"
+SEMANTIC_WARNING = ("Perception is semantic-sensor: the agent reads the simulator's object labels as "
+                    "text, not pixels, so these are not image-model numbers.")
+SEMANTIC_SHORT = "reads the simulator's object labels, not pixels: not image-model numbers"
+CONVENTIONS = ("LLM-Match (%) is the mean over every episode of 100 * (score - 1) / 4; a failed or "
+               "ungraded episode scores 0, like a missing answer (SPEC 3.7). Average steps, steps / "
+               "oracle (the mean per-episode ratio, over episodes with an oracle), stop reasons and "
+               "model usage are over the episodes that finished; '-' means not measured.")
+STOP_ORDER = ("relevancy", "budget", "explored", "none")
+PLOT_W, PLOT_H, PAD = 540, 340, 56
+CSS = """
+body{font-family:system-ui,sans-serif;margin:24px auto;max-width:1150px;color:#222;padding:0 12px}
+h1{font-size:1.4em} h2{font-size:1.2em;margin-top:2em;border-bottom:2px solid #ccc}
+h3{font-size:1.02em;margin:1.6em 0 .4em}
+table{border-collapse:collapse;font-size:.9em;margin:4px 0}
+th,td{border:1px solid #ddd;padding:3px 9px;text-align:right} th{background:#f3f3f3}
+td:first-child,th:first-child,.text{text-align:left}
+.note{color:#555;font-size:.85em;margin:2px 0} .warn{color:#a40}
+figure{margin:10px 16px 10px 0;display:inline-block;vertical-align:top} figcaption{color:#555;font-size:.85em}
+"""
+
+
+# --- the document ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Table:
+    caption: str
+    header: list[str]
+    rows: list[list[str]]
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Figure:
+    name: str  # the .svg file beside report.md
+    caption: str
+    svg: str
+
+
+@dataclass
+class Section:
+    title: str
+    blocks: list[Table | Figure | str] = field(default_factory=list)
+
+
+# --- numbers as text -------------------------------------------------------------------------------
+
+
+def _num(value: float, digits: int = 2) -> str:
+    return "-" if math.isnan(value) else f"{value:.{digits}f}"
+
+
+def _date(unix_s: float | None) -> str:
+    return "-" if unix_s is None else time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(unix_s))
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "-", text).strip("-").lower() or "runs"
+
+
+def provenance(summaries: Sequence[RunSummary]) -> list[str]:
+    """The note under a table: its back-ends (every distinct value where runs differ, with what
+    semantic-sensor perception means), the newest episode and the code."""
+    names = {"vlm": "VLM"}
+    parts = []
+    for key in (*BACKEND_KEYS, "judge"):
+        if key == "grouping":
+            continue
+        values = sorted({v for s in summaries for v in s.backends.get(key, [])})
+        text = f"{names.get(key, key)} {', '.join(values) or '-'}"
+        if key == "perception" and SEMANTIC_SENSOR in values:
+            text += f" ({SEMANTIC_SHORT})"
+        parts.append(text)
+    newest = max((s.newest for s in summaries if s.newest is not None), default=None)
+    codes = sorted({s.code_version for s in summaries})
+    return [f"Back-ends: {'; '.join(parts)}. Newest episode: {_date(newest)}. Code: {', '.join(codes)}."]
+
+
+# --- tables ----------------------------------------------------------------------------------------
+
+
+def _episodes(s: RunSummary) -> str:
+    return f"{s.n} ({s.n_judged} judged, {s.n_failed} failed)"
+
+
+def table_one(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
+    """The paper's Table I in form, one row per run in the order given."""
+    rows = [[lab, _num(s.llm_match), _num(s.mean_steps), _num(s.steps_over_oracle), _episodes(s)]
+            for s, lab in zip(summaries, labels)]
+    return Table("Methods compared (the paper's Table I)",
+                 ["Method", "LLM-Match (%) ↑", "Avg steps ↓", "Steps / oracle ↓", "Episodes"],
+                 rows, provenance(summaries))
+
+
+def category_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
+    """LLM-Match per question category; the header carries n when every run has the same."""
+    categories = sorted({c for s in summaries for c in s.by_category})
+    header = ["Method"]
+    for c in categories:
+        ns = {s.n_by_category.get(c, 0) for s in summaries}
+        header.append(f"{c} (n={ns.pop()})" if len(ns) == 1 else c)
+    uniform = all(len({s.n_by_category.get(c, 0) for s in summaries}) == 1 for c in categories)
+    rows = []
+    for s, lab in zip(summaries, labels):
+        cells = [lab]
+        for c in categories:
+            if c not in s.by_category:
+                cells.append("-")
+            else:
+                cells.append(_num(s.by_category[c]) + ("" if uniform else f" (n={s.n_by_category[c]})"))
+        rows.append(cells)
+    return Table("LLM-Match (%) per question category", header, rows, provenance(summaries))
+
+
+def efficiency_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
+    """What each run cost: how episodes ended, model calls and tokens, time."""
+    reasons = sorted({r for s in summaries for r in s.stop_reasons},
+                     key=lambda r: (STOP_ORDER.index(r) if r in STOP_ORDER else len(STOP_ORDER), r))
+    header = ["Method", "Done", "Failed", *(f"Stop: {r}" for r in reasons), "Calls / ep",
+              "Tokens / ep (prompt + completion)", "Model s / ep", "Cached calls",
+              "Wall s / ep (median)"]
+    rows = []
+    for s, lab in zip(summaries, labels):
+        tokens = ("-" if math.isnan(s.tokens) else
+                  f"{s.tokens:.0f} ({s.prompt_tokens:.0f} + {s.completion_tokens:.0f})")
+        cached = "-" if math.isnan(s.cached_fraction) else f"{100 * s.cached_fraction:.0f}%"
+        rows.append([lab, str(s.n_done), str(s.n_failed), *(str(s.stop_reasons.get(r, 0)) for r in reasons),
+                     _num(s.calls, 1), tokens, _num(s.model_latency_s, 1), cached,
+                     f"{_num(s.wall_s_mean, 1)} ({_num(s.wall_s_median, 1)})"])
+    return Table("Cost per episode: stop reasons, model calls, tokens, wall time", header, rows,
+                 provenance(summaries))
+
+
+def failures_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table | None:
+    rows = [[lab, error, str(count)] for s, lab in zip(summaries, labels)
+            for error, count in list(s.errors.items())[:5]]
+    if not rows:
+        return None
+    return Table("Failures (the five commonest errors per run)", ["Method", "Error", "Episodes"], rows,
+                 provenance(summaries))
+
+
+def runs_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
+    """Where every row came from, and whether the run is complete and intact."""
+    rows = []
+    for s, lab in zip(summaries, labels):
+        planned = "-" if s.planned is None else str(s.planned)
+        torn = f"{s.torn} skipped" if s.torn else "0"
+        rows.append([lab, s.source, f"{s.n} of {planned}", torn, s.code_version])
+    return Table("Runs", ["Method", "Folder", "Episodes", "Torn lines", "Code"], rows,
+                 provenance(summaries))
+
+
+def ablation_blocks(summaries: Sequence[RunSummary], prefix: str) -> list[Table | Figure]:
+    """The paper's Tables II (Z_th: LLM-Match and steps) and III (K: LLM-Match) with their curves,
+    for every group of runs that differ in that setting alone."""
+    blocks: list[Table | Figure] = []
+    for key, symbol, with_steps, paper in (("z_th", "Z_th", True, "II"), ("top_k", "K", False, "III")):
+        for i, group in enumerate(ablations(summaries, key), 1):
+            name = settings_label(group[0].method, group[0].settings, skip=[key])
+            suffix = f"-{i}" if i > 1 else ""
+            header = [symbol, "LLM-Match (%) ↑", *(["Avg steps ↓"] if with_steps else []), "Episodes"]
+            rows = [[f"{s.settings[key]:g}" if isinstance(s.settings[key], float) else str(s.settings[key]),
+                     _num(s.llm_match), *([_num(s.mean_steps)] if with_steps else []), _episodes(s)]
+                    for s in group]
+            blocks.append(Table(f"Ablation over {symbol}: {name} (the paper's Table {paper})",
+                                header, rows, provenance(group)))
+            xs = [float(s.settings[key]) for s in group]
+            plots = [("llm-match", "LLM-Match (%)", [s.llm_match for s in group])]
+            if with_steps:
+                plots.append(("steps", "Avg steps", [s.mean_steps for s in group]))
+            for tag, y_label, ys in plots:
+                points = [(x, y, "") for x, y in zip(xs, ys)]
+                blocks.append(Figure(f"{prefix}-{_slug(key)}{suffix}-{tag}.svg",
+                                     f"{y_label} vs {symbol}: {name}",
+                                     xy_svg(points, x_label=symbol, y_label=y_label, connect=True)))
+    return blocks
+
+
+def accuracy_figure(summaries: Sequence[RunSummary], labels: Sequence[str], prefix: str) -> Figure:
+    """LLM-Match against average steps, one labelled point per run; a run that took no steps
+    (the Blind LLM) is a dashed level line."""
+    points = [(s.mean_steps, s.llm_match, lab) for s, lab in zip(summaries, labels)
+              if not math.isnan(s.mean_steps)]
+    levels = [(s.llm_match, lab) for s, lab in zip(summaries, labels) if math.isnan(s.mean_steps)]
+    return Figure(f"{prefix}-accuracy-steps.svg", "LLM-Match vs average steps (up and left is better)",
+                  xy_svg(points, x_label="Avg steps", y_label="LLM-Match (%)", levels=levels))
+
+
+def build_sections(summaries: Sequence[RunSummary]) -> list[Section]:
+    """One section per dataset, in the order the datasets first appear."""
+    sections = []
+    for dataset in dict.fromkeys(s.dataset for s in summaries):
+        runs = [s for s in summaries if s.dataset == dataset]
+        labels = distinct_labels(runs)
+        prefix = _slug(dataset)
+        section = Section(f"Dataset: {dataset}")
+        if any(SEMANTIC_SENSOR in s.backends.get("perception", []) for s in runs):
+            section.blocks.append(SEMANTIC_WARNING)
+        section.blocks += [table_one(runs, labels), accuracy_figure(runs, labels, prefix),
+                           category_table(runs, labels), efficiency_table(runs, labels)]
+        failures = failures_table(runs, labels)
+        if failures is not None:
+            section.blocks.append(failures)
+        section.blocks += ablation_blocks(runs, prefix)
+        section.blocks.append(runs_table(runs, labels))
+        sections.append(section)
+    return sections
+
+
+# --- the plot --------------------------------------------------------------------------------------
+
+
+def _ticks(lo: float, hi: float, target: int = 5) -> tuple[list[float], int]:
+    """Round tick values (steps of 1, 2 or 5 times a power of ten) inside [lo, hi], and the
+    decimals that print them exactly."""
+    raw = (hi - lo) / target
+    magnitude = 10.0 ** math.floor(math.log10(raw))
+    step = next(m * magnitude for m in (1, 2, 5, 10) if m * magnitude >= raw)
+    first = math.ceil(lo / step) * step
+    count = int((hi - first) / step + 1e-9) + 1
+    return [first + k * step for k in range(count)], max(0, -math.floor(math.log10(step) + 1e-9))
+
+
+def _span(values: Sequence[float]) -> tuple[float, float]:
+    lo, hi = min(values), max(values)
+    if hi - lo < 1e-9:
+        return lo - 1.0, hi + 1.0
+    margin = 0.1 * (hi - lo)
+    return lo - margin, hi + margin
+
+
+def xy_svg(points: Sequence[tuple[float, float, str]], *, x_label: str, y_label: str,
+           connect: bool = False, levels: Sequence[tuple[float, str]] = ()) -> str:
+    """A scatter (``connect``: a line through the points in order) of (x, y, label) points, with
+    optional labelled dashed horizontal ``levels``; points or levels with NaN are left out."""
+    pts = [(x, y, lab) for x, y, lab in points if not (math.isnan(x) or math.isnan(y))]
+    lvls = [(y, lab) for y, lab in levels if not math.isnan(y)]
+    head = (f'<svg xmlns="http://www.w3.org/2000/svg" width="{PLOT_W}" height="{PLOT_H}" '
+            f'viewBox="0 0 {PLOT_W} {PLOT_H}" role="img" aria-label="{html.escape(y_label)} vs '
+            f'{html.escape(x_label)}" font-family="sans-serif" font-size="11">')
+    if not pts and not lvls:
+        return (head + f'<text x="{PLOT_W / 2}" y="{PLOT_H / 2}" text-anchor="middle">'
+                "no measured value to plot</text></svg>")
+    x0, x1 = _span([p[0] for p in pts] or [0.0])
+    y0, y1 = _span([p[1] for p in pts] + [y for y, _ in lvls])
+
+    def sx(v: float) -> float:
+        return PAD + (PLOT_W - 2 * PAD) * (v - x0) / (x1 - x0)
+
+    def sy(v: float) -> float:
+        return PLOT_H - PAD - (PLOT_H - 1.6 * PAD) * (v - y0) / (y1 - y0)
+
+    out = [head, f'<rect x="{PAD}" y="{0.6 * PAD}" width="{PLOT_W - 2 * PAD}" '
+                 f'height="{PLOT_H - 1.6 * PAD}" fill="#fafafa" stroke="#ccc"/>']
+    y_ticks, y_digits = _ticks(y0, y1)
+    for v in y_ticks:
+        out.append(f'<text x="{PAD - 5}" y="{sy(v) + 4:.1f}" text-anchor="end">{v:.{y_digits}f}</text>'
+                   f'<line x1="{PAD}" x2="{PLOT_W - PAD}" y1="{sy(v):.1f}" y2="{sy(v):.1f}" stroke="#eee"/>')
+    if pts:
+        x_ticks, x_digits = _ticks(x0, x1)
+        for v in x_ticks:
+            out.append(f'<text x="{sx(v):.1f}" y="{PLOT_H - PAD + 16}" '
+                       f'text-anchor="middle">{v:.{x_digits}f}</text>')
+    out.append(f'<text x="{PLOT_W / 2}" y="{PLOT_H - 12}" text-anchor="middle">{html.escape(x_label)}</text>')
+    out.append(f'<text x="14" y="{PLOT_H / 2}" transform="rotate(-90 14 {PLOT_H / 2})" '
+               f'text-anchor="middle">{html.escape(y_label)}</text>')
+    for y, lab in lvls:
+        out.append(f'<line x1="{PAD}" x2="{PLOT_W - PAD}" y1="{sy(y):.1f}" y2="{sy(y):.1f}" '
+                   f'stroke="#999" stroke-dasharray="6 4"/><text x="{PLOT_W - PAD - 4}" '
+                   f'y="{sy(y) - 4:.1f}" text-anchor="end" fill="#666">{html.escape(lab)} '
+                   f'(no steps): {y:.1f}</text>')
+    if connect and len(pts) > 1:
+        path = " ".join(f"{sx(x):.1f},{sy(y):.1f}" for x, y, _ in pts)
+        out.append(f'<polyline points="{path}" fill="none" stroke="#369" stroke-width="1.5"/>')
+    for x, y, lab in pts:
+        tip = html.escape(f"{lab + ': ' if lab else ''}({x:g}, {y:.2f})")
+        out.append(f'<circle cx="{sx(x):.1f}" cy="{sy(y):.1f}" r="4" fill="#369">'
+                   f'<title>{tip}</title></circle>')
+        if lab:  # on the left of points in the right third, so the label stays inside
+            right = sx(x) > 0.66 * PLOT_W
+            anchor = "end" if right else "start"
+            out.append(f'<text x="{sx(x) + (-7 if right else 7):.1f}" y="{sy(y) - 6:.1f}" '
+                       f'text-anchor="{anchor}">{html.escape(lab)}</text>')
+    out.append("</svg>")
+    return "\n".join(out)
+
+
+# --- rendering -------------------------------------------------------------------------------------
+
+
+def _md(text: str) -> str:
+    """Safe in a Markdown table cell: no pipe, no line break, no raw HTML."""
+    return (text.replace("\\", "\\\\").replace("|", "\\|").replace("<", "&lt;")
+            .replace(">", "&gt;").replace("\r", " ").replace("\n", " "))
+
+
+def _numeric(table: Table) -> list[bool]:
+    """Which columns hold numbers (right-aligned): every cell starts like one, or is '-'."""
+    return [i > 0 and all(re.match(r"-$|-?\d", row[i]) for row in table.rows)
+            for i in range(len(table.header))]
+
+
+def to_markdown(sections: Sequence[Section], intro: Sequence[str]) -> str:
+    lines = ["# EfficientEQA evaluation report", "", *(f"{_md(p)}\n" for p in intro)]
+    for section in sections:
+        lines += [f"## {_md(section.title)}", ""]
+        for block in section.blocks:
+            if isinstance(block, Table):
+                lines += [f"### {_md(block.caption)}", "",
+                          "| " + " | ".join(_md(h) for h in block.header) + " |",
+                          "|" + "|".join("---:" if numeric else ":---" for numeric in _numeric(block)) + "|",
+                          *("| " + " | ".join(_md(c) for c in row) + " |" for row in block.rows), "",
+                          *(f"_{_md(note)}_\n" for note in block.notes)]
+            elif isinstance(block, Figure):
+                lines += [f"![{_md(block.caption)}]({block.name})", ""]
+            else:
+                lines += [_md(block), ""]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def to_html(sections: Sequence[Section], intro: Sequence[str]) -> str:
+    e = html.escape
+    parts = ["<!doctype html><html><head><meta charset='utf-8'><title>EfficientEQA evaluation report"
+             f"</title><style>{CSS}</style></head><body><h1>EfficientEQA evaluation report</h1>",
+             *(f"<p class='note'>{e(p)}</p>" for p in intro)]
+    for section in sections:
+        parts.append(f"<h2>{e(section.title)}</h2>")
+        for block in section.blocks:
+            if isinstance(block, Table):
+                align = ["" if numeric else " class=text" for numeric in _numeric(block)]
+                head = "".join(f"<th{a}>{e(h)}</th>" for a, h in zip(align, block.header))
+                body = "".join("<tr>" + "".join(f"<td{a}>{e(c)}</td>" for a, c in zip(align, row)) + "</tr>"
+                               for row in block.rows)
+                notes = "".join(f"<p class='note'>{e(n)}</p>" for n in block.notes)
+                parts.append(f"<h3>{e(block.caption)}</h3><table><thead><tr>{head}</tr></thead>"
+                             f"<tbody>{body}</tbody></table>{notes}")
+            elif isinstance(block, Figure):
+                parts.append(f"<figure>{block.svg}<figcaption>{e(block.caption)}</figcaption></figure>")
+            else:
+                parts.append(f"<p{' class=warn' if block == SEMANTIC_WARNING else ''}>{e(block)}</p>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+# --- entry points ----------------------------------------------------------------------------------
+
+
+def read_summaries(folders: Sequence[Path]) -> list[RunSummary]:
+    """Each run folder summarised, in the order given (a folder given twice counts once). A
+    folder that is not a run raises ``read_run``'s one-line error."""
+    out = []
+    for folder in dict.fromkeys(Path(f).resolve() for f in folders):
+        manifest, episodes = read_run(folder)
+        out.append(summarise(manifest, episodes.rows(), torn=episodes.torn, source=str(folder)))
+    return out
+
+
+def overview_rows(summaries: Sequence[RunSummary]) -> tuple[list[str], list[list[str]]]:
+    """Table I for a console: dataset plus the Table I columns, every run."""
+    rows = []
+    for dataset in dict.fromkeys(s.dataset for s in summaries):
+        runs = [s for s in summaries if s.dataset == dataset]
+        rows += [[dataset, *row] for row in table_one(runs, distinct_labels(runs)).rows]
+    return ["Dataset", "Method", "LLM-Match (%)", "Avg steps", "Steps / oracle", "Episodes"], rows
+
+
+def render_report(summaries: Sequence[RunSummary], out: Path) -> tuple[Path, Path]:
+    """Write ``report.md`` (with its plots as .svg files beside it) and ``report.html`` (plots
+    inline, no other file needed) into ``out``."""
+    sections = build_sections(summaries)
+    torn = sum(s.torn for s in summaries)
+    intro = [f"{len(summaries)} run(s), written {_date(time.time())}.", CONVENTIONS]
+    if torn:
+        intro.append(f"{torn} unreadable line(s) in episodes.jsonl were skipped (a run killed "
+                     "mid-write); see the Runs tables.")
+    if not summaries:
+        intro.append("No runs were given.")
+    out.mkdir(parents=True, exist_ok=True)
+    for section in sections:
+        for block in section.blocks:
+            if isinstance(block, Figure):
+                (out / block.name).write_text(block.svg + "\n")
+    md, page = out / "report.md", out / "report.html"
+    md.write_text(to_markdown(sections, intro))
+    page.write_text(to_html(sections, intro))
+    return md, page
+
+
+def write_report(folders: Sequence[Path], out: Path) -> tuple[Path, Path]:
+    """Summarise the runs in ``folders`` and write ``out/report.md`` and ``out/report.html``."""
+    return render_report(read_summaries(folders), out)
