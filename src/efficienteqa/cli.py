@@ -205,7 +205,9 @@ def report_command(
     target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
     md, page = render_report(summaries, target)
     header, rows = overview_rows(summaries)
-    table = Table(*header)
+    table = Table()
+    for i, name in enumerate(header):  # names whole, numbers right-aligned
+        table.add_column(name, no_wrap=i < 2, justify="left" if i < 2 else "right")
     for row in rows:
         table.add_row(*row)
     console.print(table)

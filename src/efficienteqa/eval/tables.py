@@ -331,7 +331,7 @@ def _md(text: str) -> str:
 
 def _numeric(table: Table) -> list[bool]:
     """Which columns hold numbers (right-aligned): every cell starts like one, or is '-'."""
-    return [i > 0 and all(re.match(r"-$|-?\d", row[i]) for row in table.rows)
+    return [i > 0 and all(re.match(r"-$|-?\d[\d.,]*%?(\s|$)", row[i]) for row in table.rows)
             for i in range(len(table.header))]
 
 
@@ -391,12 +391,14 @@ def read_summaries(folders: Sequence[Path]) -> list[RunSummary]:
 
 
 def overview_rows(summaries: Sequence[RunSummary]) -> tuple[list[str], list[list[str]]]:
-    """Table I for a console: dataset plus the Table I columns, every run."""
+    """Table I for an 80-column console: dataset, method, LLM-Match, steps, steps / oracle, and
+    episodes done of those run."""
     rows = []
     for dataset in dict.fromkeys(s.dataset for s in summaries):
         runs = [s for s in summaries if s.dataset == dataset]
-        rows += [[dataset, *row] for row in table_one(runs, distinct_labels(runs)).rows]
-    return ["Dataset", "Method", "LLM-Match (%)", "Avg steps", "Steps / oracle", "Episodes"], rows
+        rows += [[dataset, lab, _num(s.llm_match), _num(s.mean_steps), _num(s.steps_over_oracle),
+                  f"{s.n_done}/{s.n}"] for s, lab in zip(runs, distinct_labels(runs))]
+    return ["Dataset", "Method", "LLM-Match", "Steps", "Steps/oracle", "Done"], rows
 
 
 def render_report(summaries: Sequence[RunSummary], out: Path) -> tuple[Path, Path]:
