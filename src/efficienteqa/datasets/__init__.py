@@ -1,0 +1,63 @@
+"""Evaluation datasets by name: every one is read into a list of ``EvalQuestion``.
+
+- ``synthetic``: the fixed, versioned split of synthetic houses (package data, instant).
+- ``synthetic:SEEDS``: the questions of any houses ("synthetic:3", "synthetic:0-9",
+  "synthetic:1,4,7"), generated live once and cached.
+- ``hm-eqa``: ExploreEQA's HM-EQA questions (open-vocabulary; ``closed_set`` for the A-D mode).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.errors import EfficientEQAError
+
+DATASETS = {
+    "synthetic": "the fixed, versioned synthetic split (package data; seeds 100 and up)",
+    "synthetic:SEEDS": "live questions of any houses: synthetic:3, synthetic:0-9, synthetic:1,4,7",
+    "hm-eqa": "HM-EQA (500 questions on HM3D; needs the Habitat back-end to run)",
+}
+_FIX = "use one of: synthetic, synthetic:3, synthetic:0-9, synthetic:1,4,7, hm-eqa"
+
+__all__ = ["DATASETS", "EvalQuestion", "load_dataset"]
+
+
+def load_dataset(name: str, *, path: Path | None = None, limit: int | None = None,
+                 closed_set: bool = False, assets: str = "sh3d") -> list[EvalQuestion]:
+    """The questions of dataset ``name`` in its own order; ``limit`` keeps the first N (the
+    synthetic orders interleave categories and houses, so a prefix stays balanced).
+
+    ``path``: the HM-EQA folder (else ``$EFFICIENTEQA_HM_EQA``, else a cached download).
+    ``closed_set``: HM-EQA's four-choice mode. ``assets``: the synthetic furniture ("sh3d", or
+    "builtin" boxes for live seeds; the fixed split exists for "sh3d" only).
+    """
+    if limit is not None and limit < 0:
+        raise EfficientEQAError(f"limit must be >= 0, got {limit}", fix="pass --limit N with N >= 0")
+    kind, colon, arg = name.strip().partition(":")
+    if closed_set and kind != "hm-eqa":
+        raise EfficientEQAError(f"dataset {name!r} has no closed-set mode", fix="use hm-eqa")
+    if kind == "hm-eqa" and not colon:
+        from efficienteqa.datasets.hm_eqa import load_hm_eqa
+
+        questions = load_hm_eqa(path, closed_set=closed_set)
+    elif kind == "synthetic" and not colon:
+        from efficienteqa.datasets import synthetic
+
+        if assets != synthetic.SPLIT_ASSETS:
+            raise EfficientEQAError(f"the synthetic split is defined for assets "
+                                    f"{synthetic.SPLIT_ASSETS!r}, not {assets!r}",
+                                    fix="use synthetic:SEEDS with these assets")
+        questions = synthetic.load_split()
+    elif kind == "synthetic":
+        from efficienteqa.datasets import synthetic
+
+        try:
+            seeds = synthetic.parse_seeds(arg)
+        except ValueError:
+            raise EfficientEQAError(f"dataset {name!r}: {arg!r} is not a list of seeds",
+                                    fix=_FIX) from None
+        questions = synthetic.load_seeds(seeds, assets)
+    else:
+        raise EfficientEQAError(f"unknown dataset {name!r}", fix=_FIX)
+    return questions if limit is None else questions[:limit]
