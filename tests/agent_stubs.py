@@ -81,3 +81,21 @@ class MentionScorer:
             else:
                 out.append(0.1 + 0.05 * (zlib.crc32(text.encode()) % 1000) / 1000)
         return np.array(out)
+
+
+def token_seeking_model(noun: str, room: str) -> StubChatModel:
+    """``seeking_model`` for the white-box prompts: a letter and yes/no on two lines, and a bare
+    answer; the stub's logprobs make each said word 90% likely."""
+
+    def reply(messages: list[Message]) -> str:
+        prompt = messages[-1].text
+        if prompt.startswith("You guide a robot"):
+            dirs = _directions(prompt)
+            best = (next((k for k, d in dirs.items() if noun in d), None)
+                    or next((k for k, d in dirs.items() if room in d), None) or min(dirs))
+            return f"{best}\nyes"
+        if prompt.startswith("A robot explored a home"):
+            return _answer_from_views(prompt, noun) or "I cannot tell"
+        return "no"
+
+    return StubChatModel(reply, name="token-seeking-stub")

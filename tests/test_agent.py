@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from agent_stubs import MentionScorer, averse_model, seeking_model
+from agent_stubs import MentionScorer, averse_model, seeking_model, token_seeking_model
 from conftest import needs_egl, needs_small_model
 from efficienteqa.agent import STOP_REASONS, Agent, AgentConfig
 from efficienteqa.ask import ask
@@ -17,10 +17,12 @@ from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.prompting import CIRCLE_FILL
 from efficienteqa.geometry import CameraSpec
+from efficienteqa.models.base import Capabilities
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.relevancy.text import WordOverlapScorer
 from efficienteqa.scenes import Scene, synthetic_questions
 from efficienteqa.stack import Stack, build_agent, parse_vlm
+from efficienteqa.stop import StopConfig
 from test_relevancy import blip2, torch  # noqa: F401 - fixtures: a tiny random BLIP-2 ITM
 
 pytestmark = needs_egl
@@ -68,6 +70,39 @@ def test_a_model_that_never_points_at_it_runs_to_the_budget(house4, tmp_path):
     assert r.stop_reason == "budget" and r.steps == 20 and r.stop_reason in STOP_REASONS
     assert r.answer == "unknown"
     assert all(not rec.check.stop for rec in r.records if rec.check)
+
+
+@pytest.mark.parametrize("confidence,model", [("verbalized", seeking_model),
+                                              ("token", token_seeking_model)])
+def test_explore_eqa_answers_at_the_step_of_highest_relevancy_times_confidence(
+        house4, tmp_path, confidence, model):
+    scene, q = house4
+    done = _episode(scene, q, model, tmp_path, max_steps=25, answer_at="best-step",
+                    confidence=confidence, stop=StopConfig(enabled=False))
+    r = done.result
+    assert r.stop_reason == "budget" and r.steps == 25  # no early stop: the full budget
+    answered = [rec for rec in r.records if rec.step_answer is not None]
+    assert len(answered) == sum(rec.valid for rec in r.records)  # one answer per valid frame
+    best = max(answered, key=lambda rec: rec.step_answer["value"])
+    assert r.retrieved == [(best.step, best.check.sim)]
+    assert r.answer == best.step_answer["answer"] and r.confidence == best.step_answer["confidence"]
+    for rec in answered:
+        assert rec.step_answer["value"] == pytest.approx(rec.check.sim * rec.step_answer["confidence"])
+    if confidence == "verbalized":  # this trajectory frames the desk (Sim 1) within the budget
+        assert best.check.sim == 1.0 and r.answer == "black"
+    exchanges = done.record["model"]["exchanges"]
+    assert not any(e["phase"] == "answer" for e in exchanges)  # no final RAG call
+    if confidence == "token":  # the stub makes each word 90% likely: p("I cannot tell") = 0.9^3
+        assert {round(rec.step_answer["confidence"], 3) for rec in answered} <= {0.9, 0.729}
+        assert all("two lines" in e["prompt"] for e in exchanges if e["prompt"].startswith("You guide"))
+
+
+def test_the_white_box_baseline_needs_logprobs(house4, tmp_path):
+    scene, q = house4
+    blind = StubChatModel(["x"], capabilities=Capabilities(logprobs=False))
+    with pytest.raises(EfficientEQAError, match="log-probabilities"):
+        ask(q.question, scene, tmp_path, stack=Stack(grouping="rules"), model=blind,
+            relevancy=MentionScorer("desk"), config=AgentConfig(confidence="token"))
 
 
 def test_the_explore_calls_carry_the_question_and_the_directions(house4, tmp_path):
