@@ -135,3 +135,11 @@ def test_methods_are_configurations_of_the_agent():
         resolve("nope")
     with pytest.raises(EfficientEQAError, match="cannot load method"):
         resolve("no_such_module:run")
+
+
+def test_agent_methods_refuse_scenes_no_back_end_can_open(tmp_path):
+    hm3d = [EvalQuestion(id="hm-eqa/000", dataset="hm-eqa", scene="hm3d:00004-VqCaAuuoeWk",
+                         question="Is the lamp on?", answer="yes", category="state")]
+    with pytest.raises(EfficientEQAError, match="hm3d scenes need an environment back-end"):
+        run_eval(spec("efficienteqa"), hm3d, tmp_path)
+    assert not (tmp_path / EPISODES_FILE).exists()

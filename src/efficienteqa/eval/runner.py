@@ -91,10 +91,19 @@ def manifest(spec: RunSpec, n_questions: int) -> dict[str, Any]:
                    "code_version": code_version(), "created": time.time()})
 
 
-def _prepare(spec: RunSpec) -> None:
-    """Fail before the first episode on what would fail them all: an unknown method, a model
-    server that cannot start. The server started here is the one every worker then uses."""
-    resolve(spec.method)
+def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
+    """Fail before the first episode on what would fail them all: an unknown method, scenes no
+    back-end here can open, a model server that cannot start. The server started here is the
+    one every worker then uses."""
+    from efficienteqa.eval.methods import run_agent_method
+
+    if resolve(spec.method) is run_agent_method:
+        kinds = sorted({q.scene.partition(":")[0] for q in todo} - {"synthetic"})
+        if kinds:
+            raise EfficientEQAError(
+                f"method {spec.method!r} explores scenes, and {', '.join(kinds)} scenes need an "
+                "environment back-end this installation does not have",
+                fix="run --method blind on this dataset, or use --dataset synthetic")
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.stack import parse_vlm
 
@@ -112,7 +121,7 @@ def run_eval(spec: RunSpec, questions: Sequence[EvalQuestion], out: Path, *, wor
     earlier = open_run(out, manifest(spec, len(questions)))
     todo = [q for q in questions if q.id not in earlier.done]
     if prepare and todo:
-        _prepare(spec)
+        _prepare(spec, todo)
     t0 = time.perf_counter()
     failed = 0
     lines = (_sequential(spec, todo, out) if workers <= 1 and address is None
