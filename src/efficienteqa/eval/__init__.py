@@ -1,0 +1,1 @@
+"""Evaluation: datasets run by methods, judged, summarised."""

@@ -1,0 +1,261 @@
+"""LLM-Match, OpenEQA's metric: a judge model grades each response against the reference answer
+from 1 to 5, mapped to 0-100 and averaged over questions.
+
+Bad judge output never raises: replies are parsed leniently, retried once, and otherwise scored
+with a documented default and a recorded problem. Grades are cached in sqlite, keyed on the judge,
+the prompt text and the inputs, so a resumed or parallel evaluation never pays twice for one grade.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import re
+import sqlite3
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from efficienteqa.cache import cache_dir
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.models.base import ChatModel, Message
+from efficienteqa.models.vc.prompts import load_prompt
+
+MIN_SCORE, MAX_SCORE = 1, 5
+# A grade that stays unreadable after the retry counts as wrong: a broken judge must never
+# raise the metric.
+DEFAULT_SCORE = MIN_SCORE
+MISSING_ANSWER = "missing answer"
+REMINDER = "Reply with the score only: one whole number from 1 to 5, nothing else."
+SCORE_SCHEMA: dict[str, Any] = {
+    "type": "object",
+    "properties": {"score": {"type": "integer", "minimum": MIN_SCORE, "maximum": MAX_SCORE}},
+    "required": ["score"],
+}
+# Enough for "Score: 4" or {"score": 4}; a judge that writes an essay first is cut short and
+# retried rather than paid for.
+MAX_TOKENS = 16
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """One grade. ``score``: 1-5, or None for a missing answer; ``value``: 0-100 (LLM-Match
+    units); ``judge``: the judge model's name; ``raw``: the reply the score was read from;
+    ``problems``: what went wrong on the way (retries, defaults); ``cached``: read from the cache."""
+
+    score: int | None
+    value: float
+    judge: str
+    raw: str = ""
+    problems: tuple[str, ...] = ()
+    cached: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        record = asdict(self)
+        record["problems"] = list(self.problems)
+        return record
+
+
+def score_value(score: int | None) -> float:
+    """A 1-5 grade in LLM-Match units: ``100 * (score - 1) / 4``; no grade is 0."""
+    return 0.0 if score is None else 100.0 * (score - MIN_SCORE) / (MAX_SCORE - MIN_SCORE)
+
+
+def llm_match(judgements: Iterable[Judgement]) -> float:
+    """The mean ``value`` (0-100). NaN when there are no judgements: an empty evaluation has no
+    score, and 0.0 would read as "everything was wrong"."""
+    values = [j.value for j in judgements]
+    return sum(values) / len(values) if values else math.nan
+
+
+# --- trimming -----------------------------------------------------------------------------------
+
+# A full stop is a period that is not the decimal point of a number ("3.5 cm").
+_FULL_STOP = re.compile(r"(?<!\d)\.|\.(?!\d)")
+
+
+def trim_response(text: str) -> str:
+    """``text`` cut after its last full stop when one occurs before the end, as the reference
+    pipeline did to drop a sentence cut off by a token limit: "A red mug. It is on" -> "A red
+    mug.". Decimal points do not count as full stops."""
+    text = text.strip()
+    stops = list(_FULL_STOP.finditer(text))
+    if stops and stops[-1].end() < len(text):
+        return text[:stops[-1].end()]
+    return text
+
+
+# --- parsing ------------------------------------------------------------------------------------
+
+_NUMBER = r"[-+]?\d+(?:\.\d+)?"
+_JSON_SCORE = re.compile(r'"score"\s*:\s*"?(' + _NUMBER + ")", re.IGNORECASE)
+_QUOTED = re.compile(r'"[^"\n]*"|“[^”\n]*”')
+_SCALE = re.compile(r"\b1\s*(?:-|–|to|and)\s*5\b")
+_MARKED = re.compile(
+    r"\b(?:score|rating|grade|rate)\b[^\d\n]{0,20}?(" + _NUMBER + ")"  # Score: **4**; rate it a 4
+    r"|(" + _NUMBER + r")\s*(?:/|out\s+of)\s*5\b"  # 4/5; 3 out of 5
+    r"|\bgive\b[^\d\n]{0,25}?(" + _NUMBER + ")",  # I would give it a 5
+    re.IGNORECASE)
+# "3 or 4", "between 3 and 4": the judge hedged between two grades.
+_HEDGE = re.compile(r"(?<![\w.])([1-5])\s*(?:or|to|and|-|–)\s*([1-5])(?![\w.]?\d)", re.IGNORECASE)
+_LEADING = re.compile(r"^[\s*#_`>(\[]*(" + _NUMBER + r")(?![\w.]\d|\w)")
+_BARE = re.compile(r"(?<![\w.])(" + _NUMBER + r")(?!\w|\.\d)")
+
+
+def _read(tokens: Sequence[str]) -> tuple[int | None, list[str]]:
+    """One score from the candidate numbers found by one rule: they must agree, be whole and be
+    in range."""
+    values = list(dict.fromkeys(float(t) for t in tokens))
+    if len(values) > 1:
+        return None, ["conflicting scores " + ", ".join(f"{v:g}" for v in values)]
+    value = values[0]
+    if not value.is_integer():
+        return None, [f"score {value:g} is not a whole number"]
+    if not MIN_SCORE <= value <= MAX_SCORE:
+        return None, [f"score {value:g} is out of range {MIN_SCORE}-{MAX_SCORE}"]
+    return int(value), []
+
+
+def parse_score(text: str) -> tuple[int | None, list[str]]:
+    """The 1-5 grade in a judge's reply, or None and the problems found.
+
+    Rules, first that finds a number wins: (1) a JSON ``"score"`` field. Then, with quoted text
+    (a response the judge repeats, "2 cups") and the scale ("1-5", "1 to 5") removed: a hedge
+    between two grades ("3 or 4") is a conflict; else (2) numbers marked as the score
+    ("Score: 4", "**4**/5", "3 out of 5", "give it a 5"); (3) a number that opens the reply
+    ("4", "**4** - the same object"); (4) every other number in the reply. The numbers a rule
+    finds must agree (one value), be whole and lie in 1-5; otherwise that is a problem, not a
+    guess."""
+    if not text or not text.strip():
+        return None, ["empty reply"]
+    found = _JSON_SCORE.findall(text)
+    if found:
+        return _read(found)
+    prose = _SCALE.sub(" ", _QUOTED.sub(" ", text))
+    hedge = next((h for h in _HEDGE.findall(prose) if h[0] != h[1]), None)
+    if hedge:
+        return _read(hedge)
+    marked = [next(g for g in groups if g) for groups in _MARKED.findall(prose)]
+    if marked:
+        return _read(marked)
+    leading = _LEADING.match(prose)
+    if leading:
+        return _read([leading.group(1)])
+    bare = _BARE.findall(prose)
+    if bare:
+        return _read(bare)
+    return None, ["no score in reply"]
+
+
+# --- the judge ----------------------------------------------------------------------------------
+
+def render_prompt(question: str, reference: str, response: str, extra: Sequence[str] = ()) -> str:
+    """The judge prompt: fixed instructions and examples first (llama.cpp reuses that prefix
+    across calls), the question, the accepted answers and the response last."""
+    answers = f"Correct answer: {reference.strip()}"
+    accepted = [e.strip() for e in extra if e and e.strip()]
+    if accepted:
+        answers += "\nAlso accepted: " + "; ".join(accepted)
+    return load_prompt("judge").format(question=question.strip(), answers=answers,
+                                       response=response)
+
+
+def prompt_version() -> str:
+    """A hash of everything the judge is told, so a changed prompt does not reuse old grades."""
+    return hashlib.sha256((load_prompt("judge") + "\n" + REMINDER).encode()).hexdigest()[:16]
+
+
+_TABLE = """CREATE TABLE IF NOT EXISTS llm_match (
+    key TEXT PRIMARY KEY, judge TEXT NOT NULL, score INTEGER, value REAL NOT NULL,
+    raw TEXT NOT NULL, problems TEXT NOT NULL)"""
+
+
+class LLMMatchJudge:
+    """Grades responses with ``model`` (injected; any ``ChatModel``). ``cache_path``: the sqlite
+    file of past grades, shared safely by several processes (default:
+    ``cache_dir("judge")/llm_match.sqlite``, created on first use)."""
+
+    def __init__(self, model: ChatModel, cache_path: Path | None = None) -> None:
+        self.model = model
+        self.name = model.name
+        self._cache_path = cache_path
+
+    def __repr__(self) -> str:
+        return f"LLMMatchJudge(model={self.name!r})"
+
+    @property
+    def cache_path(self) -> Path:
+        if self._cache_path is None:
+            self._cache_path = cache_dir("judge") / "llm_match.sqlite"
+        return self._cache_path
+
+    def judge(self, question: str, reference: str, response: str | None,
+              extra: Sequence[str] = ()) -> Judgement:
+        """Grade ``response``. A missing (None or blank) response scores 0 without a model call;
+        model failures (network, server) raise ``EfficientEQAError`` from the client, bad replies
+        do not raise."""
+        if response is None or not response.strip():
+            return Judgement(score=None, value=0.0, judge=self.name, problems=(MISSING_ANSWER,))
+        response = trim_response(response)
+        key = self._key(question, reference, extra, response)
+        hit = self._lookup(key)
+        if hit is not None:
+            return hit
+        judgement = self._grade(render_prompt(question, reference, response, extra))
+        self._store(key, judgement)
+        return judgement
+
+    def _grade(self, prompt: str) -> Judgement:
+        caps = self.model.capabilities
+        schema = SCORE_SCHEMA if caps.json_schema or caps.grammar else None
+        messages = [Message("user", prompt)]
+        reply = self.model.chat(messages, max_tokens=MAX_TOKENS, temperature=0.0, json_schema=schema)
+        score, problems = parse_score(reply.text)
+        if score is not None:
+            return Judgement(score, score_value(score), self.name, reply.text)
+        retried = [f"retried after: {p}" for p in problems]
+        messages += [Message("assistant", reply.text), Message("user", REMINDER)]
+        reply = self.model.chat(messages, max_tokens=MAX_TOKENS, temperature=0.0, json_schema=schema)
+        score, problems = parse_score(reply.text)
+        if score is not None:
+            return Judgement(score, score_value(score), self.name, reply.text, tuple(retried))
+        problems = [*retried, *problems, f"unreadable grade, scored {DEFAULT_SCORE}"]
+        return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name, reply.text,
+                         tuple(problems))
+
+    # --- cache ---
+
+    def _key(self, question: str, reference: str, extra: Sequence[str], response: str) -> str:
+        parts = [prompt_version(), self.name, question, reference, list(extra), response]
+        return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
+
+    @contextlib.contextmanager
+    def _db(self) -> Iterator[sqlite3.Connection]:
+        """A short-lived connection in one transaction; the timeout waits out other writers."""
+        path = self.cache_path
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with contextlib.closing(sqlite3.connect(path, timeout=60.0)) as db, db:
+                db.execute(_TABLE)
+                yield db
+        except sqlite3.DatabaseError as error:
+            raise EfficientEQAError(f"judge cache {path} is unusable: {error}",
+                                    fix=f"delete {path} or pass another cache_path") from error
+
+    def _lookup(self, key: str) -> Judgement | None:
+        with self._db() as db:
+            row = db.execute("SELECT judge, score, value, raw, problems FROM llm_match WHERE key = ?",
+                             (key,)).fetchone()
+        if row is None:
+            return None
+        judge, score, value, raw, problems = row
+        return Judgement(score, value, judge, raw, tuple(json.loads(problems)), cached=True)
+
+    def _store(self, key: str, judgement: Judgement) -> None:
+        with self._db() as db:
+            db.execute("INSERT OR REPLACE INTO llm_match VALUES (?, ?, ?, ?, ?, ?)",
+                       (key, judgement.judge, judgement.score, judgement.value, judgement.raw,
+                        json.dumps(list(judgement.problems))))

@@ -1,0 +1,181 @@
+"""LLM-Match judge: parsing, the 0-100 mapping, trimming, the retry/default path and the cache."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from conftest import needs_small_model
+from efficienteqa.eval.judge import (
+    DEFAULT_SCORE,
+    MISSING_ANSWER,
+    SCORE_SCHEMA,
+    Judgement,
+    LLMMatchJudge,
+    llm_match,
+    parse_score,
+    render_prompt,
+    score_value,
+    trim_response,
+)
+from efficienteqa.models.base import Capabilities
+from efficienteqa.models.stub import StubChatModel
+
+PLAIN = Capabilities()  # no constrained output: the judge must read prose
+
+
+@pytest.mark.parametrize("reply, score", [
+    ("4", 4), ("Score: 4", 4), ("**4**", 4), ("4/5", 4), ("I would give it a 5.", 5),
+    ("Rating: 3 out of 5", 3), ("The response names the same object, so 5.", 5),
+    ('{"score": 2}', 2), ('{ "score": 5 }', 5), ("Score: **4** (close enough)", 4),
+    ("4\n\nThe response matches the reference.", 4), ("On a 1-5 scale I rate it 2", 2),
+    ('The response "3 mugs" is wrong. Score: 1', 1),  # the number in the quote is not the score
+])
+def test_parse_reads_the_score(reply, score):
+    assert parse_score(reply) == (score, [])
+
+
+@pytest.mark.parametrize("reply, problem", [
+    ("7", "out of range"), ("Score: 0", "out of range"), ('{"score": 9}', "out of range"),
+    ("4.5", "not a whole number"), ("", "empty reply"), ("The response is fine.", "no score"),
+    ("3 or 4", "conflicting"), ("Score: 4. On reflection, score: 2", "conflicting"),
+])
+def test_parse_reports_problems_instead_of_guessing(reply, problem):
+    score, problems = parse_score(reply)
+    assert score is None and len(problems) == 1 and problem in problems[0]
+
+
+def test_score_value_maps_1_to_5_onto_0_to_100():
+    assert [score_value(s) for s in (1, 2, 3, 4, 5, None)] == [0.0, 25.0, 50.0, 75.0, 100.0, 0.0]
+
+
+def test_llm_match_is_the_mean_and_nan_when_empty():
+    judgements = [Judgement(5, 100.0, "j"), Judgement(3, 50.0, "j"), Judgement(None, 0.0, "j")]
+    assert llm_match(judgements) == 50.0
+    assert math.isnan(llm_match([]))
+
+
+@pytest.mark.parametrize("text, trimmed", [
+    ("A red mug. It is on", "A red mug."), ("A red mug.", "A red mug."), ("a red mug", "a red mug"),
+    ("It is 3.5 cm", "It is 3.5 cm"), ("It is 3.5 cm wide. Near the", "It is 3.5 cm wide."),
+    ("Two mugs. Both red.", "Two mugs. Both red."), ("  in the kitchen  ", "in the kitchen"),
+])
+def test_trim_cuts_after_the_last_full_stop_but_not_inside_a_number(text, trimmed):
+    assert trim_response(text) == trimmed
+
+
+def test_prompt_puts_the_fixed_part_first_and_lists_extra_answers():
+    a = render_prompt("Where is the {mug}?", "kitchen", "in the kitchen", ["the cooking area", " "])
+    b = render_prompt("What colour is the rug?", "red", "red")
+    prefix = a.index("Question: Where is the {mug}?")
+    assert a[:prefix] == b[:prefix] and prefix > 500  # fixed instructions and examples first
+    assert a[prefix:] == ("Question: Where is the {mug}?\nCorrect answer: kitchen\n"
+                          "Also accepted: the cooking area\nResponse: in the kitchen\nScore:")
+    assert "Also accepted" not in b[prefix:]
+
+
+@pytest.mark.parametrize("response", [None, "", "   \n"])
+def test_a_missing_answer_scores_zero_without_a_model_call(tmp_path, response):
+    model = StubChatModel([], name="judge-model")
+    judgement = LLMMatchJudge(model, tmp_path / "j.sqlite").judge("Q?", "red", response)
+    assert judgement == Judgement(None, 0.0, "judge-model", problems=(MISSING_ANSWER,))
+    assert model.requests == []
+
+
+def test_a_grade_records_the_judge_and_asks_for_a_short_deterministic_json_reply(tmp_path):
+    model = StubChatModel(['{"score": 4}'], name="qwen-judge")
+    judge = LLMMatchJudge(model, tmp_path / "j.sqlite")
+    judgement = judge.judge("Where is the kettle?", "on the counter", "in the kitchen. It is", ["x"])
+    assert (judgement.score, judgement.value, judgement.judge) == (4, 75.0, "qwen-judge")
+    assert judge.name == "qwen-judge" and not judgement.cached and judgement.problems == ()
+    assert judgement.to_dict()["problems"] == [] and judgement.to_dict()["judge"] == "qwen-judge"
+    (request,) = model.requests
+    assert request.json_schema == SCORE_SCHEMA and request.temperature == 0.0
+    assert request.max_tokens <= 32
+    assert request.messages[0].text.endswith("Response: in the kitchen.\nScore:")  # trimmed
+
+
+def test_grammar_servers_are_constrained_too_and_plain_ones_are_not(tmp_path):
+    grammar = StubChatModel(['{"score": 5}'], capabilities=Capabilities(grammar=True))
+    plain = StubChatModel(["Score: 5"], capabilities=PLAIN)
+    for model in (grammar, plain):
+        assert LLMMatchJudge(model, tmp_path / f"{id(model)}.sqlite").judge("Q?", "red", "red").score == 5
+    assert grammar.requests[0].json_schema == SCORE_SCHEMA
+    assert plain.requests[0].json_schema is None
+
+
+def test_an_unreadable_reply_is_retried_with_a_reminder(tmp_path):
+    model = StubChatModel(["The response is quite good.", "4"], capabilities=PLAIN)
+    judgement = LLMMatchJudge(model, tmp_path / "j.sqlite").judge("Q?", "red", "dark red")
+    assert (judgement.score, judgement.raw) == (4, "4")
+    assert judgement.problems == ("retried after: no score in reply",)
+    first, second = model.requests
+    assert [m.role for m in second.messages] == ["user", "assistant", "user"]
+    assert second.messages[0] == first.messages[0] and "1 to 5" in second.messages[2].text
+
+
+def test_unreadable_twice_falls_back_to_the_default_and_says_so(tmp_path):
+    model = StubChatModel(["Hmm.", "Score: 9"], capabilities=PLAIN)
+    judgement = LLMMatchJudge(model, tmp_path / "j.sqlite").judge("Q?", "red", "blue")
+    assert (judgement.score, judgement.value) == (DEFAULT_SCORE, score_value(DEFAULT_SCORE))
+    assert judgement.problems[0] == "retried after: no score in reply"
+    assert "out of range" in judgement.problems[1] and "unreadable" in judgement.problems[-1]
+    assert len(model.requests) == 2
+
+
+def test_the_cache_answers_repeats_across_judge_objects_without_a_model_call(tmp_path):
+    path = tmp_path / "sub" / "j.sqlite"
+    model = StubChatModel(["Score: 3", "Score: 1"], name="m", capabilities=PLAIN)
+    first = LLMMatchJudge(model, path).judge("What is on the desk?", "a lamp and a book", "a lamp.")
+    # A new judge on the same file; the tail cut by trimming does not make a new response.
+    again = LLMMatchJudge(model, path).judge("What is on the desk?", "a lamp and a book",
+                                             "a lamp. And a")
+    assert again == Judgement(3, 50.0, "m", "Score: 3", cached=True) and not first.cached
+    assert len(model.requests) == 1
+    changed = LLMMatchJudge(model, path).judge("What is on the desk?", "a lamp and a book", "a book")
+    assert (changed.score, changed.cached, len(model.requests)) == (1, False, 2)
+
+
+def test_the_cache_key_holds_the_judge_the_extras_and_the_prompt_version(tmp_path, monkeypatch):
+    from efficienteqa.eval import judge as judge_module
+
+    path = tmp_path / "j.sqlite"
+    model = StubChatModel(lambda messages: "5", name="m", capabilities=PLAIN)
+    LLMMatchJudge(model, path).judge("Q?", "red", "red")
+    assert LLMMatchJudge(model, path).judge("Q?", "red", "red").cached
+    assert not LLMMatchJudge(model, path).judge("Q?", "red", "red", ["crimson"]).cached
+    other = StubChatModel(lambda messages: "5", name="other", capabilities=PLAIN)
+    assert not LLMMatchJudge(other, path).judge("Q?", "red", "red").cached
+    monkeypatch.setattr(judge_module, "prompt_version", lambda: "a-new-prompt")
+    assert not LLMMatchJudge(model, path).judge("Q?", "red", "red").cached
+    assert len(model.requests) == 3 and len(other.requests) == 1
+
+
+def test_a_corrupt_cache_file_names_the_fix(tmp_path):
+    from efficienteqa.errors import EfficientEQAError
+
+    path = tmp_path / "j.sqlite"
+    path.write_bytes(b"not a database" * 100)
+    with pytest.raises(EfficientEQAError, match="delete"):
+        LLMMatchJudge(StubChatModel(["5"]), path).judge("Q?", "red", "red")
+
+
+@pytest.mark.slow
+@needs_small_model
+def test_smoke_judge_with_the_real_small_model(tmp_path, small_model_cache):
+    """SmolLM2-135M through the local server: a 135M model's grade is not trustworthy, so only
+    the contract is checked: a whole score 1-5, recorded problems when it defaulted, its name."""
+    from efficienteqa.models import local
+    from efficienteqa.models.backends import ChatBackend, build_chat_model
+
+    try:
+        model = build_chat_model(ChatBackend(kind="local", model="smollm2-135m", cache=False))
+        judgement = LLMMatchJudge(model, tmp_path / "j.sqlite").judge(
+            "What colour is the sofa?", "grey", "The sofa is grey.")
+    finally:
+        local.stop("smollm2-135m")
+    assert judgement.judge == "smollm2-135m" and isinstance(judgement.raw, str)
+    assert isinstance(judgement.score, int) and 1 <= judgement.score <= 5
+    assert judgement.value == score_value(judgement.score)
+    assert all(isinstance(p, str) for p in judgement.problems)
