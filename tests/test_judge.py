@@ -16,6 +16,7 @@ from efficienteqa.eval.judge import (
     llm_match,
     parse_score,
     render_prompt,
+    rule_score,
     score_value,
     trim_response,
 )
@@ -100,7 +101,7 @@ def test_grammar_servers_are_constrained_too_and_plain_ones_are_not(tmp_path):
     grammar = StubChatModel(['{"score": 5}'], capabilities=Capabilities(grammar=True))
     plain = StubChatModel(["Score: 5"], capabilities=PLAIN)
     for model in (grammar, plain):
-        assert LLMMatchJudge(model, tmp_path / f"{id(model)}.sqlite").judge("Q?", "red", "red").score == 5
+        assert LLMMatchJudge(model, tmp_path / f"{id(model)}.sqlite").judge("Q?", "red", "crimson").score == 5
     assert grammar.requests[0].json_schema == SCORE_SCHEMA
     assert plain.requests[0].json_schema is None
 
@@ -142,13 +143,13 @@ def test_the_cache_key_holds_the_judge_the_extras_and_the_prompt_version(tmp_pat
 
     path = tmp_path / "j.sqlite"
     model = StubChatModel(lambda messages: "5", name="m", capabilities=PLAIN)
-    LLMMatchJudge(model, path).judge("Q?", "red", "red")
-    assert LLMMatchJudge(model, path).judge("Q?", "red", "red").cached
-    assert not LLMMatchJudge(model, path).judge("Q?", "red", "red", ["crimson"]).cached
+    LLMMatchJudge(model, path).judge("Q?", "red", "crimson")
+    assert LLMMatchJudge(model, path).judge("Q?", "red", "crimson").cached
+    assert not LLMMatchJudge(model, path).judge("Q?", "red", "crimson", ["scarlet"]).cached
     other = StubChatModel(lambda messages: "5", name="other", capabilities=PLAIN)
-    assert not LLMMatchJudge(other, path).judge("Q?", "red", "red").cached
+    assert not LLMMatchJudge(other, path).judge("Q?", "red", "crimson").cached
     monkeypatch.setattr(judge_module, "prompt_version", lambda: "a-new-prompt")
-    assert not LLMMatchJudge(model, path).judge("Q?", "red", "red").cached
+    assert not LLMMatchJudge(model, path).judge("Q?", "red", "crimson").cached
     assert len(model.requests) == 3 and len(other.requests) == 1
 
 
@@ -158,7 +159,7 @@ def test_a_corrupt_cache_file_names_the_fix(tmp_path):
     path = tmp_path / "j.sqlite"
     path.write_bytes(b"not a database" * 100)
     with pytest.raises(EfficientEQAError, match="delete"):
-        LLMMatchJudge(StubChatModel(["5"]), path).judge("Q?", "red", "red")
+        LLMMatchJudge(StubChatModel(["5"]), path).judge("Q?", "red", "crimson")
 
 
 @pytest.mark.slow
@@ -179,3 +180,24 @@ def test_smoke_judge_with_the_real_small_model(tmp_path, small_model_cache):
     assert isinstance(judgement.score, int) and 1 <= judgement.score <= 5
     assert judgement.value == score_value(judgement.score)
     assert all(isinstance(p, str) for p in judgement.problems)
+
+
+@pytest.mark.parametrize("reference,response,extra,expected", [
+    ("a desk lamp", "Desk lamp.", (), 5),
+    ("grey", "gray", ("gray",), 5),
+    ("Yes, it is on", "yes", (), 5),
+    ("No", "no, it is closed", (), 5),
+    ("yes", "No.", (), 1),
+    ("Yes, it is on", "lamp", (), None),
+    ("2", "two", (), None),  # a model's call: a rule must not guess synonyms
+    ("a rug", "", (), None),
+])
+def test_rules_grade_what_every_judge_must_agree_on(reference, response, extra, expected):
+    assert rule_score(reference, response, extra) == expected
+
+
+def test_a_ruled_grade_makes_no_model_call(tmp_path):
+    model = StubChatModel([])
+    judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite").judge(
+        "Is the door open?", "No", "no")
+    assert judgement.score == 5 and "by rule" in judgement.raw and not model.requests

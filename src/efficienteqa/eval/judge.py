@@ -1,6 +1,11 @@
 """LLM-Match, OpenEQA's metric: a judge model grades each response against the reference answer
 from 1 to 5, mapped to 0-100 and averaged over questions.
 
+Two cases are graded without the model, because a small judge gets them wrong and any judge
+must agree: a response that is the reference (or an accepted answer) once case, articles and
+punctuation are ignored scores 5; a yes/no answer of the opposite polarity to a yes/no reference
+scores 1 (the same polarity scores 5). Such grades say so in ``raw``.
+
 Bad judge output never raises: replies are parsed leniently, retried once, and otherwise scored
 with a documented default and a recorded problem. Grades are cached in sqlite, keyed on the judge,
 the prompt text and the inputs, so a resumed or parallel evaluation never pays twice for one grade.
@@ -173,6 +178,27 @@ _TABLE = """CREATE TABLE IF NOT EXISTS llm_match (
     raw TEXT NOT NULL, problems TEXT NOT NULL)"""
 
 
+_ARTICLES = frozenset({"a", "an", "the"})
+
+
+def _words(text: str) -> list[str]:
+    return [w for w in re.findall(r"[a-z0-9]+", text.lower()) if w not in _ARTICLES]
+
+
+def rule_score(reference: str, response: str, extra: Sequence[str] = ()) -> int | None:
+    """5 for the same answer up to case, articles and punctuation; for a yes/no reference, 5 or
+    1 by the response's first word when that is yes or no; None when the model must judge."""
+    got = _words(response)
+    if not got:
+        return None
+    if any(_words(ref) == got for ref in (reference, *extra)):
+        return MAX_SCORE
+    ref = _words(reference)
+    if ref and ref[0] in ("yes", "no") and got[0] in ("yes", "no"):
+        return MAX_SCORE if got[0] == ref[0] else MIN_SCORE
+    return None
+
+
 class LLMMatchJudge:
     """Grades responses with ``model`` (injected; any ``ChatModel``). ``cache_path``: the sqlite
     file of past grades, shared safely by several processes (default:
@@ -200,6 +226,9 @@ class LLMMatchJudge:
         if response is None or not response.strip():
             return Judgement(score=None, value=0.0, judge=self.name, problems=(MISSING_ANSWER,))
         response = trim_response(response)
+        ruled = rule_score(reference, response, extra)
+        if ruled is not None:
+            return Judgement(ruled, score_value(ruled), self.name, f"(by rule, no model call: {ruled})")
         key = self._key(question, reference, extra, response)
         hit = self._lookup(key)
         if hit is not None:
