@@ -6,7 +6,7 @@ Qwen2.5-Coder-1.5B Q4_K_M on the local llama.cpp server; MiniLM text relevancy; 
 Answers are compared with the ground truth by normalised string match, not LLM-Match (the
 judge is the evaluation issue's). The response cache is off, so every model call is timed.
 
-    python benchmarks/agent_bench.py --questions 12 [--relevancy vlm-match] [--out out/bench]
+    python benchmarks/agent_bench.py --questions 12 [--relevancy minilm-match] [--out out/bench]
 """
 
 from __future__ import annotations
@@ -58,7 +58,8 @@ def main() -> None:
     parser.add_argument("--questions", type=int, default=10)
     parser.add_argument("--per-house", type=int, default=2)
     parser.add_argument("--vlm", default="local:qwen2.5-coder-1.5b")
-    parser.add_argument("--relevancy", default="minilm", help="minilm | overlap | vlm-match | ...")
+    parser.add_argument("--relevancy", default="minilm",
+                        help="minilm | minilm-match | overlap | vlm-match | ...")
     parser.add_argument("--out", default="out/bench")
     args = parser.parse_args()
     out = Path(args.out)
@@ -103,6 +104,8 @@ def main() -> None:
     seen = [r for r in rows if r["first_seen"] is not None]
     early = [r for r in seen if r["stop_reason"] == "relevancy"]
     print(f"evidence seen in {len(seen)} episodes; stopped by the z-rule in {len(early)} of them")
+    false = [r for r in rows if r["stop_reason"] == "relevancy" and r["first_seen"] is None]
+    print(f"z-rule stops without the evidence ever in view: {len(false)}")
     print(f"answers matching the ground truth (string match): {sum(r['correct'] for r in rows)}"
           f"/{len(rows)}")
     walls = [r["wall_s"] for r in rows]

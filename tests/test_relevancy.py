@@ -12,8 +12,9 @@ import pytest
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.relevancy import RelevancyScorer, make_scorer, scorer_kinds
+from efficienteqa.relevancy import text as text_relevancy
 from efficienteqa.relevancy.base import require
-from efficienteqa.relevancy.text import MiniLMScorer, content_words
+from efficienteqa.relevancy.text import MiniLMMatchScorer, MiniLMScorer, content_words
 
 QUESTION = "What colour is the sofa?"
 _VOCAB = "[PAD] [UNK] [CLS] [SEP] [MASK] what colour is the sofa a red in living room toilet bathroom ? chair"
@@ -28,7 +29,7 @@ def test_importing_stays_light():
 
 
 def test_registry_and_errors():
-    assert set(scorer_kinds()) >= {"minilm", "blip2-itm", "clip", "siglip"}
+    assert set(scorer_kinds()) >= {"minilm", "minilm-match", "blip2-itm", "clip", "siglip"}
     with pytest.raises(EfficientEQAError, match="unknown relevancy scorer"):
         make_scorer("resnet")
     with pytest.raises(EfficientEQAError) as err:
@@ -72,6 +73,45 @@ def test_minilm_memoises_embeddings():
     assert encoder.calls[-1] == ["a bed"] and len(scorer._cache) == 3
 
 
+class FixedCosineEncoder:
+    """Unit vectors whose cosine with the question (the first text) is read from the text:
+    "0.7 a red sofa" has cosine 0.7; the question is the unit vector e0."""
+
+    def encode(self, sentences: list[str], **kwargs) -> np.ndarray:
+        out = [[1.0, 0.0]]
+        for s in sentences[1:]:
+            c = float(s.split()[0])
+            out.append([c, np.sqrt(1.0 - c * c)])
+        return np.array(out, np.float32)
+
+
+def test_minilm_match_is_a_calibrated_probability():
+    scorer = MiniLMMatchScorer(FixedCosineEncoder())
+    assert "match" in scorer.name and scorer.modality == "text"
+    assert scorer.weights == (text_relevancy.MATCH_COS, text_relevancy.MATCH_OVERLAP,
+                              text_relevancy.MATCH_BIAS)
+    assert scorer.weights[0] > 0 and scorer.weights[1] > 0  # fitted constants are in place
+    cosines = np.linspace(-0.9, 0.95, 12)
+    probs = scorer.score_many("Where is the lamp?", [f"{c:.3f} a chair" for c in cosines])
+    assert np.all((probs > 0) & (probs < 1)) and np.all(np.diff(probs) > 0)
+    # more of the question's words in the line, higher; the best line of a frame counts
+    low, high = scorer.score_many(QUESTION, ["0.5 a chair", "0.5 a sofa"])
+    assert high > low
+    assert scorer.score(QUESTION, text="0.1 a bed\n0.5 a sofa\n") == pytest.approx(high)
+
+
+def test_minilm_match_applies_its_constants():
+    a, b, c = 4.0, 2.0, -3.0
+    scorer = MiniLMMatchScorer(FixedCosineEncoder(), weights=(a, b, c))
+    got = scorer.score_many(QUESTION, ["0.6 a red sofa", "0.2 a toilet"])
+    # content words of QUESTION: {colour, sofa}; "a red sofa" has one of two
+    want = 1 / (1 + np.exp(-np.array([a * 0.6 + b * 0.5 + c, a * 0.2 + c])))
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+    assert scorer.score_many(QUESTION, []).shape == (0,)
+    extreme = MiniLMMatchScorer(FixedCosineEncoder(), weights=(1e4, 0.0, 0.0))
+    assert np.all(np.isfinite(extreme.score_many(QUESTION, ["-0.9 a", "0.9 b"])))
+
+
 @pytest.fixture(scope="module")
 def minilm():
     pytest.importorskip("sentence_transformers", reason="needs the 'minilm' extra")
@@ -85,6 +125,14 @@ def test_minilm_ranks_the_relevant_description_first(minilm):
     assert scores[0] > scores[1] and np.all(np.abs(scores) <= 1.0 + 1e-6)
     assert minilm.score(QUESTION, text="a toilet in the bathroom") == pytest.approx(scores[1])
 
+
+
+def test_minilm_match_separates_the_asked_object(minilm):
+    match = make_scorer("minilm-match")
+    question = "What colour is the sofa in the living room?"
+    right, other = match.score_many(question, ["a red sofa in the living room\na blue stool",
+                                               "a toilet in the bathroom"])
+    assert right > 0.3 and other < 0.05  # the best line counts, not the stool
 
 # -- image models: tiny, random, built here ----------------------------------------------------
 @pytest.fixture(scope="module")

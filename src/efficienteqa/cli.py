@@ -51,7 +51,8 @@ def ask_command(
                             help="local:MODEL, or openai:MODEL[@BASE_URL] (key in OPENAI_API_KEY)."),
     perception: str = typer.Option("semantic", help="semantic (object labels as text) | rgb (pixels, "
                                    "needs an image VLM)."),
-    relevancy: str = typer.Option("minilm", help="minilm | overlap | vlm-match (the VLM answers "
+    relevancy: str = typer.Option("minilm", help="minilm | minilm-match (MiniLM calibrated to a "
+                                  "match probability) | overlap | vlm-match (the VLM answers "
                                   "'does this view show it?') | blip2-itm | clip | siglip."),
     grouping: str = typer.Option("llm", help="How equivalent answers are grouped: llm | rules."),
     seed: int = typer.Option(0, help="Seed of the explorer's frontier sampling."),

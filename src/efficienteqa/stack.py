@@ -26,6 +26,7 @@ from efficienteqa.relevancy.base import RelevancyScorer, make_scorer
 
 PERCEPTIONS = ("semantic", "rgb")
 GROUPINGS = ("llm", "rules")
+MINILM_KINDS = ("minilm", "minilm-match")
 
 
 @dataclass(frozen=True)
@@ -80,7 +81,7 @@ def build_relevancy(kind: str) -> RelevancyScorer:
     """One scorer per kind and process: loading a model takes seconds, and an evaluation runs
     many episodes in each worker."""
     # One torch thread is the fastest for a few short texts on a small busy CPU (relevancy.text).
-    return make_scorer(kind, num_threads=1) if kind == "minilm" else make_scorer(kind)
+    return make_scorer(kind, num_threads=1) if kind in MINILM_KINDS else make_scorer(kind)
 
 
 @dataclass

@@ -1,9 +1,9 @@
 """The relevancy contract Sim(I_t, Q) of SPEC 3.4 and a registry of back-ends.
 
 A scorer compares a question with one observation: an RGB frame (image scorers: BLIP-2 ITM, CLIP,
-SigLIP) or the frame's text description (text scorers: MiniLM, word overlap). Higher means more
-relevant; each back-end documents its range. Back-ends are imported only when built, so importing
-this module costs nothing.
+SigLIP) or the frame's text description (text scorers: MiniLM, MiniLM calibrated to a match
+probability, word overlap). Higher means more relevant; each back-end documents its range.
+Back-ends are imported only when built, so importing this module costs nothing.
 """
 
 from __future__ import annotations
@@ -71,6 +71,7 @@ def weights_missing(model_id: str, exc: BaseException) -> EfficientEQAError:
 _REGISTRY: dict[str, tuple[str, str, dict[str, Any]]] = {
     # kind: (module, factory, default kwargs)
     "minilm": ("efficienteqa.relevancy.text", "MiniLMScorer.from_package", {}),
+    "minilm-match": ("efficienteqa.relevancy.text", "MiniLMMatchScorer.from_package", {}),
     "overlap": ("efficienteqa.relevancy.text", "WordOverlapScorer", {}),
     "blip2-itm": ("efficienteqa.relevancy.blip2", "Blip2ItmScorer.from_pretrained", {}),
     "clip": ("efficienteqa.relevancy.clip", "ClipScorer.from_pretrained", {"family": "clip"}),
@@ -84,7 +85,8 @@ def scorer_kinds() -> tuple[str, ...]:
 
 
 def make_scorer(kind: str = DEFAULT_KIND, **kwargs: Any) -> RelevancyScorer:
-    """Build a scorer by name: "minilm" (offline default), "overlap" (deterministic, no model),
+    """Build a scorer by name: "minilm" (offline default), "minilm-match" (MiniLM calibrated to a
+    match probability), "overlap" (deterministic, no model),
     "blip2-itm" (the paper's), "clip", "siglip". ``kwargs`` go to the back-end's factory
     (e.g. ``model_id_or_path=``, ``device=``, ``allow_download=``)."""
     if kind not in _REGISTRY:
