@@ -143,3 +143,22 @@ def test_agent_methods_refuse_scenes_no_back_end_can_open(tmp_path):
     with pytest.raises(EfficientEQAError, match="hm3d scenes need an environment back-end"):
         run_eval(spec("efficienteqa"), hm3d, tmp_path)
     assert not (tmp_path / EPISODES_FILE).exists()
+
+
+def test_rejudging_a_run_replaces_each_grade_once_and_names_the_judge(tmp_path, monkeypatch):
+    from efficienteqa.eval import runner
+    from efficienteqa.eval.judge import LLMMatchJudge
+    from efficienteqa.models.stub import StubChatModel
+
+    monkeypatch.setenv("EQA_STUB_FAIL", "toy/001")
+    run_eval(spec(), questions(3), tmp_path, prepare=False)
+    stub = StubChatModel(lambda messages: '{"score": 2}', name="stub-judge")
+    monkeypatch.setattr(runner, "build_judge", lambda spec, mode: LLMMatchJudge(
+        stub, cache_path=tmp_path / "j.sqlite", mode=mode))
+    n, score = runner.rejudge(tmp_path, "local:stub-judge", "grade")
+    assert n == 2 and score == 100.0  # the echo stub answers the reference: graded by rule
+    rows = read_episodes(tmp_path / EPISODES_FILE).by_id
+    assert len(rows) == 3 and rows["toy/001"]["status"] == "failed"
+    assert rows["toy/000"]["judge"]["judge"] == "stub-judge"
+    manifest = json.loads((tmp_path / "run.json").read_text())
+    assert (manifest["judge"], manifest["judge_mode"]) == ("local:stub-judge", "grade")

@@ -148,7 +148,7 @@ def test_the_cache_key_holds_the_judge_the_extras_and_the_prompt_version(tmp_pat
     assert not LLMMatchJudge(model, path).judge("Q?", "red", "crimson", ["scarlet"]).cached
     other = StubChatModel(lambda messages: "5", name="other", capabilities=PLAIN)
     assert not LLMMatchJudge(other, path).judge("Q?", "red", "crimson").cached
-    monkeypatch.setattr(judge_module, "prompt_version", lambda: "a-new-prompt")
+    monkeypatch.setattr(judge_module, "prompt_version", lambda mode="grade": "a-new-prompt")
     assert not LLMMatchJudge(model, path).judge("Q?", "red", "crimson").cached
     assert len(model.requests) == 3 and len(other.requests) == 1
 
@@ -201,3 +201,30 @@ def test_a_ruled_grade_makes_no_model_call(tmp_path):
     judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite").judge(
         "Is the door open?", "No", "no")
     assert judgement.score == 5 and "by rule" in judgement.raw and not model.requests
+
+
+def test_yes_prob_mode_grades_from_the_probability_of_yes(tmp_path):
+    from efficienteqa.models.base import TokenLogprob
+
+    def logprobs(text, top):  # P(yes) = 0.8 at the one token
+        return [TokenLogprob("yes", math.log(0.8), (("yes", math.log(0.8)), ("no", math.log(0.2))))]
+
+    model = StubChatModel(["yes"], logprob_fn=logprobs)
+    judge = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob")
+    judgement = judge.judge("What is on the desk?", "a laptop", "a notebook computer")
+    assert judgement.score == 1 + round(4 * 0.8) == 4 and judgement.raw == "P(yes)=0.800"
+    assert judgement.judge == "stub (yes-prob)"
+    request = model.requests[0]
+    assert request.max_tokens == 1 and request.logprobs and "say the same thing" in request.messages[0].text
+    # no yes/no at all among the alternatives: the documented default, with the problem
+    silent = StubChatModel(["maybe"])
+    low = LLMMatchJudge(silent, cache_path=tmp_path / "k.sqlite", mode="yes-prob").judge(
+        "Q?", "red", "crimson")
+    assert low.score == DEFAULT_SCORE and low.problems
+
+
+def test_yes_prob_mode_needs_logprobs():
+    from efficienteqa.errors import EfficientEQAError
+
+    with pytest.raises(EfficientEQAError, match="grade"):
+        LLMMatchJudge(StubChatModel([], capabilities=Capabilities(logprobs=False)), mode="yes-prob")

@@ -105,6 +105,36 @@ def ask_command(
                   soft_wrap=True)
 
 
+def _judge_mode(mode: str, judge: str) -> str:
+    """``auto``: token probabilities for the small local models, the 1-5 grade otherwise."""
+    from efficienteqa.eval.judge import JUDGE_MODES
+
+    if mode == "auto":
+        return "yes-prob" if judge.startswith("local:") else "grade"
+    if mode not in JUDGE_MODES:
+        raise EfficientEQAError(f"unknown judge mode {mode!r}", fix="use grade, yes-prob or auto")
+    return mode
+
+
+@app.command("judge")
+def judge_command(
+    runs: list[Path] = typer.Argument(..., help="Run folders written by `efficienteqa eval`."),
+    judge: str = typer.Option("local:qwen2.5-coder-1.5b", help="The LLM-Match judge (a VLM spec)."),
+    judge_mode: str = typer.Option("auto", help="grade | yes-prob | auto (see `eval --help`)."),
+) -> None:
+    """Grade finished runs again with another judge (e.g. openai:gpt-4o); results are kept."""
+    from efficienteqa.eval.runner import rejudge
+    from efficienteqa.stack import parse_vlm
+
+    parse_vlm(judge, images=False)
+    mode = _judge_mode(judge_mode, judge)
+    for run in runs:
+        with console.status(f"grading {run}..."):
+            n, score = rejudge(run, judge, mode)
+        console.print(f"{run}: {n} episodes graded by {judge} ({mode}): LLM-Match {score:.1f}",
+                      highlight=False, soft_wrap=True)
+
+
 @app.command("eval")
 def eval_command(
     method: str = typer.Option("efficienteqa", help="efficienteqa | explore-eqa | "
@@ -126,6 +156,8 @@ def eval_command(
     grouping: str = typer.Option("llm", help="llm | rules."),
     judge: str = typer.Option("local:qwen2.5-coder-1.5b", help="The LLM-Match judge (a VLM spec), "
                               "or 'none'."),
+    judge_mode: str = typer.Option("auto", help="grade (the judge says 1-5) | yes-prob (1 + 4 P(yes) "
+                                   "for 'same answer?') | auto (yes-prob for local models)."),
     hm_eqa_path: Path | None = typer.Option(None, help="Folder with HM-EQA's questions.csv and "
                                             "scene_init_poses.csv (default: downloaded)."),
     reports: bool = typer.Option(False, "--reports", help="Also write each episode's report.html."),
@@ -162,7 +194,8 @@ def eval_command(
                                grouping=grouping, cache=cache),
                    config=AgentConfig(top_k=top_k, max_steps=max_steps, seed=seed,
                                       stop=StopConfig(z_th=z_th)),
-                   judge=judge_spec, reports=reports, assets=assets)
+                   judge=judge_spec, judge_mode=_judge_mode(judge_mode, judge), reports=reports,
+                   assets=assets)
     done_before = len(read_episodes(out / "episodes.jsonl").done)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),

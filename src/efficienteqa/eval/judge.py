@@ -6,6 +6,12 @@ must agree: a response that is the reference (or an accepted answer) once case, 
 punctuation are ignored scores 5; a yes/no answer of the opposite polarity to a yes/no reference
 scores 1 (the same polarity scores 5). Such grades say so in ``raw``.
 
+``mode="yes-prob"`` is for judges too small to grade 1-5 (the embedded 1.5B model's grades were
+nearly uniform over 1-5, whatever the answers): the judge is asked only whether the response
+says the same as the reference, and the grade is ``1 + round(4 * P(yes))`` from the token
+probabilities of its one-token reply. ``mode="grade"`` (the OpenEQA form) is the default for
+capable judges such as GPT-4o.
+
 Bad judge output never raises: replies are parsed leniently, retried once, and otherwise scored
 with a documented default and a recorded problem. Grades are cached in sqlite, keyed on the judge,
 the prompt text and the inputs, so a resumed or parallel evaluation never pays twice for one grade.
@@ -157,20 +163,25 @@ def parse_score(text: str) -> tuple[int | None, list[str]]:
 
 # --- the judge ----------------------------------------------------------------------------------
 
-def render_prompt(question: str, reference: str, response: str, extra: Sequence[str] = ()) -> str:
+def render_prompt(question: str, reference: str, response: str, extra: Sequence[str] = (),
+                  template: str = "judge") -> str:
     """The judge prompt: fixed instructions and examples first (llama.cpp reuses that prefix
     across calls), the question, the accepted answers and the response last."""
     answers = f"Correct answer: {reference.strip()}"
     accepted = [e.strip() for e in extra if e and e.strip()]
     if accepted:
         answers += "\nAlso accepted: " + "; ".join(accepted)
-    return load_prompt("judge").format(question=question.strip(), answers=answers,
+    return load_prompt(template).format(question=question.strip(), answers=answers,
                                        response=response)
 
 
-def prompt_version() -> str:
+JUDGE_MODES = ("grade", "yes-prob")
+
+
+def prompt_version(mode: str = "grade") -> str:
     """A hash of everything the judge is told, so a changed prompt does not reuse old grades."""
-    return hashlib.sha256((load_prompt("judge") + "\n" + REMINDER).encode()).hexdigest()[:16]
+    text = load_prompt("judge") + "\n" + REMINDER if mode == "grade" else load_prompt("judge_same")
+    return hashlib.sha256(f"{mode}\n{text}".encode()).hexdigest()[:16]
 
 
 _TABLE = """CREATE TABLE IF NOT EXISTS llm_match (
@@ -204,9 +215,17 @@ class LLMMatchJudge:
     file of past grades, shared safely by several processes (default:
     ``cache_dir("judge")/llm_match.sqlite``, created on first use)."""
 
-    def __init__(self, model: ChatModel, cache_path: Path | None = None) -> None:
+    def __init__(self, model: ChatModel, cache_path: Path | None = None, mode: str = "grade") -> None:
+        if mode not in JUDGE_MODES:
+            raise EfficientEQAError(f"unknown judge mode {mode!r}",
+                                    fix=f"use one of {', '.join(JUDGE_MODES)}")
+        if mode == "yes-prob" and not model.capabilities.logprobs:
+            raise EfficientEQAError(f"judge {model.name!r} gives no token probabilities for yes-prob",
+                                    fix="use --judge-mode grade")
         self.model = model
-        self.name = model.name
+        # The name recorded with every grade says how it was obtained.
+        self.name = model.name if mode == "grade" else f"{model.name} (yes-prob)"
+        self.mode = mode
         self._cache_path = cache_path
 
     def __repr__(self) -> str:
@@ -233,9 +252,27 @@ class LLMMatchJudge:
         hit = self._lookup(key)
         if hit is not None:
             return hit
-        judgement = self._grade(render_prompt(question, reference, response, extra))
+        if self.mode == "yes-prob":
+            judgement = self._yes_prob(render_prompt(question, reference, response, extra,
+                                                     template="judge_same"))
+        else:
+            judgement = self._grade(render_prompt(question, reference, response, extra))
         self._store(key, judgement)
         return judgement
+
+    def _yes_prob(self, prompt: str) -> Judgement:
+        from efficienteqa.models.vc.calls import TOP_LOGPROBS, yes_prob_from_logprobs
+
+        reply = self.model.chat([Message("user", prompt)], max_tokens=1, temperature=0.0,
+                                logprobs=TOP_LOGPROBS)
+        tokens = reply.logprobs or []
+        found = any(t.strip().lower() in ("yes", "no") for lp in tokens for t, _ in lp.top)
+        if not found:
+            return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name, reply.text,
+                             (f"no yes/no among the reply's tokens, scored {DEFAULT_SCORE}",))
+        p_yes = yes_prob_from_logprobs(tokens)
+        score = MIN_SCORE + round((MAX_SCORE - MIN_SCORE) * p_yes)
+        return Judgement(score, score_value(score), self.name, f"P(yes)={p_yes:.3f}")
 
     def _grade(self, prompt: str) -> Judgement:
         caps = self.model.capabilities
@@ -258,7 +295,7 @@ class LLMMatchJudge:
     # --- cache ---
 
     def _key(self, question: str, reference: str, extra: Sequence[str], response: str) -> str:
-        parts = [prompt_version(), self.name, question, reference, list(extra), response]
+        parts = [prompt_version(self.mode), self.name, question, reference, list(extra), response]
         return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
     @contextlib.contextmanager

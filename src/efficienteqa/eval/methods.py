@@ -34,13 +34,15 @@ from efficienteqa.stack import Stack
 class RunSpec:
     """What every episode of a run shares. ``config`` holds the ablation values (Z_th, K, ...);
     the method's own settings are applied on top by ``method_config``. ``judge``: a VLM spec
-    for LLM-Match ("local:MODEL", "openai:MODEL") or None for no judging."""
+    for LLM-Match ("local:MODEL", "openai:MODEL") or None for no judging; ``judge_mode``: see
+    ``eval.judge``."""
 
     method: str
     dataset: str
     stack: Stack = field(default_factory=Stack)
     config: AgentConfig = field(default_factory=AgentConfig)
     judge: str | None = "local:qwen2.5-coder-1.5b"
+    judge_mode: str = "yes-prob"  # "grade" (1-5 asked for; capable judges) | "yes-prob"
     reports: bool = False
     assets: str = "sh3d"
     closed_set: bool = False

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,7 +22,7 @@ from efficienteqa.report.episode import write_json
 RUN_FILE = "run.json"
 EPISODES_FILE = "episodes.jsonl"
 # What must be equal for a resumed run to continue an earlier one.
-RUN_IDENTITY = ("method", "dataset", "closed_set", "config", "stack", "judge")
+RUN_IDENTITY = ("method", "dataset", "closed_set", "config", "stack", "judge", "judge_mode")
 
 
 @dataclass
@@ -108,7 +107,3 @@ def read_run(out: Path) -> tuple[dict[str, Any], Episodes]:
     except ValueError:
         raise EfficientEQAError(f"{run_file} is not valid JSON", fix="re-run the evaluation") from None
     return manifest, read_episodes(out / EPISODES_FILE)
-
-
-def ids_in_order(rows: Iterable[dict[str, Any]]) -> list[str]:
-    return [r["id"] for r in rows]

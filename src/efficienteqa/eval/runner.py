@@ -36,15 +36,44 @@ def episode_folder(out: Path, episode_id: str) -> Path:
     return out / "episodes" / episode_id.replace("/", "__")
 
 
-def _judge(spec: RunSpec, q: EvalQuestion, answer: str) -> dict[str, Any] | None:
-    if spec.judge is None:
-        return None
+def build_judge(spec: str, mode: str) -> Any:
     from efficienteqa.eval.judge import LLMMatchJudge
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.stack import parse_vlm
 
-    judge = LLMMatchJudge(build_chat_model(parse_vlm(spec.judge, images=False)))
+    return LLMMatchJudge(build_chat_model(parse_vlm(spec, images=False)), mode=mode)
+
+
+def _judge(spec: RunSpec, q: EvalQuestion, answer: str) -> dict[str, Any] | None:
+    if spec.judge is None:
+        return None
+    judge = build_judge(spec.judge, spec.judge_mode)
     return judge.judge(q.question, q.answer, answer, extra=q.alternatives).to_dict()
+
+
+def rejudge(out: Path, judge_spec: str, mode: str,
+            on_episode: Progress | None = None) -> tuple[int, float]:
+    """Grade every finished episode of the run in ``out`` again with another judge (or mode):
+    each regraded row is appended (a later line replaces the earlier one) and ``run.json``
+    names the new judge. Returns the episodes graded and their LLM-Match."""
+    from efficienteqa.eval.records import RUN_FILE, read_run
+    from efficienteqa.report.episode import write_json
+
+    manifest, episodes = read_run(out)
+    judge = build_judge(judge_spec, mode)
+    values = []
+    for row in episodes.rows():
+        if row.get("status") != "done":
+            continue
+        graded = judge.judge(row["question"], row["reference"], row.get("answer"),
+                             extra=row.get("alternatives") or ())
+        row = {**row, "judge": graded.to_dict()}
+        append_episode(out / EPISODES_FILE, plain(row))
+        values.append(graded.value)
+        if on_episode is not None:
+            on_episode(row)
+    write_json(out / RUN_FILE, {**manifest, "judge": judge_spec, "judge_mode": mode})
+    return len(values), (sum(values) / len(values) if values else float("nan"))
 
 
 def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
@@ -87,7 +116,8 @@ class RunResult:
 def manifest(spec: RunSpec, n_questions: int) -> dict[str, Any]:
     return plain({"method": spec.method, "dataset": spec.dataset, "closed_set": spec.closed_set,
                    "config": asdict(spec.config), "stack": asdict(spec.stack),
-                   "judge": spec.judge, "assets": spec.assets, "questions": n_questions,
+                   "judge": spec.judge, "judge_mode": spec.judge_mode, "assets": spec.assets,
+                   "questions": n_questions,
                    "code_version": code_version(), "created": time.time()})
 
 
