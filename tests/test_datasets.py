@@ -17,7 +17,9 @@ from efficienteqa.envs.synthetic.catalog import DEFAULT_SOURCE
 from efficienteqa.envs.synthetic.questions import CATEGORIES, Question
 from efficienteqa.errors import EfficientEQAError
 
-HM = (Path(__file__).parents[1] / ".." / "shared" / "datasets" / "hm-eqa").resolve()
+# The shared copy beside the checkout, or wherever $EFFICIENTEQA_HM_EQA points.
+HM = Path(os.environ.get("EFFICIENTEQA_HM_EQA")
+          or (Path(__file__).parents[1] / ".." / "shared" / "datasets" / "hm-eqa")).resolve()
 needs_hm = pytest.mark.skipif(not (HM / "questions.csv").is_file(),
                               reason=f"HM-EQA csv files not found in {HM} (third-party data, not vendored)")
 HEADER = "scene,floor,question,choices,question_formatted,answer,label\n"
