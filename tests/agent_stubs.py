@@ -24,6 +24,13 @@ def _answer_from_views(prompt: str, noun: str) -> str | None:
     return match.group(1) if match else None
 
 
+def _pick_direction(prompt: str, noun: str, room: str) -> str:
+    """The direction that mentions ``noun``, else ``room``, else the first letter."""
+    dirs = _directions(prompt)
+    return (next((k for k, d in dirs.items() if noun in d), None)
+            or next((k for k, d in dirs.items() if room in d), None) or min(dirs))
+
+
 def seeking_model(noun: str, room: str) -> StubChatModel:
     """Points at the direction that mentions ``noun`` (else ``room``), and answers a colour
     question about ``noun`` from the retrieved views: what a good VLM would do."""
@@ -31,10 +38,7 @@ def seeking_model(noun: str, room: str) -> StubChatModel:
     def reply(messages: list[Message]) -> str:
         prompt = messages[-1].text
         if prompt.startswith("You guide a robot"):
-            dirs = _directions(prompt)
-            best = (next((k for k, d in dirs.items() if noun in d), None)
-                    or next((k for k, d in dirs.items() if room in d), None) or min(dirs))
-            return f"{best}: 90\nworth exploring: yes 90"
+            return f"{_pick_direction(prompt, noun, room)}: 90\nworth exploring: yes 90"
         if prompt.startswith("A robot explored a home"):
             colour = _answer_from_views(prompt, noun)
             return f"{colour}; 90\nunknown; 5\ngrey; 5" if colour else "unknown; 100\ngrey; 1\nred; 1"
@@ -90,10 +94,7 @@ def token_seeking_model(noun: str, room: str) -> StubChatModel:
     def reply(messages: list[Message]) -> str:
         prompt = messages[-1].text
         if prompt.startswith("You guide a robot"):
-            dirs = _directions(prompt)
-            best = (next((k for k, d in dirs.items() if noun in d), None)
-                    or next((k for k, d in dirs.items() if room in d), None) or min(dirs))
-            return f"{best}\nyes"
+            return f"{_pick_direction(prompt, noun, room)}\nyes"
         if prompt.startswith("A robot explored a home"):
             return _answer_from_views(prompt, noun) or "I cannot tell"
         return "no"

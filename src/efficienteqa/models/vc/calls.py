@@ -39,11 +39,15 @@ def explore_prompt(question: str, view: str, letters: Sequence[str],
     """The exploration prompt. Its fixed part (instructions and example) comes first and the
     question next: llama.cpp reuses the evaluated prefix shared with the previous request, so
     within an episode only the view and the directions are new tokens."""
+    return load_prompt("explore").format(question=question, view=view,
+                                         directions=_directions_text(letters, descriptions))
+
+
+def _directions_text(letters: Sequence[str], descriptions: Mapping[str, str] | None) -> str:
+    """One line per lettered direction for text models; the letters alone for VLMs."""
     if descriptions:
-        directions = "\n".join(f"{x}: {descriptions.get(x) or 'no description'}" for x in letters)
-    else:
-        directions = ", ".join(letters) + " (the lettered circles in the image)"
-    return load_prompt("explore").format(question=question, view=view, directions=directions)
+        return "\n".join(f"{x}: {descriptions.get(x) or 'no description'}" for x in letters)
+    return ", ".join(letters) + " (the lettered circles in the image)"
 
 
 def explore_scores(model: ChatModel, question: str, view: str,
@@ -200,13 +204,9 @@ def explore_token_scores(model: ChatModel, question: str, view: str,
     require_logprobs(model)
     letters = list(directions) if directions else list(DEFAULT_LETTERS)
     descriptions = directions if isinstance(directions, Mapping) else None
-    if descriptions:
-        listed = "\n".join(f"{x}: {descriptions.get(x) or 'no description'}" for x in letters)
-    else:
-        listed = ", ".join(letters) + " (the lettered circles in the image)"
     prompt = load_prompt("explore_token").format(
         question=question, view=view or ("the image" if images else "nothing visible"),
-        directions=listed)
+        directions=_directions_text(letters, descriptions))
     resp = model.chat([Message("user", prompt, tuple(images or ()))], max_tokens=8,
                       temperature=0.0, logprobs=TOP_LOGPROBS)
     tokens = resp.logprobs or []
