@@ -12,7 +12,7 @@ import httpx
 import pytest
 
 from conftest import needs_egl
-from efficienteqa.datasets import DATASETS, hm_eqa, load_dataset, synthetic
+from efficienteqa.datasets import DATASETS, EvalQuestion, hm_eqa, load_dataset, synthetic
 from efficienteqa.envs.synthetic.catalog import DEFAULT_SOURCE
 from efficienteqa.envs.synthetic.questions import CATEGORIES, Question
 from efficienteqa.errors import EfficientEQAError
@@ -265,10 +265,10 @@ def test_split_still_generated_by_the_smallest_house(monkeypatch):
     try:
         for q in qs:
             synthetic.check_question(scene, q)
-        changed = synthetic.question_from_dict({**qs[0].to_dict(), "answer": "a unicorn"})
+        changed = EvalQuestion.from_dict({**qs[0].to_dict(), "answer": "a unicorn"})
         with pytest.raises(EfficientEQAError, match="generator changed"):
             synthetic.check_question(scene, changed)
-        other = synthetic.question_from_dict({**qs[0].to_dict(), "source": {"house_seed": seed + 1}})
+        other = EvalQuestion.from_dict({**qs[0].to_dict(), "source": {"house_seed": seed + 1}})
         with pytest.raises(EfficientEQAError, match="belongs to house"):
             synthetic.check_question(scene, other)
     finally:

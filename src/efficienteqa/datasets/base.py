@@ -36,3 +36,12 @@ class EvalQuestion:
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> EvalQuestion:
+        """The inverse of ``to_dict`` after a JSON round trip (which turns tuples into lists)."""
+        data = dict(data)
+        for key in ("alternatives", "choices"):
+            data[key] = tuple(data.get(key) or ())
+        data["start"] = tuple(data["start"]) if data.get("start") else None
+        return cls(**data)

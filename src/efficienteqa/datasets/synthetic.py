@@ -75,15 +75,6 @@ def to_eval_question(q: Question, dataset: str, assets: str) -> EvalQuestion:
                 "oracle_pose": list(q.oracle_pose) if q.oracle_pose else None})
 
 
-def question_from_dict(data: dict[str, Any]) -> EvalQuestion:
-    """The inverse of ``EvalQuestion.to_dict`` (json turns tuples into lists)."""
-    data = dict(data)
-    for key in ("alternatives", "choices"):
-        data[key] = tuple(data.get(key) or ())
-    data["start"] = tuple(data["start"]) if data.get("start") else None
-    return EvalQuestion(**data)
-
-
 # -- ordering and selection --------------------------------------------------------------------
 Q = TypeVar("Q", Question, EvalQuestion)
 
@@ -170,7 +161,7 @@ def split_header() -> dict[str, Any]:
 def load_split() -> list[EvalQuestion]:
     """The fixed split in its interleaved order (a prefix of any length stays balanced)."""
     lines = _split_lines()
-    return [question_from_dict(json.loads(line)) for line in lines[1:]]
+    return [EvalQuestion.from_dict(json.loads(line)) for line in lines[1:]]
 
 
 def write_split(questions: Sequence[Question], header: dict[str, Any], path: Path) -> None:
@@ -248,5 +239,5 @@ def load_seeds(seeds: Sequence[int], assets: str = "sh3d") -> list[EvalQuestion]
                     if stale != cached[seed]:
                         stale.unlink(missing_ok=True)
                 bar.advance(task)
-    return interleave([question_from_dict(json.loads(line))
+    return interleave([EvalQuestion.from_dict(json.loads(line))
                        for seed in seeds for line in cached[seed].read_text().splitlines()])
