@@ -14,7 +14,8 @@ from efficienteqa.eval.methods import Outcome, RunSpec
 
 
 def echo(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
-    """Answers the reference after ``EQA_STUB_SLEEP`` seconds; the episode whose id is in
+    """Answers the reference (or ``EQA_STUB_ANSWER``) after ``EQA_STUB_SLEEP`` seconds; the
+    episode whose id is in
     ``EQA_STUB_FAIL`` raises; the one in ``EQA_STUB_DIE`` kills its own process the first time
     (a marker file under ``EQA_STUB_MARKS`` remembers the attempt)."""
     time.sleep(float(os.environ.get("EQA_STUB_SLEEP", "0")))
@@ -25,7 +26,8 @@ def echo(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
         if not mark.exists():
             mark.write_text(str(os.getpid()))
             os.kill(os.getpid(), signal.SIGKILL)
-    return Outcome(q.answer, 0.9, steps=3, budget=10, stop_reason="relevancy",
+    return Outcome(os.environ.get("EQA_STUB_ANSWER", q.answer), 0.9, steps=3, budget=10,
+                   stop_reason="relevancy",
                    usage={"calls": 1, "cached_calls": 0, "prompt_tokens": 10,
                           "completion_tokens": 2, "latency_s": 0.01},
                    backends={"environment": "stub", "vlm": "stub"}, extra={"pid": os.getpid()})

@@ -13,6 +13,7 @@ driver starts it first) and its response cache.
 
 from __future__ import annotations
 
+import functools
 import os
 import platform
 import sys
@@ -36,7 +37,9 @@ def episode_folder(out: Path, episode_id: str) -> Path:
     return out / "episodes" / episode_id.replace("/", "__")
 
 
+@functools.cache
 def build_judge(spec: str, mode: str) -> Any:
+    """One judge per (spec, mode) and process: workers grade many episodes."""
     from efficienteqa.eval.judge import LLMMatchJudge
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.stack import parse_vlm
@@ -79,12 +82,8 @@ def rejudge(out: Path, judge_spec: str, mode: str,
 def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
     """One episode, never raising: its ``episodes.jsonl`` line."""
     t0 = time.perf_counter()
-    row: dict[str, Any] = {
-        "id": q.id, "dataset": q.dataset, "method": spec.method, "scene": q.scene,
-        "question": q.question, "reference": q.answer, "alternatives": list(q.alternatives),
-        "category": q.category, "oracle_steps": q.oracle_steps,
-        "worker": f"{platform.node()}:{os.getpid()}",
-    }
+    row = _identity(spec, q)
+    row["worker"] = f"{platform.node()}:{os.getpid()}"
     try:
         outcome = resolve(spec.method)(q, spec, episode_folder(out, q.id))
         row.update(status="done", answer=outcome.answer, confidence=outcome.confidence,
@@ -92,12 +91,22 @@ def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
                    usage=outcome.usage, backends=outcome.backends, extra=outcome.extra)
         row["judge"] = _judge(spec, q, outcome.answer)
     except Exception as exc:  # noqa: BLE001 - one episode's failure must not end the run
-        message = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        row.update(status="failed", error=f"{type(exc).__name__}: {message}",
-                   traceback=traceback.format_exc(limit=6)[-2000:])
+        row.update(_failure(exc), traceback=traceback.format_exc(limit=6)[-2000:])
     row["wall_s"] = round(time.perf_counter() - t0, 3)
     row["finished"] = time.time()
     return plain(row)
+
+
+def _identity(spec: RunSpec, q: EvalQuestion) -> dict[str, Any]:
+    """What every line says of its episode, whatever happened to it."""
+    return {"id": q.id, "dataset": q.dataset, "method": spec.method, "scene": q.scene,
+            "question": q.question, "reference": q.answer, "alternatives": list(q.alternatives),
+            "category": q.category, "oracle_steps": q.oracle_steps}
+
+
+def _failure(exc: BaseException) -> dict[str, Any]:
+    message = str(exc).splitlines()[0] if str(exc) else ""
+    return {"status": "failed", "error": f"{type(exc).__name__}: {message}".rstrip(": ")}
 
 
 @dataclass
@@ -201,11 +210,7 @@ def _on_ray(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path, workers: int
                 try:
                     yield ray.get(ref)
                 except Exception as exc:  # noqa: BLE001 - the worker died past its retries
-                    yield plain({"id": q.id, "dataset": q.dataset, "method": spec.method,
-                                  "question": q.question, "reference": q.answer,
-                                  "category": q.category, "status": "failed",
-                                  "error": f"{type(exc).__name__}: {str(exc).splitlines()[0]}",
-                                  "finished": time.time()})
+                    yield plain({**_identity(spec, q), **_failure(exc), "finished": time.time()})
     finally:
         if started:
             ray.shutdown()
