@@ -62,6 +62,8 @@ def test_a_model_that_points_at_the_evidence_stops_early_and_answers_right(house
     assert len(record["per_step"]) == r.steps and record["model"]["calls"] >= 2
     assert record["backends"]["relevancy"] == "mention-stub"
     assert record["backends"]["perception"] == "semantic-sensor"
+    assert record["backends"]["environment"] == "synthetic (builtin)"  # the back-end, not the scene
+    assert record["scene"] == "synthetic:4 (builtin)"
 
 
 def test_a_model_that_never_points_at_it_runs_to_the_budget(house4, tmp_path):

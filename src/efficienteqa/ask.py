@@ -55,7 +55,7 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
     stack, config = stack or Stack(), config or AgentConfig()
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
     try:
-        built = build_agent(opened.env, stack, config, opened.name, model=model,
+        built = build_agent(opened.env, stack, config, opened.backend, model=model,
                             relevancy=relevancy)
         perception = built.agent.perception
         frames = FrameCollector(describe=perception.frame if perception.modality == "text" else None)

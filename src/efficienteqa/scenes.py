@@ -61,6 +61,14 @@ class Scene:
     name: str
     questions: list[Question]
 
+    @property
+    def backend(self) -> str:
+        """The environment back-end without the scene: "synthetic (sh3d)" for
+        "synthetic:3 (sh3d)", so records of many scenes name one back-end."""
+        kind, _, rest = self.name.partition(":")
+        assets = rest.partition(" ")[2]
+        return f"{kind} {assets}".strip()
+
 
 def open_scene(spec: str, assets: str = "sh3d") -> Scene:
     """``synthetic:SEED`` -> the generated house with its questions (oracle steps included)."""
