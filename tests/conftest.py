@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import pytest
 
 from efficienteqa.envs.synthetic.env import SyntheticEnv
@@ -47,6 +50,21 @@ def small_model_cache(tmp_path, monkeypatch):
     (cache / "models" / model.name).symlink_to(model)
     monkeypatch.setenv("EFFICIENTEQA_CACHE", str(cache))
     return cache
+
+
+# HM-EQA's csv files (third-party data, never vendored): the shared copy beside the checkout, or
+# wherever $EFFICIENTEQA_HM_EQA points (read at collection, before any test unsets it).
+HM_EQA = Path(os.environ.get("EFFICIENTEQA_HM_EQA")
+              or (Path(__file__).parents[1] / ".." / "shared" / "datasets" / "hm-eqa")).resolve()
+needs_hm_eqa = pytest.mark.skipif(not (HM_EQA / "questions.csv").is_file(),
+                                  reason=f"HM-EQA csv files not found in {HM_EQA}")
+
+
+@pytest.fixture
+def hm_eqa_dir() -> Path:
+    if not (HM_EQA / "questions.csv").is_file():
+        pytest.skip(f"HM-EQA csv files not found in {HM_EQA}")
+    return HM_EQA
 
 
 needs_egl = pytest.mark.skipif(

@@ -11,17 +11,14 @@ from pathlib import Path
 import httpx
 import pytest
 
+from conftest import HM_EQA as HM
 from conftest import needs_egl
+from conftest import needs_hm_eqa as needs_hm
 from efficienteqa.datasets import DATASETS, EvalQuestion, hm_eqa, load_dataset, synthetic
 from efficienteqa.envs.synthetic.catalog import DEFAULT_SOURCE
 from efficienteqa.envs.synthetic.questions import CATEGORIES, Question
 from efficienteqa.errors import EfficientEQAError
 
-# The shared copy beside the checkout, or wherever $EFFICIENTEQA_HM_EQA points.
-HM = Path(os.environ.get("EFFICIENTEQA_HM_EQA")
-          or (Path(__file__).parents[1] / ".." / "shared" / "datasets" / "hm-eqa")).resolve()
-needs_hm = pytest.mark.skipif(not (HM / "questions.csv").is_file(),
-                              reason=f"HM-EQA csv files not found in {HM} (third-party data, not vendored)")
 HEADER = "scene,floor,question,choices,question_formatted,answer,label\n"
 POSES = "scene_floor,init_x,init_y,init_z,init_angle\n"
 
