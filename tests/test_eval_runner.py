@@ -137,12 +137,16 @@ def test_methods_are_configurations_of_the_agent():
         resolve("no_such_module:run")
 
 
-def test_agent_methods_refuse_scenes_no_back_end_can_open(tmp_path):
+def test_agent_methods_on_hm3d_scenes_need_habitat_before_any_episode(tmp_path, monkeypatch):
     hm3d = [EvalQuestion(id="hm-eqa/000", dataset="hm-eqa", scene="hm3d:00004-VqCaAuuoeWk",
                          question="Is the lamp on?", answer="yes", category="state")]
-    with pytest.raises(EfficientEQAError, match="hm3d scenes need an environment back-end"):
+    with pytest.raises(EfficientEQAError, match="explores the HM3D scenes") as err:
         run_eval(spec("efficienteqa"), hm3d, tmp_path)
-    assert not (tmp_path / EPISODES_FILE).exists()
+    assert "--env habitat --hm3d-root" in err.value.fix
+    monkeypatch.setitem(sys.modules, "habitat_sim", None)  # not installed
+    with pytest.raises(EfficientEQAError, match="Habitat-Sim is not installed"):
+        run_eval(spec("efficienteqa", env="habitat", hm3d_root=str(tmp_path)), hm3d, tmp_path / "b")
+    assert not (tmp_path / EPISODES_FILE).exists() and not (tmp_path / "b" / EPISODES_FILE).exists()
 
 
 def test_rejudging_a_run_replaces_each_grade_once_and_names_the_judge(tmp_path, monkeypatch):

@@ -261,6 +261,40 @@ def test_without_a_start_a_seeded_navigable_point_is_used(standin, tmp_path, sma
         assert a.start == b.start and a.is_navigable(a.start.x, a.start.y)
 
 
+def test_an_episode_in_a_habitat_scene(standin, tmp_path):
+    """The whole agent in the stand-in scene: semantic-sensor perception over the Habitat
+    semantic sensor, the stub VLM, and a record naming the Habitat back-end."""
+    from efficienteqa.agent import AgentConfig
+    from efficienteqa.ask import ask
+    from efficienteqa.models.stub import StubChatModel
+    from efficienteqa.relevancy.text import WordOverlapScorer
+    from efficienteqa.scenes import open_scene
+    from efficienteqa.stack import Stack
+
+    model = StubChatModel(lambda msgs: "A: 80\nworth exploring: yes 70"
+                          if msgs[-1].text.startswith("You guide") else "yes; 90\nno; 10")
+    scene = open_scene(f"hm3d:{SCENE}", env="habitat", hm3d_root=write_scene(tmp_path), start=START)
+    with scene.env:
+        done = ask("Is there a table?", scene, tmp_path / "out", stack=Stack(grouping="rules"),
+                   model=model, relevancy=WordOverlapScorer(), config=AgentConfig(max_steps=4))
+    record = done.record
+    assert record["backends"]["environment"] == "hm3d (habitat-sim)"
+    assert record["scene"] == f"hm3d:{SCENE} (habitat-sim)"
+    assert done.result.steps == 4 and done.result.answer == "yes"
+    assert any("table" in r.messages[-1].text for r in model.requests)
+    assert done.report_html is not None and done.report_html.is_file()
+
+
+def test_habitat_scenes_need_the_habitat_env(tmp_path):
+    from efficienteqa.scenes import open_scene
+
+    with pytest.raises(EfficientEQAError, match="needs Habitat-Sim") as err:
+        open_scene(f"hm3d:{SCENE}")
+    assert "--env habitat --hm3d-root" in err.value.fix
+    with pytest.raises(EfficientEQAError, match="not a Habitat scene"):
+        open_scene("synthetic:0", env="habitat", hm3d_root=tmp_path)
+
+
 # -- the real Habitat-Sim --------------------------------------------------------------------
 def _real_habitat() -> str | None:
     try:

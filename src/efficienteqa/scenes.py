@@ -1,12 +1,15 @@
-"""Scene jobs: generate a synthetic house with its questions and pictures."""
+"""Scenes by name: generate a synthetic house with its questions and pictures, or open an HM3D
+scene in Habitat-Sim."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from efficienteqa.envs.base import Environment
+from efficienteqa.envs.habitat.scenes import HabitatStart
 from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.envs.synthetic.oracle import annotate
@@ -55,11 +58,12 @@ def write_scene(seed: int, out: Path, assets: str = "sh3d", cc_by: bool = False)
 
 @dataclass
 class Scene:
-    """An opened scene: the environment, its name for records, and its known questions."""
+    """An opened scene: the environment, its name for records, and its known questions (the
+    generated ones of a synthetic house; none for HM3D scenes)."""
 
-    env: SyntheticEnv
+    env: Environment
     name: str
-    questions: list[Question]
+    questions: list[Question] = field(default_factory=list)
 
     @property
     def backend(self) -> str:
@@ -70,16 +74,35 @@ class Scene:
         return f"{kind} {assets}".strip()
 
 
-def open_scene(spec: str, assets: str = "sh3d") -> Scene:
-    """``synthetic:SEED`` -> the generated house with its questions (oracle steps included)."""
+ENVS = ("synthetic", "habitat")
+FIX_HABITAT = "run hm3d scenes with --env habitat --hm3d-root FOLDER (see docs/habitat.md)"
+
+
+def open_scene(spec: str, assets: str = "sh3d", *, env: str = "synthetic",
+               hm3d_root: Path | str | None = None, start: HabitatStart | None = None) -> Scene:
+    """``synthetic:SEED`` -> the generated house with its questions (oracle steps included);
+    ``hm3d:SCENE`` with ``env="habitat"`` -> the HM3D scene under ``hm3d_root`` in Habitat-Sim,
+    starting at ``start`` (HM-EQA's pose for the question)."""
     kind, _, arg = spec.partition(":")
+    if env not in ENVS:
+        raise EfficientEQAError(f"unknown environment {env!r}", fix=f"use one of {', '.join(ENVS)}")
+    if kind == "hm3d":
+        if env != "habitat" or hm3d_root is None:
+            raise EfficientEQAError(f"scene {spec!r} needs Habitat-Sim and the HM3D scenes",
+                                    fix=FIX_HABITAT)
+        from efficienteqa.envs.habitat.env import open_habitat_scene
+
+        return Scene(open_habitat_scene(Path(hm3d_root), arg, start), f"hm3d:{arg} (habitat-sim)")
     if kind != "synthetic":
         raise EfficientEQAError(f"unknown scene {spec!r}",
-                                fix="use synthetic:SEED (HM3D scenes come with the Habitat back-end)")
+                                fix="use synthetic:SEED, or hm3d:SCENE with --env habitat")
+    if env != "synthetic":
+        raise EfficientEQAError(f"scene {spec!r} is a generated house, not a Habitat scene",
+                                fix="run synthetic scenes with --env synthetic (the default)")
     try:
         seed = int(arg)
     except ValueError:
         raise EfficientEQAError(f"scene {spec!r} needs an integer seed",
                                 fix="e.g. --scene synthetic:0") from None
-    env = SyntheticEnv.from_seed(seed, assets)
-    return Scene(env, f"synthetic:{seed} ({assets})", synthetic_questions(env))
+    synthetic = SyntheticEnv.from_seed(seed, assets)
+    return Scene(synthetic, f"synthetic:{seed} ({assets})", synthetic_questions(synthetic))

@@ -180,6 +180,11 @@ def check_question(scene: Scene, question: EvalQuestion) -> None:
 
     Oracle step counts may drift (a few pixels of rendering); that is logged, not fatal.
     """
+    from efficienteqa.envs.synthetic.env import SyntheticEnv
+
+    if not isinstance(scene.env, SyntheticEnv):
+        raise EfficientEQAError(f"{question.id} is asked in a synthetic house, not in {scene.name}",
+                                fix=f"open {question.scene}")
     seed = question.source.get("house_seed")
     if seed is not None and scene.env.house.seed != seed:
         raise EfficientEQAError(f"{question.id} belongs to house {seed}, not {scene.name}",

@@ -35,7 +35,8 @@ class RunSpec:
     """What every episode of a run shares. ``config`` holds the ablation values (Z_th, K, ...);
     the method's own settings are applied on top by ``method_config``. ``judge``: a VLM spec
     for LLM-Match ("local:MODEL", "openai:MODEL") or None for no judging; ``judge_mode``: see
-    ``eval.judge``."""
+    ``eval.judge``. ``env``: the simulator of the dataset's scenes, "synthetic" (generated
+    houses with ``assets`` furniture) or "habitat" (HM3D scenes under ``hm3d_root``)."""
 
     method: str
     dataset: str
@@ -46,6 +47,8 @@ class RunSpec:
     reports: bool = False
     assets: str = "sh3d"
     closed_set: bool = False
+    env: str = "synthetic"
+    hm3d_root: str | None = None
 
 
 @dataclass
@@ -95,13 +98,16 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     (and ``report.html`` with ``spec.reports``)."""
     from efficienteqa.ask import ask
     from efficienteqa.datasets.synthetic import check_question
+    from efficienteqa.envs.habitat.scenes import HabitatStart
     from efficienteqa.geometry import Pose2D
     from efficienteqa.scenes import open_scene
 
     config = method_config(spec.method, spec.config)
-    scene = open_scene(q.scene, spec.assets)
+    scene = open_scene(q.scene, spec.assets, env=spec.env, hm3d_root=spec.hm3d_root,
+                       start=HabitatStart.from_source(q.source))
     try:
-        check_question(scene, q)
+        if q.scene.startswith("synthetic:"):
+            check_question(scene, q)
         start = Pose2D(*q.start) if q.start is not None else None
         done = ask(q.question, scene, out, stack=spec.stack, config=config, start=start,
                    assets=spec.assets, report=spec.reports)

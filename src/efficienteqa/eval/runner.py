@@ -126,6 +126,7 @@ def manifest(spec: RunSpec, n_questions: int) -> dict[str, Any]:
     return plain({"method": spec.method, "dataset": spec.dataset, "closed_set": spec.closed_set,
                    "config": asdict(spec.config), "stack": asdict(spec.stack),
                    "judge": spec.judge, "judge_mode": spec.judge_mode, "assets": spec.assets,
+                   "env": spec.env, "hm3d_root": spec.hm3d_root,
                    "questions": n_questions,
                    "code_version": code_version(), "created": time.time()})
 
@@ -137,12 +138,23 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
     from efficienteqa.eval.methods import run_agent_method
 
     if resolve(spec.method) is run_agent_method:
-        kinds = sorted({q.scene.partition(":")[0] for q in todo} - {"synthetic"})
-        if kinds:
-            raise EfficientEQAError(
-                f"method {spec.method!r} explores scenes, and {', '.join(kinds)} scenes need an "
-                "environment back-end this installation does not have",
-                fix="run --method blind on this dataset, or use --dataset synthetic")
+        kinds = {q.scene.partition(":")[0] for q in todo}
+        if "hm3d" in kinds:
+            if spec.env != "habitat" or spec.hm3d_root is None:
+                raise EfficientEQAError(
+                    f"method {spec.method!r} explores the HM3D scenes of {spec.dataset} in Habitat-Sim",
+                    fix="add --env habitat --hm3d-root FOLDER (docs/habitat.md), or run --method "
+                        "blind, or use --dataset synthetic")
+            from efficienteqa.envs.habitat.env import import_habitat_sim
+
+            import_habitat_sim()
+            if not Path(spec.hm3d_root).expanduser().is_dir():
+                raise EfficientEQAError(f"HM3D root {spec.hm3d_root} is not a folder",
+                                        fix="pass --hm3d-root FOLDER holding the HM3D scene folders")
+        unknown = sorted(kinds - {"synthetic", "hm3d"})
+        if unknown:
+            raise EfficientEQAError(f"no environment back-end opens {', '.join(unknown)} scenes",
+                                    fix="use --dataset synthetic or hm-eqa")
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.stack import parse_vlm
 
