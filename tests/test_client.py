@@ -95,6 +95,16 @@ def test_request_shape_with_images(tmp_path):
     assert np.asarray(decoded.convert("RGB"))[16, 48].tolist() == [255, 0, 0]
 
 
+def test_a_configured_temperature_replaces_every_call_s(tmp_path):
+    server = FakeServer()
+    client, _ = make_client(server, tmp_path, temperature=1.0)
+    client.chat(ask(), temperature=0.0)
+    assert server.body()["temperature"] == 1.0
+    plain, _ = make_client(server, tmp_path)
+    plain.chat(ask(), temperature=0.0)
+    assert server.body()["temperature"] == 0.0
+
+
 def test_jpeg_images_and_small_images_kept(tmp_path):
     server = FakeServer()
     client, _ = make_client(server, tmp_path, capabilities=Capabilities(images=True), image_format="jpeg")

@@ -19,6 +19,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.methods import METHODS, RunSpec, method_config, resolve
 from efficienteqa.eval.records import EPISODES_FILE, append_episode, read_episodes
 from efficienteqa.eval.runner import run_eval
+from efficienteqa.stack import Stack
 
 TESTS = Path(__file__).parent
 
@@ -67,6 +68,18 @@ def test_a_folder_of_another_configuration_is_refused(tmp_path):
     other = spec(config=AgentConfig(top_k=3))
     with pytest.raises(EfficientEQAError, match="another config"):
         run_eval(other, questions(1), tmp_path, prepare=False)
+
+
+def test_a_run_recorded_before_a_setting_existed_is_the_same_run(tmp_path):
+    """Settings added later default to None; a run.json without them still resumes."""
+    run_eval(spec(), questions(1), tmp_path, prepare=False)
+    manifest = json.loads((tmp_path / "run.json").read_text())
+    del manifest["stack"]["temperature"]
+    (tmp_path / "run.json").write_text(json.dumps(manifest))
+    again = run_eval(spec(), questions(2), tmp_path, prepare=False)
+    assert (again.ran, again.skipped) == (1, 1)
+    with pytest.raises(EfficientEQAError, match="another stack"):
+        run_eval(spec(stack=Stack(temperature=1.0)), questions(2), tmp_path, prepare=False)
 
 
 def test_a_torn_last_line_is_skipped_and_the_next_line_starts_fresh(tmp_path):

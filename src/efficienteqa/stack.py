@@ -32,23 +32,30 @@ MINILM_KINDS = ("minilm", "minilm-match")
 @dataclass(frozen=True)
 class Stack:
     """Which back-ends an episode uses. ``vlm``: "local:MODEL" or "openai:MODEL[@BASE_URL]";
-    ``cache``: replay identical model requests from the response cache (off for timings)."""
+    ``cache``: replay identical model requests from the response cache (off for timings);
+    ``temperature``: the VLM's sampling temperature for every call (None: 0, greedy)."""
 
     vlm: str = "local:qwen2.5-coder-1.5b"
     perception: str = "semantic"
     relevancy: str = "minilm"
     grouping: str = "llm"
     cache: bool = True
+    temperature: float | None = None
 
 
-def parse_vlm(spec: str, images: bool, cache: bool = True) -> ChatBackend:
+def parse_vlm(spec: str, images: bool, cache: bool = True,
+              temperature: float | None = None) -> ChatBackend:
     kind, _, rest = spec.partition(":")
     model, _, url = rest.partition("@")
     if kind not in ("local", "openai") or not model:
         raise EfficientEQAError(f"cannot read the VLM {spec!r}",
                                 fix="use local:MODEL or openai:MODEL[@BASE_URL], "
                                     "e.g. local:qwen2.5-coder-1.5b or openai:gpt-4o")
-    return ChatBackend(kind=kind, model=model, base_url=url or None, images=images, cache=cache)
+    if temperature is not None and not 0.0 <= temperature <= 2.0:
+        raise EfficientEQAError(f"temperature {temperature} is outside 0-2",
+                                fix="use e.g. --temperature 1 (the paper's) or leave it out (0)")
+    return ChatBackend(kind=kind, model=model, base_url=url or None, images=images, cache=cache,
+                       temperature=temperature)
 
 
 def build_perception(name: str, env: Environment) -> Perception:
@@ -100,7 +107,7 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     vlm_backend = stack.vlm if model is None else "injected"
     if model is None:
         model = build_chat_model(parse_vlm(stack.vlm, images=perception.modality == "image",
-                                           cache=stack.cache))
+                                           cache=stack.cache, temperature=stack.temperature))
     if perception.modality == "image" and not model.capabilities.images:
         raise EfficientEQAError(f"model {model.name!r} cannot read images",
                                 fix="use --perception semantic, or an image VLM such as "

@@ -129,8 +129,8 @@ def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     from efficienteqa.models.vc.calls import blind_answer
     from efficienteqa.stack import build_grouper, build_relevancy, parse_vlm
 
-    model = RecordingChatModel(build_chat_model(parse_vlm(spec.stack.vlm, images=False,
-                                                          cache=spec.stack.cache)))
+    model = RecordingChatModel(build_chat_model(parse_vlm(
+        spec.stack.vlm, images=False, cache=spec.stack.cache, temperature=spec.stack.temperature)))
     embedder = build_relevancy(spec.stack.relevancy) if spec.stack.grouping == "llm" else None
     grouper = build_grouper(spec.stack.grouping, model, embedder)  # type: ignore[arg-type]
     result = blind_answer(model, q.question, grouper)

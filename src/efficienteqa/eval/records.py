@@ -86,7 +86,7 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
         except ValueError:
             raise EfficientEQAError(f"{run_file} is not valid JSON",
                                     fix="delete it, or use another --out folder") from None
-        differs = [k for k in RUN_IDENTITY if earlier.get(k) != manifest.get(k)]
+        differs = [k for k in RUN_IDENTITY if _set(earlier.get(k)) != _set(manifest.get(k))]
         if differs:
             raise EfficientEQAError(
                 f"{out} holds a run with another {', '.join(differs)}",
@@ -94,6 +94,14 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
     else:
         write_json(run_file, manifest)
     return read_episodes(out / EPISODES_FILE)
+
+
+def _set(value: Any) -> Any:
+    """``value`` without None entries at any depth: a setting added in a later version defaults
+    to None (unset), and a run recorded before it existed is the same run."""
+    if isinstance(value, dict):
+        return {k: _set(v) for k, v in value.items() if v is not None}
+    return value
 
 
 def read_run(out: Path) -> tuple[dict[str, Any], Episodes]:

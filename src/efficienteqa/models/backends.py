@@ -29,6 +29,7 @@ class ChatBackend:
     logprobs: bool = True
     cache: bool = True
     timeout_s: float = 120.0
+    temperature: float | None = None  # None: each call's own (0 for every call of the agent)
 
 
 def build_chat_model(backend: ChatBackend) -> ChatModel:
@@ -39,7 +40,7 @@ def build_chat_model(backend: ChatBackend) -> ChatModel:
         capabilities = Capabilities(images=False, logprobs=backend.logprobs, grammar=True)
         return OpenAIChatClient(ClientConfig(
             base_url=base_url, model=backend.model, capabilities=capabilities,
-            cache=backend.cache, timeout_s=backend.timeout_s))
+            cache=backend.cache, timeout_s=backend.timeout_s, temperature=backend.temperature))
     if backend.kind == "openai":
         prompt_price, completion_price = PRICES.get(backend.model, (0.0, 0.0))
         return OpenAIChatClient(ClientConfig(
@@ -48,5 +49,5 @@ def build_chat_model(backend: ChatBackend) -> ChatModel:
             capabilities=Capabilities(images=backend.images, logprobs=backend.logprobs,
                                       json_schema=True),
             price_prompt_per_1k=prompt_price, price_completion_per_1k=completion_price,
-            cache=backend.cache, timeout_s=backend.timeout_s))
+            cache=backend.cache, timeout_s=backend.timeout_s, temperature=backend.temperature))
     raise EfficientEQAError(f"unknown chat back-end {backend.kind!r}", fix="use 'local' or 'openai'")

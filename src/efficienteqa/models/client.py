@@ -60,6 +60,7 @@ class ClientConfig:
     price_completion_per_1k: float = 0.0
     cache: bool = True
     cache_path: str | None = None  # None: cache_dir("responses")/responses.sqlite
+    temperature: float | None = None  # replaces every request's temperature (the paper's T = 1)
 
 
 def encode_image(image: np.ndarray, max_side: int = 512, fmt: str = "png") -> str:
@@ -179,6 +180,8 @@ class OpenAIChatClient:
     def chat(self, messages: list[Message], *, max_tokens: int = 256, temperature: float = 0.0,
              logprobs: int | None = None, json_schema: dict[str, Any] | None = None,
              seed: int | None = None) -> ChatResponse:
+        if self.config.temperature is not None:
+            temperature = self.config.temperature
         cache = self._response_cache()
         key = None
         if cache is not None:
