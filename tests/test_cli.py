@@ -1,3 +1,4 @@
+import importlib.util
 import json
 import subprocess
 import sys
@@ -37,13 +38,35 @@ def test_missing_furniture_is_one_line_naming_the_fix(tmp_path):
 
 
 def test_ask_with_a_bad_scene_start_or_model_is_one_line():
-    for args, message in ((["--scene", "hm3d:00800"], "unknown scene"),
+    for args, message in ((["--scene", "hm3d:00800"], "needs Habitat-Sim"),
+                          (["--scene", "mp3d:17DRP5sb8fy"], "unknown scene"),
+                          (["--scene", "synthetic:1", "--env", "habitat"], "not a Habitat scene"),
+                          (["--episode", "x", "--dataset", "synthetic"], "no question 'x'"),
                           (["--scene", "synthetic:x"], "needs an integer seed"),
                           (["--start", "1,2"], "cannot read the start pose"),
                           (["--vlm", "gpt-4o", "--assets", "builtin"], "cannot read the VLM")):
         result = _run("ask", "Where is the sofa?", *args)
         assert result.returncode == 1, (args, result.stdout, result.stderr)
         assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
+
+
+def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
+    """``--preset paper``: HM-EQA's first 100 in Habitat-Sim with GPT-4o at T = 1, BLIP-2 and
+    Z_th 3; an option given on the command line wins. Without Habitat-Sim the run stops before
+    its first episode with the conda line."""
+    import os
+
+    env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
+    result = _run("eval", "--preset", "paper", "--top-k", "3", "--hm-eqa-path", str(hm_eqa_dir),
+                  "--hm3d-root", str(tmp_path), "--out", str(tmp_path / "run"), env=env)
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert (run["dataset"], run["questions"], run["env"]) == ("hm-eqa", 100, "habitat")
+    assert run["stack"]["vlm"] == "openai:gpt-4o-2024-05-13" and run["stack"]["temperature"] == 1.0
+    assert (run["stack"]["perception"], run["stack"]["relevancy"]) == ("rgb", "blip2-itm")
+    assert run["config"]["stop"]["z_th"] == 3.0 and run["config"]["top_k"] == 3
+    assert run["judge_mode"] == "grade"
+    if importlib.util.find_spec("habitat_sim") is None:
+        assert result.returncode == 1 and "conda install" in result.stdout
 
 
 @needs_egl

@@ -35,10 +35,30 @@ def _parse_start(text: str | None) -> Pose2D | None:
     return Pose2D(x, y, math.radians(yaw_deg))
 
 
+def _defaulted(ctx: typer.Context) -> set[str]:
+    """The options left at their defaults (a preset may fill them)."""
+    # By name: Typer may carry its own copy of click, with its own ParameterSource enum.
+    sources = {name: ctx.get_parameter_source(name) for name in ctx.params}
+    return {name for name, source in sources.items()
+            if source is None or source.name in ("DEFAULT", "DEFAULT_MAP")}
+
+
+PRESET_HELP = "paper: the paper's set-up (HM-EQA's first 100 in Habitat-Sim, GPT-4o at T=1 on " \
+              "RGB, BLIP-2 ITM, Z_th 3, K 5); fills only options not given."
+ENV_HELP = "synthetic (generated houses) | habitat (Habitat-Sim + HM3D; needs --hm3d-root)."
+HM3D_HELP = "Folder holding the HM3D scene folders, e.g. 00800-TEEsavR23oF/ (see docs/habitat.md)."
+
+
 @app.command("ask")
 def ask_command(
-    question: str = typer.Argument(..., help="The question, in free text."),
-    scene: str = typer.Option("synthetic:0", help="synthetic:SEED (a generated house)."),
+    ctx: typer.Context,
+    question: str | None = typer.Argument(None, help="The question, in free text (or --episode)."),
+    scene: str = typer.Option("synthetic:0", help="synthetic:SEED (a generated house) or "
+                              "hm3d:SCENE (with --env habitat)."),
+    episode: str | None = typer.Option(None, help="Ask question ID (or row N) of --dataset, in its "
+                                       "scene, from its start pose."),
+    dataset: str = typer.Option("synthetic", help="The dataset of --episode: synthetic | hm-eqa | "
+                                "synthetic:SEEDS."),
     out: Path = typer.Option(Path("out/ask"), help="Folder for episode.json and report.html."),
     start: str | None = typer.Option(None, help="Start pose X,Y,YAW_DEG (default: the scene's)."),
     z_th: float = typer.Option(3.0, "--z-th", help="Stop when a frame's relevancy z-score exceeds this."),
@@ -49,6 +69,8 @@ def ask_command(
     explorer: str = typer.Option("sfe", help="sfe | frontier-only | random."),
     vlm: str = typer.Option("local:qwen2.5-coder-1.5b",
                             help="local:MODEL, or openai:MODEL[@BASE_URL] (key in OPENAI_API_KEY)."),
+    temperature: float | None = typer.Option(None, help="The VLM's sampling temperature for every "
+                                             "call (default 0)."),
     perception: str = typer.Option("semantic", help="semantic (object labels as text) | rgb (pixels, "
                                    "needs an image VLM)."),
     relevancy: str = typer.Option("minilm", help="minilm | minilm-match (MiniLM calibrated to a "
@@ -56,7 +78,12 @@ def ask_command(
                                   "'does this view show it?') | blip2-itm | clip | siglip."),
     grouping: str = typer.Option("llm", help="How equivalent answers are grouped: llm | rules."),
     seed: int = typer.Option(0, help="Seed of the explorer's frontier sampling."),
+    env: str = typer.Option("synthetic", help=ENV_HELP),
+    hm3d_root: Path | None = typer.Option(None, help=HM3D_HELP),
+    hm_eqa_path: Path | None = typer.Option(None, help="Folder with HM-EQA's csv files (default: "
+                                            "downloaded)."),
     assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
+    preset: str | None = typer.Option(None, help=PRESET_HELP),
     cache: bool = typer.Option(True, "--cache/--no-cache",
                                help="Replay identical model requests from the response cache."),
 ) -> None:
@@ -65,40 +92,61 @@ def ask_command(
 
     from efficienteqa.agent import AgentConfig, StepRecord
     from efficienteqa.ask import ask
+    from efficienteqa.envs.habitat.scenes import HabitatStart
+    from efficienteqa.presets import apply_preset
     from efficienteqa.scenes import open_scene
     from efficienteqa.stack import Stack, parse_vlm
     from efficienteqa.stop import StopConfig, step_budget
 
-    config = AgentConfig(explorer=explorer, top_k=top_k, max_steps=max_steps, seed=seed,
-                         stop=StopConfig(z_th=z_th, min_step=min_stop_step, enabled=not no_early_stop))
-    stack = Stack(vlm=vlm, perception=perception, relevancy=relevancy, grouping=grouping,
-                  cache=cache)
-    start_pose = _parse_start(start)
-    parse_vlm(vlm, images=perception == "rgb")  # bad input fails before the scene is built
+    o = apply_preset(preset, {"vlm": vlm, "temperature": temperature, "perception": perception,
+                              "relevancy": relevancy, "grouping": grouping, "z_th": z_th,
+                              "top_k": top_k, "env": env}, _defaulted(ctx))
+    config = AgentConfig(explorer=explorer, top_k=o["top_k"], max_steps=max_steps, seed=seed,
+                         stop=StopConfig(z_th=o["z_th"], min_step=min_stop_step,
+                                         enabled=not no_early_stop))
+    stack = Stack(vlm=o["vlm"], perception=o["perception"], relevancy=o["relevancy"],
+                  grouping=o["grouping"], cache=cache, temperature=o["temperature"])
+    # Bad input fails before the scene is built.
+    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
+    start_pose, habitat_start, reference = _parse_start(start), None, None
+    if episode is not None:
+        from efficienteqa.datasets import find_question, load_dataset
+
+        q = find_question(load_dataset(dataset, path=hm_eqa_path, assets=assets), episode)
+        question, scene, reference = q.question, q.scene, q.answer
+        habitat_start = HabitatStart.from_source(q.source)
+        start_pose = start_pose or (Pose2D(*q.start) if q.start is not None else None)
+    if not question:
+        raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
+                                'the sofa?", or --episode ID with --dataset')
     with console.status(f"opening {scene}..."):
-        opened = open_scene(scene, assets)
-    budget = max_steps or step_budget(opened.env.floor_area_m2)
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
-    with opened.env, Progress(*columns, console=console) as progress:
-        task = progress.add_task("exploring", total=budget, info="")
+        opened = open_scene(scene, assets, env=o["env"], hm3d_root=hm3d_root, start=habitat_start)
+    try:
+        budget = max_steps or step_budget(opened.env.floor_area_m2)
+        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                   TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
+        with Progress(*columns, console=console) as progress:
+            task = progress.add_task("exploring", total=budget, info="")
 
-        def on_step(record: StepRecord, *_: object) -> None:
-            c = record.check
-            info = ("invalid frame" if c is None else
-                    f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
-            progress.update(task, completed=record.step, info=info)
+            def on_step(record: StepRecord, *_: object) -> None:
+                c = record.check
+                info = ("invalid frame" if c is None else
+                        f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
+                progress.update(task, completed=record.step, info=info)
 
-        done = ask(question, opened, out, stack=stack, config=config,
-                   start=start_pose, on_step=on_step)
+            done = ask(question, opened, out, stack=stack, config=config,
+                       start=start_pose, on_step=on_step)
+    finally:
+        opened.env.close()
     r, rec = done.result, done.record
     oracle = rec.get("oracle_steps")
     console.print(f"[bold]answer:[/bold] {r.answer or '(none)'}  (confidence {r.confidence:.2f})",
                   highlight=False)
     console.print(f"steps: {r.steps} of {r.budget}" + (f" (oracle {oracle})" if oracle else "")
                   + f"   stop: {r.stop_reason}   time: {r.wall_s:.0f} s", highlight=False)
-    if rec.get("reference"):
-        console.print(f"reference answer: {rec['reference']['answer']}", highlight=False)
+    reference = rec["reference"]["answer"] if rec.get("reference") else reference
+    if reference:
+        console.print(f"reference answer: {reference}", highlight=False)
     console.print(f"back-ends: {', '.join(f'{k}={v}' for k, v in rec['backends'].items() if v)}",
                   highlight=False, soft_wrap=True)
     console.print(f"episode: {done.episode_json}\nreport:  {done.report_html}", highlight=False,
@@ -137,6 +185,7 @@ def judge_command(
 
 @app.command("eval")
 def eval_command(
+    ctx: typer.Context,
     method: str = typer.Option("efficienteqa", help="efficienteqa | explore-eqa | "
                                "explore-eqa-blackbox | blind | frontier-only | random | module:function."),
     dataset: str = typer.Option("synthetic", help="synthetic (the fixed split) | synthetic:SEEDS "
@@ -151,6 +200,8 @@ def eval_command(
     max_steps: int | None = typer.Option(None, help="Step budget (default int(sqrt(area)*3))."),
     seed: int = typer.Option(0, help="Seed of the explorer's frontier sampling."),
     vlm: str = typer.Option("local:qwen2.5-coder-1.5b", help="local:MODEL, or openai:MODEL[@BASE_URL]."),
+    temperature: float | None = typer.Option(None, help="The VLM's sampling temperature for every "
+                                             "call (default 0)."),
     perception: str = typer.Option("semantic", help="semantic | rgb."),
     relevancy: str = typer.Option("minilm", help="The relevancy scorer (see `ask --help`)."),
     grouping: str = typer.Option("llm", help="llm | rules."),
@@ -160,8 +211,11 @@ def eval_command(
                                    "for 'same answer?') | auto (yes-prob for local models)."),
     hm_eqa_path: Path | None = typer.Option(None, help="Folder with HM-EQA's questions.csv and "
                                             "scene_init_poses.csv (default: downloaded)."),
+    env: str = typer.Option("synthetic", help=ENV_HELP),
+    hm3d_root: Path | None = typer.Option(None, help=HM3D_HELP),
     reports: bool = typer.Option(False, "--reports", help="Also write each episode's report.html."),
     assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
+    preset: str | None = typer.Option(None, help=PRESET_HELP),
     cache: bool = typer.Option(True, "--cache/--no-cache",
                                help="Replay identical model requests from the response cache."),
 ) -> None:
@@ -180,22 +234,29 @@ def eval_command(
     from efficienteqa.eval.methods import RunSpec, resolve
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
+    from efficienteqa.presets import apply_preset
     from efficienteqa.stack import Stack, parse_vlm
     from efficienteqa.stop import StopConfig
 
+    o = apply_preset(preset, {"dataset": dataset, "limit": limit, "env": env, "vlm": vlm,
+                              "temperature": temperature, "perception": perception,
+                              "relevancy": relevancy, "grouping": grouping, "z_th": z_th,
+                              "top_k": top_k, "judge": judge, "judge_mode": judge_mode},
+                     _defaulted(ctx))
     resolve(method)  # bad input fails before anything slow
-    parse_vlm(vlm, images=perception == "rgb")
-    judge_spec = None if judge == "none" else judge
+    parse_vlm(o["vlm"], images=o["perception"] == "rgb", temperature=o["temperature"])
+    judge_spec = None if o["judge"] == "none" else o["judge"]
     if judge_spec:
         parse_vlm(judge_spec, images=False)
-    questions = load_dataset(dataset, path=hm_eqa_path, limit=limit, assets=assets)
-    spec = RunSpec(method=method, dataset=dataset,
-                   stack=Stack(vlm=vlm, perception=perception, relevancy=relevancy,
-                               grouping=grouping, cache=cache),
-                   config=AgentConfig(top_k=top_k, max_steps=max_steps, seed=seed,
-                                      stop=StopConfig(z_th=z_th)),
-                   judge=judge_spec, judge_mode=_judge_mode(judge_mode, judge), reports=reports,
-                   assets=assets)
+    questions = load_dataset(o["dataset"], path=hm_eqa_path, limit=o["limit"], assets=assets)
+    spec = RunSpec(method=method, dataset=o["dataset"],
+                   stack=Stack(vlm=o["vlm"], perception=o["perception"], relevancy=o["relevancy"],
+                               grouping=o["grouping"], cache=cache, temperature=o["temperature"]),
+                   config=AgentConfig(top_k=o["top_k"], max_steps=max_steps, seed=seed,
+                                      stop=StopConfig(z_th=o["z_th"])),
+                   judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"], o["judge"]),
+                   reports=reports, assets=assets, env=o["env"],
+                   hm3d_root=str(hm3d_root) if hm3d_root is not None else None)
     done_before = len(read_episodes(out / "episodes.jsonl").done)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),

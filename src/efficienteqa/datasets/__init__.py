@@ -20,7 +20,7 @@ DATASETS = {
 }
 _FIX = "use one of: synthetic, synthetic:3, synthetic:0-9, synthetic:1,4,7, hm-eqa"
 
-__all__ = ["DATASETS", "EvalQuestion", "load_dataset"]
+__all__ = ["DATASETS", "EvalQuestion", "find_question", "load_dataset"]
 
 
 def load_dataset(name: str, *, path: Path | None = None, limit: int | None = None,
@@ -61,3 +61,15 @@ def load_dataset(name: str, *, path: Path | None = None, limit: int | None = Non
     else:
         raise EfficientEQAError(f"unknown dataset {name!r}", fix=_FIX)
     return questions if limit is None else questions[:limit]
+
+
+def find_question(questions: list[EvalQuestion], key: str) -> EvalQuestion:
+    """The question with id ``key`` ("hm-eqa/012"), or at row ``key`` of the list ("12")."""
+    by_id = {q.id: q for q in questions}
+    if key in by_id:
+        return by_id[key]
+    if key.isdigit() and int(key) < len(questions):
+        return questions[int(key)]
+    example = questions[0].id if questions else "an id"
+    raise EfficientEQAError(f"no question {key!r} in the dataset ({len(questions)} questions)",
+                            fix=f"give an id such as {example}, or a row number below {len(questions)}")

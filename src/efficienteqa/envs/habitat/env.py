@@ -236,4 +236,5 @@ def open_habitat_scene(root: Path, scene: str, start: HabitatStart | None = None
     """``scene`` ("00800-TEEsavR23oF") under the HM3D folder ``root``."""
     from efficienteqa.envs.habitat.scenes import find_scene
 
+    import_habitat_sim()  # the first thing a user without it must hear about
     return HabitatEnv(find_scene(root, scene), start, camera, **options)
