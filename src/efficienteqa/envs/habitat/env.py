@@ -29,7 +29,7 @@ from efficienteqa.geometry import CameraSpec, Pose2D
 
 log = logging.getLogger(__name__)
 
-INSTALL = "conda install -c conda-forge -c aihabitat habitat-sim=0.2.5 headless (see docs/habitat.md)"
+INSTALL = "conda install -c conda-forge -c aihabitat-nightly habitat-sim headless (see docs/habitat.md)"
 COLOR, DEPTH, SEMANTIC = "color", "depth", "semantic"
 FLOOR_BAND_M = 0.5  # navmesh triangles within this height of the start are on its floor
 STOREY_M = 3.0  # canonical z extent of one floor: the map ignores the storeys above
