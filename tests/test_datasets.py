@@ -270,6 +270,16 @@ def test_split_still_generated_by_the_smallest_house(monkeypatch):
             synthetic.check_question(scene, other)
     finally:
         scene.env.close()
+    # Evaluation opens houses without the oracle (the split has its steps): same questions.
+    fast = open_scene(f"synthetic:{seed}", oracle=False)
+    try:
+        assert all(q.oracle_steps is None for q in fast.questions)
+        assert {(q.question, q.answer) for q in scene.questions} <= \
+            {(q.question, q.answer) for q in fast.questions}
+        for q in qs:
+            synthetic.check_question(fast, q)
+    finally:
+        fast.env.close()
 
 
 # -- live synthetic seeds ------------------------------------------------------------------------

@@ -29,10 +29,14 @@ class SceneFiles:
     n_rooms: int
 
 
-def synthetic_questions(env: SyntheticEnv, per_category: int = 2) -> list[Question]:
-    """The house's questions with oracle step counts (seeded by the house seed)."""
+def synthetic_questions(env: SyntheticEnv, per_category: int = 2, oracle: bool = True
+                        ) -> list[Question]:
+    """The house's questions (seeded by the house seed) with oracle step counts; ``oracle``
+    False skips them (they render ~100 frames, most of the cost of opening a house), keeping
+    questions whose evidence can never be seen, which the annotation would drop."""
     rng = np.random.default_rng([env.house.seed, 7])
-    return annotate(env, generate_questions(env.house, rng, per_category))
+    questions = generate_questions(env.house, rng, per_category)
+    return annotate(env, questions) if oracle else questions
 
 
 def write_scene(seed: int, out: Path, assets: str = "sh3d", cc_by: bool = False) -> SceneFiles:
@@ -79,8 +83,10 @@ FIX_HABITAT = "run hm3d scenes with --env habitat --hm3d-root FOLDER (see docs/h
 
 
 def open_scene(spec: str, assets: str = "sh3d", *, env: str = "synthetic",
-               hm3d_root: Path | str | None = None, start: HabitatStart | None = None) -> Scene:
-    """``synthetic:SEED`` -> the generated house with its questions (oracle steps included);
+               hm3d_root: Path | str | None = None, start: HabitatStart | None = None,
+               oracle: bool = True) -> Scene:
+    """``synthetic:SEED`` -> the generated house with its questions (with oracle steps unless
+    ``oracle`` is False: datasets carry their own);
     ``hm3d:SCENE`` with ``env="habitat"`` -> the HM3D scene under ``hm3d_root`` in Habitat-Sim,
     starting at ``start`` (HM-EQA's pose for the question)."""
     kind, _, arg = spec.partition(":")
@@ -105,4 +111,5 @@ def open_scene(spec: str, assets: str = "sh3d", *, env: str = "synthetic",
         raise EfficientEQAError(f"scene {spec!r} needs an integer seed",
                                 fix="e.g. --scene synthetic:0") from None
     synthetic = SyntheticEnv.from_seed(seed, assets)
-    return Scene(synthetic, f"synthetic:{seed} ({assets})", synthetic_questions(synthetic))
+    return Scene(synthetic, f"synthetic:{seed} ({assets})",
+                 synthetic_questions(synthetic, oracle=oracle))

@@ -104,7 +104,7 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
 
     config = method_config(spec.method, spec.config)
     scene = open_scene(q.scene, spec.assets, env=spec.env, hm3d_root=spec.hm3d_root,
-                       start=HabitatStart.from_source(q.source))
+                       start=HabitatStart.from_source(q.source), oracle=False)
     try:
         if q.scene.startswith("synthetic:"):
             check_question(scene, q)
