@@ -11,18 +11,22 @@ set -u
 LIMIT=${LIMIT:-10}
 OUT=${OUT:-out/eval}
 EQA=${EQA:-.venv/bin/efficienteqa}
-run() { echo "==> $*"; "$EQA" eval --dataset synthetic --limit "$LIMIT" --relevancy minilm "$@" || echo "failed: $*"; }
+RAY_LIMIT=${RAY_LIMIT:-40}
+run() { echo "==> $*"; "$EQA" eval --dataset synthetic --relevancy minilm "$@" || echo "failed: $*"; }
 
-run --method efficienteqa --out "$OUT/syn-efficienteqa"
-run --method blind --out "$OUT/syn-blind"
-run --method explore-eqa-blackbox --out "$OUT/syn-explore-eqa-blackbox"
-run --method explore-eqa --out "$OUT/syn-explore-eqa"
-for z in 1 2; do run --method efficienteqa --z-th "$z" --out "$OUT/syn-efficienteqa-z$z"; done
-for k in 1 3 10; do run --method efficienteqa --top-k "$k" --out "$OUT/syn-efficienteqa-k$k"; done
-# Ray: the same episodes again, every model call and grade now in the caches.
-run --method efficienteqa --workers 1 --out "$OUT/ray-1-worker"
-run --method efficienteqa --workers 2 --out "$OUT/ray-2-workers"
-run --method frontier-only --out "$OUT/syn-frontier-only"
-run --method random --out "$OUT/syn-random"
+run --method efficienteqa --limit "$LIMIT" --out "$OUT/syn-efficienteqa"
+run --method blind --limit "$LIMIT" --out "$OUT/syn-blind"
+run --method explore-eqa-blackbox --limit "$LIMIT" --out "$OUT/syn-explore-eqa-blackbox"
+run --method explore-eqa --limit "$LIMIT" --out "$OUT/syn-explore-eqa"
+for z in 1 2; do run --method efficienteqa --z-th "$z" --limit "$LIMIT" --out "$OUT/syn-efficienteqa-z$z"; done
+for k in 1 3 10; do run --method efficienteqa --top-k "$k" --limit "$LIMIT" --out "$OUT/syn-efficienteqa-k$k"; done
+# Ray, with every model call replayed from the cache: frontier-only makes one answer call per
+# episode, so RAY_LIMIT episodes fill the cache quickly; then the same episodes with 1 and 2
+# workers (no judge, so no call is left uncached).
+run --method frontier-only --limit "$RAY_LIMIT" --judge none --out "$OUT/fill-frontier-only"
+run --method frontier-only --limit "$RAY_LIMIT" --judge none --workers 1 --out "$OUT/ray-1-worker"
+run --method frontier-only --limit "$RAY_LIMIT" --judge none --workers 2 --out "$OUT/ray-2-workers"
+run --method frontier-only --limit "$LIMIT" --out "$OUT/syn-frontier-only"
+run --method random --limit "$LIMIT" --out "$OUT/syn-random"
 "$EQA" eval --method blind --dataset hm-eqa ${HM_EQA_PATH:+--hm-eqa-path "$HM_EQA_PATH"} \
   --out "$OUT/hm-eqa-blind" || echo "failed: hm-eqa blind"
