@@ -320,3 +320,8 @@ def test_real_habitat_contract_on_an_hm_eqa_scene(hm_eqa_dir, small_camera):
         obs, _ = env.reset()
         assert obs.invalid_fraction < 0.5 and env.floor_area_m2 > 5
         check_env(env, [])
+        # Looking 30 degrees down from 1.5 m, most of the bottom row sees the floor (z = 0):
+        # the pitch sign, the y-up conversion and the floor height together.
+        pts = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[-1]
+        seen = obs.depth_m[-1] > 0
+        assert np.mean(np.abs(pts[seen, 2]) < 0.15) > 0.5
