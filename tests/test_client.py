@@ -95,7 +95,7 @@ def test_request_shape_with_images(tmp_path):
     assert np.asarray(decoded.convert("RGB"))[16, 48].tolist() == [255, 0, 0]
 
 
-def test_a_configured_temperature_replaces_every_call_s(tmp_path):
+def test_a_configured_temperature_replaces_the_one_each_call_asks_for(tmp_path):
     server = FakeServer()
     client, _ = make_client(server, tmp_path, temperature=1.0)
     client.chat(ask(), temperature=0.0)

@@ -234,8 +234,9 @@ def test_without_annotations_semantic_perception_is_refused(standin, tmp_path, s
 
 
 def test_frames_without_geometry_are_invalid(standin, tmp_path, small_camera):
-    """A scan with holes: with only the floor there, most pixels see nothing (depth 0), and
-    the agent does not send such frames to its models (SPEC 3.1)."""
+    """A scan with holes: with only the floor there, most pixels see nothing (depth 0, instance
+    -1), so the frame counts as invalid (the agent keeps such frames from its models:
+    tests/test_agent.py)."""
     from efficienteqa.envs.habitat.env import open_habitat_scene
 
     root = write_scene(tmp_path, faces=("floor",))

@@ -35,12 +35,15 @@ def _parse_start(text: str | None) -> Pose2D | None:
     return Pose2D(x, y, math.radians(yaw_deg))
 
 
-def _defaulted(ctx: typer.Context) -> set[str]:
-    """The options left at their defaults (a preset may fill them)."""
+def _options(ctx: typer.Context, preset: str | None) -> dict:
+    """The command's options, with the preset's values for those left at their defaults."""
+    from efficienteqa.presets import apply_preset
+
     # By name: Typer may carry its own copy of click, with its own ParameterSource enum.
     sources = {name: ctx.get_parameter_source(name) for name in ctx.params}
-    return {name for name, source in sources.items()
-            if source is None or source.name in ("DEFAULT", "DEFAULT_MAP")}
+    defaulted = {name for name, source in sources.items()
+                 if source is None or source.name in ("DEFAULT", "DEFAULT_MAP")}
+    return apply_preset(preset, ctx.params, defaulted)
 
 
 PRESET_HELP = "paper: the paper's set-up (HM-EQA's first 100 in Habitat-Sim, GPT-4o at T=1 on " \
@@ -93,14 +96,11 @@ def ask_command(
     from efficienteqa.agent import AgentConfig, StepRecord
     from efficienteqa.ask import ask
     from efficienteqa.envs.habitat.scenes import HabitatStart
-    from efficienteqa.presets import apply_preset
     from efficienteqa.scenes import open_scene
     from efficienteqa.stack import Stack, parse_vlm
     from efficienteqa.stop import StopConfig, step_budget
 
-    o = apply_preset(preset, {"vlm": vlm, "temperature": temperature, "perception": perception,
-                              "relevancy": relevancy, "grouping": grouping, "z_th": z_th,
-                              "top_k": top_k, "env": env}, _defaulted(ctx))
+    o = _options(ctx, preset)
     config = AgentConfig(explorer=explorer, top_k=o["top_k"], max_steps=max_steps, seed=seed,
                          stop=StopConfig(z_th=o["z_th"], min_step=min_stop_step,
                                          enabled=not no_early_stop))
@@ -234,15 +234,10 @@ def eval_command(
     from efficienteqa.eval.methods import RunSpec, resolve
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
-    from efficienteqa.presets import apply_preset
     from efficienteqa.stack import Stack, parse_vlm
     from efficienteqa.stop import StopConfig
 
-    o = apply_preset(preset, {"dataset": dataset, "limit": limit, "env": env, "vlm": vlm,
-                              "temperature": temperature, "perception": perception,
-                              "relevancy": relevancy, "grouping": grouping, "z_th": z_th,
-                              "top_k": top_k, "judge": judge, "judge_mode": judge_mode},
-                     _defaulted(ctx))
+    o = _options(ctx, preset)
     resolve(method)  # bad input fails before anything slow
     parse_vlm(o["vlm"], images=o["perception"] == "rgb", temperature=o["temperature"])
     judge_spec = None if o["judge"] == "none" else o["judge"]

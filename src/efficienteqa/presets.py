@@ -8,6 +8,7 @@ LLM-Match judge; the preset uses the same GPT-4o, grading 1-5.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from efficienteqa.errors import EfficientEQAError
@@ -24,7 +25,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
-def apply_preset(name: str | None, given: dict[str, Any], defaulted: set[str]) -> dict[str, Any]:
+def apply_preset(name: str | None, given: Mapping[str, Any], defaulted: set[str]) -> dict[str, Any]:
     """``given`` with the preset's value for each option in ``defaulted`` (the ones the user
     left at their defaults); options the preset does not name are kept."""
     if name is None:

@@ -76,9 +76,10 @@ class HabitatEnv:
                 start = HabitatStart(tuple(float(v) for v in point), 0.0)  # type: ignore[arg-type]
             self.floor_y = start.position[1]
             self.agent = self.sim.initialize_agent(0)
-            self._agent_state = hs.AgentState
-            self._shortest_path = hs.ShortestPath
-            self._floor_vertices = self._floor_triangles()
+            self._hs = hs
+            floor = self._floor_triangles()
+            self._floor_area_m2 = frames.triangle_area_m2(floor)
+            self._floor_xy = frames.to_canonical(floor, self.floor_y)[:, :2]
             self.start = frames.pose_to_canonical(np.array(start.position), start.yaw_rad, self.floor_y)
             if not self.is_navigable(self.start.x, self.start.y):
                 raise EfficientEQAError(f"the start pose {start} is not on the navmesh of {files.scene}",
@@ -172,13 +173,13 @@ class HabitatEnv:
     def floor_area_m2(self) -> float:
         """The navigable area of the start's floor (the navmesh, so furniture footprints and a
         robot-radius band along the walls are not counted)."""
-        return frames.triangle_area_m2(self._floor_vertices)
+        return self._floor_area_m2
 
     @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The start floor's navmesh extent plus a wall margin; z from the floor to one storey."""
-        xy = frames.to_canonical(self._floor_vertices, self.floor_y)[:, :2]
-        lo, hi = xy.min(axis=0) - WALL_MARGIN_M, xy.max(axis=0) + WALL_MARGIN_M
+        lo = self._floor_xy.min(axis=0) - WALL_MARGIN_M
+        hi = self._floor_xy.max(axis=0) + WALL_MARGIN_M
         return np.array([lo[0], lo[1], 0.0]), np.array([hi[0], hi[1], STOREY_M])
 
     def scene_labels(self) -> HabitatLabels:
@@ -212,7 +213,7 @@ class HabitatEnv:
             return None
         target = np.array([wanted[0], snapped[1], wanted[2]])
         if require_path:
-            path = self._shortest_path()
+            path = self._hs.ShortestPath()
             path.requested_start = self._position_h
             path.requested_end = target
             if not self.pathfinder.find_path(path):
@@ -220,7 +221,7 @@ class HabitatEnv:
         return target
 
     def _teleport(self, pose: Pose2D, position_h: np.ndarray) -> None:
-        state = self._agent_state()
+        state = self._hs.AgentState()
         state.position = position_h
         state.rotation = frames.yaw_quaternion(frames.yaw_to_habitat(pose.yaw))
         self.agent.set_state(state)
