@@ -146,11 +146,10 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
                     fix="add --env habitat --hm3d-root FOLDER (docs/habitat.md), or run --method "
                         "blind, or use --dataset synthetic")
             from efficienteqa.envs.habitat.env import import_habitat_sim
+            from efficienteqa.envs.habitat.scenes import check_root
 
             import_habitat_sim()
-            if not Path(spec.hm3d_root).expanduser().is_dir():
-                raise EfficientEQAError(f"HM3D root {spec.hm3d_root} is not a folder",
-                                        fix="pass --hm3d-root FOLDER holding the HM3D scene folders")
+            check_root(spec.hm3d_root)
         unknown = sorted(kinds - {"synthetic", "hm3d"})
         if unknown:
             raise EfficientEQAError(f"no environment back-end opens {', '.join(unknown)} scenes",

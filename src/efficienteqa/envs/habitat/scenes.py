@@ -60,12 +60,18 @@ def file_stem(scene: str) -> str:
     return stem
 
 
+def check_root(root: Path | str) -> Path:
+    """``root`` as a path, if it is a folder."""
+    path = Path(root).expanduser()
+    if not path.is_dir():
+        raise EfficientEQAError(f"HM3D root {root} is not a folder", fix=FIX_ROOT)
+    return path
+
+
 def find_scene(root: Path, scene: str) -> SceneFiles:
     """The files of ``scene`` under ``root`` (or under one of its split folders)."""
     stem = file_stem(scene)
-    root = Path(root).expanduser()
-    if not root.is_dir():
-        raise EfficientEQAError(f"HM3D root {root} is not a folder", fix=FIX_ROOT)
+    root = check_root(root)
     folder = next((root / split / scene for split in SPLITS if (root / split / scene).is_dir()), None)
     if folder is None:
         raise EfficientEQAError(f"scene {scene} is not under {root}", fix=FIX_ROOT)
