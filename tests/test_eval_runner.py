@@ -174,12 +174,13 @@ def test_rejudging_a_run_replaces_each_grade_once_and_names_the_judge(tmp_path, 
     monkeypatch.setattr(runner, "build_judge", lambda spec, mode: LLMMatchJudge(
         stub, cache_path=tmp_path / "j.sqlite", mode=mode))
     n, score = runner.rejudge(tmp_path, "local:stub-judge", "grade")
-    assert n == 2 and score == 25.0 and len(stub.requests) == 2  # grade 2 -> 25, failed not graded
+    # Grade 2 -> 25 each; the failed episode is not graded and scores 0, as in the report.
+    assert n == 2 and score == pytest.approx(50 / 3) and len(stub.requests) == 2
     rows = read_episodes(tmp_path / EPISODES_FILE).by_id
     assert len(rows) == 3 and rows["toy/001"]["status"] == "failed"
     assert rows["toy/000"]["judge"]["judge"] == "stub-judge" and rows["toy/000"]["judge"]["score"] == 2
     again = runner.rejudge(tmp_path, "local:stub-judge", "grade")
-    assert again == (2, 25.0) and len(stub.requests) == 2  # the grades came from the cache
+    assert again == (n, score) and len(stub.requests) == 2  # the grades came from the cache
     assert len(read_episodes(tmp_path / EPISODES_FILE).by_id) == 3
     manifest = json.loads((tmp_path / "run.json").read_text())
     assert (manifest["judge"], manifest["judge_mode"]) == ("local:stub-judge", "grade")

@@ -13,7 +13,6 @@ from efficienteqa.eval.judge import (
     SCORE_SCHEMA,
     Judgement,
     LLMMatchJudge,
-    llm_match,
     parse_score,
     render_prompt,
     rule_score,
@@ -49,12 +48,6 @@ def test_parse_reports_problems_instead_of_guessing(reply, problem):
 
 def test_score_value_maps_1_to_5_onto_0_to_100():
     assert [score_value(s) for s in (1, 2, 3, 4, 5, None)] == [0.0, 25.0, 50.0, 75.0, 100.0, 0.0]
-
-
-def test_llm_match_is_the_mean_and_nan_when_empty():
-    judgements = [Judgement(5, 100.0, "j"), Judgement(3, 50.0, "j"), Judgement(None, 0.0, "j")]
-    assert llm_match(judgements) == 50.0
-    assert math.isnan(llm_match([]))
 
 
 @pytest.mark.parametrize("text, trimmed", [

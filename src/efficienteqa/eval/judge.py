@@ -22,10 +22,9 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
-import math
 import re
 import sqlite3
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -73,13 +72,6 @@ class Judgement:
 def score_value(score: int | None) -> float:
     """A 1-5 grade in LLM-Match units: ``100 * (score - 1) / 4``; no grade is 0."""
     return 0.0 if score is None else 100.0 * (score - MIN_SCORE) / (MAX_SCORE - MIN_SCORE)
-
-
-def llm_match(judgements: Iterable[Judgement]) -> float:
-    """The mean ``value`` (0-100). NaN when there are no judgements: an empty evaluation has no
-    score, and 0.0 would read as "everything was wrong"."""
-    values = [j.value for j in judgements]
-    return sum(values) / len(values) if values else math.nan
 
 
 # --- trimming -----------------------------------------------------------------------------------

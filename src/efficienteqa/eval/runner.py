@@ -58,25 +58,28 @@ def rejudge(out: Path, judge_spec: str, mode: str,
             on_episode: Progress | None = None) -> tuple[int, float]:
     """Grade every finished episode of the run in ``out`` again with another judge (or mode):
     each regraded row is appended (a later line replaces the earlier one) and ``run.json``
-    names the new judge. Returns the episodes graded and their LLM-Match."""
+    names the new judge. Returns the episodes graded and the run's LLM-Match as the report
+    computes it (a failed episode scores 0)."""
     from efficienteqa.eval.records import RUN_FILE, read_run
+    from efficienteqa.eval.summary import summarise
     from efficienteqa.report.episode import write_json
 
     manifest, episodes = read_run(out)
     judge = build_judge(judge_spec, mode)
-    values = []
+    rows, graded = [], 0
     for row in episodes.rows():
-        if row.get("status") != "done":
-            continue
-        graded = judge.judge(row["question"], row["reference"], row.get("answer"),
-                             extra=row.get("alternatives") or ())
-        row = {**row, "judge": graded.to_dict()}
-        append_episode(out / EPISODES_FILE, plain(row))
-        values.append(graded.value)
-        if on_episode is not None:
-            on_episode(row)
-    write_json(out / RUN_FILE, {**manifest, "judge": judge_spec, "judge_mode": mode})
-    return len(values), (sum(values) / len(values) if values else float("nan"))
+        if row.get("status") == "done":
+            verdict = judge.judge(row["question"], row["reference"], row.get("answer"),
+                                  extra=row.get("alternatives") or ())
+            row = {**row, "judge": verdict.to_dict()}
+            append_episode(out / EPISODES_FILE, plain(row))
+            graded += 1
+            if on_episode is not None:
+                on_episode(row)
+        rows.append(row)
+    manifest = {**manifest, "judge": judge_spec, "judge_mode": mode}
+    write_json(out / RUN_FILE, manifest)
+    return graded, summarise(manifest, rows).llm_match
 
 
 def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
