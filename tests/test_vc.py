@@ -339,6 +339,16 @@ def test_answer_with_confidence_groups_and_argmaxes():
     assert len(result.classes) == 2 and result.problems == ["ignored 1 line(s) without a confidence"]
 
 
+@pytest.mark.parametrize("reply, confidence", [("black; 30", 0.3), ("black; 90", 0.9),
+                                               ("unknown; 5", 0.05)])
+def test_one_guess_keeps_its_own_confidence(reply, confidence):
+    """M = 1 (ExploreEQA's per-step answers): the verbalized confidence, not 1 after normalising,
+    so steps can be ranked by Sim x confidence."""
+    result = answer_with_confidence(StubChatModel([reply]), "What colour is the sofa?",
+                                    ["a black sofa"], RuleGrouper(), m=1)
+    assert result.confidence == pytest.approx(confidence)
+
+
 def test_answer_with_confidence_malformed_and_images():
     stub = StubChatModel(["", "kitchen"])
     frames = [np.zeros((4, 4, 3), np.uint8)] * 2

@@ -89,6 +89,10 @@ def _vc_answer(model: ChatModel, prompt: str, images: tuple[np.ndarray, ...], qu
     problems = list(parsed.problems)
     classes = group_answers(question, parsed.candidates, grouper, problems)
     answer, confidence = argmax(classes)
+    if m == 1 and len(parsed.candidates) == 1:
+        # One guess (ExploreEQA's per-step answer): normalising would make every confidence 1,
+        # so its own verbalized confidence (0-100) is the confidence.
+        confidence = min(max(parsed.candidates[0].confidence / 100.0, 0.0), 1.0)
     return AnswerResult(answer, confidence, classes, normalise(parsed.candidates), problems, raw,
                         _usage(resp))
 
