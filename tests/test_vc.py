@@ -33,6 +33,7 @@ from efficienteqa.models.vc import (
     parse_worth_exploring,
     yes_prob_from_logprobs,
 )
+from efficienteqa.models.vc.calls import answer_token_probability
 
 # ---------------------------------------------------------------------------- fuzz
 
@@ -347,6 +348,17 @@ def test_one_guess_keeps_its_own_confidence(reply, confidence):
     result = answer_with_confidence(StubChatModel([reply]), "What colour is the sofa?",
                                     ["a black sofa"], RuleGrouper(), m=1)
     assert result.confidence == pytest.approx(confidence)
+
+
+def test_token_answer_probability_is_that_of_the_first_line():
+    """The product of the answer's token probabilities: leading whitespace and everything after
+    the first line are left out, whatever their probabilities."""
+    tokens = [TokenLogprob("\n", math.log(0.5)), TokenLogprob("black", 0.0),
+              TokenLogprob(" sofa", math.log(0.8)), TokenLogprob("\n", math.log(0.9)),
+              TokenLogprob("red", math.log(0.1))]
+    stub = StubChatModel(["\nblack sofa\nred"], logprob_fn=lambda text, top: tokens)
+    result = answer_token_probability(stub, "What is by the window?", ["a black sofa"])
+    assert result.answer == "black sofa" and result.confidence == pytest.approx(0.8)
 
 
 def test_answer_with_confidence_malformed_and_images():

@@ -234,10 +234,13 @@ def answer_token_probability(model: ChatModel, question: str,
                       logprobs=1)
     raw = resp.text or ""
     problems: list[str] = []
-    logprob = 0.0
+    logprob, started = 0.0, False
     for token in resp.logprobs or []:
-        if "\n" in token.token and logprob != 0.0:
-            break
+        if not started and not token.token.strip():
+            continue  # leading whitespace is not part of the answer (``raw.strip()``)
+        if started and "\n" in token.token:
+            break  # the first line is the answer
+        started = True
         if math.isfinite(token.logprob):
             logprob += token.logprob
     if not resp.logprobs:
