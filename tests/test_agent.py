@@ -10,7 +10,7 @@ import pytest
 
 from agent_stubs import MentionScorer, averse_model, seeking_model, token_seeking_model
 from conftest import needs_egl, needs_small_model
-from efficienteqa.agent import STOP_REASONS, Agent, AgentConfig
+from efficienteqa.agent import Agent, AgentConfig
 from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import generate_house
@@ -69,7 +69,7 @@ def test_a_model_that_points_at_the_evidence_stops_early_and_answers_right(house
 def test_a_model_that_never_points_at_it_runs_to_the_budget(house4, tmp_path):
     scene, q = house4
     r = _episode(scene, q, averse_model, tmp_path, max_steps=20).result
-    assert r.stop_reason == "budget" and r.steps == 20 and r.stop_reason in STOP_REASONS
+    assert r.stop_reason == "budget" and r.steps == 20
     assert r.answer == "unknown"
     assert all(not rec.check.stop for rec in r.records if rec.check)
 

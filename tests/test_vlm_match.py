@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from efficienteqa.models.stub import StubChatModel
+from efficienteqa.models.vc import DEFAULT_P_YES
 from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
 
@@ -19,7 +20,7 @@ def test_yes_no_confidence_is_the_match_probability(reply, p_yes):
 
 def test_unreadable_reply_is_neutral_and_recorded():
     scorer = VLMMatchScorer(StubChatModel(["maybe"]))
-    assert 0.0 <= scorer.score("Where is the sofa?", text="x") <= 1.0 and scorer.problems
+    assert scorer.score("Where is the sofa?", text="x") == DEFAULT_P_YES and scorer.problems
 
 
 def test_image_modality_sends_the_frame():

@@ -25,7 +25,6 @@ T = TypeVar("T")
 TOP_K = 5
 # How a model's confidence is read: asked for in words (black-box), or from token probabilities.
 Confidence = Literal["verbalized", "token"]
-CONFIDENCES = ("verbalized", "token")
 
 
 @dataclass(frozen=True)
