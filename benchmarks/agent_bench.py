@@ -20,10 +20,10 @@ from pathlib import Path
 
 from efficienteqa.agent import StepRecord
 from efficienteqa.ask import ask
-from efficienteqa.envs.base import Observation
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.module import ExploreStep
+from efficienteqa.observation import Observation
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stack import Stack
 

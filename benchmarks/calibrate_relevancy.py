@@ -40,7 +40,7 @@ from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.module import ExploreModule
-from efficienteqa.explore.references import make_explorer
+from efficienteqa.explore.registry import make_explorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION
 from efficienteqa.perception.semantic import SemanticPerception

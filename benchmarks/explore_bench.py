@@ -26,7 +26,7 @@ from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.module import ExploreModule, SemanticScorer
 from efficienteqa.explore.oracle import OracleScorer, evidence_distance_field
-from efficienteqa.explore.references import make_explorer
+from efficienteqa.explore.registry import make_explorer
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.scenes import synthetic_questions
 

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from efficienteqa.envs.synthetic.env import SyntheticEnv
+from efficienteqa.envs.synthetic.labels import HouseLabels
 from efficienteqa.explore.prompting import candidate_points
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import Mapper
@@ -30,7 +31,7 @@ from efficienteqa.models.vc import (
     answer_with_confidence,
     explore_scores,
 )
-from efficienteqa.perception.semantic import describe_directions, describe_frame, house_labels
+from efficienteqa.perception.semantic import describe_directions, describe_frame
 from efficienteqa.scenes import synthetic_questions
 
 
@@ -39,7 +40,7 @@ def frames(env: SyntheticEnv, n: int):
     lo, hi = env.bounds
     rng = np.random.default_rng(0)
     cells = np.argwhere(env.grid.navigable(0.3))
-    labels = house_labels(env.house)
+    labels = HouseLabels(env.house)
     out = []
     while len(out) < n:
         x, y = env.grid.spec.cell_to_world(cells[rng.integers(len(cells))])

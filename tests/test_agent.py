@@ -15,10 +15,10 @@ from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.explore.prompting import CIRCLE_FILL
 from efficienteqa.geometry import CameraSpec
 from efficienteqa.models.base import Capabilities
 from efficienteqa.models.stub import StubChatModel
+from efficienteqa.perception.image import CIRCLE_FILL
 from efficienteqa.relevancy.text import WordOverlapScorer
 from efficienteqa.scenes import Scene, synthetic_questions
 from efficienteqa.stack import Stack, build_agent, parse_vlm

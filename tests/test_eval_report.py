@@ -19,7 +19,7 @@ from efficienteqa.agent import AgentConfig
 from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
 from efficienteqa.eval.summary import RunSummary, ablations, distinct_labels, summarise
 from efficienteqa.eval.tables import SEMANTIC_WARNING, read_summaries, write_report
-from efficienteqa.report.episode import write_json
+from efficienteqa.records import write_json
 from efficienteqa.stop.relevancy import StopConfig
 
 BACKENDS = {"environment": "synthetic-builtin", "perception": "semantic-sensor",

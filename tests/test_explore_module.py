@@ -7,7 +7,7 @@ from conftest import needs_egl
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.explore.module import ExploreModule, SemanticScore
-from efficienteqa.explore.references import make_explorer
+from efficienteqa.explore.registry import make_explorer
 from efficienteqa.geometry import CameraSpec
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.tsdf import VolumeSpec

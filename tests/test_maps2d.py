@@ -8,7 +8,6 @@ import numpy as np
 from scipy import ndimage
 
 from conftest import needs_egl
-from efficienteqa.envs.base import Observation
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.maps2d import (
@@ -21,6 +20,7 @@ from efficienteqa.mapping.maps2d import (
 )
 from efficienteqa.mapping.navgrid import OccupancyGrid, truncate_path
 from efficienteqa.mapping.tsdf import TSDFVolume, VolumeSpec
+from efficienteqa.observation import Observation
 
 
 def room_volume() -> TSDFVolume:

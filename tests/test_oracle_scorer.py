@@ -1,9 +1,8 @@
 import numpy as np
 
-from efficienteqa.envs.base import Observation
 from efficienteqa.explore.oracle import OracleScorer
-from efficienteqa.explore.prompting import PromptPoint
 from efficienteqa.geometry import Pose2D
+from efficienteqa.observation import Observation, PromptPoint
 
 EVIDENCE = np.array([10.0, 0.0])
 

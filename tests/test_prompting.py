@@ -7,17 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from efficienteqa.explore.prompting import (
-    CIRCLE_FILL,
-    PromptPoint,
-    candidate_points,
-    draw_prompts,
-    project_floor_points,
-)
+from efficienteqa.explore.prompting import candidate_points, project_floor_points
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.navgrid import OccupancyGrid
 from efficienteqa.mapping.state import MapState
+from efficienteqa.observation import PromptPoint
+from efficienteqa.perception.image import CIRCLE_FILL, draw_prompts
 
 CAMERA = CameraSpec()  # 640 x 480, 120 deg, 1.5 m, pitched 30 deg down
 SPEC = GridSpec((0.0, 0.0), 0.1, (80, 120))  # 12 m x 8 m

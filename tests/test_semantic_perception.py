@@ -11,16 +11,16 @@ import numpy as np
 import pytest
 
 from conftest import needs_egl
-from efficienteqa.envs.base import Observation
+from efficienteqa.envs.base import ObjectLabel
 from efficienteqa.envs.synthetic.colours import PALETTE
-from efficienteqa.explore.prompting import PromptPoint, project_floor_points
+from efficienteqa.envs.synthetic.labels import HouseLabels
+from efficienteqa.explore.prompting import project_floor_points
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
+from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception import (
     NoiseConfig,
-    ObjectLabel,
     describe_directions,
     describe_frame,
-    house_labels,
 )
 from efficienteqa.perception.semantic import bearing_words, scaled_min_pixels
 
@@ -151,7 +151,7 @@ def test_synthetic_house_descriptions_match_the_instance_buffer():
     from efficienteqa.envs.synthetic.env import SyntheticEnv
 
     with SyntheticEnv.from_seed(3, assets="builtin", camera=CameraSpec().scaled(160, 120)) as env:
-        labels = house_labels(env.house)
+        labels = HouseLabels(env.house)
         obs, _ = env.reset()
         for turn in range(4):
             obs = env.observe(Pose2D(obs.pose.x, obs.pose.y, env.house.start.yaw + turn * 1.6))
@@ -181,7 +181,7 @@ def test_relevancy_text_is_one_object_per_line_with_its_room():
 
 def test_doors_are_named_by_the_rooms_they_join(catalog):
     from efficienteqa.envs.synthetic.generate import generate_house
-    from efficienteqa.perception.semantic import HouseLabels
+    from efficienteqa.envs.synthetic.labels import HouseLabels
 
     house = generate_house(3, catalog, "builtin")
     labels = HouseLabels(house)

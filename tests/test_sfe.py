@@ -10,7 +10,8 @@ from scipy import ndimage
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.frontiers import extract_frontiers, frontier_weights
-from efficienteqa.explore.references import RandomExplorer, make_explorer
+from efficienteqa.explore.random_walk import RandomExplorer
+from efficienteqa.explore.registry import make_explorer
 from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig, cut_path, sample_index
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec

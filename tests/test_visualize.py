@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from efficienteqa.explore.base import Frontier
-from efficienteqa.explore.prompting import PromptPoint
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.visualize import FREE, FRONTIER, OCCUPIED, map_image, world_to_image
+from efficienteqa.observation import PromptPoint
 
 SPEC = GridSpec((-1.0, 2.0), 0.1, (20, 30))  # 3 m wide (x), 2 m tall (y)
 

@@ -27,7 +27,7 @@ from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
 from efficienteqa.explore.module import ExploreModule, ExploreStep, SemanticScorer
-from efficienteqa.explore.references import make_explorer
+from efficienteqa.explore.registry import make_explorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
 from efficienteqa.mapping.state import MapState

@@ -6,15 +6,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
-from efficienteqa.envs.base import Observation
 from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.explore.module import ExploreStep
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.visualize import map_image
 from efficienteqa.models.base import ChatModel
 from efficienteqa.models.client import encode_image
+from efficienteqa.observation import Observation
+from efficienteqa.records import write_json
 from efficienteqa.relevancy.base import RelevancyScorer
-from efficienteqa.report.episode import episode_record, write_json
+from efficienteqa.report.episode import episode_record
 from efficienteqa.report.frames import FrameCollector
 from efficienteqa.report.html import write_report
 from efficienteqa.scenes import Scene, open_scene

@@ -13,28 +13,29 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from efficienteqa.geometry import CameraSpec, Pose2D
+from efficienteqa.observation import Observation
 
 
-@dataclass
-class Observation:
-    """One RGB-D frame in canonical form.
+@dataclass(frozen=True)
+class ObjectLabel:
+    """What the semantic sensor knows about an instance id. ``state`` only where the object has
+    one ("on"/"off", "open"/"closed"); ``room`` is the name of the room it stands in; ``place``,
+    where set, says where it is in words that name it apart ("between the kitchen and the
+    hallway" for a door, as people and the questions refer to doors)."""
 
-    rgb: (H, W, 3) uint8. depth_m: (H, W) float32 metres along the optical axis, 0 = no
-    surface. instance: (H, W) int32 object id, 0 = structure (walls, floors), -1 = nothing, or
-    None where the back-end has no instance sensor. cam_to_world: 4x4 (OpenCV camera axes).
-    """
+    category: str
+    colour: str | None
+    state: str | None
+    room: str | None
+    place: str | None = None
 
-    rgb: np.ndarray
-    depth_m: np.ndarray
-    cam_to_world: np.ndarray
-    intrinsics: np.ndarray
-    pose: Pose2D
-    instance: np.ndarray | None = None
 
-    @property
-    def invalid_fraction(self) -> float:
-        """Share of pixels without depth (SPEC 3.1: frames >= 0.5 are not sent to models)."""
-        return float(np.mean(self.depth_m <= 0))
+class SceneLabels(Protocol):
+    """The semantic sensor of a scene: labels of instance ids and names of rooms at floor points."""
+
+    def label(self, instance_id: int) -> ObjectLabel | None: ...
+
+    def room_at(self, x: float, y: float) -> str | None: ...
 
 
 @runtime_checkable

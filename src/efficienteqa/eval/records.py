@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.report.episode import write_json
+from efficienteqa.records import write_json
 
 RUN_FILE = "run.json"
 EPISODES_FILE = "episodes.jsonl"

@@ -28,7 +28,7 @@ from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.methods import RunSpec, resolve
 from efficienteqa.eval.records import EPISODES_FILE, append_episode, open_run
-from efficienteqa.report.episode import code_version, plain
+from efficienteqa.records import code_version, plain
 
 Progress = Callable[[dict[str, Any]], None]
 
@@ -62,7 +62,7 @@ def rejudge(out: Path, judge_spec: str, mode: str,
     computes it (a failed episode scores 0)."""
     from efficienteqa.eval.records import RUN_FILE, read_run
     from efficienteqa.eval.summary import summarise
-    from efficienteqa.report.episode import write_json
+    from efficienteqa.records import write_json
 
     manifest, episodes = read_run(out)
     judge = build_judge(judge_spec, mode)

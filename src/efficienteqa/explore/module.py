@@ -13,12 +13,12 @@ from typing import Protocol
 
 import numpy as np
 
-from efficienteqa.envs.base import Observation
 from efficienteqa.explore.base import Decision, Explorer
-from efficienteqa.explore.prompting import PromptPoint, candidate_points
+from efficienteqa.explore.prompting import candidate_points
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.values import SemanticValueMap, gsv_from_yes, lsv_from_confidences
+from efficienteqa.observation import Observation, PromptPoint
 
 VALUE_WARMUP_STEPS = 2  # SPEC 3.2: value terms are off for the first 2 steps
 

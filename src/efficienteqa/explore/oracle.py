@@ -15,10 +15,9 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from efficienteqa.envs.base import Observation
 from efficienteqa.explore.module import SemanticScore
-from efficienteqa.explore.prompting import PromptPoint
 from efficienteqa.mapping.navgrid import OccupancyGrid
+from efficienteqa.observation import Observation, PromptPoint
 
 
 class OracleScorer:

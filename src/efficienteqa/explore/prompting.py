@@ -1,6 +1,7 @@
 """Visual prompting (SPEC 3.3): pick up to three floor points in view and letter them on the frame.
 
-Geometry is pure (``project_floor_points``, ``candidate_points``); ``draw_prompts`` only draws.
+Geometry only (``project_floor_points``, ``candidate_points``); drawing the letters on the frame is
+``perception.image.draw_prompts`` (what a vision-language model sees).
 Pixels follow OpenCV: u right, v down, continuous, pixel (col k, row l) spans [k, k+1) x [l, l+1)
 so its centre is (k + 0.5, l + 0.5) — the convention of ``geometry.backproject``.
 """
@@ -8,27 +9,15 @@ so its centre is (k + 0.5, l + 0.5) — the convention of ``geometry.backproject
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
-from PIL import Image, ImageDraw, ImageFont
 
 from efficienteqa.mapping.navgrid import OccupancyGrid
 from efficienteqa.mapping.state import MapState
+from efficienteqa.observation import PromptPoint
 
 LETTERS = "ABC"
-CIRCLE_RADIUS_PX = 18
-CIRCLE_FILL = (220, 220, 220)  # light grey
 _LOS_CHUNK = 2048  # candidates per vectorised line-of-sight batch (bounds memory)
-
-
-@dataclass(frozen=True)
-class PromptPoint:
-    """A lettered candidate: world floor point ``xy`` (m, z = 0) and its ``pixel`` (u, v)."""
-
-    letter: str
-    xy: tuple[float, float]
-    pixel: tuple[float, float]
 
 
 def project_floor_points(xy: np.ndarray, cam_to_world: np.ndarray, intrinsics: np.ndarray
@@ -140,25 +129,3 @@ def _farthest_points(xy: np.ndarray, free: OccupancyGrid, robot_xy: Sequence[flo
         min_d = np.minimum(min_d, np.linalg.norm(xy - xy[k], axis=1))
     return chosen
 
-
-def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
-    try:
-        return ImageFont.load_default(size=size)  # Pillow >= 10.1
-    except TypeError:
-        return ImageFont.load_default()
-
-
-def draw_prompts(rgb: np.ndarray, points: Sequence[PromptPoint],
-                 radius_px: int = CIRCLE_RADIUS_PX) -> np.ndarray:
-    """A copy of ``rgb`` (H, W, 3) uint8 with each point as a light grey disk, black outline and
-    its letter centred in black."""
-    image = Image.fromarray(np.ascontiguousarray(rgb, dtype=np.uint8))
-    draw = ImageDraw.Draw(image)
-    font = _font(int(radius_px * 1.3))
-    for p in points:
-        cu, cv = p.pixel[0] - 0.5, p.pixel[1] - 0.5  # Pillow puts pixel centres on integers
-        draw.ellipse((cu - radius_px, cv - radius_px, cu + radius_px, cv + radius_px),
-                     fill=CIRCLE_FILL, outline=(0, 0, 0), width=2)
-        x0, y0, x1, y1 = draw.textbbox((0, 0), p.letter, font=font)
-        draw.text((cu - (x0 + x1) / 2, cv - (y0 + y1) / 2), p.letter, fill=(0, 0, 0), font=font)
-    return np.asarray(image).copy()

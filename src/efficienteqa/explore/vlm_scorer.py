@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from efficienteqa.envs.base import Observation
 from efficienteqa.explore.module import SemanticScore
-from efficienteqa.explore.prompting import PromptPoint
 from efficienteqa.models.base import ChatModel
 from efficienteqa.models.vc.calls import explore_scores, explore_token_scores
 from efficienteqa.models.vc.parse import M
+from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception.base import Perception
 
 

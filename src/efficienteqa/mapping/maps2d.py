@@ -13,10 +13,10 @@ from typing import Protocol
 import numpy as np
 from scipy import ndimage
 
-from efficienteqa.envs.base import Observation
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.tsdf import EXPLORED_WINDOW, TSDFVolume, VolumeSpec
+from efficienteqa.observation import Observation
 
 MAX_INVALID_FRACTION = 0.5  # SPEC 3.1: frames with at least this share of no-depth pixels
 

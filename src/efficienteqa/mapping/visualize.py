@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -17,9 +17,24 @@ from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState
 
-if TYPE_CHECKING:  # type hints only: mapping must not import explore at run time
-    from efficienteqa.explore.base import Frontier
-    from efficienteqa.explore.prompting import PromptPoint
+if TYPE_CHECKING:
+    from efficienteqa.observation import PromptPoint
+
+
+
+class FrontierMark(Protocol):
+    """What a frontier needs to be drawn (``explore.base.Frontier`` has it; mapping sits below
+    explore and does not import it): its point and outward normal (m) and its size (cells)."""
+
+    @property
+    def xy(self) -> tuple[float, float]: ...
+
+    @property
+    def normal(self) -> tuple[float, float]: ...
+
+    @property
+    def size(self) -> int: ...
+
 
 UNOBSERVED = (64, 64, 64)
 FREE = (235, 235, 235)
@@ -68,7 +83,7 @@ def _disk(draw: ImageDraw.ImageDraw, uv: np.ndarray, r: float, **kw: object) -> 
 
 
 def map_image(state: MapState, values: np.ndarray | None = None,
-              frontiers: Sequence[Frontier] = (), trajectory: Sequence[Pose2D] = (),
+              frontiers: Sequence[FrontierMark] = (), trajectory: Sequence[Pose2D] = (),
               target_xy: Sequence[float] | None = None, prompts: Sequence[PromptPoint] = (),
               scale: int = 4) -> np.ndarray:
     """(rows*scale, cols*scale, 3) uint8 top-down picture of ``state`` (north up).

@@ -16,8 +16,7 @@ from typing import TYPE_CHECKING, Literal, Protocol
 import numpy as np
 
 if TYPE_CHECKING:
-    from efficienteqa.envs.base import Observation
-    from efficienteqa.explore.prompting import PromptPoint
+    from efficienteqa.observation import Observation, PromptPoint
 
 Modality = Literal["image", "text"]
 

@@ -6,13 +6,15 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
+from PIL import Image, ImageDraw, ImageFont
 
-from efficienteqa.explore.prompting import draw_prompts
 from efficienteqa.perception.base import ExploreRequest, Modality
 
+CIRCLE_RADIUS_PX = 18
+CIRCLE_FILL = (220, 220, 220)  # light grey
+
 if TYPE_CHECKING:
-    from efficienteqa.envs.base import Observation
-    from efficienteqa.explore.prompting import PromptPoint
+    from efficienteqa.observation import Observation, PromptPoint
 
 
 class ImagePerception:
@@ -31,3 +33,26 @@ class ImagePerception:
 
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest:
         return ExploreRequest("", [p.letter for p in prompts], (draw_prompts(obs.rgb, prompts),))
+
+
+def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+    try:
+        return ImageFont.load_default(size=size)  # Pillow >= 10.1
+    except TypeError:
+        return ImageFont.load_default()
+
+
+def draw_prompts(rgb: np.ndarray, points: Sequence[PromptPoint],
+                 radius_px: int = CIRCLE_RADIUS_PX) -> np.ndarray:
+    """A copy of ``rgb`` (H, W, 3) uint8 with each point as a light grey disk, black outline and
+    its letter centred in black."""
+    image = Image.fromarray(np.ascontiguousarray(rgb, dtype=np.uint8))
+    draw = ImageDraw.Draw(image)
+    font = _font(int(radius_px * 1.3))
+    for p in points:
+        cu, cv = p.pixel[0] - 0.5, p.pixel[1] - 0.5  # Pillow puts pixel centres on integers
+        draw.ellipse((cu - radius_px, cv - radius_px, cu + radius_px, cv + radius_px),
+                     fill=CIRCLE_FILL, outline=(0, 0, 0), width=2)
+        x0, y0, x1, y1 = draw.textbbox((0, 0), p.letter, font=font)
+        draw.text((cu - (x0 + x1) / 2, cv - (y0 + y1) / 2), p.letter, fill=(0, 0, 0), font=font)
+    return np.asarray(image).copy()

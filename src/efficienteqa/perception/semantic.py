@@ -15,17 +15,16 @@ import math
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from efficienteqa.envs.base import ObjectLabel, SceneLabels
 from efficienteqa.geometry import backproject
 from efficienteqa.perception.base import ExploreRequest, Modality
 
 if TYPE_CHECKING:
-    from efficienteqa.envs.base import Observation
-    from efficienteqa.envs.synthetic.house import House
-    from efficienteqa.explore.prompting import PromptPoint
+    from efficienteqa.observation import Observation, PromptPoint
 
 REFERENCE_AREA_PX = 640 * 480
 REFERENCE_MIN_PIXELS = 150  # at 640x480; scaled with image area
@@ -38,55 +37,6 @@ WINDOW_FRACTION = 0.05  # half-width of the pixel window around a prompt point, 
 _NUMBER_WORDS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
 _DISPLAY = {"tv": "TV", "tv stand": "TV stand"}
 _CELL_OFFSET = 1 << 20  # keeps cell indices non-negative for the 1-D cell key
-
-
-@dataclass(frozen=True)
-class ObjectLabel:
-    """What the semantic sensor knows about an instance id. ``state`` only where the object has
-    one ("on"/"off", "open"/"closed"); ``room`` is the name of the room it stands in; ``place``,
-    where set, says where it is in words that name it apart ("between the kitchen and the
-    hallway" for a door, as people and the questions refer to doors)."""
-
-    category: str
-    colour: str | None
-    state: str | None
-    room: str | None
-    place: str | None = None
-
-
-class SceneLabels(Protocol):
-    """The semantic sensor of a scene: labels of instance ids and names of rooms at floor points."""
-
-    def label(self, instance_id: int) -> ObjectLabel | None: ...
-
-    def room_at(self, x: float, y: float) -> str | None: ...
-
-
-class HouseLabels:
-    """``SceneLabels`` of a synthetic house (doors are objects of category "door")."""
-
-    def __init__(self, house: House) -> None:
-        self._layout = house.layout
-        rooms = {r.id: r.name for r in house.layout.rooms}
-        doors = {int(obj): house.layout.doors[int(door)]
-                 for door, obj in house.meta.get("door_objects", {}).items()}
-        places = {obj: f"between the {rooms[d.room_a]} and "
-                       + (f"the {rooms[d.room_b]}" if d.room_b in rooms else "the outside")
-                  for obj, d in doors.items() if d.room_a in rooms}
-        self._labels = {o.id: ObjectLabel(o.category, o.colour or None, o.state,
-                                          rooms.get(o.room_id), places.get(o.id))
-                        for o in house.objects}
-
-    def label(self, instance_id: int) -> ObjectLabel | None:
-        return self._labels.get(int(instance_id))
-
-    def room_at(self, x: float, y: float) -> str | None:
-        room = self._layout.room_at(x, y)
-        return room.name if room is not None else None
-
-
-def house_labels(house: House) -> HouseLabels:
-    return HouseLabels(house)
 
 
 @dataclass(frozen=True)

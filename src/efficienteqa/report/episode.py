@@ -2,49 +2,12 @@
 
 from __future__ import annotations
 
-import json
-import math
-import os
-import subprocess
-import tempfile
 from collections.abc import Sequence
-from dataclasses import asdict, is_dataclass
-from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-import efficienteqa
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepRecord
 from efficienteqa.models.recording import Exchange
-
-
-def code_version() -> str:
-    """The package version, plus the git commit (and "-dirty") when run from a checkout."""
-    root = Path(__file__).resolve().parents[3]
-    try:
-        commit = subprocess.run(["git", "-C", str(root), "describe", "--always", "--dirty"],
-                                capture_output=True, text=True, timeout=5, check=True).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        commit = ""
-    return f"{efficienteqa.__version__}+{commit}" if commit else efficienteqa.__version__
-
-
-def plain(value: Any) -> Any:
-    """JSON-safe: dataclasses, tuples, numpy scalars and arrays; NaN/inf become None."""
-    if is_dataclass(value) and not isinstance(value, type):
-        return plain(asdict(value))
-    if isinstance(value, dict):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return plain(value.tolist())
-    if isinstance(value, np.generic):
-        return plain(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+from efficienteqa.records import code_version, plain
 
 
 def step_dict(r: StepRecord) -> dict[str, Any]:
@@ -86,13 +49,3 @@ def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict
                    "per_step_s": round((result.wall_s - result.answer_s) / max(result.steps, 1), 3)},
         "backends": backends, "config": config, "code_version": code_version(),
     })
-
-
-def write_json(path: Path, data: dict[str, Any]) -> Path:
-    """Written atomically (temporary file, then rename): a reader never sees half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        json.dump(data, f, indent=1, allow_nan=False)
-    os.replace(tmp, path)
-    return path

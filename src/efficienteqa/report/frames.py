@@ -5,10 +5,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from efficienteqa.agent import StepRecord
-from efficienteqa.envs.base import Observation
 from efficienteqa.explore.module import ExploreStep
-from efficienteqa.explore.prompting import draw_prompts
 from efficienteqa.models.client import encode_image
+from efficienteqa.observation import Observation
+from efficienteqa.perception.image import draw_prompts
 
 THUMB_WIDTH_PX = 320
 

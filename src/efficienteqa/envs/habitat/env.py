@@ -20,12 +20,12 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.envs.base import Observation
 from efficienteqa.envs.habitat import frames
 from efficienteqa.envs.habitat.labels import HabitatLabels
 from efficienteqa.envs.habitat.scenes import HabitatStart, SceneFiles
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D
+from efficienteqa.observation import Observation
 
 log = logging.getLogger(__name__)
 

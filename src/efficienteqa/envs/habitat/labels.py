@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.perception.semantic import ObjectLabel
+from efficienteqa.envs.base import ObjectLabel
 
 STRUCTURE = frozenset({"", "wall", "floor", "ceiling", "unknown", "misc", "void", "objects",
                        "remove", "unlabeled"})

@@ -6,7 +6,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from efficienteqa.envs.base import Observation
 from efficienteqa.envs.synthetic.build import build_geometry
 from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house, navigation_grid
@@ -16,9 +15,10 @@ from efficienteqa.envs.synthetic.primitives import builtin_catalog
 from efficienteqa.envs.synthetic.render import Renderer
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
+from efficienteqa.observation import Observation
 
 if TYPE_CHECKING:
-    from efficienteqa.perception.semantic import HouseLabels
+    from efficienteqa.envs.synthetic.labels import HouseLabels
 
 
 def catalog_for(assets: str, cc_by: bool = False) -> Catalog:
@@ -94,7 +94,7 @@ class SyntheticEnv:
 
     def scene_labels(self) -> HouseLabels:
         """The semantic sensor: object labels and room names (for semantic-sensor perception)."""
-        from efficienteqa.perception.semantic import HouseLabels
+        from efficienteqa.envs.synthetic.labels import HouseLabels
 
         return HouseLabels(self.house)
 

@@ -1,20 +1,14 @@
-"""Reference explorers and the explorer registry.
-
-``make_explorer(name, **config)`` builds "sfe", "frontier-only" or "random"; ``config`` holds
-fields of the explorer's config dataclass (``SFEConfig`` or ``RandomConfig``).
-"""
+"""The random-walk reference explorer: a uniformly random reachable cell within one step."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from efficienteqa.errors import EfficientEQAError
-from efficienteqa.explore.base import Decision, Explorer
-from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig, cut_path
+from efficienteqa.explore.base import Decision
+from efficienteqa.explore.sfe import cut_path
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.state import MapState
 
@@ -66,29 +60,3 @@ class RandomExplorer:
         yaw = math.atan2(d[1], d[0]) if np.linalg.norm(d) > 1e-9 else pose.yaw
         return Decision(Pose2D(float(path[-1][0]), float(path[-1][1]), yaw), path,
                         target_xy=(float(goal[0]), float(goal[1])), reason="random cell")
-
-
-def _sfe(**config) -> Explorer:
-    return FrontierExplorer(SFEConfig(**config))
-
-
-def _frontier_only(**config) -> Explorer:
-    return FrontierExplorer(SFEConfig(**{**config, "use_values": False}))
-
-
-def _random(**config) -> Explorer:
-    return RandomExplorer(RandomConfig(**config))
-
-
-EXPLORERS: dict[str, Callable[..., Explorer]] = {
-    "sfe": _sfe,
-    "frontier-only": _frontier_only,
-    "random": _random,
-}
-
-
-def make_explorer(name: str, **config) -> Explorer:
-    """The explorer registered as ``name``; ``config`` overrides its config fields."""
-    if name not in EXPLORERS:
-        raise EfficientEQAError(f"unknown explorer {name!r}", f"choose one of {sorted(EXPLORERS)}")
-    return EXPLORERS[name](**config)
