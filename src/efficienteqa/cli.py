@@ -6,12 +6,14 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import Annotated
 
 import typer
 from rich.console import Console
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
+from efficienteqa.stop.relevancy import StopConfig  # light: help texts show its defaults
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="EfficientEQA: explore a house, stop early, answer a question.")
@@ -35,21 +37,51 @@ def _parse_start(text: str | None) -> Pose2D | None:
     return Pose2D(x, y, math.radians(yaw_deg))
 
 
-def _options(ctx: typer.Context, preset: str | None) -> dict:
-    """The command's options, with the preset's values for those left at their defaults."""
-    from efficienteqa.presets import apply_preset
-
-    # By name: Typer may carry its own copy of click, with its own ParameterSource enum.
-    sources = {name: ctx.get_parameter_source(name) for name in ctx.params}
-    defaulted = {name for name, source in sources.items()
-                 if source is None or source.name in ("DEFAULT", "DEFAULT_MAP")}
-    return apply_preset(preset, ctx.params, defaulted)
-
-
 PRESET_HELP = "paper: the paper's set-up (HM-EQA's first 100 in Habitat-Sim, GPT-4o at T=1 on " \
               "RGB, BLIP-2 ITM, Z_th 3, K 5); fills only options not given."
 ENV_HELP = "synthetic (generated houses) | habitat (Habitat-Sim + HM3D; needs --hm3d-root)."
 HM3D_HELP = "Folder holding the HM3D scene folders, e.g. 00800-TEEsavR23oF/ (see docs/habitat.md)."
+
+# The options of an agent run, declared once for `ask` and `eval`. Left out, an option is None
+# and takes the default of its dataclass (presets.build_stack / build_config): no default is
+# written twice.
+ZTh = Annotated[float | None, typer.Option("--z-th", help="Stop when a frame's relevancy z-score "
+                                           f"exceeds this (default {StopConfig.z_th:g}).",
+                                           show_default=False)]
+MinStopStep = Annotated[int | None, typer.Option(help="Never stop before this step (default "
+                                                 f"{StopConfig.min_step}).", show_default=False)]
+NoEarlyStop = Annotated[bool, typer.Option("--no-early-stop", help="Explore to the budget.")]
+TopK = Annotated[int | None, typer.Option("--top-k", help="Frames retrieved for the answer "
+                                          "(the paper's K).", show_default=False)]
+MaxSteps = Annotated[int | None, typer.Option(help="Step budget (default int(sqrt(area)*3)).")]
+Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
+                                          show_default=False)]
+Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
+                                         "openai:MODEL[@BASE_URL] (key in OPENAI_API_KEY).",
+                                         show_default=False)]
+Temperature = Annotated[float | None, typer.Option(help="The VLM's sampling temperature for every "
+                                                   "call (default 0).", show_default=False)]
+PerceptionOpt = Annotated[str | None, typer.Option(
+    "--perception", help="semantic (object labels as text; default) | rgb (pixels, needs an image "
+    "VLM).", show_default=False)]
+Relevancy = Annotated[str | None, typer.Option(
+    help="minilm (default) | minilm-match (MiniLM calibrated to a match probability) | overlap | "
+    "vlm-match (the VLM answers 'does this view show it?') | blip2-itm | clip | siglip.",
+    show_default=False)]
+Grouping = Annotated[str | None, typer.Option(help="How equivalent answers are grouped: llm "
+                                              "(default) | rules.", show_default=False)]
+Cache = Annotated[bool | None, typer.Option("--cache/--no-cache", help="Replay identical model "
+                                            "requests from the response cache (default on).",
+                                            show_default=False)]
+Env = Annotated[str | None, typer.Option(help=ENV_HELP + " Default synthetic.", show_default=False)]
+Hm3dRoot = Annotated[Path | None, typer.Option(help=HM3D_HELP)]
+HmEqaPath = Annotated[Path | None, typer.Option(help="Folder with HM-EQA's questions.csv and "
+                                                "scene_init_poses.csv (default: downloaded).")]
+Assets = Annotated[str, typer.Option(help="'sh3d' (furniture package) or 'builtin' (boxes).")]
+Preset = Annotated[str | None, typer.Option(help=PRESET_HELP)]
+Dataset = Annotated[str | None, typer.Option(help="synthetic (the fixed split; default) | "
+                                             "synthetic:SEEDS (e.g. synthetic:0-9) | hm-eqa.",
+                                             show_default=False)]
 
 
 @app.command("ask")
@@ -64,48 +96,39 @@ def ask_command(
                                 "synthetic:SEEDS."),
     out: Path = typer.Option(Path("out/ask"), help="Folder for episode.json and report.html."),
     start: str | None = typer.Option(None, help="Start pose X,Y,YAW_DEG (default: the scene's)."),
-    z_th: float = typer.Option(3.0, "--z-th", help="Stop when a frame's relevancy z-score exceeds this."),
-    min_stop_step: int = typer.Option(10, help="Never stop before this step."),
-    no_early_stop: bool = typer.Option(False, "--no-early-stop", help="Explore to the budget."),
-    top_k: int = typer.Option(5, "--top-k", help="Frames retrieved for the answer."),
-    max_steps: int | None = typer.Option(None, help="Step budget (default int(sqrt(area)*3))."),
-    explorer: str = typer.Option("sfe", help="sfe | frontier-only | random."),
-    vlm: str = typer.Option("local:qwen2.5-coder-1.5b",
-                            help="local:MODEL, or openai:MODEL[@BASE_URL] (key in OPENAI_API_KEY)."),
-    temperature: float | None = typer.Option(None, help="The VLM's sampling temperature for every "
-                                             "call (default 0)."),
-    perception: str = typer.Option("semantic", help="semantic (object labels as text) | rgb (pixels, "
-                                   "needs an image VLM)."),
-    relevancy: str = typer.Option("minilm", help="minilm | minilm-match (MiniLM calibrated to a "
-                                  "match probability) | overlap | vlm-match (the VLM answers "
-                                  "'does this view show it?') | blip2-itm | clip | siglip."),
-    grouping: str = typer.Option("llm", help="How equivalent answers are grouped: llm | rules."),
-    seed: int = typer.Option(0, help="Seed of the explorer's frontier sampling."),
-    env: str = typer.Option("synthetic", help=ENV_HELP),
-    hm3d_root: Path | None = typer.Option(None, help=HM3D_HELP),
-    hm_eqa_path: Path | None = typer.Option(None, help="Folder with HM-EQA's csv files (default: "
-                                            "downloaded)."),
-    assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
-    preset: str | None = typer.Option(None, help=PRESET_HELP),
-    cache: bool = typer.Option(True, "--cache/--no-cache",
-                               help="Replay identical model requests from the response cache."),
+    z_th: ZTh = None,
+    min_stop_step: MinStopStep = None,
+    no_early_stop: NoEarlyStop = False,
+    top_k: TopK = None,
+    max_steps: MaxSteps = None,
+    explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
+                                        show_default=False),
+    vlm: Vlm = None,
+    temperature: Temperature = None,
+    perception: PerceptionOpt = None,
+    relevancy: Relevancy = None,
+    grouping: Grouping = None,
+    seed: Seed = None,
+    env: Env = None,
+    hm3d_root: Hm3dRoot = None,
+    hm_eqa_path: HmEqaPath = None,
+    assets: Assets = "sh3d",
+    preset: Preset = None,
+    cache: Cache = None,
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from efficienteqa.agent import AgentConfig, StepRecord
+    from efficienteqa.agent import StepRecord
     from efficienteqa.ask import ask
     from efficienteqa.envs.habitat.scenes import HabitatStart
+    from efficienteqa.presets import apply_preset, build_config, build_stack
     from efficienteqa.scenes import open_scene
-    from efficienteqa.stack import Stack, parse_vlm
-    from efficienteqa.stop import StopConfig, step_budget
+    from efficienteqa.stack import parse_vlm
+    from efficienteqa.stop import step_budget
 
-    o = _options(ctx, preset)
-    config = AgentConfig(explorer=explorer, top_k=o["top_k"], max_steps=max_steps, seed=seed,
-                         stop=StopConfig(z_th=o["z_th"], min_step=min_stop_step,
-                                         enabled=not no_early_stop))
-    stack = Stack(vlm=o["vlm"], perception=o["perception"], relevancy=o["relevancy"],
-                  grouping=o["grouping"], cache=cache, temperature=o["temperature"])
+    o = apply_preset(preset, ctx.params)
+    config, stack = build_config(o), build_stack(o)
     # Bad input fails before the scene is built.
     parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
     start_pose, habitat_start, reference = _parse_start(start), None, None
@@ -120,7 +143,8 @@ def ask_command(
         raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
                                 'the sofa?", or --episode ID with --dataset')
     with console.status(f"opening {scene}..."):
-        opened = open_scene(scene, assets, env=o["env"], hm3d_root=hm3d_root, start=habitat_start)
+        opened = open_scene(scene, assets, env=o["env"] or "synthetic", hm3d_root=hm3d_root,
+                            start=habitat_start)
     try:
         budget = max_steps or step_budget(opened.env.floor_area_m2)
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
@@ -188,36 +212,35 @@ def eval_command(
     ctx: typer.Context,
     method: str = typer.Option("efficienteqa", help="efficienteqa | explore-eqa | "
                                "explore-eqa-blackbox | blind | frontier-only | random | module:function."),
-    dataset: str = typer.Option("synthetic", help="synthetic (the fixed split) | synthetic:SEEDS "
-                                "(e.g. synthetic:0-9) | hm-eqa."),
+    dataset: Dataset = None,
     out: Path = typer.Option(..., help="Run folder: run.json, episodes.jsonl, episodes/ (resumed "
                              "when it exists)."),
     limit: int | None = typer.Option(None, help="Only the first N questions of the dataset."),
     workers: int = typer.Option(1, help="Episodes in parallel; more than 1 runs on Ray."),
     address: str | None = typer.Option(None, help="A Ray cluster address (default: a local Ray)."),
-    z_th: float = typer.Option(3.0, "--z-th", help="Stop when a frame's relevancy z-score exceeds this."),
-    top_k: int = typer.Option(5, "--top-k", help="Frames retrieved for the answer."),
-    max_steps: int | None = typer.Option(None, help="Step budget (default int(sqrt(area)*3))."),
-    seed: int = typer.Option(0, help="Seed of the explorer's frontier sampling."),
-    vlm: str = typer.Option("local:qwen2.5-coder-1.5b", help="local:MODEL, or openai:MODEL[@BASE_URL]."),
-    temperature: float | None = typer.Option(None, help="The VLM's sampling temperature for every "
-                                             "call (default 0)."),
-    perception: str = typer.Option("semantic", help="semantic | rgb."),
-    relevancy: str = typer.Option("minilm", help="The relevancy scorer (see `ask --help`)."),
-    grouping: str = typer.Option("llm", help="llm | rules."),
-    judge: str = typer.Option("local:qwen2.5-coder-1.5b", help="The LLM-Match judge (a VLM spec), "
-                              "or 'none'."),
-    judge_mode: str = typer.Option("auto", help="grade (the judge says 1-5) | yes-prob (1 + 4 P(yes) "
-                                   "for 'same answer?') | auto (yes-prob for local models)."),
-    hm_eqa_path: Path | None = typer.Option(None, help="Folder with HM-EQA's questions.csv and "
-                                            "scene_init_poses.csv (default: downloaded)."),
-    env: str = typer.Option("synthetic", help=ENV_HELP),
-    hm3d_root: Path | None = typer.Option(None, help=HM3D_HELP),
+    z_th: ZTh = None,
+    min_stop_step: MinStopStep = None,
+    no_early_stop: NoEarlyStop = False,
+    top_k: TopK = None,
+    max_steps: MaxSteps = None,
+    seed: Seed = None,
+    vlm: Vlm = None,
+    temperature: Temperature = None,
+    perception: PerceptionOpt = None,
+    relevancy: Relevancy = None,
+    grouping: Grouping = None,
+    judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec; default "
+                                     "local:qwen2.5-coder-1.5b), or 'none'.", show_default=False),
+    judge_mode: str | None = typer.Option(None, help="grade (the judge says 1-5) | yes-prob (1 + 4 "
+                                          "P(yes) for 'same answer?') | auto (default: yes-prob for "
+                                          "local models).", show_default=False),
+    hm_eqa_path: HmEqaPath = None,
+    env: Env = None,
+    hm3d_root: Hm3dRoot = None,
     reports: bool = typer.Option(False, "--reports", help="Also write each episode's report.html."),
-    assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
-    preset: str | None = typer.Option(None, help=PRESET_HELP),
-    cache: bool = typer.Option(True, "--cache/--no-cache",
-                               help="Replay identical model requests from the response cache."),
+    assets: Assets = "sh3d",
+    preset: Preset = None,
+    cache: Cache = None,
 ) -> None:
     """Run a method on a dataset, resumably: one JSON line per episode, judged by LLM-Match."""
     from rich.progress import (
@@ -229,29 +252,28 @@ def eval_command(
         TimeRemainingColumn,
     )
 
-    from efficienteqa.agent import AgentConfig
     from efficienteqa.datasets import load_dataset
     from efficienteqa.eval.methods import RunSpec, resolve
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
-    from efficienteqa.stack import Stack, parse_vlm
-    from efficienteqa.stop import StopConfig
+    from efficienteqa.presets import apply_preset, build_config, build_stack, given
+    from efficienteqa.stack import parse_vlm
 
-    o = _options(ctx, preset)
+    o = apply_preset(preset, ctx.params)
     resolve(method)  # bad input fails before anything slow
-    parse_vlm(o["vlm"], images=o["perception"] == "rgb", temperature=o["temperature"])
-    judge_spec = None if o["judge"] == "none" else o["judge"]
+    stack = build_stack(o)
+    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
+    judge_spec = o["judge"] or RunSpec.judge
+    judge_spec = None if judge_spec == "none" else judge_spec
     if judge_spec:
         parse_vlm(judge_spec, images=False)
-    questions = load_dataset(o["dataset"], path=hm_eqa_path, limit=o["limit"], assets=assets)
-    spec = RunSpec(method=method, dataset=o["dataset"],
-                   stack=Stack(vlm=o["vlm"], perception=o["perception"], relevancy=o["relevancy"],
-                               grouping=o["grouping"], cache=cache, temperature=o["temperature"]),
-                   config=AgentConfig(top_k=o["top_k"], max_steps=max_steps, seed=seed,
-                                      stop=StopConfig(z_th=o["z_th"])),
-                   judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"], o["judge"]),
-                   reports=reports, assets=assets, env=o["env"],
-                   hm3d_root=str(hm3d_root) if hm3d_root is not None else None)
+    dataset = o["dataset"] or "synthetic"
+    questions = load_dataset(dataset, path=hm_eqa_path, limit=o["limit"], assets=assets)
+    spec = RunSpec(method=method, dataset=dataset, stack=stack, config=build_config(o),
+                   judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"] or "auto", judge_spec or ""),
+                   reports=reports, assets=assets,
+                   hm3d_root=str(hm3d_root) if hm3d_root is not None else None,
+                   **given(o, ["env"]))
     done_before = len(read_episodes(out / "episodes.jsonl").done)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),

@@ -1,4 +1,8 @@
-"""Named sets of command-line settings. A preset fills only the options the user did not give.
+"""From command-line options to the dataclasses of a run: the one configuration path of the CLI.
+
+An option the user leaves out arrives as None. A preset fills the ones it names; whatever is
+still None takes the default of the dataclass it belongs to (``Stack``, ``AgentConfig``,
+``StopConfig``, ``RunSpec``), so no default is written twice.
 
 ``paper``: the set-up of the paper's experiments (its Sec. IV): HM-EQA's first 100 questions
 in Habitat-Sim, GPT-4o (gpt-4o-2024-05-13, temperature 1) reading the RGB frames, BLIP-2 ITM
@@ -9,9 +13,14 @@ LLM-Match judge; the preset uses the same GPT-4o, grading 1-5.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import fields, replace
+from typing import TYPE_CHECKING, Any
 
 from efficienteqa.errors import EfficientEQAError
+
+if TYPE_CHECKING:
+    from efficienteqa.agent import AgentConfig
+    from efficienteqa.stack import Stack
 
 PAPER_VLM = "openai:gpt-4o-2024-05-13"
 
@@ -24,13 +33,41 @@ PRESETS: dict[str, dict[str, Any]] = {
     },
 }
 
+# Command-line names of StopConfig fields (the others are named as their fields).
+_STOP_OPTIONS = {"z_th": "z_th", "min_stop_step": "min_step"}
 
-def apply_preset(name: str | None, given: Mapping[str, Any], defaulted: set[str]) -> dict[str, Any]:
-    """``given`` with the preset's value for each option in ``defaulted`` (the ones the user
-    left at their defaults); options the preset does not name are kept."""
+
+def apply_preset(name: str | None, options: Mapping[str, Any]) -> dict[str, Any]:
+    """``options`` with the preset's value for each option left out (None); options the preset
+    does not name are kept as they are."""
     if name is None:
-        return dict(given)
+        return dict(options)
     if name not in PRESETS:
         raise EfficientEQAError(f"unknown preset {name!r}", fix=f"use one of {', '.join(PRESETS)}")
     values = PRESETS[name]
-    return {k: values[k] if k in values and k in defaulted else v for k, v in given.items()}
+    return {k: values[k] if v is None and k in values else v for k, v in options.items()}
+
+
+def given(options: Mapping[str, Any], names: Any) -> dict[str, Any]:
+    """The options among ``names`` that are set (not None)."""
+    return {k: options[k] for k in names if options.get(k) is not None}
+
+
+def build_stack(options: Mapping[str, Any]) -> Stack:
+    """The back-ends of a run: ``Stack`` fields from the options that are set."""
+    from efficienteqa.stack import Stack
+
+    return Stack(**given(options, [f.name for f in fields(Stack)]))
+
+
+def build_config(options: Mapping[str, Any]) -> AgentConfig:
+    """The agent's knobs: ``AgentConfig`` and ``StopConfig`` fields from the options that are
+    set; ``no_early_stop`` turns the relevancy stop off."""
+    from efficienteqa.agent import AgentConfig
+    from efficienteqa.stop import StopConfig
+
+    stop = StopConfig(**{_STOP_OPTIONS[k]: v for k, v in given(options, _STOP_OPTIONS).items()})
+    if options.get("no_early_stop"):
+        stop = replace(stop, enabled=False)
+    agent_fields = [f.name for f in fields(AgentConfig) if f.name != "stop"]
+    return AgentConfig(stop=stop, **given(options, agent_fields))

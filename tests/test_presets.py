@@ -1,0 +1,54 @@
+"""The CLI's one configuration path: options left out take the dataclasses' defaults, a preset
+fills only what was left out, and `ask` and `eval` build the same agent from the same options."""
+
+from __future__ import annotations
+
+import pytest
+
+from efficienteqa.agent import AgentConfig
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.presets import PRESETS, apply_preset, build_config, build_stack
+from efficienteqa.stack import Stack
+from efficienteqa.stop import StopConfig
+
+NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "top_k": None,
+                 "max_steps": None, "seed": None, "explorer": None, "vlm": None,
+                 "temperature": None, "perception": None, "relevancy": None, "grouping": None,
+                 "cache": None, "dataset": None, "limit": None, "env": None, "judge": None,
+                 "judge_mode": None}
+
+
+def test_options_left_out_take_the_dataclass_defaults():
+    assert build_config(NOTHING_GIVEN) == AgentConfig()
+    assert build_stack(NOTHING_GIVEN) == Stack()
+
+
+def test_given_options_reach_the_dataclasses():
+    o = {**NOTHING_GIVEN, "z_th": 1.5, "min_stop_step": 4, "top_k": 3, "max_steps": 12, "seed": 7,
+         "explorer": "random", "relevancy": "overlap", "cache": False, "temperature": 0.5}
+    config = build_config(o)
+    assert config.stop == StopConfig(z_th=1.5, min_step=4)
+    assert (config.top_k, config.max_steps, config.seed, config.explorer) == (3, 12, 7, "random")
+    stack = build_stack(o)
+    assert (stack.relevancy, stack.cache, stack.temperature) == ("overlap", False, 0.5)
+    assert stack.vlm == Stack().vlm
+
+
+def test_no_early_stop_turns_the_stop_off_and_keeps_its_other_values():
+    config = build_config({**NOTHING_GIVEN, "no_early_stop": True, "z_th": 2.0})
+    assert config.stop == StopConfig(z_th=2.0, enabled=False)
+
+
+def test_a_preset_fills_only_what_was_left_out():
+    o = apply_preset("paper", {**NOTHING_GIVEN, "top_k": 3, "relevancy": "clip"})
+    paper = PRESETS["paper"]
+    assert o["top_k"] == 3 and o["relevancy"] == "clip"  # given: kept
+    assert o["vlm"] == paper["vlm"] and o["z_th"] == paper["z_th"]  # left out: the preset's
+    assert o["dataset"] == "hm-eqa" and o["limit"] == 100 and o["judge_mode"] == "grade"
+    assert o["seed"] is None  # the preset does not name it: the dataclass default applies
+    assert build_stack(o).perception == "rgb"
+
+
+def test_an_unknown_preset_is_one_clear_error():
+    with pytest.raises(EfficientEQAError, match="unknown preset"):
+        apply_preset("papr", NOTHING_GIVEN)
