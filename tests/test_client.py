@@ -1,5 +1,6 @@
-"""OpenAI-compatible client against an in-process fake server (httpx.MockTransport), and once
-against a real llama.cpp server on loopback when llama_cpp and the SmolLM2 gguf are present."""
+"""OpenAI-compatible client against a fake OpenAI-compatible HTTP server on loopback (real
+sockets, so the SDK's retries, ``Retry-After`` and timeouts run for real), and once against a real
+llama.cpp server when llama_cpp and the SmolLM2 gguf are present."""
 
 from __future__ import annotations
 
@@ -12,7 +13,11 @@ import math
 import socket
 import subprocess
 import sys
+import threading
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 import httpx
@@ -26,6 +31,8 @@ from efficienteqa.models.cache import ResponseCache, request_key
 from efficienteqa.models.client import ClientConfig, OpenAIChatClient, RequestRejected
 
 SECRET = "sk-test-0123456789abcdef-SECRET"
+# A short server-directed wait, so that retry tests do not sleep the SDK's 0.5-8 s backoff.
+FAST_RETRY = {"retry-after-ms": "20"}
 
 
 def completion(text: str = "B", prompt_tokens: int = 12, completion_tokens: int = 1,
@@ -34,57 +41,132 @@ def completion(text: str = "B", prompt_tokens: int = 12, completion_tokens: int 
                     "finish_reason": "stop"}
     if logprobs:
         choice["logprobs"] = {"content": [
-            {"token": text, "logprob": -0.1, "top_logprobs": [
-                {"token": text, "logprob": -0.1}, {"token": "A", "logprob": -2.5}]}]}
-    return {"id": "x", "object": "chat.completion", "model": "fake-4o", "choices": [choice],
-            "usage": {"prompt_tokens": prompt_tokens, "completion_tokens": completion_tokens}}
+            {"token": text, "logprob": -0.1, "bytes": None, "top_logprobs": [
+                {"token": text, "logprob": -0.1, "bytes": None},
+                {"token": "A", "logprob": -2.5, "bytes": None}]}]}
+    return {"id": "x", "object": "chat.completion", "created": 0, "model": "fake-4o",
+            "choices": [choice],
+            "usage": {"prompt_tokens": prompt_tokens, "completion_tokens": completion_tokens,
+                      "total_tokens": prompt_tokens + completion_tokens}}
+
+
+@dataclass
+class Reply:
+    """What the fake server answers: a JSON body (dict) or raw text, after ``delay_s``."""
+
+    status: int = 200
+    body: dict | str = field(default_factory=completion)
+    headers: dict[str, str] = field(default_factory=dict)
+    delay_s: float = 0.0
+
+
+@dataclass
+class Seen:
+    path: str
+    headers: dict[str, str]  # lower-case names
+    body: dict
+    at: float  # time.monotonic() on arrival
 
 
 class FakeServer:
-    """Answers with ``replies`` in order (the last one repeats); records every request."""
+    """An OpenAI-compatible server on 127.0.0.1: answers ``replies`` in order (the last one
+    repeats) and records every request."""
 
-    def __init__(self, *replies: httpx.Response | Exception) -> None:
-        self.replies = list(replies) or [httpx.Response(200, json=completion())]
-        self.requests: list[httpx.Request] = []
+    def __init__(self, *replies: Reply) -> None:
+        self.replies = list(replies) or [Reply()]
+        self.requests: list[Seen] = []
+        self._lock = threading.Lock()
+        fake = self
 
-    def __call__(self, request: httpx.Request) -> httpx.Response:
-        self.requests.append(request)
-        reply = self.replies[min(len(self.requests), len(self.replies)) - 1]
-        if isinstance(reply, Exception):
-            raise reply
-        return reply
+        class Handler(BaseHTTPRequestHandler):
+            protocol_version = "HTTP/1.1"
+
+            def do_POST(self) -> None:
+                length = int(self.headers.get("content-length") or 0)
+                body = json.loads(self.rfile.read(length) or b"{}")
+                with fake._lock:
+                    fake.requests.append(Seen(self.path, {k.lower(): v for k, v in self.headers.items()},
+                                              body, time.monotonic()))
+                    reply = fake.replies[min(len(fake.requests), len(fake.replies)) - 1]
+                time.sleep(reply.delay_s)
+                is_json = isinstance(reply.body, dict)
+                data = (json.dumps(reply.body) if is_json else str(reply.body)).encode()
+                try:
+                    self.send_response(reply.status)
+                    self.send_header("content-type", "application/json" if is_json else "text/html")
+                    self.send_header("content-length", str(len(data)))
+                    for name, value in reply.headers.items():
+                        self.send_header(name, value)
+                    self.end_headers()
+                    self.wfile.write(data)
+                except OSError:  # the client gave up (a timeout test)
+                    pass
+
+            def log_message(self, *args: object) -> None:
+                pass
+
+        self._server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self._thread = threading.Thread(target=self._server.serve_forever, args=(0.02,), daemon=True)
+        self._thread.start()
+
+    @property
+    def base_url(self) -> str:
+        return f"http://127.0.0.1:{self._server.server_port}/v1"
 
     def body(self, i: int = -1) -> dict:
-        return json.loads(self.requests[i].content)
+        return self.requests[i].body
+
+    def close(self) -> None:
+        self._server.shutdown()
+        self._server.server_close()
 
 
-def make_client(server: FakeServer, tmp_path: Path, **overrides) -> tuple[OpenAIChatClient, list[float]]:
-    sleeps: list[float] = []
-    fields = {"base_url": "http://fake.test/v1", "model": "fake-4o", "cache": False,
+@pytest.fixture
+def serve() -> Iterator:
+    """``serve(*replies)`` starts a fake server, stopped after the test."""
+    servers: list[FakeServer] = []
+
+    def start(*replies: Reply) -> FakeServer:
+        servers.append(FakeServer(*replies))
+        return servers[-1]
+
+    yield start
+    for server in servers:
+        server.close()
+
+
+def make_client(server: FakeServer, tmp_path: Path, **overrides) -> OpenAIChatClient:
+    fields = {"base_url": server.base_url, "model": "fake-4o", "cache": False, "timeout_s": 10.0,
               "cache_path": str(tmp_path / "responses.sqlite"), **overrides}
-    http = httpx.Client(transport=httpx.MockTransport(server))
-    client = OpenAIChatClient(ClientConfig(**fields), http=http, sleep=sleeps.append)
-    return client, sleeps
+    return OpenAIChatClient(ClientConfig(**fields))
 
 
 def ask(text: str = "Which door, A or B?", *images: np.ndarray) -> list[Message]:
     return [Message("system", "You explore houses."), Message("user", text, tuple(images))]
 
 
-def test_request_shape_with_images(tmp_path):
-    server = FakeServer()
-    client, _ = make_client(server, tmp_path, capabilities=Capabilities(images=True), image_max_side=64)
+def closed_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def test_request_shape_with_images(serve, tmp_path, monkeypatch):
+    monkeypatch.setenv("OPENAI_API_KEY", SECRET)  # no key configured: this one must not be sent
+    server = serve()
+    client = make_client(server, tmp_path, capabilities=Capabilities(images=True), image_max_side=64)
     image = np.zeros((100, 200, 3), np.uint8)
     image[:, 100:] = (255, 0, 0)
     response = client.chat(ask("What is here?", image), max_tokens=5, logprobs=3, seed=7)
 
     assert response.text == "B" and response.model == "fake-4o" and not response.cached
-    request = server.requests[0]
-    assert request.url == "http://fake.test/v1/chat/completions" and request.method == "POST"
-    assert "authorization" not in request.headers
+    (request,) = server.requests
+    assert request.path == "/v1/chat/completions"
+    assert SECRET not in json.dumps(request.headers)
     body = server.body()
     assert body["model"] == "fake-4o" and body["max_tokens"] == 5 and body["seed"] == 7
     assert "logprobs" not in body and "top_logprobs" not in body  # no capability
+    assert "response_format" not in body
     assert body["messages"][0] == {"role": "system", "content": "You explore houses."}
     text_part, image_part = body["messages"][1]["content"]
     assert text_part == {"type": "text", "text": "What is here?"}
@@ -95,36 +177,40 @@ def test_request_shape_with_images(tmp_path):
     assert np.asarray(decoded.convert("RGB"))[16, 48].tolist() == [255, 0, 0]
 
 
-def test_a_configured_temperature_replaces_the_one_each_call_asks_for(tmp_path):
-    server = FakeServer()
-    client, _ = make_client(server, tmp_path, temperature=1.0)
-    client.chat(ask(), temperature=0.0)
+def test_a_base_url_with_a_trailing_slash_reaches_the_same_path(serve, tmp_path):
+    server = serve()
+    make_client(server, tmp_path, base_url=server.base_url + "/").chat(ask())
+    assert server.requests[0].path == "/v1/chat/completions"
+
+
+def test_a_configured_temperature_replaces_the_one_each_call_asks_for(serve, tmp_path):
+    server = serve()
+    make_client(server, tmp_path, temperature=1.0).chat(ask(), temperature=0.0)
     assert server.body()["temperature"] == 1.0
-    plain, _ = make_client(server, tmp_path)
-    plain.chat(ask(), temperature=0.0)
+    make_client(server, tmp_path).chat(ask(), temperature=0.0)
     assert server.body()["temperature"] == 0.0
 
 
-def test_jpeg_images_and_small_images_kept(tmp_path):
-    server = FakeServer()
-    client, _ = make_client(server, tmp_path, capabilities=Capabilities(images=True), image_format="jpeg")
+def test_jpeg_images_and_small_images_kept(serve, tmp_path):
+    server = serve()
+    client = make_client(server, tmp_path, capabilities=Capabilities(images=True), image_format="jpeg")
     client.chat(ask("x", np.full((40, 30, 3), 128, np.uint8)))
     url = server.body()["messages"][1]["content"][1]["image_url"]["url"]
     assert url.startswith("data:image/jpeg;base64,")
     assert Image.open(io.BytesIO(base64.b64decode(url.split(",", 1)[1]))).size == (30, 40)
 
 
-def test_images_without_capability_fail_clearly(tmp_path):
-    server = FakeServer()
-    client, _ = make_client(server, tmp_path)
+def test_images_without_capability_fail_clearly(serve, tmp_path):
+    server = serve()
+    client = make_client(server, tmp_path)
     with pytest.raises(EfficientEQAError, match="does not accept images"):
         client.chat(ask("x", np.zeros((4, 4, 3), np.uint8)))
     assert server.requests == []
 
 
-def test_logprobs_parsed_when_capable(tmp_path):
-    server = FakeServer(httpx.Response(200, json=completion(logprobs=True)))
-    client, _ = make_client(server, tmp_path, capabilities=Capabilities(logprobs=True))
+def test_logprobs_parsed_when_capable(serve, tmp_path):
+    server = serve(Reply(body=completion(logprobs=True)))
+    client = make_client(server, tmp_path, capabilities=Capabilities(logprobs=True))
     response = client.chat(ask(), logprobs=2)
     assert server.body()["logprobs"] is True and server.body()["top_logprobs"] == 2
     (token,) = response.logprobs
@@ -132,14 +218,14 @@ def test_logprobs_parsed_when_capable(tmp_path):
     assert token.top == (("B", -0.1), ("A", -2.5))
 
 
-def test_completion_style_logprobs_parsed(tmp_path):
+def test_completion_style_logprobs_parsed(serve, tmp_path):
     data = completion()
     data["choices"][0]["logprobs"] = {"tokens": ["B", "."], "token_logprobs": [-0.2, -0.01],
                                       "top_logprobs": [{"B": -0.2, "A": -1.9}, {".": -0.01}]}
-    client, _ = make_client(FakeServer(httpx.Response(200, json=data)), tmp_path,
-                            capabilities=Capabilities(logprobs=True))
+    client = make_client(serve(Reply(body=data)), tmp_path, capabilities=Capabilities(logprobs=True))
     tokens = client.chat(ask(), logprobs=2).logprobs
-    assert [t.token for t in tokens] == ["B", "."] and tokens[0].top == (("B", -0.2), ("A", -1.9))
+    assert [t.token for t in tokens] == ["B", "."] and [t.logprob for t in tokens] == [-0.2, -0.01]
+    assert tokens[0].top == (("B", -0.2), ("A", -1.9)) and tokens[1].top == ((".", -0.01),)
 
 
 @pytest.mark.parametrize(("caps", "expected"), [
@@ -148,136 +234,182 @@ def test_completion_style_logprobs_parsed(tmp_path):
     (Capabilities(grammar=True), {"type": "json_object", "schema": {"type": "object"}}),
     (Capabilities(), None),
 ])
-def test_json_schema_routing(tmp_path, caps, expected):
-    server = FakeServer()
-    client, _ = make_client(server, tmp_path, capabilities=caps)
-    client.chat(ask(), json_schema={"type": "object"})
+def test_json_schema_routing(serve, tmp_path, caps, expected):
+    server = serve()
+    make_client(server, tmp_path, capabilities=caps).chat(ask(), json_schema={"type": "object"})
     assert server.body().get("response_format") == expected
 
 
-def test_retries_500_and_429_then_succeeds(tmp_path):
-    server = FakeServer(httpx.Response(500, text="boom"), httpx.Response(429, headers={"Retry-After": "2"}),
-                        httpx.ConnectError("refused"), httpx.ReadTimeout("slow"),
-                        httpx.Response(200, json=completion("A")))
-    client, sleeps = make_client(server, tmp_path, backoff_base_s=1.0)
+def test_a_wrapped_schema_is_sent_as_given(serve, tmp_path):
+    server = serve()
+    wrapped = {"name": "step", "schema": {"type": "object"}, "strict": True}
+    make_client(server, tmp_path, capabilities=Capabilities(json_schema=True)).chat(
+        ask(), json_schema=wrapped)
+    assert server.body()["response_format"] == {"type": "json_schema", "json_schema": wrapped}
+    make_client(server, tmp_path, capabilities=Capabilities(grammar=True)).chat(ask(), json_schema=wrapped)
+    assert server.body()["response_format"] == {"type": "json_object", "schema": {"type": "object"}}
+
+
+def test_retries_5xx_and_429_then_succeeds(serve, tmp_path):
+    server = serve(Reply(500, "boom", FAST_RETRY), Reply(503, "busy", FAST_RETRY),
+                   Reply(429, {"error": {"message": "slow down"}}, FAST_RETRY),
+                   Reply(body=completion("A")))
+    client = make_client(server, tmp_path, max_retries=3)
     assert client.chat(ask()).text == "A"
-    assert len(server.requests) == 5
-    assert len(sleeps) == 4 and sleeps[1] == 2.0  # Retry-After respected
-    assert 0.5 <= sleeps[0] <= 1.0 and 2.0 <= sleeps[2] <= 4.0 and 4.0 <= sleeps[3] <= 8.0
-    # seeded jitter: a second client with the same seed sleeps the same
-    again, sleeps_again = make_client(FakeServer(*server.replies), tmp_path, backoff_base_s=1.0)
-    again.chat(ask())
-    assert sleeps_again == sleeps
+    assert [r.headers["x-stainless-retry-count"] for r in server.requests] == ["0", "1", "2", "3"]
+    assert client.usage.calls == 1
 
 
-def test_dead_server_is_one_line_error(tmp_path):
-    server = FakeServer(httpx.ConnectError("[Errno 111] Connection refused\nmore detail"))
-    client, sleeps = make_client(server, tmp_path, max_retries=3)
+def test_retry_after_is_waited_for(serve, tmp_path):
+    server = serve(Reply(429, {"error": {"message": "rate limited"}}, {"Retry-After": "1"}),
+                   Reply(body=completion("A")))
+    assert make_client(server, tmp_path).chat(ask()).text == "A"
+    first, second = server.requests
+    # The SDK's own first backoff is at most 0.5 s: a longer gap is the header's.
+    assert second.at - first.at >= 0.95
+
+
+def test_retries_stop_after_max_retries_with_one_line(serve, tmp_path):
+    server = serve(Reply(429, {"error": {"message": "quota\nexceeded"}}, FAST_RETRY))
+    client = make_client(server, tmp_path, max_retries=2)
     with pytest.raises(EfficientEQAError) as raised:
         client.chat(ask())
     message = str(raised.value)
-    assert len(server.requests) == 4 and len(sleeps) == 3
+    assert len(server.requests) == 3 and not isinstance(raised.value, RequestRejected)
+    assert "\n" not in message and "HTTP 429 after 3 tries" in message and "quota exceeded" in message
+
+
+def test_a_slow_server_times_out_per_try(serve, tmp_path):
+    server = serve(Reply(delay_s=3.0))
+    client = make_client(server, tmp_path, timeout_s=0.3, max_retries=1)
+    start = time.monotonic()
+    with pytest.raises(EfficientEQAError) as raised:
+        client.chat(ask())
+    assert time.monotonic() - start < 2.5 and len(server.requests) == 2
+    assert str(raised.value).startswith(f"model server at {server.base_url}/chat/completions did not "
+                                        "answer within 0.3 s (2 tries)")
+
+
+def test_dead_server_is_one_line_error(tmp_path):
+    base_url = f"http://127.0.0.1:{closed_port()}/v1"
+    client = OpenAIChatClient(ClientConfig(base_url=base_url, cache=False, max_retries=1, timeout_s=2))
+    with pytest.raises(EfficientEQAError) as raised:
+        client.chat(ask())
+    message = str(raised.value)
     assert "\n" not in message and "Traceback" not in message
-    assert message.startswith("model server at http://fake.test/v1/chat/completions "
-                              "unreachable after 4 tries")
+    assert message.startswith(f"model server at {base_url}/chat/completions unreachable after 2 tries")
     assert "Connection refused" in message and "efficienteqa models serve" in message
+    assert raised.value.__cause__ is None  # the one line is all there is
 
 
-def test_real_closed_port_is_unreachable(tmp_path):
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    client = OpenAIChatClient(ClientConfig(base_url=f"http://127.0.0.1:{port}/v1", cache=False,
-                                           max_retries=1, timeout_s=2), sleep=lambda s: None)
-    with pytest.raises(EfficientEQAError, match="unreachable after 2 tries"):
-        client.chat(ask())
+def test_400_not_retried(serve, tmp_path):
+    server = serve(Reply(400, {"error": {"message": "bad top_logprobs"}}, FAST_RETRY))
+    with pytest.raises(RequestRejected, match="HTTP 400 bad top_logprobs") as raised:
+        make_client(server, tmp_path).chat(ask())
+    assert raised.value.status == 400 and len(server.requests) == 1
 
 
-def test_400_not_retried(tmp_path):
-    server = FakeServer(httpx.Response(400, json={"error": {"message": "bad top_logprobs"}}))
-    client, sleeps = make_client(server, tmp_path)
-    with pytest.raises(RequestRejected, match="HTTP 400.*bad top_logprobs") as raised:
-        client.chat(ask())
-    assert raised.value.status == 400 and len(server.requests) == 1 and sleeps == []
-
-
-def test_api_key_only_in_authorization_header(tmp_path, monkeypatch, caplog):
+def test_api_key_only_in_authorization_header(serve, tmp_path, monkeypatch, caplog):
     monkeypatch.setenv("FAKE_OPENAI_KEY", SECRET)
     caplog.set_level(logging.DEBUG)
-    server = FakeServer(httpx.Response(503, text=f"upstream said {SECRET}"),
-                        httpx.Response(200, json=completion()))
-    client, _ = make_client(server, tmp_path, api_key_env="FAKE_OPENAI_KEY", cache=True)
+    server = serve(Reply(503, f"upstream said {SECRET}", FAST_RETRY), Reply())
+    client = make_client(server, tmp_path, api_key_env="FAKE_OPENAI_KEY", cache=True)
     response = client.chat(ask())
     client.chat(ask())  # cache hit
 
-    assert server.requests[-1].headers["authorization"] == f"Bearer {SECRET}"
+    assert len(server.requests) == 2
+    assert all(r.headers["authorization"] == f"Bearer {SECRET}" for r in server.requests)
+    assert all(SECRET not in json.dumps(r.body) for r in server.requests)
     assert SECRET not in repr(client.config) and SECRET not in repr(client)
-    assert SECRET not in caplog.text and "upstream said ***" in caplog.text
+    assert caplog.records and SECRET not in caplog.text
     assert SECRET not in json.dumps(response.raw)
     files = list(tmp_path.glob("responses.sqlite*"))
     assert files and all(SECRET.encode() not in f.read_bytes() for f in files)
 
 
-def test_api_key_redacted_from_errors(tmp_path, monkeypatch):
+@pytest.mark.parametrize("status", [401, 503])
+def test_api_key_redacted_from_errors(serve, tmp_path, monkeypatch, status):
     monkeypatch.setenv("FAKE_OPENAI_KEY", SECRET)
-    server = FakeServer(httpx.Response(401, json={"error": f"Incorrect API key provided: {SECRET}"}))
-    client, _ = make_client(server, tmp_path, api_key_env="FAKE_OPENAI_KEY")
-    with pytest.raises(RequestRejected) as raised:
+    server = serve(Reply(status, {"error": {"message": f"Incorrect API key provided: {SECRET}"}},
+                         FAST_RETRY))
+    client = make_client(server, tmp_path, api_key_env="FAKE_OPENAI_KEY", max_retries=1)
+    with pytest.raises(EfficientEQAError) as raised:
         client.chat(ask())
-    assert SECRET not in str(raised.value) and "FAKE_OPENAI_KEY" in str(raised.value)
+    assert SECRET not in str(raised.value) and "Incorrect API key provided: ***" in str(raised.value)
+    assert raised.value.__cause__ is None and raised.value.__context__ is not None
+    if status == 401:
+        assert isinstance(raised.value, RequestRejected) and "$FAKE_OPENAI_KEY" in str(raised.value)
 
 
-def test_missing_api_key_env(tmp_path, monkeypatch):
+def test_missing_api_key_fails_before_any_request(serve, tmp_path, monkeypatch):
     monkeypatch.delenv("FAKE_OPENAI_KEY", raising=False)
-    client, _ = make_client(FakeServer(), tmp_path, api_key_env="FAKE_OPENAI_KEY")
-    with pytest.raises(EfficientEQAError, match="FAKE_OPENAI_KEY is not set"):
-        client.chat(ask())
+    monkeypatch.setenv("OPENAI_API_KEY", SECRET)  # the SDK's fallback must not stand in
+    server = serve()
+    with pytest.raises(EfficientEQAError, match="FAKE_OPENAI_KEY is not set") as raised:
+        make_client(server, tmp_path, api_key_env="FAKE_OPENAI_KEY")
+    assert "\n" not in str(raised.value) and server.requests == []
 
 
-def test_usage_and_cost(tmp_path):
-    server = FakeServer(httpx.Response(200, json=completion(prompt_tokens=1000, completion_tokens=200)),
-                        httpx.Response(200, json={"choices": [{"message": {"content": None}}]}))
-    client, _ = make_client(server, tmp_path, price_prompt_per_1k=0.0025, price_completion_per_1k=0.01)
-    client.chat(ask("one"))
+def test_usage_and_cost(serve, tmp_path):
+    server = serve(Reply(body=completion(prompt_tokens=1000, completion_tokens=200)),
+                   Reply(body={"choices": [{"message": {"content": None}}]}))
+    client = make_client(server, tmp_path, price_prompt_per_1k=0.0025, price_completion_per_1k=0.01)
+    first = client.chat(ask("one"))
     empty = client.chat(ask("two"))
+    assert (first.prompt_tokens, first.completion_tokens) == (1000, 200) and first.latency_s > 0
     assert empty.text == "" and empty.prompt_tokens == 0 and empty.model == "fake-4o"
     usage = client.usage
     assert (usage.calls, usage.cached_calls) == (2, 0)
     assert (usage.prompt_tokens, usage.completion_tokens) == (1000, 200)
     assert usage.cost_usd == pytest.approx(0.0025 + 0.002)
-    assert usage.latency_s > 0
+    assert usage.latency_s >= first.latency_s + empty.latency_s - 1e-9
 
 
-def test_malformed_reply_is_clear(tmp_path):
-    client, _ = make_client(FakeServer(httpx.Response(200, text="<html>hi</html>")), tmp_path)
-    with pytest.raises(EfficientEQAError, match="not JSON"):
+def test_latency_counts_the_retries(serve, tmp_path):
+    server = serve(Reply(503, "busy", {"retry-after-ms": "300"}), Reply())
+    assert make_client(server, tmp_path).chat(ask()).latency_s >= 0.3
+
+
+def test_malformed_reply_is_clear(serve, tmp_path):
+    client = make_client(serve(Reply(body="<html>hi</html>")), tmp_path)
+    with pytest.raises(EfficientEQAError, match="not JSON: <html>hi</html>"):
         client.chat(ask())
-    client, _ = make_client(FakeServer(httpx.Response(200, json={"error": "x"})), tmp_path)
+    client = make_client(serve(Reply(body={"error": "x"})), tmp_path)
     with pytest.raises(EfficientEQAError, match="no choices"):
         client.chat(ask())
 
 
-def test_cache_hit_without_http_call(tmp_path):
-    server = FakeServer(httpx.Response(200, json=completion("C", logprobs=True)))
-    client, _ = make_client(server, tmp_path, cache=True, capabilities=Capabilities(logprobs=True),
-                            price_prompt_per_1k=1.0)
+def test_cache_hit_without_a_request(serve, tmp_path):
+    server = serve(Reply(body=completion("C", logprobs=True)))
+    client = make_client(server, tmp_path, cache=True, capabilities=Capabilities(logprobs=True),
+                         price_prompt_per_1k=1.0)
     first = client.chat(ask(), logprobs=2, temperature=0.7, seed=3)
     second = client.chat(ask(), logprobs=2, temperature=0.7, seed=3)
     assert len(server.requests) == 1
     assert second.cached and not first.cached and second.text == first.text == "C"
-    assert second.logprobs == first.logprobs and second.latency_s < 0.05
+    assert second.logprobs == first.logprobs and second.logprobs[0].top == (("C", -0.1), ("A", -2.5))
+    assert second.latency_s < 0.05
     assert client.usage.calls == 2 and client.usage.cached_calls == 1
     assert client.usage.cost_usd == pytest.approx(12 / 1000)  # the hit costs nothing
     client.chat(ask(), logprobs=2, temperature=0.7, seed=4)  # seed is part of the key
     assert len(server.requests) == 2
 
 
-def test_cache_shared_across_base_urls_but_keyed_on_images(tmp_path):
+def test_a_cache_hit_needs_no_server(serve, tmp_path):
+    server = serve()
+    make_client(server, tmp_path, cache=True).chat(ask())
+    dead = f"http://127.0.0.1:{closed_port()}/v1"
+    replay = make_client(server, tmp_path, cache=True, base_url=dead, max_retries=0)
+    assert replay.chat(ask()).cached
+    with pytest.raises(EfficientEQAError, match="unreachable"):
+        replay.chat(ask("a question never asked"))
+
+
+def test_cache_shared_across_base_urls_but_keyed_on_images(serve, tmp_path):
     caps = Capabilities(images=True)
-    server_a, server_b = FakeServer(), FakeServer()
-    client_a, _ = make_client(server_a, tmp_path, cache=True, capabilities=caps)
-    client_b, _ = make_client(server_b, tmp_path, cache=True, capabilities=caps,
-                              base_url="http://other-gateway.test/v1")
+    server_a, server_b = serve(), serve()
+    client_a = make_client(server_a, tmp_path, cache=True, capabilities=caps)
+    client_b = make_client(server_b, tmp_path, cache=True, capabilities=caps)
     image = np.zeros((8, 8, 3), np.uint8)
     client_a.chat(ask("q", image))
     assert client_b.chat(ask("q", image.copy())).cached and server_b.requests == []
@@ -300,9 +432,9 @@ def test_cache_key_components():
                                                                      **base)
 
 
-def test_cache_clear_stats_and_processes(tmp_path):
-    server = FakeServer()
-    client, _ = make_client(server, tmp_path, cache=True)
+def test_cache_clear_stats_and_processes(serve, tmp_path):
+    server = serve()
+    client = make_client(server, tmp_path, cache=True)
     client.chat(ask())
     cache = ResponseCache(tmp_path / "responses.sqlite")
     stats = cache.stats()
@@ -318,32 +450,37 @@ def test_cache_clear_stats_and_processes(tmp_path):
     assert not client.chat(ask()).cached and len(server.requests) == 2
 
 
-def test_cache_threads(tmp_path):
+def test_cache_threads(serve, tmp_path):
     from concurrent.futures import ThreadPoolExecutor
 
-    server = FakeServer()
-    client, _ = make_client(server, tmp_path, cache=True)
+    server = serve()
+    client = make_client(server, tmp_path, cache=True)
     with ThreadPoolExecutor(4) as pool:
         texts = list(pool.map(lambda i: client.chat(ask(f"q{i % 5}")).text, range(40)))
     assert texts == ["B"] * 40 and client.usage.calls == 40
     assert ResponseCache(tmp_path / "responses.sqlite").stats()["entries"] == 5
+    assert 5 <= len(server.requests) <= 40
 
 
-def test_broken_cache_does_not_fail_the_call(tmp_path, caplog):
+def test_broken_cache_does_not_fail_the_call(serve, tmp_path, caplog):
     (tmp_path / "responses.sqlite").write_bytes(b"this is not a database" * 100)
-    server = FakeServer()
-    client, _ = make_client(server, tmp_path, cache=True)
+    server = serve()
+    client = make_client(server, tmp_path, cache=True)
     assert client.chat(ask()).text == "B" and len(server.requests) == 1
     assert "response cache unavailable" in caplog.text
 
 
-def test_probe_capabilities(tmp_path):
-    client, _ = make_client(FakeServer(httpx.Response(200, json=completion(logprobs=True))), tmp_path)
+def test_probe_capabilities(serve, tmp_path):
+    server = serve(Reply(body=completion(logprobs=True)))
+    client = make_client(server, tmp_path, cache=True)
     assert client.probe_capabilities().logprobs and client.capabilities.logprobs
-    client, _ = make_client(FakeServer(httpx.Response(400, text="logprobs unsupported")), tmp_path,
-                            capabilities=Capabilities(logprobs=True, images=True))
+    assert server.body()["logprobs"] is True and server.body()["max_tokens"] == 1
+    client = make_client(serve(Reply(400, "logprobs unsupported")), tmp_path,
+                         capabilities=Capabilities(logprobs=True, images=True))
     caps = client.probe_capabilities()
     assert not caps.logprobs and caps.images
+    client = make_client(serve(Reply(body=completion())), tmp_path, capabilities=Capabilities(logprobs=True))
+    assert not client.probe_capabilities().logprobs  # answered, but without logprobs
 
 
 # ------------------------------------------------------------------ real llama.cpp server

@@ -70,11 +70,19 @@ class Usage:
 
 class ChatModel(Protocol):
     """A chat model. ``logprobs``: number of top alternatives per token (needs the capability);
-    ``json_schema``: constrain the reply to this JSON schema where the server supports it."""
+    ``json_schema``: constrain the reply to this JSON schema where the server supports it.
 
-    name: str
-    capabilities: Capabilities
-    usage: Usage
+    ``name``, ``capabilities`` and ``usage`` are read by callers, never assigned: a plain
+    attribute or a property serves (wrappers forward them as properties)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def capabilities(self) -> Capabilities: ...
+
+    @property
+    def usage(self) -> Usage: ...
 
     def chat(self, messages: list[Message], *, max_tokens: int = 256, temperature: float = 0.0,
              logprobs: int | None = None, json_schema: dict[str, Any] | None = None,

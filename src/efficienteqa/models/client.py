@@ -1,28 +1,31 @@
-"""OpenAI-compatible chat client (GPT-4o, vLLM, Ollama, the llama.cpp server) over httpx.
+"""OpenAI-compatible chat client (GPT-4o, vLLM, Ollama, the llama.cpp server) on the official
+``openai`` SDK.
 
-Retries connection errors, timeouts, 429 and 5xx with seeded exponential backoff (``Retry-After``
-respected); other 4xx fail at once. Replies are cached on disk (``models/cache.py``). The API key
-is read from the environment variable named in the config at request time and only ever put in
-the ``Authorization`` header: never in configs, reprs, logs, errors or the cache.
+The SDK retries connection errors, timeouts, 408, 409, 429 and 5xx ``max_retries`` times with
+exponential backoff (0.5 s doubling to 8 s, jittered), waiting what ``Retry-After`` asks where
+the server sends it; other 4xx fail at once. Its typed errors become one-line
+``EfficientEQAError``s here. Replies are cached on disk (``models/cache.py``). The API key is read
+from the environment variable named in the config and handed to the SDK only, which sends it in
+the ``Authorization`` header: it is never in configs, reprs, logs, errors or the cache.
+
+``openai`` is imported on the first request, so modules that only need ``encode_image`` stay
+light.
 """
 
 from __future__ import annotations
 
 import base64
-import email.utils
 import io
 import logging
 import math
 import os
-import random
 import sqlite3
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import httpx
 import numpy as np
 from PIL import Image
 
@@ -30,10 +33,15 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatResponse, Message, TokenLogprob, Usage
 from efficienteqa.models.cache import ResponseCache, request_key
 
+if TYPE_CHECKING:
+    import openai
+
 log = logging.getLogger(__name__)
 
-_RETRY_STATUS = frozenset({408, 409, 425, 429}) | frozenset(range(500, 600))
 _SERVE_FIX = "start it with `efficienteqa models serve` or check base_url"
+# Sent where no key is configured: the SDK insists on one, and without it would read
+# OPENAI_API_KEY from the environment and send the user's OpenAI key to a local server.
+_NO_KEY = "no-key"
 
 
 @dataclass(frozen=True)
@@ -41,8 +49,8 @@ class ClientConfig:
     """Where the model is and how to talk to it. Prices in USD per 1,000 tokens (0 for local).
 
     ``api_key_env`` names the environment variable holding the key (None: send no key).
-    ``max_retries``: retries after the first try. Backoff before retry ``i`` (0-based) is
-    ``min(backoff_max_s, backoff_base_s * 2**i)`` scaled by a seeded jitter in [0.5, 1].
+    ``max_retries``: retries after the first try, by the SDK (see the module docstring);
+    ``timeout_s``: the limit of each try.
     """
 
     base_url: str = "http://127.0.0.1:8080/v1"
@@ -50,9 +58,6 @@ class ClientConfig:
     api_key_env: str | None = None
     timeout_s: float = 60.0
     max_retries: int = 4
-    backoff_base_s: float = 0.5
-    backoff_max_s: float = 30.0
-    backoff_seed: int = 0
     image_max_side: int = 512
     image_format: str = "png"  # "png" | "jpeg"
     capabilities: Capabilities = field(default_factory=Capabilities)
@@ -88,20 +93,6 @@ def _one_line(text: str, limit: int = 300) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _retry_after_s(response: httpx.Response) -> float | None:
-    value = response.headers.get("retry-after")
-    if not value:
-        return None
-    try:
-        return max(0.0, float(value))
-    except ValueError:
-        pass
-    try:  # an HTTP date
-        return max(0.0, email.utils.parsedate_to_datetime(value).timestamp() - time.time())
-    except (TypeError, ValueError):
-        return None
-
-
 def parse_logprobs(choice: dict[str, Any]) -> list[TokenLogprob] | None:
     """Chat-style (``content: [{token, logprob, top_logprobs}]``) or completion-style
     (``tokens``, ``token_logprobs``, ``top_logprobs: [{token: logprob}]``) logprobs."""
@@ -134,24 +125,23 @@ class OpenAIChatClient:
 
     ``json_schema`` is sent as ``response_format={"type": "json_schema", ...}`` when
     ``capabilities.json_schema``; else as llama.cpp's ``{"type": "json_object", "schema": ...}``
-    when ``capabilities.grammar``; else the reply is not constrained (the caller must parse
-    leniently). ``logprobs`` is only sent when ``capabilities.logprobs``; otherwise the reply has
-    ``logprobs=None``. ``latency_s`` is the wall-clock time of the whole call, retries included.
+    (a server extension, in the SDK's ``extra_body``) when ``capabilities.grammar``; else the
+    reply is not constrained (the caller must parse leniently). ``logprobs`` is only sent when
+    ``capabilities.logprobs``; otherwise the reply has ``logprobs=None``. ``latency_s`` is the
+    wall-clock time of the whole call, retries included.
 
-    ``http`` and ``cache`` may be injected; otherwise they are created on the first call.
+    A configured key variable that is unset fails here, before any request. The SDK client is
+    created on the first request that misses the cache; ``cache`` may be injected.
     """
 
-    def __init__(self, config: ClientConfig, *, http: httpx.Client | None = None,
-                 cache: ResponseCache | None = None,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
+    def __init__(self, config: ClientConfig, *, cache: ResponseCache | None = None) -> None:
         self.config = config
         self.name = config.model
         self.usage = Usage()
         self._capabilities = config.capabilities
-        self._http = http
+        self._api_key()  # a missing key is a set-up error: say so before anything runs
         self._cache = cache
-        self._sleep = sleep
-        self._rng = random.Random(config.backoff_seed)
+        self._sdk: openai.OpenAI | None = None
         self._lock = threading.Lock()
 
     def __repr__(self) -> str:
@@ -166,8 +156,8 @@ class OpenAIChatClient:
         return self.config.base_url.rstrip("/") + "/chat/completions"
 
     def close(self) -> None:
-        if self._http is not None:
-            self._http.close()
+        if self._sdk is not None:
+            self._sdk.close()
         if self._cache is not None:
             self._cache.close()
 
@@ -193,10 +183,10 @@ class OpenAIChatClient:
                 with self._lock:
                     self.usage.add(hit, 0.0)
                 return hit
-        body = self.request_body(messages, max_tokens=max_tokens, temperature=temperature,
-                                 logprobs=logprobs, json_schema=json_schema, seed=seed)
+        arguments = self.request_arguments(messages, max_tokens=max_tokens, temperature=temperature,
+                                           logprobs=logprobs, json_schema=json_schema, seed=seed)
         start = time.perf_counter()
-        data = self._post(body)
+        data = self._complete(arguments)
         response = self._parse(data, time.perf_counter() - start)
         if cache is not None and key is not None:
             self._cache_call(cache.put, key, response)
@@ -206,38 +196,41 @@ class OpenAIChatClient:
             self.usage.add(response, cost)
         return response
 
-    def request_body(self, messages: list[Message], *, max_tokens: int = 256,
-                     temperature: float = 0.0, logprobs: int | None = None,
-                     json_schema: dict[str, Any] | None = None,
-                     seed: int | None = None) -> dict[str, Any]:
-        """The JSON body sent for these arguments (only fields the capabilities allow)."""
+    def request_arguments(self, messages: list[Message], *, max_tokens: int = 256,
+                          temperature: float = 0.0, logprobs: int | None = None,
+                          json_schema: dict[str, Any] | None = None,
+                          seed: int | None = None) -> dict[str, Any]:
+        """The arguments of ``chat.completions.create`` for these (only fields the capabilities
+        allow; server extensions in ``extra_body``)."""
         caps = self._capabilities
-        body: dict[str, Any] = {"model": self.name, "messages": [self._message(m) for m in messages],
-                                "max_tokens": max_tokens, "temperature": temperature}
+        arguments: dict[str, Any] = {"model": self.name,
+                                     "messages": [self._message(m) for m in messages],
+                                     "max_tokens": max_tokens, "temperature": temperature}
         if seed is not None:
-            body["seed"] = seed
+            arguments["seed"] = seed
         if logprobs is not None and caps.logprobs:
-            body["logprobs"] = True
-            body["top_logprobs"] = logprobs
+            arguments["logprobs"] = True
+            arguments["top_logprobs"] = logprobs
         if json_schema is not None:
             if caps.json_schema:
                 wrapped = json_schema if _is_wrapper(json_schema) else {"name": "reply",
                                                                          "schema": json_schema}
-                body["response_format"] = {"type": "json_schema", "json_schema": wrapped}
+                arguments["response_format"] = {"type": "json_schema", "json_schema": wrapped}
             elif caps.grammar:
                 schema = json_schema["schema"] if _is_wrapper(json_schema) else json_schema
-                body["response_format"] = {"type": "json_object", "schema": schema}
-        return body
+                # llama.cpp turns the schema into a grammar; the SDK's types do not know this form
+                arguments["extra_body"] = {"response_format": {"type": "json_object", "schema": schema}}
+        return arguments
 
     def probe_capabilities(self) -> Capabilities:
         """Ask for one token with ``top_logprobs=1``; logprobs are supported if they come back.
 
         Updates and returns ``capabilities`` (other flags stay as declared). Not cached.
         """
-        body = {"model": self.name, "messages": [{"role": "user", "content": "Say yes."}],
-                "max_tokens": 1, "temperature": 0.0, "logprobs": True, "top_logprobs": 1}
+        arguments = {"model": self.name, "messages": [{"role": "user", "content": "Say yes."}],
+                     "max_tokens": 1, "temperature": 0.0, "logprobs": True, "top_logprobs": 1}
         try:
-            data = self._post(body)
+            data = self._complete(arguments)
             choices = data.get("choices") or [{}]
             supported = bool(parse_logprobs(choices[0]))
         except RequestRejected:
@@ -246,6 +239,26 @@ class OpenAIChatClient:
         return self._capabilities
 
     # -- internals --
+
+    def _api_key(self) -> str:
+        env = self.config.api_key_env
+        if env is None:
+            return _NO_KEY
+        key = os.environ.get(env)
+        if not key:
+            raise EfficientEQAError(f"environment variable {env} is not set",
+                                    fix=f"export {env}=... or set api_key_env to None for a local server")
+        return key
+
+    def _client(self) -> openai.OpenAI:
+        with self._lock:
+            if self._sdk is None:
+                import openai
+
+                self._sdk = openai.OpenAI(api_key=self._api_key(), base_url=self.config.base_url,
+                                          timeout=self.config.timeout_s,
+                                          max_retries=self.config.max_retries)
+            return self._sdk
 
     def _response_cache(self) -> ResponseCache | None:
         if not self.config.cache:
@@ -273,74 +286,70 @@ class OpenAIChatClient:
             image, self.config.image_max_side, self.config.image_format)}} for image in message.images]
         return {"role": message.role, "content": parts}
 
-    def _headers(self) -> dict[str, str]:
-        env = self.config.api_key_env
-        if env is None:
-            return {}
-        key = os.environ.get(env)
-        if not key:
-            raise EfficientEQAError(f"environment variable {env} is not set",
-                                    fix=f"export {env}=... or set api_key_env to None for a local server")
-        return {"Authorization": f"Bearer {key}"}
-
     def _redact(self, text: str) -> str:
         key = os.environ.get(self.config.api_key_env or "") if self.config.api_key_env else None
         return text.replace(key, "***") if key else text
 
-    def _backoff_s(self, retry: int) -> float:
-        with self._lock:
-            jitter = 0.5 + 0.5 * self._rng.random()
-        return min(self.config.backoff_max_s, self.config.backoff_base_s * 2**retry) * jitter
+    def _complete(self, arguments: dict[str, Any]) -> dict[str, Any]:
+        """One ``chat.completions.create`` (the SDK retries) as the reply's JSON dict."""
+        import openai
+        from openai.types.chat import ChatCompletion
 
-    def _post(self, body: dict[str, Any]) -> dict[str, Any]:
-        if self._http is None:
-            self._http = httpx.Client(timeout=self.config.timeout_s)
-        headers = self._headers()
-        tries = self.config.max_retries + 1
-        last = ""
-        for attempt in range(tries):
-            wait: float | None = None
-            try:
-                reply = self._http.post(self.url, json=body, headers=headers,
-                                        timeout=self.config.timeout_s)
-            except httpx.TransportError as error:  # connection refused, timeouts, resets
-                last = f"{type(error).__name__}: {error}"
-            else:
-                if reply.status_code < 400:
-                    try:
-                        return reply.json()
-                    except ValueError as error:
-                        raise EfficientEQAError(
-                            f"model server at {self.url} sent a reply that is not JSON: "
-                            f"{_one_line(reply.text, 120)}", fix="check base_url") from error
-                detail = self._redact(_one_line(reply.text, 200))
-                if reply.status_code not in _RETRY_STATUS:
-                    raise RequestRejected(
-                        f"model server at {self.url} rejected the request: HTTP {reply.status_code} "
-                        f"{detail}", reply.status_code, fix=self._fix_for(reply.status_code))
-                last = f"HTTP {reply.status_code} {detail}"
-                wait = _retry_after_s(reply)
-            if attempt + 1 < tries:
-                delay = min(wait, self.config.backoff_max_s) if wait is not None else self._backoff_s(attempt)
-                log.warning("model server at %s: %s; retry %d/%d in %.1f s", self.url,
-                            self._redact(_one_line(last, 200)), attempt + 1, tries - 1, delay)
-                self._sleep(delay)
-        raise EfficientEQAError(
-            f"model server at {self.url} unreachable after {tries} tries: "
-            f"{self._redact(_one_line(last, 200))}", fix=_SERVE_FIX)
+        client = self._client()
+        try:
+            reply = client.chat.completions.create(**arguments)
+        except openai.OpenAIError as error:
+            raise self._error(error) from None  # the SDK's chain repeats the reply, key included
+        if not isinstance(reply, ChatCompletion):  # the SDK hands back a body it cannot decode
+            raise EfficientEQAError(f"model server at {self.url} sent a reply that is not JSON: "
+                                    f"{self._redact(_one_line(str(reply), 120))}", fix="check base_url")
+        return reply.to_dict(mode="json")
+
+    def _error(self, error: openai.OpenAIError) -> EfficientEQAError:
+        """The SDK's error as one line naming the server, the tries and what to do."""
+        import openai
+
+        request = getattr(error, "request", None)
+        retries = request.headers.get("x-stainless-retry-count") if request is not None else None
+        tries = int(retries) + 1 if retries and retries.isdigit() else self.config.max_retries + 1
+        where = f"model server at {self.url}"
+        if isinstance(error, openai.APITimeoutError):
+            return EfficientEQAError(f"{where} did not answer within {self.config.timeout_s:g} s "
+                                     f"({tries} tries)",
+                                     fix="raise timeout_s, or check that the server is not stuck")
+        if isinstance(error, openai.APIConnectionError):
+            cause = error.__cause__ or error
+            detail = self._redact(_one_line(f"{type(cause).__name__}: {cause}", 200))
+            return EfficientEQAError(f"{where} unreachable after {tries} tries: {detail}", fix=_SERVE_FIX)
+        if isinstance(error, openai.APIStatusError):
+            status = error.status_code
+            detail = self._redact(_one_line(_error_text(error), 200))
+            if status in (408, 409, 429) or status >= 500:  # what the SDK retries
+                return EfficientEQAError(f"{where} still answered HTTP {status} after {tries} tries: "
+                                         f"{detail}", fix=self._fix_for(status))
+            return RequestRejected(f"{where} rejected the request: HTTP {status} {detail}", status,
+                                   fix=self._fix_for(status))
+        detail = self._redact(_one_line(str(error), 200))
+        return EfficientEQAError(f"{where}: {type(error).__name__}: {detail}",
+                                 fix="check base_url and the model name")
 
     def _fix_for(self, status: int) -> str:
         if status in (401, 403):
             return f"check the API key in ${self.config.api_key_env}"
         if status == 404:
             return "check base_url (it usually ends in /v1) and the model name"
+        if status == 429:
+            return "wait, or send fewer requests at once (fewer workers)"
+        if status >= 500:
+            return "the server failed; see its log, or retry later"
         return "check the model name and the request parameters the server supports"
 
     def _parse(self, data: dict[str, Any], latency_s: float) -> ChatResponse:
         choices = data.get("choices") or []
         if not choices or not isinstance(choices[0], dict):
             raise EfficientEQAError(f"model server at {self.url} sent no choices: "
-                                    f"{_one_line(str(data), 120)}", fix="check base_url and model")
+                                    f"{self._redact(_one_line(str(data), 120))}",
+                                    fix="check base_url and model")
         choice = choices[0]
         usage = data.get("usage") or {}
         return ChatResponse(
@@ -352,6 +361,20 @@ class OpenAIChatClient:
             logprobs=parse_logprobs(choice),
             raw=data,
         )
+
+
+def _error_text(error: openai.APIStatusError) -> str:
+    """What the server said: the ``error.message`` of an OpenAI-style body, else its text."""
+    body = error.body
+    if isinstance(body, dict):
+        inner = body.get("error", body)
+        message = inner.get("message") if isinstance(inner, dict) else inner
+        if isinstance(message, str) and message:
+            return message
+    try:
+        return error.response.text
+    except Exception:  # a streamed body that was never read
+        return error.message
 
 
 def _is_wrapper(schema: dict[str, Any]) -> bool:

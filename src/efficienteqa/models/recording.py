@@ -8,7 +8,7 @@ from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from efficienteqa.models.base import ChatModel, ChatResponse, Message
+from efficienteqa.models.base import Capabilities, ChatModel, ChatResponse, Message, Usage
 
 
 @dataclass(frozen=True)
@@ -45,11 +45,11 @@ class RecordingChatModel:
         return self.inner.name
 
     @property
-    def capabilities(self):  # noqa: ANN201 - the inner model's Capabilities
+    def capabilities(self) -> Capabilities:
         return self.inner.capabilities
 
     @property
-    def usage(self):  # noqa: ANN201 - the inner model's Usage
+    def usage(self) -> Usage:
         return self.inner.usage
 
     @contextmanager
