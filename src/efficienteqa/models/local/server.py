@@ -1,0 +1,255 @@
+"""The llama.cpp server process: started detached on 127.0.0.1 for one model, known afterwards by
+its pid file (``cache_dir("server")/<model>.json``, log beside it), health-checked with
+``GET /v1/models``, stopped by its process id (SIGTERM, then SIGKILL)."""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from efficienteqa.cache import cache_dir
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.models.local.runtime import ensure_llama_cpp
+from efficienteqa.models.local.weights import DEFAULT_MODEL, model_path
+
+DEFAULT_PORT = 8765
+HOST = "127.0.0.1"
+
+
+@dataclass(frozen=True)
+class ServerInfo:
+    """A llama.cpp server started by ``serve``; ``started`` is a Unix time in seconds."""
+
+    name: str
+    pid: int
+    port: int
+    model: str
+    started: float
+    log: str
+    proc_start: str | None = None  # /proc start time, guards against pid reuse
+
+    @property
+    def base_url(self) -> str:
+        return f"http://{HOST}:{self.port}/v1"
+
+    def healthy(self, timeout_s: float = 2.0) -> bool:
+        return _healthy(self.port, timeout_s)
+
+
+# Servers this process started, kept so that they are reaped when stopped (no zombies, no
+# "subprocess still running" warnings); servers of other processes are known by pid file only.
+_children: dict[int, subprocess.Popen] = {}
+
+
+def _pid_file(name: str) -> Path:
+    return cache_dir("server") / f"{name}.json"
+
+
+def _log_file(name: str) -> Path:
+    return cache_dir("server") / f"{name}.log"
+
+
+# ---------------------------------------------------------------------------- processes
+
+def _proc_start(pid: int) -> str | None:
+    """The process start time (clock ticks since boot) from /proc; None where there is no /proc."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat.rsplit(")", 1)[1].split()[19]
+
+
+def _alive(pid: int, proc_start: str | None = None) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        pass
+    with contextlib.suppress(OSError, IndexError):
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        if fields[0] in ("Z", "X"):  # exited, not yet reaped
+            return False
+        if proc_start is not None and fields[19] != proc_start:  # the pid was reused
+            return False
+    return True
+
+
+def _signal(pid: int, sig: int) -> None:
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        if os.getpgid(pid) == pid:  # started in its own session: signal the whole group
+            os.killpg(pid, sig)
+        else:
+            os.kill(pid, sig)
+
+
+def _terminate(info: ServerInfo, grace_s: float) -> None:
+    _signal(info.pid, signal.SIGTERM)
+    deadline = time.monotonic() + grace_s
+    while time.monotonic() < deadline:
+        if not _alive(info.pid, info.proc_start):
+            return
+        time.sleep(0.05)
+    _signal(info.pid, signal.SIGKILL)
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline and _alive(info.pid, info.proc_start):
+        time.sleep(0.05)
+
+
+def _reap(pid: int) -> None:
+    child = _children.pop(pid, None)
+    if child is not None:
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            child.wait(timeout=1.0)
+
+
+# ---------------------------------------------------------------------------- network
+
+def _healthy(port: int, timeout_s: float = 2.0) -> bool:
+    try:
+        with urllib.request.urlopen(f"http://{HOST}:{port}/v1/models", timeout=timeout_s) as reply:
+            return bool(reply.status == 200)
+    except (urllib.error.URLError, OSError, ValueError):
+        return False
+
+
+def _port_free(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        # As a server binds: connections of a stopped server lingering in TIME_WAIT do not count.
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((HOST, port))
+        except OSError:
+            return False
+    return True
+
+
+def free_port(preferred: int | None = DEFAULT_PORT) -> int:
+    """``preferred`` if nothing listens there, else (or when None) a port the system picks."""
+    if preferred and _port_free(preferred):
+        return preferred
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind((HOST, 0))
+        return int(sock.getsockname()[1])
+
+
+# ---------------------------------------------------------------------------- life cycle
+
+def _read_info(path: Path) -> ServerInfo | None:
+    try:
+        return ServerInfo(**json.loads(path.read_text()))
+    except (OSError, ValueError, TypeError):
+        return None
+
+
+def running() -> list[ServerInfo]:
+    """Every server whose process is alive; cleans stale pid files on the way."""
+    servers = []
+    for path in sorted(cache_dir("server").glob("*.json")):
+        info = _read_info(path)
+        if info is not None and _alive(info.pid, info.proc_start):
+            servers.append(info)
+        else:
+            path.unlink(missing_ok=True)
+    return servers
+
+
+def status(name: str | None = None) -> ServerInfo | None:
+    """The running server of ``name`` (any model when None, the default first); stale pid files
+    (process gone or pid reused) are removed."""
+    servers = running()
+    if name is not None:
+        servers = [s for s in servers if s.name == name]
+    servers.sort(key=lambda s: s.name != DEFAULT_MODEL)
+    return servers[0] if servers else None
+
+
+def stop(name: str | None = None, grace_s: float = 5.0) -> list[ServerInfo]:
+    """Stop the server of ``name`` (every server when None): SIGTERM, then SIGKILL after
+    ``grace_s`` seconds; remove the pid files. Returns the servers that were stopped."""
+    stopped = []
+    for info in running():
+        if name is None or info.name == name:
+            _terminate(info, grace_s)
+            _reap(info.pid)
+            _pid_file(info.name).unlink(missing_ok=True)
+            stopped.append(info)
+    return stopped
+
+
+def _log_tail(path: Path, lines: int = 3) -> str:
+    try:
+        text = path.read_text(errors="replace").strip().splitlines()
+    except OSError:
+        return "(no log)"
+    return " | ".join(line.strip() for line in text[-lines:]) or "(empty log)"
+
+
+def _wait_healthy(info: ServerInfo, timeout_s: float, proc: subprocess.Popen | None = None) -> None:
+    """Poll ``GET /v1/models`` until it answers; one-line errors with the log's tail otherwise."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        exited = proc.poll() is not None if proc is not None else not _alive(info.pid, info.proc_start)
+        if exited:
+            _reap(info.pid)
+            _pid_file(info.name).unlink(missing_ok=True)
+            raise EfficientEQAError(f"the llama.cpp server for {info.name} exited during start-up: "
+                                    f"{_log_tail(Path(info.log))}", fix=f"see {info.log}")
+        if _healthy(info.port, timeout_s=1.0):
+            return
+        time.sleep(0.2)
+    stop(info.name)
+    raise EfficientEQAError(f"the llama.cpp server for {info.name} did not answer within "
+                            f"{timeout_s:.0f} s: {_log_tail(Path(info.log))}", fix=f"see {info.log}")
+
+
+def serve(name: str = DEFAULT_MODEL, port: int | None = None, threads: int = 2, ctx: int = 4096,
+          timeout_s: float = 180.0) -> ServerInfo:
+    """Start llama.cpp's OpenAI-compatible server for ``name`` on 127.0.0.1, detached, and wait
+    until ``GET /v1/models`` answers; reuse a running server of the same model (on ``port``
+    when one is given). A lock file keeps concurrent callers from starting two."""
+    model = model_path(name)
+    with (cache_dir("server") / f"{name}.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        current = status(name)
+        if current is not None and port in (None, current.port):
+            _wait_healthy(current, timeout_s)
+            return current
+        if current is not None:
+            stop(name)
+        if port is None:
+            port = free_port(DEFAULT_PORT)
+        elif not _port_free(port):
+            raise EfficientEQAError(f"port {port} on {HOST} is already in use",
+                                    fix="choose another with --port, or leave it out to pick a free one")
+        ensure_llama_cpp()
+        log = _log_file(name)
+        cmd = [sys.executable, "-m", "llama_cpp.server", "--model", str(model), "--n_threads",
+               str(threads), "--n_ctx", str(ctx), "--host", HOST, "--port", str(port)]
+        with log.open("wb") as out:
+            proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+                                    start_new_session=True, close_fds=True)
+        _children[proc.pid] = proc
+        info = ServerInfo(name=name, pid=proc.pid, port=port, model=str(model), started=time.time(),
+                          log=str(log), proc_start=_proc_start(proc.pid))
+        _pid_file(name).write_text(json.dumps(asdict(info)))
+        _wait_healthy(info, timeout_s, proc)
+        return info
+
+
+def ensure_server(name: str = DEFAULT_MODEL) -> str:
+    """The base URL (``http://127.0.0.1:PORT/v1``) of a healthy server for ``name``, starting one
+    when needed: what the default back-end calls."""
+    return serve(name).base_url
