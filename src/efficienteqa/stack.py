@@ -22,10 +22,9 @@ from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.models.vc.grouping import Grouper, LLMGrouper, RuleGrouper
 from efficienteqa.models.vc.parse import M
 from efficienteqa.perception.base import Perception
+from efficienteqa.registry import Registry
 from efficienteqa.relevancy.base import RelevancyScorer, make_scorer
 
-PERCEPTIONS = ("semantic", "rgb")
-GROUPINGS = ("llm", "rules")
 MINILM_KINDS = ("minilm", "minilm-match")
 
 
@@ -58,29 +57,39 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
                        temperature=temperature)
 
 
+def _semantic(env: Environment, **_: Any) -> Perception:
+    labels = getattr(env, "scene_labels", None)
+    if labels is None:
+        raise EfficientEQAError(
+            f"semantic-sensor perception needs object labels, which {type(env).__name__} "
+            "does not give", fix="use --perception rgb with an image VLM")
+    from efficienteqa.perception.semantic import SemanticPerception
+
+    return SemanticPerception(labels())
+
+
+def _rgb(**_: Any) -> Perception:
+    from efficienteqa.perception.image import ImagePerception
+
+    return ImagePerception()
+
+
+PERCEPTIONS: Registry[Perception] = Registry("perception")
+PERCEPTIONS.register("semantic", _semantic)
+PERCEPTIONS.register("rgb", _rgb)
+
+GROUPINGS: Registry[Grouper] = Registry("grouping")
+GROUPINGS.register("rules", lambda **_: RuleGrouper())
+GROUPINGS.register("llm", lambda model, relevancy: LLMGrouper(
+    model, embedder=getattr(relevancy, "embed", None)))
+
+
 def build_perception(name: str, env: Environment) -> Perception:
-    if name == "semantic":
-        labels = getattr(env, "scene_labels", None)
-        if labels is None:
-            raise EfficientEQAError(
-                f"semantic-sensor perception needs object labels, which {type(env).__name__} "
-                "does not give", fix="use --perception rgb with an image VLM")
-        from efficienteqa.perception.semantic import SemanticPerception
-
-        return SemanticPerception(labels())
-    if name == "rgb":
-        from efficienteqa.perception.image import ImagePerception
-
-        return ImagePerception()
-    raise EfficientEQAError(f"unknown perception {name!r}", fix=f"use one of {', '.join(PERCEPTIONS)}")
+    return PERCEPTIONS.build(name, env=env)
 
 
 def build_grouper(name: str, model: ChatModel, relevancy: RelevancyScorer) -> Grouper:
-    if name == "rules":
-        return RuleGrouper()
-    if name == "llm":
-        return LLMGrouper(model, embedder=getattr(relevancy, "embed", None))
-    raise EfficientEQAError(f"unknown grouping {name!r}", fix=f"use one of {', '.join(GROUPINGS)}")
+    return GROUPINGS.build(name, model=model, relevancy=relevancy)
 
 
 @functools.cache

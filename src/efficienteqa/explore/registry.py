@@ -5,35 +5,32 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from typing import Any
 
-from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.base import Explorer
 from efficienteqa.explore.random_walk import RandomConfig, RandomExplorer
 from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig
+from efficienteqa.registry import Registry
 
 
-def _sfe(**config) -> Explorer:
+def _sfe(**config: Any) -> Explorer:
     return FrontierExplorer(SFEConfig(**config))
 
 
-def _frontier_only(**config) -> Explorer:
+def _frontier_only(**config: Any) -> Explorer:
     return FrontierExplorer(SFEConfig(**{**config, "use_values": False}))
 
 
-def _random(**config) -> Explorer:
+def _random(**config: Any) -> Explorer:
     return RandomExplorer(RandomConfig(**config))
 
 
-EXPLORERS: dict[str, Callable[..., Explorer]] = {
-    "sfe": _sfe,
-    "frontier-only": _frontier_only,
-    "random": _random,
-}
+EXPLORERS: Registry[Explorer] = Registry("explorer")
+EXPLORERS.register("sfe", _sfe)
+EXPLORERS.register("frontier-only", _frontier_only)
+EXPLORERS.register("random", _random)
 
 
-def make_explorer(name: str, **config) -> Explorer:
+def make_explorer(name: str, **config: Any) -> Explorer:
     """The explorer registered as ``name``; ``config`` overrides its config fields."""
-    if name not in EXPLORERS:
-        raise EfficientEQAError(f"unknown explorer {name!r}", f"choose one of {sorted(EXPLORERS)}")
-    return EXPLORERS[name](**config)
+    return EXPLORERS.build(name, **config)

@@ -9,12 +9,13 @@ Back-ends are imported only when built, so importing this module costs nothing.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.registry import Registry
 
 Modality = Literal["image", "text"]
 
@@ -68,20 +69,18 @@ def weights_missing(model_id: str, exc: BaseException) -> EfficientEQAError:
             "folder, or allow downloads (allow_download=True)")
 
 
-_REGISTRY: dict[str, tuple[str, str, dict[str, Any]]] = {
-    # kind: (module, factory, default kwargs)
-    "minilm": ("efficienteqa.relevancy.text", "MiniLMScorer.from_package", {}),
-    "minilm-match": ("efficienteqa.relevancy.text", "MiniLMMatchScorer.from_package", {}),
-    "overlap": ("efficienteqa.relevancy.text", "WordOverlapScorer", {}),
-    "blip2-itm": ("efficienteqa.relevancy.blip2", "Blip2ItmScorer.from_pretrained", {}),
-    "clip": ("efficienteqa.relevancy.clip", "ClipScorer.from_pretrained", {"family": "clip"}),
-    "siglip": ("efficienteqa.relevancy.clip", "ClipScorer.from_pretrained", {"family": "siglip"}),
-}
+SCORERS: Registry[RelevancyScorer] = Registry("relevancy scorer")
+SCORERS.register("minilm", "efficienteqa.relevancy.text:MiniLMScorer.from_package")
+SCORERS.register("minilm-match", "efficienteqa.relevancy.text:MiniLMMatchScorer.from_package")
+SCORERS.register("overlap", "efficienteqa.relevancy.text:WordOverlapScorer")
+SCORERS.register("blip2-itm", "efficienteqa.relevancy.blip2:Blip2ItmScorer.from_pretrained")
+SCORERS.register("clip", "efficienteqa.relevancy.clip:ClipScorer.from_pretrained", family="clip")
+SCORERS.register("siglip", "efficienteqa.relevancy.clip:ClipScorer.from_pretrained", family="siglip")
 DEFAULT_KIND = "minilm"
 
 
 def scorer_kinds() -> tuple[str, ...]:
-    return tuple(_REGISTRY)
+    return SCORERS.names()
 
 
 def make_scorer(kind: str = DEFAULT_KIND, **kwargs: Any) -> RelevancyScorer:
@@ -89,11 +88,4 @@ def make_scorer(kind: str = DEFAULT_KIND, **kwargs: Any) -> RelevancyScorer:
     match probability), "overlap" (deterministic, no model),
     "blip2-itm" (the paper's), "clip", "siglip". ``kwargs`` go to the back-end's factory
     (e.g. ``model_id_or_path=``, ``device=``, ``allow_download=``)."""
-    if kind not in _REGISTRY:
-        raise EfficientEQAError(f"unknown relevancy scorer {kind!r}",
-                                fix=f"use one of {', '.join(_REGISTRY)}")
-    module, factory_path, defaults = _REGISTRY[kind]
-    factory: Callable[..., RelevancyScorer] | Any = importlib.import_module(module)
-    for attr in factory_path.split("."):
-        factory = getattr(factory, attr)
-    return factory(**{**defaults, **kwargs})
+    return SCORERS.build(kind, **kwargs)
