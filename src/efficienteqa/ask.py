@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
 from efficienteqa.envs.synthetic.questions import Question
@@ -59,7 +60,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         built = build_agent(opened.env, stack, config, opened.backend, model=model,
                             relevancy=relevancy)
         perception = built.agent.perception
-        frames = FrameCollector(describe=perception.frame if perception.modality == "text" else None)
+        describe = (lambda obs: str(perception.frame(obs))) if perception.modality == "text" else None
+        frames = FrameCollector(describe=describe)
 
         def hook(record: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
             if report:
@@ -69,7 +71,7 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
 
         result = built.agent.run(opened.env, question, start=start, on_step=hook)
         truth = known_question(opened.questions, question)
-        reference = None
+        reference: dict[str, Any] | None = None
         if truth is not None:
             reference = {"id": truth.id, "answer": truth.answer,
                          "alternatives": truth.alternatives, "category": truth.category}

@@ -31,7 +31,7 @@ class RelevancyScorer(Protocol):
         Back-ends that subclass this protocol inherit this batch-of-one default."""
         return float(self.score_many(question, [observation_of(self, image, text)])[0])
 
-    def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
+    def score_many(self, question: str, items: Sequence[np.ndarray | str]) -> np.ndarray:
         """Sims (N,) float64 of N observations, in one batch where the back-end allows."""
         ...
 

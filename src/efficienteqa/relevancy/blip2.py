@@ -63,7 +63,7 @@ class Blip2ItmScorer(RelevancyScorer):
             raise weights_missing(model_id_or_path, exc) from exc
         return cls(model.to(device), processor, name=model_id_or_path, **kwargs)
 
-    def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
+    def score_many(self, question: str, items: Sequence[np.ndarray | str]) -> np.ndarray:
         torch = require("torch", EXTRA)
         images = [np.asarray(im) for im in items]
         if not images:

@@ -67,7 +67,7 @@ class ClipScorer(RelevancyScorer):
             raise weights_missing(model_id, exc) from exc
         return cls(model.to(device), processor, family, model_id, **kwargs)
 
-    def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
+    def score_many(self, question: str, items: Sequence[np.ndarray | str]) -> np.ndarray:
         torch = require("torch", EXTRA)
         images = [np.asarray(im) for im in items]
         if not images:

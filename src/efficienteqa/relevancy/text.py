@@ -95,7 +95,7 @@ class MiniLMScorer(RelevancyScorer):
         ends = np.cumsum([len(g) for g in lines])
         return [sims[e - len(g):e] for g, e in zip(lines, ends)]
 
-    def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
+    def score_many(self, question: str, items: Sequence[np.ndarray | str]) -> np.ndarray:
         """A text of several lines scores its best line: like an image matcher that responds to
         the one region showing the thing asked about, however much else is in view."""
         texts = [str(t) for t in items]
@@ -132,7 +132,7 @@ class WordOverlapScorer(RelevancyScorer):
     name = "word-overlap"
     modality: Modality = "text"
 
-    def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
+    def score_many(self, question: str, items: Sequence[np.ndarray | str]) -> np.ndarray:
         wanted = content_words(check_question(question))
         if not wanted:
             return np.zeros(len(items))
@@ -181,7 +181,7 @@ class MiniLMMatchScorer(MiniLMScorer):
         super().__init__(model, name=name, **kwargs)
         self.weights = weights or (MATCH_COS, MATCH_OVERLAP, MATCH_BIAS)
 
-    def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
+    def score_many(self, question: str, items: Sequence[np.ndarray | str]) -> np.ndarray:
         texts = [str(t) for t in items]
         if not texts:
             return np.zeros(0)
