@@ -17,22 +17,19 @@ from pathlib import Path
 
 import numpy as np
 
+from efficienteqa.answer.vc import answer_with_confidence
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.labels import HouseLabels
 from efficienteqa.explore.prompting import candidate_points
+from efficienteqa.explore.vlm_scorer import explore_scores
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.tsdf import VolumeSpec
 from efficienteqa.models import local
 from efficienteqa.models.backends import ChatBackend, build_chat_model
-from efficienteqa.models.vc import (
-    LLMGrouper,
-    RuleGrouper,
-    answer_with_confidence,
-    explore_scores,
-)
 from efficienteqa.perception.semantic import describe_directions, describe_frame
 from efficienteqa.scenes import synthetic_questions
+from efficienteqa.vc.grouping import LLMGrouper, RuleGrouper
 
 
 def frames(env: SyntheticEnv, n: int):

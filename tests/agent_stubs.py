@@ -1,5 +1,6 @@
 """Scripted chat models for agent tests: they read the prompts the agent sends (semantic-sensor
-text) and reply in the formats of ``models/prompts``; deterministic, no server."""
+text) and reply in the formats of the templates in ``explore/prompts`` and ``answer/prompts``;
+deterministic, no server."""
 
 from __future__ import annotations
 

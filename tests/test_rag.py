@@ -4,7 +4,7 @@ import pytest
 
 from efficienteqa.answer import RagAnswerer, TopK
 from efficienteqa.models.stub import StubChatModel
-from efficienteqa.models.vc.grouping import RuleGrouper
+from efficienteqa.vc.grouping import RuleGrouper
 
 
 def test_top_k_keeps_the_most_relevant_best_first():

@@ -1,4 +1,5 @@
-"""Verbalized confidence: parsers that never raise, grouping E(.), C_k, argmax, the two calls."""
+"""Verbalized confidence below explore/ and answer/: parsers that never raise, grouping E(.),
+C_k, argmax, token probabilities, the prompt loader."""
 
 from __future__ import annotations
 
@@ -10,30 +11,27 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from efficienteqa.models.base import Message, TokenLogprob
+from efficienteqa.models.base import TokenLogprob
 from efficienteqa.models.stub import StubChatModel
-from efficienteqa.models.vc import (
-    DEFAULT_P_YES,
-    AnswerClass,
-    Candidate,
+from efficienteqa.vc.grouping import (
     ExactGrouper,
     LLMGrouper,
     RuleGrouper,
-    answer_with_confidence,
     argmax,
-    blind_answer,
     contradictory,
-    explore_scores,
     group_answers,
-    letter_probs_from_logprobs,
-    load_prompt,
     normalise,
+)
+from efficienteqa.vc.logprobs import letter_probs_from_logprobs, yes_prob_from_logprobs
+from efficienteqa.vc.parse import (
+    DEFAULT_P_YES,
+    AnswerClass,
+    Candidate,
     parse_candidates,
     parse_letters,
     parse_worth_exploring,
-    yes_prob_from_logprobs,
 )
-from efficienteqa.models.vc.calls import answer_token_probability
+from efficienteqa.vc.prompts import load_prompt
 
 # ---------------------------------------------------------------------------- fuzz
 
@@ -284,104 +282,10 @@ def test_llm_grouper_bad_embeddings_fall_back_to_asking():
     assert labels == [0, 1] and len(stub.requests) == 1 and problems
 
 
-# ---------------------------------------------------------------------------- the model calls
-
-VIEW = "a grey sofa ahead, 2.1 m; a wooden coffee table at 1.5 m; an open door on the right"
-DIRECTIONS = {"A": "through the open door, 4 m", "B": "past the sofa, 3 m", "C": "back left, 5 m"}
-
-
-def test_explore_scores_prompt_and_normalisation():
-    stub = StubChatModel(["B: 60\nA: 30\nC: 30\nworth exploring: yes 80"])
-    score = explore_scores(stub, "Is the oven on?", VIEW, DIRECTIONS)
-    prompt = stub.requests[0].messages[0].text
-    assert "Is the oven on?" in prompt and VIEW in prompt and DIRECTIONS["A"] in prompt
-    assert score.letters == pytest.approx({"A": 0.25, "B": 0.5, "C": 0.25})
-    assert score.p_yes == pytest.approx(0.8)
-    assert score.info["problems"] == [] and score.info["raw"].startswith("B: 60")
-    assert score.info["usage"]["prompt_tokens"] > 0
-
-
-def test_explore_scores_two_letters_and_images():
-    stub = StubChatModel(["A: 90\nB: 10\nworth exploring: no 70"])
-    frame = np.zeros((4, 4, 3), np.uint8)
-    score = explore_scores(stub, "Where is the cat?", "", ["A", "B"], images=[frame])
-    msg: Message = stub.requests[0].messages[0]
-    assert len(msg.images) == 1 and "View: the image" in msg.text
-    assert msg.text.split("Directions:")[1].strip() == "A, B (the lettered circles in the image)"
-    assert score.letters == pytest.approx({"A": 0.9, "B": 0.1})
-    assert score.p_yes == pytest.approx(0.3)
-
-
-@pytest.mark.parametrize("reply, letters", [
-    ("", (1 / 3, 1 / 3, 1 / 3)), ("I cannot tell.", (1 / 3, 1 / 3, 1 / 3)),
-    ("D: 100", (1 / 3, 1 / 3, 1 / 3)), ("{{{", (1 / 3, 1 / 3, 1 / 3)), ("nan nan", (1 / 3, 1 / 3, 1 / 3)),
-    ("A: -3\nB: 0", (0.5, 0.5, 0.0)),  # all-zero confidences: uniform over the listed answers
-])
-def test_explore_scores_malformed_replies_give_defaults(reply, letters):
-    score = explore_scores(StubChatModel([reply]), "Where is the cat?", VIEW, DIRECTIONS)
-    assert score.letters == pytest.approx(dict(zip("ABC", letters)))
-    assert score.p_yes == DEFAULT_P_YES and score.info["problems"]
-
-
-def test_answer_with_confidence_groups_and_argmaxes():
-    def script(messages):
-        text = messages[0].text
-        if "Answer 1:" in text:  # the grouping prompt
-            return "yes"
-        return "Here you go:\n1. couch — 40%\n2. sofa — 40%\n3. armchair — 20%"
-    stub = StubChatModel(script)
-    evidence = ["a grey couch by the window", "a kitchen with a white fridge"]
-    result = answer_with_confidence(stub, "What is by the window?", evidence,
-                                    LLMGrouper(stub, embedder=_toy_embedder))
-    first = stub.requests[0].messages[0].text
-    assert "What is by the window?" in first and evidence[0] in first and evidence[1] in first
-    assert result.answer == "couch" and result.confidence == pytest.approx(0.8)
-    assert [c.confidence for c in result.candidates] == pytest.approx([0.4, 0.4, 0.2])
-    assert len(result.classes) == 2 and result.problems == ["ignored 1 line(s) without a confidence"]
-
-
-@pytest.mark.parametrize("reply, confidence", [("black; 30", 0.3), ("black; 90", 0.9),
-                                               ("unknown; 5", 0.05)])
-def test_one_guess_keeps_its_own_confidence(reply, confidence):
-    """M = 1 (ExploreEQA's per-step answers): the verbalized confidence, not 1 after normalising,
-    so steps can be ranked by Sim x confidence."""
-    result = answer_with_confidence(StubChatModel([reply]), "What colour is the sofa?",
-                                    ["a black sofa"], RuleGrouper(), m=1)
-    assert result.confidence == pytest.approx(confidence)
-
-
-def test_token_answer_probability_is_that_of_the_first_line():
-    """The product of the answer's token probabilities: leading whitespace and everything after
-    the first line are left out, whatever their probabilities."""
-    tokens = [TokenLogprob("\n", math.log(0.5)), TokenLogprob("black", 0.0),
-              TokenLogprob(" sofa", math.log(0.8)), TokenLogprob("\n", math.log(0.9)),
-              TokenLogprob("red", math.log(0.1))]
-    stub = StubChatModel(["\nblack sofa\nred"], logprob_fn=lambda text, top: tokens)
-    result = answer_token_probability(stub, "What is by the window?", ["a black sofa"])
-    assert result.answer == "black sofa" and result.confidence == pytest.approx(0.8)
-
-
-def test_answer_with_confidence_malformed_and_images():
-    stub = StubChatModel(["", "kitchen"])
-    frames = [np.zeros((4, 4, 3), np.uint8)] * 2
-    empty = answer_with_confidence(stub, "Where is the kettle?", frames, RuleGrouper())
-    assert (empty.answer, empty.confidence) == ("", 0.0) and empty.problems
-    assert len(stub.requests[0].messages[0].images) == 2
-    bare = answer_with_confidence(stub, "Where is the kettle?", ["a kettle on a counter"], RuleGrouper())
-    assert (bare.answer, bare.confidence) == ("kitchen", 1.0) and bare.problems
-
-
-def test_blind_answer_sends_only_the_question():
-    stub = StubChatModel(["kitchen; 50\nbedroom; 30\nkitchen; 20"])
-    result = blind_answer(stub, "Where is the kettle?", RuleGrouper())
-    msg = stub.requests[0].messages[0]
-    assert "Where is the kettle?" in msg.text and "guess" in msg.text and not msg.images
-    assert (result.answer, result.confidence) == ("kitchen", pytest.approx(0.7))
-
-
 def test_prompts_are_package_data_and_short():
-    for name in ("explore", "answer", "blind", "group"):
-        text = load_prompt(name)
+    for name, package in (("explore", "efficienteqa.explore"), ("answer", "efficienteqa.answer"),
+                          ("blind", "efficienteqa.answer"), ("group", "efficienteqa.vc")):
+        text = load_prompt(name, package)
         assert text.strip() and len(text.split()) * 1.3 < 150
 
 
@@ -415,18 +319,3 @@ def test_answer_and_confidence_on_separate_labelled_lines():
     assert [(c.text, c.confidence) for c in r.candidates] == [
         ("brown chair", 80.0), ("dining room", 75.0), ("yes", 90.0)]
     assert r.problems == []
-
-
-@pytest.mark.parametrize("question, first_line", [
-    ("How many chairs are around the table?", "2; 60"),
-    ("What colour is the sofa in the living room?", "red; 60"),
-    ("what color is the bed?", "red; 60"),
-    ("Where is the wall lamp?", "in the kitchen; 70"),
-    ("Is the TV in the living room on?", "yes; 70"),
-    ("Are there chairs in the office?", "yes; 70"),
-    ("What is on the desk in the office?", "a book; 60"),
-])
-def test_the_answer_example_has_the_form_of_the_question(question, first_line):
-    from efficienteqa.models.vc.prompts import answer_example
-
-    assert answer_example(question).splitlines()[1] == first_line

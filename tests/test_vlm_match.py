@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from efficienteqa.models.stub import StubChatModel
-from efficienteqa.models.vc import DEFAULT_P_YES
 from efficienteqa.relevancy.vlm_match import VLMMatchScorer
+from efficienteqa.vc.parse import DEFAULT_P_YES
 
 
 @pytest.mark.parametrize("reply, p_yes", [("yes 80", 0.8), ("no 90", pytest.approx(0.1)),

@@ -33,10 +33,10 @@ from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.tsdf import VolumeSpec
 from efficienteqa.models.recording import RecordingChatModel
-from efficienteqa.models.vc.parse import AnswerResult
 from efficienteqa.perception.base import Perception
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
 from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig, step_budget
+from efficienteqa.vc.parse import AnswerResult
 
 # Why exploration ended: a relevancy outlier (z > Z_th), the step budget, or no frontier left.
 STOP_REASONS = ("relevancy", "budget", "explored")

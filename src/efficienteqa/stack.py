@@ -19,11 +19,11 @@ from efficienteqa.explore.vlm_scorer import VLMScorer
 from efficienteqa.models.backends import ChatBackend, build_chat_model
 from efficienteqa.models.base import ChatModel
 from efficienteqa.models.recording import RecordingChatModel
-from efficienteqa.models.vc.grouping import Grouper, LLMGrouper, RuleGrouper
-from efficienteqa.models.vc.parse import M
 from efficienteqa.perception.base import Perception
 from efficienteqa.registry import Registry
 from efficienteqa.relevancy.base import RelevancyScorer, make_scorer
+from efficienteqa.vc.grouping import Grouper, LLMGrouper, RuleGrouper
+from efficienteqa.vc.parse import M
 
 MINILM_KINDS = ("minilm", "minilm-match")
 
@@ -130,7 +130,7 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     scorer = (VLMScorer(recorder, perception, confidence=config.confidence)
               if config.explorer == "sfe" else None)
     if config.confidence == "token":
-        from efficienteqa.models.vc.calls import require_logprobs
+        from efficienteqa.vc.logprobs import require_logprobs
 
         require_logprobs(model)
     # Answering every step (ExploreEQA) asks for one answer per frame, not M.

@@ -16,10 +16,10 @@ from typing import Generic, Literal, TypeVar
 
 import numpy as np
 
+from efficienteqa.answer.vc import answer_token_probability, answer_with_confidence
 from efficienteqa.models.base import ChatModel
-from efficienteqa.models.vc.calls import answer_token_probability, answer_with_confidence
-from efficienteqa.models.vc.grouping import Grouper
-from efficienteqa.models.vc.parse import AnswerResult, M
+from efficienteqa.vc.grouping import Grouper
+from efficienteqa.vc.parse import AnswerResult, M
 
 T = TypeVar("T")
 TOP_K = 5

@@ -32,7 +32,7 @@ from typing import Any
 from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import ChatModel, Message
-from efficienteqa.models.vc.prompts import load_prompt
+from efficienteqa.vc.prompts import load_prompt
 
 MIN_SCORE, MAX_SCORE = 1, 5
 # A grade that stays unreadable after the retry counts as wrong: a broken judge must never
@@ -253,7 +253,7 @@ class LLMMatchJudge:
         return judgement
 
     def _yes_prob(self, prompt: str) -> Judgement:
-        from efficienteqa.models.vc.calls import TOP_LOGPROBS, yes_prob_from_logprobs
+        from efficienteqa.vc.logprobs import TOP_LOGPROBS, yes_prob_from_logprobs
 
         reply = self.model.chat([Message("user", prompt)], max_tokens=1, temperature=0.0,
                                 logprobs=TOP_LOGPROBS)

@@ -124,9 +124,9 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
 
 def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     """The Blind LLM: the question only, no scene and no steps."""
+    from efficienteqa.answer.blind import blind_answer
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.models.recording import RecordingChatModel
-    from efficienteqa.models.vc.calls import blind_answer
     from efficienteqa.stack import build_grouper, build_relevancy, parse_vlm
 
     model = RecordingChatModel(build_chat_model(parse_vlm(

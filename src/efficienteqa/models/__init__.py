@@ -1,2 +1,1 @@
-"""Model back-ends: chat models (VLM/LLM) behind one protocol, the local llama.cpp server,
-verbalized confidence."""
+"""Model back-ends: chat models (VLM/LLM) behind one protocol, the local llama.cpp server."""

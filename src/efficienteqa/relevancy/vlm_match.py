@@ -13,9 +13,11 @@ from collections.abc import Sequence
 import numpy as np
 
 from efficienteqa.models.base import ChatModel, Message
-from efficienteqa.models.vc.parse import parse_worth_exploring
-from efficienteqa.models.vc.prompts import load_prompt
 from efficienteqa.relevancy.base import Modality, check_question, observation_of
+from efficienteqa.vc.parse import parse_worth_exploring
+from efficienteqa.vc.prompts import load_prompt
+
+PROMPTS = "efficienteqa.relevancy"  # relevancy/prompts/match.txt
 
 
 class VLMMatchScorer:
@@ -31,7 +33,7 @@ class VLMMatchScorer:
         item = observation_of(self, image, text)
         view = item if isinstance(item, str) else "the image"
         images = () if isinstance(item, str) else (item,)
-        prompt = load_prompt("match").format(question=check_question(question), view=view)
+        prompt = load_prompt("match", PROMPTS).format(question=check_question(question), view=view)
         reply = self.model.chat([Message("user", prompt, images)], max_tokens=self.max_tokens,
                                 temperature=0.0).text or ""
         p_yes, problems = parse_worth_exploring(reply)

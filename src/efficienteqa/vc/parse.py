@@ -94,7 +94,7 @@ def _prepare(reply: object, problems: list[str]) -> str:
     return "\n".join(ln for ln in lines if not ln.lstrip().startswith("```"))
 
 
-def _to_float(s: object) -> float | None:
+def to_float(s: object) -> float | None:
     if isinstance(s, bool):
         return None
     if isinstance(s, (int, float)):
@@ -114,7 +114,7 @@ def _split_confidence(line: str) -> tuple[str, _Raw | None]:
             match = rx.search(line)
     if match is None:
         return line, None
-    return line[:match.start()], _Raw("", _to_float(match["num"]), bool(match["pct"]))
+    return line[:match.start()], _Raw("", to_float(match["num"]), bool(match["pct"]))
 
 
 def _clean_text(s: str) -> str:
@@ -175,8 +175,8 @@ def _walk_json(obj: object, out: list[_Raw], depth: int) -> None:
 def _json_raw(text: str, conf: object) -> _Raw:
     if isinstance(conf, str):
         m = _ANY_NUM.search(conf)
-        return _Raw(text, _to_float(m["num"]) if m else None, bool(m and m["pct"]))
-    return _Raw(text, _to_float(conf))
+        return _Raw(text, to_float(m["num"]) if m else None, bool(m and m["pct"]))
+    return _Raw(text, to_float(conf))
 
 
 _CONF_LABEL = re.compile(r"(?i)(?:" + "|".join(_CONF_KEYS) + r")?")
@@ -294,7 +294,7 @@ def parse_letters(reply: str, letters: Sequence[str] = DEFAULT_LETTERS, m: int =
         for line in lines:
             line = re.sub(r"[*`]", "", line)
             line = re.sub(r"^\s*([a-z])\s*(?=[:=)])", lambda g: g[1].upper(), line)
-            pairs = [_Raw(p["letter"], _to_float(p["num"]), bool(p["pct"])) for p in _PAIR.finditer(line)]
+            pairs = [_Raw(p["letter"], to_float(p["num"]), bool(p["pct"])) for p in _PAIR.finditer(line)]
             head = _LETTER_HEAD.match(line)
             if not pairs and head:  # "A (through the door, 4 m): 60"
                 conf = _split_confidence(line)[1]
@@ -336,7 +336,7 @@ def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
         word = (before[-1] if before else words[0])[1].lower()
     conf = None
     if nums:
-        value = _to_float(nums[0]["num"])
+        value = to_float(nums[0]["num"])
         if value is not None and not math.isnan(value):
             conf = value / 100.0 if nums[0]["pct"] or value > 1.0 else value
             if not 0.0 <= conf <= 1.0:

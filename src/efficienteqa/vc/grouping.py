@@ -11,8 +11,8 @@ from typing import Protocol
 import numpy as np
 
 from efficienteqa.models.base import ChatModel, Message
-from efficienteqa.models.vc.parse import AnswerClass, Candidate
-from efficienteqa.models.vc.prompts import load_prompt
+from efficienteqa.vc.parse import AnswerClass, Candidate
+from efficienteqa.vc.prompts import load_prompt
 
 # ---------------------------------------------------------------------------- VC pipeline
 

@@ -1,0 +1,111 @@
+"""The answer with its confidence (SPEC 3.5, 3.6): M guesses with verbalized confidences ->
+normalise -> group -> argmax, or, for the white-box baseline, one greedy answer whose
+confidence is its token probability. ``evidence`` is the top-K frame descriptions (best first)
+or the top-K RGB frames."""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+
+import numpy as np
+
+from efficienteqa.models.base import ChatModel, Message
+from efficienteqa.vc.grouping import Grouper, argmax, group_answers, normalise
+from efficienteqa.vc.logprobs import require_logprobs
+from efficienteqa.vc.parse import AnswerClass, AnswerResult, Candidate, M, parse_candidates
+from efficienteqa.vc.prompts import load_prompt
+from efficienteqa.vc.usage import usage_of
+
+PROMPTS = "efficienteqa.answer"  # answer/prompts/*.txt
+
+# One worked example per question form, in the reply format: small models copy the kind of
+# answer in the example (a place for "where", a number for "how many") more than they follow
+# an instruction. The examples are about objects no synthetic question asks about.
+_EXAMPLES = (
+    (r"^how many\b", "How many cups are on the table?", ("2; 60", "3; 30", "1; 10")),
+    (r"^what colou?r\b", "What colour is the rug in the hallway?", ("red; 60", "brown; 30",
+                                                                      "beige; 10")),
+    (r"^where\b", "Where is the kettle?", ("in the kitchen; 70", "in the dining room; 20",
+                                           "in the hallway; 10")),
+    (r"^(is|are|was|were|does|do|did|can|could|has|have)\b", "Is the window in the kitchen open?",
+     ("yes; 70", "no; 30")),
+    (r".", "What is on the shelf in the office?", ("a book; 60", "a vase; 30", "a plant; 10")),
+)
+
+
+def answer_example(question: str) -> str:
+    """A worked example of the reply for a question of the same form as ``question``."""
+    q = question.strip().lower()
+    for pattern, example, lines in _EXAMPLES:
+        if re.search(pattern, q):
+            return f'Example, for "{example}":\n' + "\n".join(lines)
+    raise AssertionError("the last pattern matches every question")
+
+
+def evidence_text(evidence: Sequence[str] | Sequence[np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
+    """The evidence as prompt text, and the images to attach (for VLMs)."""
+    items = list(evidence)
+    if items and all(isinstance(e, str) for e in items):
+        return "\n".join(f"view {i + 1}: {e}" for i, e in enumerate(items)), ()
+    images = tuple(e for e in items if isinstance(e, np.ndarray))
+    return (f"the {len(images)} attached images" if images else "nothing"), images
+
+
+def vc_answer(model: ChatModel, prompt: str, images: tuple[np.ndarray, ...], question: str,
+              grouper: Grouper, m: int, max_tokens: int) -> AnswerResult:
+    """One VC call: the reply's M candidates -> normalise -> group -> argmax ``(R*, C*)``."""
+    resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0)
+    raw = resp.text or ""
+    parsed = parse_candidates(raw, m)
+    problems = list(parsed.problems)
+    classes = group_answers(question, parsed.candidates, grouper, problems)
+    answer, confidence = argmax(classes)
+    if m == 1 and len(parsed.candidates) == 1:
+        # One guess (ExploreEQA's per-step answer): normalising would make every confidence 1,
+        # so its own verbalized confidence (0-100) is the confidence.
+        confidence = min(max(parsed.candidates[0].confidence / 100.0, 0.0), 1.0)
+    return AnswerResult(answer, confidence, classes, normalise(parsed.candidates), problems, raw,
+                        usage_of(resp))
+
+
+def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[str] | Sequence[np.ndarray],
+                           grouper: Grouper, *, m: int = M, max_tokens: int = 96) -> AnswerResult:
+    """The RAG answer (SPEC 3.5): M guesses -> normalise -> group -> argmax."""
+    text, images = evidence_text(evidence)
+    prompt = load_prompt("answer", PROMPTS).format(question=question, evidence=text, m=m,
+                                                   example=answer_example(question))
+    return vc_answer(model, prompt, images, question, grouper, m, max_tokens)
+
+
+def answer_token_probability(model: ChatModel, question: str,
+                             evidence: Sequence[str] | Sequence[np.ndarray], *,
+                             max_tokens: int = 24) -> AnswerResult:
+    """A short greedy answer; its confidence (0-1, as VC's after normalising) is the model's
+    probability of that answer: the product of its tokens' probabilities, first line only."""
+    require_logprobs(model)
+    text, images = evidence_text(evidence)
+    prompt = load_prompt("answer_token", PROMPTS).format(question=question, evidence=text)
+    resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
+                      logprobs=1)
+    raw = resp.text or ""
+    problems: list[str] = []
+    logprob, started = 0.0, False
+    for token in resp.logprobs or []:
+        if not started and not token.token.strip():
+            continue  # leading whitespace is not part of the answer (``raw.strip()``)
+        if started and "\n" in token.token:
+            break  # the first line is the answer
+        started = True
+        if math.isfinite(token.logprob):
+            logprob += token.logprob
+    if not resp.logprobs:
+        problems.append("no logprobs in the reply: confidence 0")
+    answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""
+    if not answer:
+        problems.append("empty answer")
+    confidence = math.exp(logprob) if resp.logprobs and answer else 0.0
+    candidates = [Candidate(answer, confidence)] if answer else []
+    classes = [AnswerClass(answer, candidates, confidence)] if answer else []
+    return AnswerResult(answer, confidence, classes, candidates, problems, raw, usage_of(resp))

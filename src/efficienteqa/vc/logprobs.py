@@ -1,0 +1,88 @@
+"""Token probabilities for the white-box baselines (SPEC 3.6): the same quantities as verbalized
+confidence (P(letter), P(yes)), read from a model's top log-probabilities instead of its words."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.models.base import ChatModel, TokenLogprob
+from efficienteqa.vc.parse import DEFAULT_P_YES, to_float
+
+TOP_LOGPROBS = 10  # alternatives asked for per generated token
+
+LogprobInput = TokenLogprob | Sequence[TokenLogprob] | Sequence[tuple[str, float]] | Mapping[str, float]
+
+
+def require_logprobs(model: ChatModel) -> None:
+    """Fail before the first call when ``model`` cannot give token log-probabilities."""
+    if not model.capabilities.logprobs:
+        raise EfficientEQAError(f"model {model.name!r} does not return token log-probabilities",
+                                fix="use explore-eqa-blackbox (verbalized confidence), or a server "
+                                    "that gives logprobs (llama.cpp, vLLM)")
+
+
+def _positions(top: LogprobInput | None) -> list[list[tuple[str, float]]]:
+    """The alternatives (token, logprob) at each generated position; a mapping or a flat list of
+    pairs is one position."""
+    if top is None:
+        return []
+    if isinstance(top, Mapping):
+        return [list(top.items())]
+    if isinstance(top, TokenLogprob):
+        top = [top]
+    out: list[list[tuple[str, float]]] = []
+    flat: list[tuple[str, float]] = []
+    for item in top:
+        if isinstance(item, TokenLogprob):
+            alts = list(item.top)
+            if all(t != item.token for t, _ in alts):
+                alts.append((item.token, item.logprob))
+            out.append(alts)
+        elif isinstance(item, (tuple, list)) and len(item) == 2:
+            flat.append((item[0], item[1]))
+    return out + ([flat] if flat else [])
+
+
+def _token_key(token: object) -> str:
+    """``" (B"``, ``"ĠB"``, ``"▁b."`` -> ``"B"``: tokenizer space marks, brackets, case dropped."""
+    return str(token).replace("Ġ", " ").replace("▁", " ").strip().strip("()[]{}.:,*\"'").upper()
+
+
+def _logaddexp(a: float, b: float) -> float:
+    hi = max(a, b)
+    return hi + math.log1p(math.exp(min(a, b) - hi))
+
+
+def _softmax_first(top: LogprobInput | None, allowed: Sequence[str]) -> dict[str, float] | None:
+    """Softmax over ``allowed`` keys at the first position whose alternatives include one."""
+    for alts in _positions(top):
+        mass: dict[str, float] = {}
+        for tok, lp in alts:
+            key, value = _token_key(tok), to_float(lp)
+            if key in allowed and value is not None and math.isfinite(value):
+                mass[key] = _logaddexp(mass[key], value) if key in mass else value
+        if mass:
+            hi = max(mass.values())
+            exp = {k: math.exp(v - hi) for k, v in mass.items()}
+            total = sum(exp.values())
+            return {k: exp.get(k, 0.0) / total for k in allowed}
+    return None
+
+
+def letter_probs_from_logprobs(top_logprobs: LogprobInput | None, letters: Sequence[str]
+                               ) -> dict[str, float]:
+    """P(letter) from token log-probabilities, softmax-normalised over ``letters`` (tokens
+    matched ignoring case, spaces and brackets); uniform when no letter is among them."""
+    keys = [str(x).strip().upper() for x in letters]
+    probs = _softmax_first(top_logprobs, keys)
+    if not letters:
+        return {}
+    return {x: (probs[k] if probs else 1.0 / len(letters)) for x, k in zip(letters, keys)}
+
+
+def yes_prob_from_logprobs(top_logprobs: LogprobInput | None) -> float:
+    """P(yes) over {yes, no} from token log-probabilities; ``DEFAULT_P_YES`` when neither is there."""
+    probs = _softmax_first(top_logprobs, ["YES", "NO"])
+    return probs["YES"] if probs else DEFAULT_P_YES

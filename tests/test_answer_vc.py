@@ -1,0 +1,90 @@
+"""The answer with its confidence (SPEC 3.5, 3.6): the VC answer, the white-box token
+probability, the Blind LLM."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from efficienteqa.answer.blind import blind_answer
+from efficienteqa.answer.vc import answer_example, answer_token_probability, answer_with_confidence
+from efficienteqa.models.base import TokenLogprob
+from efficienteqa.models.stub import StubChatModel
+from efficienteqa.vc.grouping import LLMGrouper, RuleGrouper
+
+
+def _couch_embedder(texts):
+    """couch and sofa point one way, everything else another."""
+    return np.array([[1.0, 0.0] if t.split()[-1].lower() in ("couch", "sofa") else [0.0, 1.0]
+                     for t in texts])
+
+
+def test_answer_with_confidence_groups_and_argmaxes():
+    def script(messages):
+        text = messages[0].text
+        if "Answer 1:" in text:  # the grouping prompt
+            return "yes"
+        return "Here you go:\n1. couch — 40%\n2. sofa — 40%\n3. armchair — 20%"
+    stub = StubChatModel(script)
+    evidence = ["a grey couch by the window", "a kitchen with a white fridge"]
+    result = answer_with_confidence(stub, "What is by the window?", evidence,
+                                    LLMGrouper(stub, embedder=_couch_embedder))
+    first = stub.requests[0].messages[0].text
+    assert "What is by the window?" in first and evidence[0] in first and evidence[1] in first
+    assert result.answer == "couch" and result.confidence == pytest.approx(0.8)
+    assert [c.confidence for c in result.candidates] == pytest.approx([0.4, 0.4, 0.2])
+    assert len(result.classes) == 2 and result.problems == ["ignored 1 line(s) without a confidence"]
+
+
+@pytest.mark.parametrize("reply, confidence", [("black; 30", 0.3), ("black; 90", 0.9),
+                                               ("unknown; 5", 0.05)])
+def test_one_guess_keeps_its_own_confidence(reply, confidence):
+    """M = 1 (ExploreEQA's per-step answers): the verbalized confidence, not 1 after normalising,
+    so steps can be ranked by Sim x confidence."""
+    result = answer_with_confidence(StubChatModel([reply]), "What colour is the sofa?",
+                                    ["a black sofa"], RuleGrouper(), m=1)
+    assert result.confidence == pytest.approx(confidence)
+
+
+def test_token_answer_probability_is_that_of_the_first_line():
+    """The product of the answer's token probabilities: leading whitespace and everything after
+    the first line are left out, whatever their probabilities."""
+    tokens = [TokenLogprob("\n", math.log(0.5)), TokenLogprob("black", 0.0),
+              TokenLogprob(" sofa", math.log(0.8)), TokenLogprob("\n", math.log(0.9)),
+              TokenLogprob("red", math.log(0.1))]
+    stub = StubChatModel(["\nblack sofa\nred"], logprob_fn=lambda text, top: tokens)
+    result = answer_token_probability(stub, "What is by the window?", ["a black sofa"])
+    assert result.answer == "black sofa" and result.confidence == pytest.approx(0.8)
+
+
+def test_answer_with_confidence_malformed_and_images():
+    stub = StubChatModel(["", "kitchen"])
+    frames = [np.zeros((4, 4, 3), np.uint8)] * 2
+    empty = answer_with_confidence(stub, "Where is the kettle?", frames, RuleGrouper())
+    assert (empty.answer, empty.confidence) == ("", 0.0) and empty.problems
+    assert len(stub.requests[0].messages[0].images) == 2
+    bare = answer_with_confidence(stub, "Where is the kettle?", ["a kettle on a counter"], RuleGrouper())
+    assert (bare.answer, bare.confidence) == ("kitchen", 1.0) and bare.problems
+
+
+def test_blind_answer_sends_only_the_question():
+    stub = StubChatModel(["kitchen; 50\nbedroom; 30\nkitchen; 20"])
+    result = blind_answer(stub, "Where is the kettle?", RuleGrouper())
+    msg = stub.requests[0].messages[0]
+    assert "Where is the kettle?" in msg.text and "guess" in msg.text and not msg.images
+    assert (result.answer, result.confidence) == ("kitchen", pytest.approx(0.7))
+
+
+@pytest.mark.parametrize("question, first_line", [
+    ("How many chairs are around the table?", "2; 60"),
+    ("What colour is the sofa in the living room?", "red; 60"),
+    ("what color is the bed?", "red; 60"),
+    ("Where is the wall lamp?", "in the kitchen; 70"),
+    ("Is the TV in the living room on?", "yes; 70"),
+    ("Are there chairs in the office?", "yes; 70"),
+    ("What is on the desk in the office?", "a book; 60"),
+])
+def test_the_answer_example_has_the_form_of_the_question(question, first_line):
+    assert answer_example(question).splitlines()[1] == first_line
