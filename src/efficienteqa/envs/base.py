@@ -17,17 +17,34 @@ from efficienteqa.observation import Observation
 
 
 @dataclass(frozen=True)
+class DoorSides:
+    """Where a door is and which rooms it joins: ``rooms`` in the order people name them ("the
+    door between the kitchen and the hallway"; None for the outside), ``(x, y)`` a point of its
+    wall line and ``normal`` a unit vector across that line pointing to ``rooms[0]``'s side."""
+
+    rooms: tuple[str | None, str | None]
+    x: float
+    y: float
+    normal: tuple[float, float]
+
+    def side(self, x: float, y: float) -> str | None:
+        """The room on the side of the door's wall line where the point (x, y) lies."""
+        ahead = (x - self.x) * self.normal[0] + (y - self.y) * self.normal[1]
+        return self.rooms[0] if ahead > 0 else self.rooms[1]
+
+
+@dataclass(frozen=True)
 class ObjectLabel:
     """What the semantic sensor knows about an instance id. ``state`` only where the object has
-    one ("on"/"off", "open"/"closed"); ``room`` is the name of the room it stands in; ``place``,
-    where set, says where it is in words that name it apart ("between the kitchen and the
-    hallway" for a door, as people and the questions refer to doors)."""
+    one ("on"/"off", "open"/"closed"); ``room`` is the name of the room it stands in; ``door``,
+    for doors, the rooms on either side. A label is what the scene knows, not what a frame shows:
+    perception names a room only when the frame shows it."""
 
     category: str
     colour: str | None
     state: str | None
     room: str | None
-    place: str | None = None
+    door: DoorSides | None = None
 
 
 class SceneLabels(Protocol):

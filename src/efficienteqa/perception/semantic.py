@@ -5,6 +5,12 @@ model read what a frame shows instead of its pixels: the visible objects (catego
 state, bearing, distance), the room the robot stands in and the rooms seen through doorways, and
 what lies towards each lettered prompt point. Everything is deterministic for a given frame.
 
+The text says only what a camera at that pose shows. A room is "in view" when enough of its
+floor is (structure pixels at floor height, named by the scene's floor plan). The robot's room
+is named when its floor or its furniture is in view; any other room, the room of an object or of
+a lettered point, and the rooms a door joins only when that room's floor is in view (for a
+point: near the point). A closed door names at most the room on the camera's side of it.
+
 Bearings come from the pixel column of an object's centroid (degrees, positive = left of the
 optical axis); distances are the median depth of its pixels (metres along the optical axis).
 """
@@ -68,26 +74,52 @@ class VisibleObject:
     bearing_deg: float
     bearing: str
     distance_m: float
+    where: str | None = None  # "in the hallway", "between the kitchen and the hallway": only
+    # what the frame shows (set by describe_frame)
 
     def phrase(self, robot_room: str | None = None) -> str:
-        """E.g. "a lamp (on) on the left, 3.4 m"; names the object's room when it differs."""
+        """E.g. "a lamp (on) on the left, 3.4 m, in the hallway"; the place is left out when it
+        is the robot's own room."""
         text = f"{_noun_phrase(self.label, 1)} {self.bearing}, {self.distance_m:.1f} m"
-        room = self.label.room
-        if self.label.place:
-            text += f", {self.label.place}"
-        elif room and robot_room and room != robot_room and self.label.category != "door":
-            text += f", in the {room}"
+        if self.where and not (robot_room and self.where == f"in the {robot_room}"):
+            text += f", {self.where}"
         return text
 
 
 @dataclass(frozen=True)
 class FrameDescription:
-    """A frame in words (``text``) and as structure (near-to-far ``objects``)."""
+    """A frame in words (``text``) and as structure (near-to-far ``objects``). ``room`` is the
+    robot's room when the frame shows it (None otherwise); ``rooms_in_view`` every room whose
+    floor is in view, nearest first."""
 
     text: str
     room: str | None
     objects: tuple[VisibleObject, ...]
     rooms_through_doorways: tuple[str, ...]
+    rooms_in_view: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class FloorView:
+    """The floor a frame shows: ``rooms`` (names), ``room_index`` (H, W) the index in ``rooms``
+    of each floor pixel's room (-1: not floor, or floor of no room) and ``depth_m`` the median
+    depth of each room's floor pixels."""
+
+    rooms: tuple[str, ...]
+    room_index: np.ndarray
+    depth_m: tuple[float, ...]
+
+    def pixels(self, mask: np.ndarray | None = None) -> dict[str, int]:
+        """Floor pixels per room (within ``mask`` when given)."""
+        index = self.room_index if mask is None else self.room_index[mask]
+        counts = np.bincount(index[index >= 0].ravel(), minlength=len(self.rooms))
+        return {name: int(n) for name, n in zip(self.rooms, counts)}
+
+    def in_view(self, min_pixels: int, mask: np.ndarray | None = None) -> tuple[str, ...]:
+        """Rooms with at least ``min_pixels`` floor pixels (within ``mask``), nearest first."""
+        counts = self.pixels(mask)
+        near_first = sorted(zip(self.depth_m, self.rooms))
+        return tuple(name for _, name in near_first if counts[name] >= min_pixels)
 
 
 def scaled_min_pixels(height: int, width: int) -> int:
@@ -141,10 +173,18 @@ def describe_frame(obs: Observation, labels: SceneLabels, min_pixels: int | None
     """The frame as a compact paragraph, e.g. "You are in the kitchen. Visible: a grey
     refrigerator ahead, 2.1 m; a lamp (on) on the left, 3.4 m. Through a doorway: the hallway."
     At most ``max_objects`` objects, the nearest."""
-    objects = tuple(visible_objects(obs, labels, min_pixels, noise)[:max_objects])
-    room = labels.room_at(obs.pose.x, obs.pose.y)
-    others = _rooms_in_view(obs, labels, room, min_pixels)
-    parts = [f"You are in the {room}." if room else "You are between rooms."]
+    seen = visible_objects(obs, labels, min_pixels, noise)
+    h, w = obs.depth_m.shape
+    threshold = scaled_min_pixels(h, w) if min_pixels is None else min_pixels
+    in_view = floor_view(obs, labels).in_view(threshold)
+    here = labels.room_at(obs.pose.x, obs.pose.y)
+    furnished = any(o.label.door is None and o.label.room == here for o in seen)
+    room = here if here is not None and (here in in_view or furnished) else None
+    camera_xy = (float(obs.cam_to_world[0, 3]), float(obs.cam_to_world[1, 3]))
+    objects = tuple(replace(o, where=_where(o.label, set(in_view), room, camera_xy))
+                    for o in seen[:max_objects])
+    others = tuple(r for r in in_view if r != here)
+    parts = [f"You are in the {room}." if room else "The room you are in is not in view."]
     if objects:
         parts.append("Visible: " + "; ".join(o.phrase(room) for o in objects) + ".")
     else:
@@ -152,7 +192,7 @@ def describe_frame(obs: Observation, labels: SceneLabels, min_pixels: int | None
     if others:
         lead = "Through a doorway" if len(others) == 1 else "Through doorways"
         parts.append(f"{lead}: " + ", ".join(f"the {r}" for r in others) + ".")
-    return FrameDescription(" ".join(parts), room, objects, others)
+    return FrameDescription(" ".join(parts), room, objects, others, in_view)
 
 
 def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels: SceneLabels,
@@ -161,11 +201,14 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
     """For each lettered point, the room there, its distance from the robot and the objects seen
     near it, e.g. {"A": "towards the dining room, 4.2 m away; a brown table, two brown chairs."}
 
-    An object is near a point when some of its pixels back-project within ``radius_m`` (on the
-    floor plane) of the point, or lie in a small pixel window around the point's pixel.
+    A pixel is near a point when it back-projects within ``radius_m`` (on the floor plane) of the
+    point, or lies in a small pixel window around the point's pixel. An object is near when some
+    of its pixels are; the point's room is named only when enough of that room's floor is near.
     """
     objects = visible_objects(obs, labels, min_pixels, noise)
+    floor = floor_view(obs, labels)
     h, w = obs.depth_m.shape
+    threshold = scaled_min_pixels(h, w) if min_pixels is None else min_pixels
     xy = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[..., :2]
     rows, cols = np.mgrid[0:h, 0:w]
     half = max(2.0, WINDOW_FRACTION * w)
@@ -185,6 +228,8 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
                 hits.append((float(np.median(planar[mask])), o.instance_id, o.label))
         hits.sort(key=lambda t: (t[0], t[1]))
         room = labels.room_at(px, py)
+        if room is not None and floor.pixels(near).get(room, 0) < threshold:
+            room = None  # that room's floor is not in view there
         where = "" if room is None else (f"in the {room}, " if room == robot_room
                                          else f"towards the {room}, ")
         distance = math.hypot(px - obs.pose.x, py - obs.pose.y)
@@ -195,34 +240,51 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
 
 
 # -- helpers ---------------------------------------------------------------------------------
-def _rooms_in_view(obs: Observation, labels: SceneLabels, robot_room: str | None,
-                   min_pixels: int | None) -> tuple[str, ...]:
-    """Rooms other than the robot's whose floor is visible, nearest first."""
+def floor_view(obs: Observation, labels: SceneLabels) -> FloorView:
+    """The rooms whose floor the frame shows: structure pixels (instance 0) at floor height,
+    each named by ``labels.room_at`` at the centre of its ROOM_CELL_M cell."""
     h, w = obs.depth_m.shape
-    threshold = scaled_min_pixels(h, w) if min_pixels is None else min_pixels
     points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)
     floor = (obs.depth_m > 0) & (np.abs(points[..., 2]) < FLOOR_TOLERANCE_M)
     if obs.instance is not None:
         floor &= obs.instance == 0
+    index = np.full((h, w), -1, np.int64)
     if not floor.any():
-        return ()
+        return FloorView((), index, ())
     cells = np.floor(points[floor][:, :2] / ROOM_CELL_M).astype(np.int64) + _CELL_OFFSET
-    depth = obs.depth_m[floor]
     unique, inverse = np.unique(cells[:, 0] * (2 * _CELL_OFFSET) + cells[:, 1],
                                 return_inverse=True)  # one int key per cell: a fast 1-D unique
     i, j = np.divmod(unique, 2 * _CELL_OFFSET)
     names = [labels.room_at((a - _CELL_OFFSET + 0.5) * ROOM_CELL_M,
                             (b - _CELL_OFFSET + 0.5) * ROOM_CELL_M) for a, b in zip(i, j)]
-    codes = {name: k for k, name in enumerate(sorted({n for n in names if n is not None}))}
-    per_pixel = np.array([codes.get(n, -1) if n is not None else -1 for n in names])[inverse.ravel()]
-    rooms = []
-    for name, code in codes.items():
-        if name == robot_room:
-            continue
-        mask = per_pixel == code
-        if int(mask.sum()) >= threshold:
-            rooms.append((float(np.median(depth[mask])), name))
-    return tuple(name for _, name in sorted(rooms))
+    rooms = tuple(sorted({n for n in names if n is not None}))
+    code = {name: k for k, name in enumerate(rooms)}
+    per_cell = np.array([code[n] if n is not None else -1 for n in names], np.int64)
+    index[floor] = per_cell[inverse.ravel()]
+    depth = obs.depth_m[floor]
+    medians = tuple(float(np.median(depth[index[floor] == k])) for k in range(len(rooms)))
+    return FloorView(rooms, index, medians)
+
+
+def _where(label: ObjectLabel, in_view: set[str], robot_room: str | None,
+           camera_xy: tuple[float, float]) -> str | None:
+    """Where an object is, in words the frame supports: a door by the rooms it joins whose floor
+    is in view (a closed door only by the room on the camera's side), anything else by its room
+    when that room's floor is in view or it is the robot's room the frame shows."""
+    sides = label.door
+    if sides is not None:
+        if label.state == "open":
+            rooms = [r for r in sides.rooms if r is not None and r in in_view]
+        else:
+            near = sides.side(*camera_xy)
+            rooms = [near] if near is not None and near in in_view else []
+        if len(rooms) == 2:
+            return f"between the {rooms[0]} and the {rooms[1]}"
+        return f"in a wall of the {rooms[0]}" if rooms else None
+    room = label.room
+    if room is not None and (room in in_view or room == robot_room):
+        return f"in the {room}"
+    return None
 
 
 def _apply_noise(objects: list[VisibleObject], noise: NoiseConfig, obs: Observation
@@ -299,11 +361,7 @@ class SemanticPerception:
         """One line per object in view, "a blue stool in the kitchen": the regions an image
         matcher would weigh, without the bearings and distances that only the planner needs."""
         d = self.describe(obs)
-        lines = []
-        for o in d.objects:
-            room = o.label.room or d.room
-            where = o.label.place or (f"in the {room}" if room else "")
-            lines.append(f"{_noun_phrase(o.label, 1)} {where}".strip())
+        lines = [f"{_noun_phrase(o.label, 1)} {o.where or ''}".strip() for o in d.objects]
         return "\n".join(lines) or (f"walls and floor in the {d.room}" if d.room else "walls and floor")
 
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest:

@@ -2,8 +2,21 @@
 
 from __future__ import annotations
 
-from efficienteqa.envs.base import ObjectLabel
+from efficienteqa.envs.base import DoorSides, ObjectLabel
 from efficienteqa.envs.synthetic.house import House
+from efficienteqa.envs.synthetic.layout import Door, Layout
+
+_PROBE_M = 0.3  # how far across the wall line a door's side is looked up
+
+
+def door_sides(layout: Layout, door: Door) -> DoorSides:
+    """The rooms a door joins (room_a first; None for the outside) and its wall line."""
+    names = {r.id: r.name for r in layout.rooms}
+    normal = (0.0, 1.0) if door.axis == "x" else (1.0, 0.0)
+    room_a = layout.rooms[door.room_a]
+    if not room_a.contains(door.x + _PROBE_M * normal[0], door.y + _PROBE_M * normal[1]):
+        normal = (-normal[0], -normal[1])
+    return DoorSides((names[door.room_a], names.get(door.room_b)), door.x, door.y, normal)
 
 
 class HouseLabels:
@@ -12,13 +25,10 @@ class HouseLabels:
     def __init__(self, house: House) -> None:
         self._layout = house.layout
         rooms = {r.id: r.name for r in house.layout.rooms}
-        doors = {int(obj): house.layout.doors[int(door)]
+        sides = {int(obj): door_sides(house.layout, house.layout.doors[int(door)])
                  for door, obj in house.meta.get("door_objects", {}).items()}
-        places = {obj: f"between the {rooms[d.room_a]} and "
-                       + (f"the {rooms[d.room_b]}" if d.room_b in rooms else "the outside")
-                  for obj, d in doors.items() if d.room_a in rooms}
         self._labels = {o.id: ObjectLabel(o.category, o.colour or None, o.state,
-                                          rooms.get(o.room_id), places.get(o.id))
+                                          rooms.get(o.room_id), sides.get(o.id))
                         for o in house.objects}
 
     def label(self, instance_id: int) -> ObjectLabel | None:
