@@ -15,10 +15,10 @@ from efficienteqa.eval.judge import (
     LLMMatchJudge,
     parse_score,
     render_prompt,
-    rule_score,
     score_value,
     trim_response,
 )
+from efficienteqa.eval.judge_rules import rule_score
 from efficienteqa.models.base import Capabilities
 from efficienteqa.models.stub import StubChatModel
 
@@ -175,18 +175,30 @@ def test_smoke_judge_with_the_real_small_model(tmp_path, small_model_cache):
     assert all(isinstance(p, str) for p in judgement.problems)
 
 
-@pytest.mark.parametrize("reference,response,extra,expected", [
-    ("a desk lamp", "Desk lamp.", (), 5),
-    ("grey", "gray", ("gray",), 5),
-    ("Yes, it is on", "yes", (), 5),
-    ("No", "no, it is closed", (), 5),
-    ("yes", "No.", (), 1),
-    ("Yes, it is on", "lamp", (), None),
-    ("2", "two", (), None),  # a model's call: a rule must not guess synonyms
-    ("a rug", "", (), None),
+@pytest.mark.parametrize("question,reference,response,extra,expected", [
+    ("Which lamp is on?", "a desk lamp", "Desk lamp.", (), 5),
+    ("What colour is the rug?", "grey", "gray", ("gray",), 5),
+    ("Is the lamp on?", "Yes, it is on", "yes", (), 5),
+    ("Is the door open?", "No", "no, it is closed", (), 5),
+    ("Is the door open?", "yes", "No.", (), 1),
+    ("Is the lamp next to the bed on?", "Yes, it is on", "lamp", (), 1),  # only the question's words
+    ("What is on the table?", "2", "two", (), None),  # not a count question: the model's call
+    ("What is on the table?", "a rug", "", (), None),
 ])
-def test_rules_grade_what_every_judge_must_agree_on(reference, response, extra, expected):
-    assert rule_score(reference, response, extra) == expected
+def test_rules_grade_what_every_judge_must_agree_on(question, reference, response, extra, expected):
+    ruled = rule_score(question, reference, response, extra)
+    assert (ruled.score if ruled else None) == expected
+
+
+def test_the_polarity_rule_decides_only_bare_yes_and_no(tmp_path):
+    """"yes, in the bedroom" is not "yes, in the kitchen": the model decides, not the yes."""
+    model = StubChatModel(["1"], capabilities=PLAIN)
+    judgement = LLMMatchJudge(model, tmp_path / "j.sqlite").judge(
+        "Is there a lamp?", "yes, in the kitchen", "yes, in the bedroom")
+    assert judgement.score == 1 and len(model.requests) == 1
+    assert rule_score("Is there a lamp?", "yes, in the kitchen", "yes, in the bedroom") is None
+    assert rule_score("Is there a lamp?", "yes", "yes, in the bedroom") is None
+    assert rule_score("Is there a lamp?", "yes, there is", "Yes, there is a lamp.").score == 5
 
 
 def test_a_ruled_grade_makes_no_model_call(tmp_path):
@@ -205,7 +217,7 @@ def test_yes_prob_mode_grades_from_the_probability_of_yes(tmp_path):
     model = StubChatModel(["yes"], logprob_fn=logprobs)
     judge = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob")
     judgement = judge.judge("What is on the desk?", "a laptop", "a notebook computer")
-    assert judgement.score == 1 + round(4 * 0.8) == 4 and judgement.raw == "P(yes)=0.800"
+    assert judgement.score == 4 and judgement.raw == "P(yes)=0.800"
     assert judgement.judge == "stub (yes-prob)"
     request = model.requests[0]
     assert request.max_tokens == 1 and request.logprobs and "say the same thing" in request.messages[0].text
@@ -221,3 +233,41 @@ def test_yes_prob_mode_needs_logprobs():
 
     with pytest.raises(EfficientEQAError, match="grade"):
         LLMMatchJudge(StubChatModel([], capabilities=Capabilities(logprobs=False)), mode="yes-prob")
+
+
+def test_an_explicit_score_wins_over_numbers_that_look_like_a_hedge():
+    """B6: the judge's own score, not the "2 to 3" it quotes from the answers."""
+    assert parse_score("Score 4 (both say 2 to 3 chairs)") == (4, [])
+    assert parse_score("Score: 5. Both answers say 1 or 2 cups.") == (5, [])
+    score, problems = parse_score("Score: 3 or 4")  # a hedge in the score itself stays one
+    assert score is None and "conflicting" in problems[0]
+
+
+@pytest.mark.parametrize("text", [
+    "Dr. Smith's office", "A lamp, e.g. the desk lamp", "On the T.V. stand", "It is on the T.V.",
+    "Near the U.S. map", "Mr. Bean's mug. It is",
+])
+def test_trim_keeps_abbreviations_and_initialisms(text):
+    trimmed = trim_response(text)
+    if text.endswith("It is"):
+        assert trimmed == "Mr. Bean's mug."  # a real sentence end is still cut after
+    else:
+        assert trimmed == text
+
+
+@pytest.mark.parametrize("yes, no", [
+    ("\u2581Yes", "\u2581No"), ("Yes.", "No."), ("\u0120yes", "\u0120no"), (" YES", " NO"),
+    ('"Yes', '"No'), ("Yes!", "No!"),
+])
+def test_yes_prob_reads_yes_and_no_tokens_in_any_spelling(tmp_path, yes, no):
+    """B7: SentencePiece/BPE space markers, punctuation and case do not hide the answer."""
+    from efficienteqa.models.base import TokenLogprob
+
+    def logprobs(text, top):  # P(yes) = 0.9 over yes and no; other tokens do not count
+        return [TokenLogprob(yes, math.log(0.6), ((yes, math.log(0.6)), (yes.upper() + " ", math.log(0.3)),
+                                                  (no, math.log(0.1)), ("The", math.log(0.2))))]
+
+    model = StubChatModel(["Yes"], logprob_fn=logprobs)
+    judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob").judge(
+        "What is on the desk?", "a laptop", "a notebook computer")
+    assert judgement.problems == () and judgement.raw == "P(yes)=0.900" and judgement.score == 5

@@ -1,16 +1,17 @@
 """LLM-Match, OpenEQA's metric: a judge model grades each response against the reference answer
 from 1 to 5, mapped to 0-100 and averaged over questions.
 
-Two cases are graded without the model, because a small judge gets them wrong and any judge
-must agree: a response that is the reference (or an accepted answer) once case, articles and
-punctuation are ignored scores 5; a yes/no answer of the opposite polarity to a yes/no reference
-scores 1 (the same polarity scores 5). Such grades say so in ``raw``.
+Clear cases are graded without the model, because a small judge gets them wrong and any judge
+must agree (``judge_rules``): the same answer, a count against another count, a bare yes/no
+against a bare yes/no, a non-answer, guesses, an answer that only repeats the question. Such
+grades say so in ``raw``. Synthetic questions, whose every accepted answer is known, are graded
+by ``rule_judge`` instead, with LLM-Match beside it when a judge model is given.
 
 ``mode="yes-prob"`` is for judges too small to grade 1-5 (the embedded 1.5B model's grades were
 nearly uniform over 1-5, whatever the answers): the judge is asked only whether the response
 says the same as the reference, and the grade is ``1 + round(4 * P(yes))`` from the token
-probabilities of its one-token reply. ``mode="grade"`` (the OpenEQA form) is the default for
-capable judges such as GPT-4o.
+probabilities of its one-token reply (tokens read as words: "▁Yes", "Yes." and " yes" are
+yes). ``mode="grade"`` (the OpenEQA form) is the default for capable judges such as GPT-4o.
 
 Bad judge output never raises: replies are parsed leniently, retried once, and otherwise scored
 with a documented default and a recorded problem. Grades are cached in sqlite, keyed on the judge,
@@ -22,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import re
 import sqlite3
 from collections.abc import Iterator, Sequence
@@ -31,10 +33,10 @@ from typing import Any
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.models.base import ChatModel, Message
+from efficienteqa.eval.judge_rules import MAX_SCORE, MIN_SCORE, rule_score
+from efficienteqa.models.base import ChatModel, Message, TokenLogprob
 from efficienteqa.vc.prompts import load_prompt
 
-MIN_SCORE, MAX_SCORE = 1, 5
 # A grade that stays unreadable after the retry counts as wrong: a broken judge must never
 # raise the metric.
 DEFAULT_SCORE = MIN_SCORE
@@ -76,18 +78,35 @@ def score_value(score: int | None) -> float:
 
 # --- trimming -----------------------------------------------------------------------------------
 
-# A full stop is a period that is not the decimal point of a number ("3.5 cm").
-_FULL_STOP = re.compile(r"(?<!\d)\.|\.(?!\d)")
+# A period followed by a space or the end, with the word it ends ("T.V", "e.g", "mug").
+_PERIOD = re.compile(r"([\w.]*)\.(?=\s|$)")
+# Abbreviations that end in a period inside a sentence.
+_ABBREVIATIONS = frozenset({"dr", "mr", "mrs", "ms", "st", "prof", "sr", "jr", "vs", "etc",
+                            "approx", "fig", "cf", "ca", "inc", "ltd", "co", "mt", "ft", "sq"})
+
+
+def _sentence_ends(text: str) -> list[int]:
+    """Where sentences end: after a period that is followed by a space or the end of the text
+    and does not close an abbreviation ("Dr.", "etc."), an initialism ("e.g.", "T.V.", a single
+    letter) or sit inside a number ("3.5")."""
+    ends = []
+    for match in _PERIOD.finditer(text):
+        word = match.group(1)
+        if "." in word or (len(word) == 1 and word.isalpha()) or word.lower() in _ABBREVIATIONS:
+            continue
+        ends.append(match.end())
+    return ends
 
 
 def trim_response(text: str) -> str:
     """``text`` cut after its last full stop when one occurs before the end, as the reference
     pipeline did to drop a sentence cut off by a token limit: "A red mug. It is on" -> "A red
-    mug.". Decimal points do not count as full stops."""
+    mug.". Only a sentence end counts: not a decimal point, an abbreviation or an initialism
+    ("Dr.", "e.g.", "T.V.")."""
     text = text.strip()
-    stops = list(_FULL_STOP.finditer(text))
-    if stops and stops[-1].end() < len(text):
-        return text[:stops[-1].end()]
+    ends = _sentence_ends(text)
+    if ends and ends[-1] < len(text):
+        return text[:ends[-1]]
     return text
 
 
@@ -126,24 +145,29 @@ def parse_score(text: str) -> tuple[int | None, list[str]]:
     """The 1-5 grade in a judge's reply, or None and the problems found.
 
     Rules, first that finds a number wins: (1) a JSON ``"score"`` field. Then, with quoted text
-    (a response the judge repeats, "2 cups") and the scale ("1-5", "1 to 5") removed: a hedge
-    between two grades ("3 or 4") is a conflict; else (2) numbers marked as the score
-    ("Score: 4", "**4**/5", "3 out of 5", "give it a 5"); (3) a number that opens the reply
-    ("4", "**4** - the same object"); (4) every other number in the reply. The numbers a rule
-    finds must agree (one value), be whole and lie in 1-5; otherwise that is a problem, not a
-    guess."""
+    (a response the judge repeats, "2 cups") and the scale ("1-5", "1 to 5") removed: (2)
+    numbers marked as the score ("Score: 4", "**4**/5", "3 out of 5", "give it a 5"), a conflict
+    when the marked score is itself a hedge ("Score: 3 or 4"); the explicit score wins over
+    numbers elsewhere ("Score 4 (both say 2 to 3 chairs)"); else a hedge between two grades
+    ("3 or 4") is a conflict; else (3) a number that opens the reply ("4", "**4** - the same
+    object"); (4) every other number in the reply. The numbers a rule finds must agree (one
+    value), be whole and lie in 1-5; otherwise that is a problem, not a guess."""
     if not text or not text.strip():
         return None, ["empty reply"]
     found = _JSON_SCORE.findall(text)
     if found:
         return _read(found)
     prose = _SCALE.sub(" ", _QUOTED.sub(" ", text))
+    marks = list(_MARKED.finditer(prose))
+    if marks:
+        for mark in marks:
+            hedged = _HEDGE.match(prose, mark.start(mark.lastindex or 0))
+            if hedged and hedged.group(1) != hedged.group(2):
+                return _read(hedged.groups())
+        return _read([mark.group(mark.lastindex or 0) for mark in marks])
     hedge = next((h for h in _HEDGE.findall(prose) if h[0] != h[1]), None)
     if hedge:
         return _read(hedge)
-    marked = [next(g for g in groups if g) for groups in _MARKED.findall(prose)]
-    if marked:
-        return _read(marked)
     leading = _LEADING.match(prose)
     if leading:
         return _read([leading.group(1)])
@@ -181,24 +205,31 @@ _TABLE = """CREATE TABLE IF NOT EXISTS llm_match (
     raw TEXT NOT NULL, problems TEXT NOT NULL)"""
 
 
-_ARTICLES = frozenset({"a", "an", "the"})
+# How many alternatives a yes-prob call asks for at its one token.
+TOP_LOGPROBS = 10
 
 
-def _words(text: str) -> list[str]:
-    return [w for w in re.findall(r"[a-z0-9]+", text.lower()) if w not in _ARTICLES]
+def token_word(token: str) -> str:
+    """A generated token as a word: SentencePiece/BPE space markers ("▁", "Ġ"), spaces,
+    punctuation and case removed ("▁Yes" -> "yes", "Yes." -> "yes", "ĠNO" -> "no")."""
+    return re.sub(r"[\W_]+", "", token.replace("▁", " ").replace("Ġ", " ")).lower()
 
 
-def rule_score(reference: str, response: str, extra: Sequence[str] = ()) -> int | None:
-    """5 for the same answer up to case, articles and punctuation; for a yes/no reference, 5 or
-    1 by the response's first word when that is yes or no; None when the model must judge."""
-    got = _words(response)
-    if not got:
-        return None
-    if any(_words(ref) == got for ref in (reference, *extra)):
-        return MAX_SCORE
-    ref = _words(reference)
-    if ref and ref[0] in ("yes", "no") and got[0] in ("yes", "no"):
-        return MAX_SCORE if got[0] == ref[0] else MIN_SCORE
+def p_yes(tokens: Sequence[TokenLogprob]) -> float | None:
+    """P(yes) over {yes, no} at the first generated token whose alternatives hold either (each
+    spelling adds to its word's probability); None when no token does."""
+    for token in tokens:
+        mass = {"yes": 0.0, "no": 0.0}
+        seen = False
+        alternatives = dict(token.top)
+        alternatives.setdefault(token.token, token.logprob)
+        for text, logprob in alternatives.items():
+            word = token_word(text)
+            if word in mass and math.isfinite(logprob):
+                mass[word] += math.exp(min(logprob, 0.0))
+                seen = True
+        if seen:
+            return mass["yes"] / (mass["yes"] + mass["no"])
     return None
 
 
@@ -237,9 +268,10 @@ class LLMMatchJudge:
         if response is None or not response.strip():
             return Judgement(score=None, value=0.0, judge=self.name, problems=(MISSING_ANSWER,))
         response = trim_response(response)
-        ruled = rule_score(reference, response, extra)
+        ruled = rule_score(question, reference, response, extra)
         if ruled is not None:
-            return Judgement(ruled, score_value(ruled), self.name, f"(by rule, no model call: {ruled})")
+            return Judgement(ruled.score, score_value(ruled.score), self.name,
+                             f"(by rule, no model call: {ruled.rule}: {ruled.score})")
         key = self._key(question, reference, extra, response)
         hit = self._lookup(key)
         if hit is not None:
@@ -253,18 +285,14 @@ class LLMMatchJudge:
         return judgement
 
     def _yes_prob(self, prompt: str) -> Judgement:
-        from efficienteqa.vc.logprobs import TOP_LOGPROBS, yes_prob_from_logprobs
-
         reply = self.model.chat([Message("user", prompt)], max_tokens=1, temperature=0.0,
                                 logprobs=TOP_LOGPROBS)
-        tokens = reply.logprobs or []
-        found = any(t.strip().lower() in ("yes", "no") for lp in tokens for t, _ in lp.top)
-        if not found:
+        p = p_yes(reply.logprobs or [])
+        if p is None:
             return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name, reply.text,
                              (f"no yes/no among the reply's tokens, scored {DEFAULT_SCORE}",))
-        p_yes = yes_prob_from_logprobs(tokens)
-        score = MIN_SCORE + round((MAX_SCORE - MIN_SCORE) * p_yes)
-        return Judgement(score, score_value(score), self.name, f"P(yes)={p_yes:.3f}")
+        score = MIN_SCORE + round((MAX_SCORE - MIN_SCORE) * p)
+        return Judgement(score, score_value(score), self.name, f"P(yes)={p:.3f}")
 
     def _grade(self, prompt: str) -> Judgement:
         caps = self.model.capabilities

@@ -1,0 +1,195 @@
+"""How an LLM-Match judge agrees with hand grades (issue 14): mean absolute error, Spearman
+correlation and the mean grade it gives to answers graded 1, per judge and mode.
+
+The default data is the shared hand-graded set (HM-EQA questions; 120 constructed responses and
+40 real answers of a blind small model, graded 1-5 by hand; see its README.md). Any file in the
+same format works (one JSON object per line with ``question``, ``reference``, ``response``,
+``grade`` and optionally ``origin``, ``kind``, ``id``). The figures are printed for all items,
+then separately for the constructed and for the model answers (``origin``), with per-kind means;
+each judge ends with one line
+
+    judge=<spec>:<mode> n=<n> mae=<x> spearman=<x> wrong_mean=<x>
+
+    .venv/bin/python benchmarks/judge_agreement.py                      # the default local judge
+    .venv/bin/python benchmarks/judge_agreement.py --judge-mode grade --judge-mode yes-prob
+    .venv/bin/python benchmarks/judge_agreement.py --judge openai:gpt-4o --judge-mode grade
+
+``--judge`` and ``--judge-mode`` take what ``efficienteqa eval`` takes (both may be repeated:
+every judge is run in every mode). Grades come from the judge's sqlite cache when the same
+judge, prompt and item were graded before; ``--fresh`` uses a cache of its own for this run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import sys
+import tempfile
+from collections import defaultdict
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from scipy.stats import spearmanr
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_DATA = REPO.parent / "shared" / "datasets" / "judge-agreement" / "dev.jsonl"
+DEFAULT_JUDGE = "local:qwen2.5-coder-1.5b"
+WRONG = 1  # the hand grade of a wrong answer
+
+
+@dataclass(frozen=True)
+class Item:
+    id: str
+    question: str
+    reference: str
+    response: str
+    grade: int
+    kind: str
+    origin: str
+
+
+def load_items(path: Path) -> list[Item]:
+    if not path.is_file():
+        sys.exit(f"error: no judge-agreement data at {path} (the shared set lives in "
+                 "../shared/datasets/judge-agreement/ beside the repository); pass --data FILE")
+    items = []
+    for n, line in enumerate(path.read_text().splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            row = json.loads(line)
+            items.append(Item(str(row.get("id", n)), row["question"], row["reference"],
+                              row["response"], int(row["grade"]), str(row.get("kind", "-")),
+                              str(row.get("origin", "-"))))
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
+            sys.exit(f"error: {path}:{n} is not a graded item ({error})")
+    if not items:
+        sys.exit(f"error: {path} holds no items")
+    return items
+
+
+def resolve_mode(mode: str, judge: str) -> str:
+    """``auto`` as ``efficienteqa eval`` reads it: yes-prob for local models, grade otherwise."""
+    if mode == "auto":
+        return "yes-prob" if judge.startswith("local:") else "grade"
+    return mode
+
+
+@dataclass(frozen=True)
+class Scores:
+    n: int
+    mae: float
+    spearman: float
+    wrong_mean: float
+    n_wrong: int
+    match: float  # LLM-Match of the judge's grades, 0-100
+    hand_match: float  # LLM-Match of the hand grades
+
+
+def _llm_match(grades: Sequence[int]) -> float:
+    return 100.0 * statistics.fmean((g - 1) / 4 for g in grades)
+
+
+def scores(hand: Sequence[int], judged: Sequence[int]) -> Scores:
+    wrong = [j for h, j in zip(hand, judged, strict=True) if h == WRONG]
+    rho = spearmanr(hand, judged).statistic if len(set(hand)) > 1 and len(set(judged)) > 1 else math.nan
+    return Scores(len(hand), statistics.fmean(abs(h - j) for h, j in zip(hand, judged, strict=True)),
+                  float(rho), statistics.fmean(wrong) if wrong else math.nan, len(wrong),
+                  _llm_match(judged), _llm_match(hand))
+
+
+def grade_all(items: Sequence[Item], judge_spec: str, mode: str, cache: Path | None
+              ) -> tuple[list[int], list[dict[str, Any]]]:
+    """The judge's grade of every item (a missing grade counts as 1), and each judgement."""
+    from rich.progress import Progress
+
+    from efficienteqa.eval.judge import LLMMatchJudge
+    from efficienteqa.models.backends import build_chat_model
+    from efficienteqa.stack import parse_vlm
+
+    judge = LLMMatchJudge(build_chat_model(parse_vlm(judge_spec, images=False)),
+                          cache_path=cache, mode=mode)
+    grades, records = [], []
+    with Progress(transient=True) as bar:
+        task = bar.add_task(f"{judge_spec}:{mode}", total=len(items))
+        for item in items:
+            verdict = judge.judge(item.question, item.reference, item.response)
+            grades.append(verdict.score if verdict.score is not None else WRONG)
+            records.append({"id": item.id, **verdict.to_dict()})
+            bar.advance(task)
+    return grades, records
+
+
+def _f(value: float, digits: int = 2) -> str:
+    return "nan" if math.isnan(value) else f"{value:.{digits}f}"
+
+
+def report(items: Sequence[Item], grades: Sequence[int], name: str) -> str:
+    """The tables for one judge and mode; the last line is the machine-readable summary."""
+    lines = [f"== {name}", f"{'items':<13}{'n':>4}{'mae':>7}{'spearman':>10}{'wrong_mean':>12}"
+             f"{'n_wrong':>9}{'LLM-Match':>11}{'by hand':>9}"]
+    groups = [("all", list(range(len(items))))]
+    for origin in sorted({i.origin for i in items}):
+        groups.append((origin, [k for k, i in enumerate(items) if i.origin == origin]))
+    overall = None
+    for label, idx in groups:
+        s = scores([items[k].grade for k in idx], [grades[k] for k in idx])
+        overall = overall or s
+        lines.append(f"{label:<13}{s.n:>4}{_f(s.mae):>7}{_f(s.spearman):>10}{_f(s.wrong_mean):>12}"
+                     f"{s.n_wrong:>9}{_f(s.match, 1):>11}{_f(s.hand_match, 1):>9}")
+    by_kind: dict[str, list[tuple[int, int]]] = defaultdict(list)
+    for item, g in zip(items, grades, strict=True):
+        by_kind[item.kind].append((item.grade, g))
+    lines.append("per kind (mean hand grade -> mean judge grade): " + "; ".join(
+        f"{kind} {statistics.fmean(h for h, _ in pairs):.2f}->{statistics.fmean(g for _, g in pairs):.2f}"
+        f" (n={len(pairs)})" for kind, pairs in sorted(by_kind.items())))
+    assert overall is not None
+    lines.append(f"judge={name} n={overall.n} mae={_f(overall.mae, 3)} "
+                 f"spearman={_f(overall.spearman, 3)} wrong_mean={_f(overall.wrong_mean, 3)}")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA,
+                        help="graded items, one JSON object per line (default: the shared set)")
+    parser.add_argument("--judge", action="append", help=f"a VLM spec (default {DEFAULT_JUDGE}); repeatable")
+    parser.add_argument("--judge-mode", action="append", choices=("grade", "yes-prob", "auto"),
+                        help="grade | yes-prob | auto (default auto); repeatable")
+    parser.add_argument("--limit", type=int, default=None, help="only the first N items")
+    parser.add_argument("--fresh", action="store_true", help="ignore earlier cached grades")
+    parser.add_argument("--dump", type=Path, default=None,
+                        help="also write every judgement as JSON lines to this file")
+    args = parser.parse_args(argv)
+
+    items = load_items(args.data)[:args.limit]
+    judges = args.judge or [DEFAULT_JUDGE]
+    modes = args.judge_mode or ["auto"]
+    scratch = tempfile.TemporaryDirectory() if args.fresh else None
+    dump = []
+    finals = []
+    try:
+        for spec in judges:
+            for mode in dict.fromkeys(resolve_mode(m, spec) for m in modes):
+                cache = Path(scratch.name) / f"{len(finals)}.sqlite" if scratch else None
+                grades, records = grade_all(items, spec, mode, cache)
+                text = report(items, grades, f"{spec}:{mode}")
+                print(text + "\n", flush=True)
+                finals.append(text.splitlines()[-1])
+                dump += [{"judge": spec, "mode": mode, **r} for r in records]
+    finally:
+        if scratch is not None:
+            scratch.cleanup()
+    if args.dump is not None:
+        args.dump.write_text("".join(json.dumps(r) + "\n" for r in dump))
+    if len(finals) > 1:
+        print("\n".join(finals))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

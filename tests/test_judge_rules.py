@@ -1,0 +1,82 @@
+"""The clear cases an LLM-Match judge decides without its model (eval.judge_rules)."""
+
+from __future__ import annotations
+
+import pytest
+
+from efficienteqa.eval.judge_rules import question_state, rule_score, stance, stem, words
+
+
+def grade(question: str, reference: str, response: str) -> int | None:
+    ruled = rule_score(question, reference, response)
+    return None if ruled is None else ruled.score
+
+
+def test_words_spell_out_contractions_and_stems_make_plurals_singular():
+    assert words("It isn't on; there's none. I can't tell") == [
+        "it", "is", "not", "on", "there", "is", "none", "i", "can", "not", "tell"]
+    assert [stem(w) for w in ("towels", "boxes", "glasses", "glass", "yes", "batteries")] == [
+        "towel", "box", "glass", "glass", "yes", "battery"]
+
+
+@pytest.mark.parametrize("question, state", [
+    ("Is the lamp on?", "on"), ("Is the TV in the bedroom left on?", "on"),
+    ("Is the door to the garage closed?", "closed"), ("Is the fan turned off right now?", "off"),
+    ("Is the kettle on the counter?", None),  # "on" the preposition
+    ("Is the lamp on or off?", None), ("Is the door open or closed?", None),  # a choice
+    ("Where is the lamp that is on?", None),  # not a yes/no question
+])
+def test_the_state_a_yes_no_question_asks_about(question, state):
+    assert question_state(question) == state
+
+
+@pytest.mark.parametrize("text, value, bare", [
+    ("Yes, it is on", "yes", True), ("It's switched off.", "no", True), ("It is not on", "no", True),
+    ("It isn't off", "yes", True), ("No, the lamp is off", "no", True), ("yes and no", None, True),
+    ("Yes, in the kitchen", "yes", False), ("Nope", "no", True),
+])
+def test_stance_reads_state_words_against_the_question(text, value, bare):
+    said = stance(text, "Is the lamp on?")
+    assert (said.value, said.bare) == (value, bare)
+
+
+@pytest.mark.parametrize("question, reference, response, expected", [
+    # counts: same 5, one off 2, further off or none-against-some 1, two guesses 2 or 1
+    ("How many chairs are at the table?", "Four", "4 chairs", 5),
+    ("How many chairs are at the table?", "Four", "There are four chairs.", 5),
+    ("How many chairs are at the table?", "Four", "three", 2),
+    ("How many chairs are at the table?", "Four", "7", 1),
+    ("How many chairs are at the table?", "None", "one", 1),
+    ("How many chairs are at the table?", "None", "Zero, there are no chairs", 5),
+    ("How many chairs are at the table?", "Four", "four or five", 2),
+    ("How many chairs are at the table?", "Four", "two or three", 1),
+    ("How many chairs are at the table?", "Four", "four, two on each side", None),  # more to it
+    ("How many chairs are at the table?", "Four", "a few", None),
+    # bare yes/no, with state words read against the question
+    ("Is the fan turned off?", "It is off", "Yes, it's off", 5),
+    ("Is the fan on or off?", "On", "off", 1),
+    ("Is the window open or closed?", "Closed", "It is open", 1),
+    ("Is the mug on the shelf?", "No", "Yes, it is on the shelf.", 1),  # the question's words
+    ("Is the mug on the shelf?", "No", "Yes, on the table", None),  # a claim the model checks
+    ("Is there a rug in the hall?", "None", "No, there is no rug in the hall", 5),
+    # non-answers, guesses, no yes/no, echoes
+    ("Is the oven on?", "Yes", "I can't tell from this view.", 1),
+    ("Where is the mop?", "In the laundry room", "I am not sure, I cannot see it.", 1),
+    ("Where is the mop?", "In the laundry room", "Maybe in the laundry room", None),
+    ("Is the oven on?", "Yes", "Probably yes, but I am not certain.", None),
+    ("Where is the mop?", "In the laundry room", "Either in the garage or the laundry room", 2),
+    ("Where is the mop?", "In the laundry room", "Either in the garage or the attic", 1),
+    ("Is the bike in the garage?", "No", "A blue bike", 1),
+    ("Is the bike in the garage?", "Yes", "It is in the garage", None),  # restates: a yes
+    ("Is the bike in the garage?", "Yes", "There is one next to the car", None),
+    ("Where is the blue vase?", "On the shelf", "the blue vase", 1),
+    ("Where is the blue vase?", "On the shelf", "a vase on the shelf", None),
+    ("Which rug is in the hall?", "The red one", "a rug", 1),
+])
+def test_clear_cases(question, reference, response, expected):
+    assert grade(question, reference, response) == expected
+
+
+def test_every_ruled_grade_says_which_rule_decided():
+    ruled = rule_score("How many cups?", "2", "three")
+    assert ruled is not None and ruled.score == 2 and "count" in ruled.rule
