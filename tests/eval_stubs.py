@@ -4,6 +4,7 @@ cost nothing; environment variables set by a test make them slow, fail or die.""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import time
@@ -14,7 +15,7 @@ from efficienteqa.eval.methods import Outcome, RunSpec
 
 
 def echo(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
-    """Answers the reference (or ``EQA_STUB_ANSWER``) after ``EQA_STUB_SLEEP`` seconds; the
+    """Answers "stub: QUESTION" (or ``EQA_STUB_ANSWER``) after ``EQA_STUB_SLEEP`` seconds; the
     episode whose id is in
     ``EQA_STUB_FAIL`` raises; the one in ``EQA_STUB_DIE`` kills its own process the first time
     (a marker file under ``EQA_STUB_MARKS`` remembers the attempt)."""
@@ -26,8 +27,15 @@ def echo(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
         if not mark.exists():
             mark.write_text(str(os.getpid()))
             os.kill(os.getpid(), signal.SIGKILL)
-    return Outcome(os.environ.get("EQA_STUB_ANSWER", q.answer), 0.9, steps=3, budget=10,
+    return Outcome(os.environ.get("EQA_STUB_ANSWER", f"stub: {q.question}"), 0.9, steps=3, budget=10,
                    stop_reason="relevancy",
                    usage={"calls": 1, "cached_calls": 0, "prompt_tokens": 10,
                           "completion_tokens": 2, "latency_s": 0.01},
                    backends={"environment": "stub", "vlm": "stub"}, extra={"pid": os.getpid()})
+
+
+def peek(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
+    """Answers with everything it was told about the answer (a method must be told nothing)."""
+    told = {"answer": q.answer, "alternatives": list(q.alternatives), "accepted": list(q.accepted),
+            "oracle_steps": q.oracle_steps, "source": sorted(q.source)}
+    return Outcome(json.dumps(told, sort_keys=True), 0.5, steps=0)

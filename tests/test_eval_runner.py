@@ -43,7 +43,7 @@ def test_sequential_run_writes_each_episode_once_and_resume_skips_them(tmp_path)
     assert (first.ran, first.skipped, first.failed) == (5, 0, 0)
     rows = lines(tmp_path)
     assert [r["id"] for r in rows] == [q.id for q in questions(5)]
-    assert all(r["status"] == "done" and r["answer"] == r["reference"] for r in rows)
+    assert all(r["status"] == "done" and r["answer"] == f"stub: {r['question']}" for r in rows)
     again = run_eval(spec(), questions(8), tmp_path, prepare=False)  # a larger limit continues
     assert (again.ran, again.skipped) == (3, 5)
     assert sorted(r["id"] for r in lines(tmp_path)) == [q.id for q in questions(8)]
@@ -184,3 +184,17 @@ def test_rejudging_a_run_replaces_each_grade_once_and_names_the_judge(tmp_path, 
     assert len(read_episodes(tmp_path / EPISODES_FILE).by_id) == 3
     manifest = json.loads((tmp_path / "run.json").read_text())
     assert (manifest["judge"], manifest["judge_mode"]) == ("local:stub-judge", "grade")
+
+
+def test_a_users_method_is_not_told_the_answer(tmp_path):
+    """module:function methods get the question without its reference, alternatives, accepted
+    answers, oracle steps or answer-bearing source fields (HM-EQA's letter, the evidence)."""
+    q = EvalQuestion(id="toy/peek", dataset="toy", scene="synthetic:0", question="Is the lamp on?",
+                     answer="yes", category="state", alternatives=("yes, it is on",),
+                     accepted=("yes", "on"), oracle_steps=3,
+                     source={"house_seed": 0, "letter": "A", "evidence": [4], "oracle_pose": [1, 2, 0]})
+    run_eval(spec("eval_stubs:peek"), [q], tmp_path, prepare=False)
+    (row,) = lines(tmp_path)
+    assert row["reference"] == "yes"  # the record keeps it; the method did not see it
+    assert json.loads(row["answer"]) == {"answer": "", "alternatives": [], "accepted": [],
+                                         "oracle_steps": None, "source": ["house_seed"]}

@@ -18,8 +18,10 @@ class EvalQuestion:
     ``scene``: what ``scenes.open_scene`` reads ("synthetic:SEED"; HM-EQA scenes are
     "hm3d:<scene id>" and need the Habitat back-end). ``start``: canonical (x, y, yaw in
     radians), None for the scene's own start. ``choices``: the closed-set options where the
-    dataset has them (HM-EQA), empty otherwise. ``source``: dataset-specific fields kept for
-    the record (e.g. HM-EQA's floor and Habitat start pose).
+    dataset has them (HM-EQA), empty otherwise. ``accepted``: every form of the answer a grader
+    must accept, where the dataset knows them (synthetic questions; graded by the ``rule``
+    judge), empty otherwise. ``source``: dataset-specific fields kept for the record (e.g.
+    HM-EQA's floor and Habitat start pose).
     """
 
     id: str
@@ -32,6 +34,7 @@ class EvalQuestion:
     start: tuple[float, float, float] | None = None
     oracle_steps: int | None = None
     choices: tuple[str, ...] = ()
+    accepted: tuple[str, ...] = ()
     source: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -41,7 +44,7 @@ class EvalQuestion:
     def from_dict(cls, data: dict[str, Any]) -> EvalQuestion:
         """The inverse of ``to_dict`` after a JSON round trip (which turns tuples into lists)."""
         data = dict(data)
-        for key in ("alternatives", "choices"):
+        for key in ("alternatives", "choices", "accepted"):
             data[key] = tuple(data.get(key) or ())
         data["start"] = tuple(data["start"]) if data.get("start") else None
         return cls(**data)

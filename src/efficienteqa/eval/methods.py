@@ -13,11 +13,14 @@ blind                  --         verbalized  --          question only         
 
 ``frontier-only`` and ``random`` keep EfficientEQA's stop and answer and only drop the semantic
 values: they show what SFE's steering is worth. A method may also be given as
-``module:function`` (a user's own), called like ``run_agent_method``.
+``module:function`` (a user's own), called like ``run_agent_method`` but with the question as
+the robot may know it (``without_answer``): no reference answer, alternatives or accepted
+answers, no oracle step count, and none of the source fields that give the answer away.
 """
 
 from __future__ import annotations
 
+import functools
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -141,6 +144,25 @@ def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
                    backends=backends, extra={"answer_problems": result.problems})
 
 
+# Source fields that say the answer or where to find it: HM-EQA's answer letter and filler
+# flag, a synthetic question's evidence objects and the oracle's pose.
+ANSWER_SOURCE_KEYS = frozenset({"letter", "filler_answer", "evidence", "no_evidence", "oracle_pose"})
+
+
+def without_answer(q: EvalQuestion) -> EvalQuestion:
+    """``q`` with nothing that gives its answer away (see the module docstring)."""
+    return replace(q, answer="", alternatives=(), accepted=(), oracle_steps=None,
+                   source={k: v for k, v in q.source.items() if k not in ANSWER_SOURCE_KEYS})
+
+
+def _blindfolded(fn: MethodFn) -> MethodFn:
+    """A user's method, given each question without its answer."""
+    @functools.wraps(fn)
+    def run(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
+        return fn(without_answer(q), spec, out)
+    return run
+
+
 def resolve(method: str) -> MethodFn:
     """The function that runs one episode of ``method`` (a name, or ``module:function``)."""
     if method == "blind":
@@ -150,7 +172,7 @@ def resolve(method: str) -> MethodFn:
     if ":" in method:
         module, _, name = method.partition(":")
         try:
-            return getattr(importlib.import_module(module), name)
+            return _blindfolded(getattr(importlib.import_module(module), name))
         except (ImportError, AttributeError) as exc:
             raise EfficientEQAError(f"cannot load method {method!r}: {exc}",
                                     fix="give module:function importable on every worker") from None
