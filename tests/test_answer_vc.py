@@ -13,6 +13,7 @@ from efficienteqa.answer.vc import answer_example, answer_token_probability, ans
 from efficienteqa.models.base import TokenLogprob
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.vc.grouping import LLMGrouper, RuleGrouper
+from efficienteqa.vc.parse import MISSING_CONFIDENCE
 
 
 def _couch_embedder(texts):
@@ -45,6 +46,33 @@ def test_one_guess_keeps_its_own_confidence(reply, confidence):
     so steps can be ranked by Sim x confidence."""
     result = answer_with_confidence(StubChatModel([reply]), "What colour is the sofa?",
                                     ["a black sofa"], RuleGrouper(), m=1)
+    assert result.confidence == pytest.approx(confidence)
+
+
+def test_one_guess_without_a_confidence_is_not_certain():
+    """B2: with M = 1 a reply that gives no confidence is neutral (MISSING_CONFIDENCE), so in
+    ExploreEQA's best-step choice (Sim x confidence) it cannot beat a well-formed, sure step."""
+    malformed = answer_with_confidence(StubChatModel(["black"]), "What colour is the sofa?",
+                                       ["a black sofa"], RuleGrouper(), m=1)
+    sure = answer_with_confidence(StubChatModel(["black; 80"]), "What colour is the sofa?",
+                                  ["a black sofa"], RuleGrouper(), m=1)
+    assert malformed.answer == "black" and malformed.confidence == pytest.approx(MISSING_CONFIDENCE / 100)
+    assert malformed.confidence < sure.confidence == pytest.approx(0.8)
+    assert any("missing confidence" in p for p in malformed.problems)
+
+
+@pytest.mark.parametrize("logprobs, confidence", [
+    ([0.5], 1.0),  # a positive logprob (a server's rounding) is probability 1, not e^0.5
+    ([math.log(0.5), 0.3], 0.5),
+    ([math.log(0.9), -math.inf], 0.0),  # a token of probability 0 makes the answer's 0
+    ([math.log(0.9), float("nan")], 0.0),  # an unreadable probability is not a sure one
+])
+def test_token_answer_probability_stays_a_probability(logprobs, confidence):
+    """B3: the product of the answer's token probabilities lies in [0, 1]."""
+    words = ["black", "sofa"][:len(logprobs)]
+    tokens = [TokenLogprob(w if i == 0 else " " + w, lp) for i, (w, lp) in enumerate(zip(words, logprobs))]
+    stub = StubChatModel([" ".join(words)], logprob_fn=lambda text, top: tokens)
+    result = answer_token_probability(stub, "What is by the window?", ["a black sofa"])
     assert result.confidence == pytest.approx(confidence)
 
 

@@ -152,6 +152,15 @@ def test_parse_candidates_table(reply, expected, clean):
     ("A (through the open door, 4 m): 60\nB - past the sofa: 40", [("A", 60), ("B", 40)], True),
     ("A sofa is near the door\nB: 40", [("B", 40)], True),
     ("nothing useful", [], False),
+    # plain replies (B4): a confidence anywhere in the letter's part, shared "each", units skipped
+    ("B is best (70%), then A (30%)", [("B", 70), ("A", 30)], True),
+    ("A, B: 50 each", [("A", 50), ("B", 50)], True),
+    ("B: 3 m away, 40", [("B", 40)], True),
+    ("I think B: 70, A: 30", [("B", 70), ("A", 30)], True),  # the pronoun is no letter
+    ("A and B: 50", [("A", 50), ("B", 50)], True),
+    ("B-60 A-40", [("B", 60), ("A", 40)], True),  # a dash, not a minus
+    ("B (70%) is better than A", [("B", 70)], False),  # A has no confidence of its own
+    ("B, then A", [("B", 100 / 3), ("A", 100 / 3)], False),  # no numbers at all: defaults
 ])
 def test_parse_letters_table(reply, expected, clean):
     result = parse_letters(reply, ["A", "B", "C"])
@@ -174,6 +183,10 @@ def test_parse_letters_table(reply, expected, clean):
     ("Yes 70", 0.7, False),  # no 'worth' line
     ("A: 60\nB: 40", DEFAULT_P_YES, False),
     ("", DEFAULT_P_YES, False),
+    # B5: the confidence, not the first number after "worth"; a labelled confidence on the next line
+    ("worth exploring: yes (2 rooms ahead) 80", 0.8, True),
+    ("worth exploring: yes\nconfidence: 80", 0.8, True),
+    ("A: 60\nworth exploring: no\nconfidence: 70%", 0.3, True),
 ])
 def test_parse_worth_exploring_table(reply, p_yes, clean):
     p, problems = parse_worth_exploring(reply)

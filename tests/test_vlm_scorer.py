@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
-from efficienteqa.explore.vlm_scorer import explore_scores
-from efficienteqa.models.base import Message
+from efficienteqa.explore.vlm_scorer import explore_scores, explore_token_scores
+from efficienteqa.models.base import Message, TokenLogprob
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.vc.parse import DEFAULT_P_YES
 
@@ -45,3 +47,37 @@ def test_explore_scores_malformed_replies_give_defaults(reply, letters):
     score = explore_scores(StubChatModel([reply]), "Where is the cat?", VIEW, DIRECTIONS)
     assert score.letters == pytest.approx(dict(zip("ABC", letters)))
     assert score.p_yes == DEFAULT_P_YES and score.info["problems"]
+
+
+def _tok(token, **probs):
+    """A generated token with its alternatives given as probabilities."""
+    top = tuple((t, math.log(p)) for t, p in probs.items())
+    return TokenLogprob(token, dict(top).get(token, math.log(0.5)), top)
+
+
+# The letter's alternatives hold "Yes"/"No" too (a model may start its reply with them): P(yes)
+# must come from the yes/no answer, 0.9, not from those alternatives (0.5).
+LETTER = _tok("B", B=0.8, A=0.1, Yes=0.05, No=0.05)
+
+
+@pytest.mark.parametrize("tokens", [
+    [LETTER, _tok("\n"), _tok("yes", yes=0.9, no=0.1)],
+    [LETTER, _tok("\n"), _tok("\n"), _tok("Yes", Yes=0.9, No=0.1)],  # a blank line between
+    [LETTER, _tok(" yes", **{" yes": 0.9, " no": 0.1})],  # both on one line
+])
+def test_token_p_yes_is_read_on_the_yes_no_line(tokens):
+    """B1: white-box P(yes) comes from the yes/no line, never from the letter token."""
+    stub = StubChatModel(["B\nyes"], logprob_fn=lambda text, top: tokens)
+    score = explore_token_scores(stub, "Where is the cat?", VIEW, DIRECTIONS)
+    assert score.letters == pytest.approx({"A": 1 / 9, "B": 8 / 9, "C": 0.0})
+    assert score.p_yes == pytest.approx(0.9)
+
+
+def test_token_letters_are_read_on_the_first_line_only():
+    """A reply with no letter on line 1 is uniform: a letter among line 2's alternatives is not
+    the model's choice of direction."""
+    tokens = [_tok("none", none=0.9), _tok("\n"), _tok("no", no=0.7, A=0.2, yes=0.1)]
+    stub = StubChatModel(["none\nno"], logprob_fn=lambda text, top: tokens)
+    score = explore_token_scores(stub, "Where is the cat?", VIEW, DIRECTIONS)
+    assert score.letters == pytest.approx({"A": 1 / 3, "B": 1 / 3, "C": 1 / 3})
+    assert score.p_yes == pytest.approx(0.1 / 0.8)

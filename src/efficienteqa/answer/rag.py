@@ -68,7 +68,7 @@ class RagAnswerer:
                  confidence: Confidence = "verbalized") -> None:
         self.model, self.grouper, self.m, self.confidence = model, grouper, m, confidence
 
-    def answer(self, question: str, evidence: Sequence[str] | Sequence[np.ndarray]) -> AnswerResult:
+    def answer(self, question: str, evidence: Sequence[str | np.ndarray]) -> AnswerResult:
         if self.confidence == "token":
             return answer_token_probability(self.model, question, evidence)
         return answer_with_confidence(self.model, question, evidence, self.grouper, m=self.m)

@@ -14,7 +14,7 @@ import numpy as np
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.vc.grouping import Grouper, argmax, group_answers, normalise
 from efficienteqa.vc.logprobs import require_logprobs
-from efficienteqa.vc.parse import AnswerClass, AnswerResult, Candidate, M, parse_candidates
+from efficienteqa.vc.parse import AnswerClass, AnswerResult, Candidate, M, parse_candidates, to_float
 from efficienteqa.vc.prompts import load_prompt
 from efficienteqa.vc.usage import usage_of
 
@@ -44,7 +44,7 @@ def answer_example(question: str) -> str:
     raise AssertionError("the last pattern matches every question")
 
 
-def evidence_text(evidence: Sequence[str] | Sequence[np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
+def evidence_text(evidence: Sequence[str | np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
     """The evidence as prompt text, and the images to attach (for VLMs)."""
     items = list(evidence)
     if items and all(isinstance(e, str) for e in items):
@@ -70,7 +70,7 @@ def vc_answer(model: ChatModel, prompt: str, images: tuple[np.ndarray, ...], que
                         usage_of(resp))
 
 
-def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[str] | Sequence[np.ndarray],
+def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[str | np.ndarray],
                            grouper: Grouper, *, m: int = M, max_tokens: int = 96) -> AnswerResult:
     """The RAG answer (SPEC 3.5): M guesses -> normalise -> group -> argmax."""
     text, images = evidence_text(evidence)
@@ -80,10 +80,12 @@ def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[s
 
 
 def answer_token_probability(model: ChatModel, question: str,
-                             evidence: Sequence[str] | Sequence[np.ndarray], *,
+                             evidence: Sequence[str | np.ndarray], *,
                              max_tokens: int = 24) -> AnswerResult:
     """A short greedy answer; its confidence (0-1, as VC's after normalising) is the model's
-    probability of that answer: the product of its tokens' probabilities, first line only."""
+    probability of that answer: the product of its tokens' probabilities, first line only. A
+    token at -inf or with an unreadable (NaN) logprob makes it 0; positive logprobs (rounding)
+    count as probability 1."""
     require_logprobs(model)
     text, images = evidence_text(evidence)
     prompt = load_prompt("answer_token", PROMPTS).format(question=question, evidence=text)
@@ -98,8 +100,11 @@ def answer_token_probability(model: ChatModel, question: str,
         if started and "\n" in token.token:
             break  # the first line is the answer
         started = True
-        if math.isfinite(token.logprob):
-            logprob += token.logprob
+        value = to_float(token.logprob)
+        if value is None or math.isnan(value):
+            problems.append(f"unreadable probability of token {token.token!r}: confidence 0")
+            value = -math.inf
+        logprob += min(value, 0.0)  # a probability is at most 1; -inf (probability 0) counts
     if not resp.logprobs:
         problems.append("no logprobs in the reply: confidence 0")
     answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""

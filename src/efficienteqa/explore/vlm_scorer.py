@@ -13,12 +13,7 @@ from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception.base import Perception
 from efficienteqa.vc.grouping import ExactGrouper, group_answers
-from efficienteqa.vc.logprobs import (
-    TOP_LOGPROBS,
-    letter_probs_from_logprobs,
-    require_logprobs,
-    yes_prob_from_logprobs,
-)
+from efficienteqa.vc.logprobs import TOP_LOGPROBS, letter_and_yes_probs, require_logprobs
 from efficienteqa.vc.parse import DEFAULT_LETTERS, M, parse_letters, parse_worth_exploring
 from efficienteqa.vc.prompts import load_prompt
 from efficienteqa.vc.usage import usage_of
@@ -97,8 +92,9 @@ def explore_token_scores(model: ChatModel, question: str, view: str,
                          images: Sequence[np.ndarray] | None = None) -> SemanticScore:
     """ExploreEQA's white-box reading (SPEC 3.6): one greedy reply of two lines (a letter, then
     yes/no) with the top alternatives of every token. P(letter) is the softmax over the prompted
-    letters at the first token where any of them is among the alternatives (the LSV); P(yes)
-    likewise over yes/no (for the GSV). Uniform / ``DEFAULT_P_YES`` when absent."""
+    letters at the first token of line 1 where any of them is among the alternatives (the LSV);
+    P(yes) likewise over yes/no on the yes/no line (for the GSV). Uniform / ``DEFAULT_P_YES``
+    when absent."""
     require_logprobs(model)
     letters = list(directions) if directions else list(DEFAULT_LETTERS)
     descriptions = directions if isinstance(directions, Mapping) else None
@@ -109,8 +105,7 @@ def explore_token_scores(model: ChatModel, question: str, view: str,
                       temperature=0.0, logprobs=TOP_LOGPROBS)
     tokens = resp.logprobs or []
     problems = [] if tokens else ["no logprobs in the reply: uniform"]
-    scores = letter_probs_from_logprobs(tokens, letters)
-    p_yes = yes_prob_from_logprobs(tokens)
+    scores, p_yes = letter_and_yes_probs(tokens, letters)
     return SemanticScore(scores, p_yes, {"raw": resp.text or "", "problems": problems,
                                          "candidates": sorted(scores.items(), key=lambda kv: -kv[1]),
                                          "usage": usage_of(resp)})

@@ -55,19 +55,27 @@ def _logaddexp(a: float, b: float) -> float:
     return hi + math.log1p(math.exp(min(a, b) - hi))
 
 
+def _softmax_at(alts: Sequence[tuple[str, float]], allowed: Sequence[str]) -> dict[str, float] | None:
+    """Softmax over ``allowed`` keys among one position's alternatives; None if none is there."""
+    mass: dict[str, float] = {}
+    for tok, lp in alts:
+        key, value = _token_key(tok), to_float(lp)
+        if key in allowed and value is not None and math.isfinite(value):
+            mass[key] = _logaddexp(mass[key], value) if key in mass else value
+    if not mass:
+        return None
+    hi = max(mass.values())
+    exp = {k: math.exp(v - hi) for k, v in mass.items()}
+    total = sum(exp.values())
+    return {k: exp.get(k, 0.0) / total for k in allowed}
+
+
 def _softmax_first(top: LogprobInput | None, allowed: Sequence[str]) -> dict[str, float] | None:
     """Softmax over ``allowed`` keys at the first position whose alternatives include one."""
     for alts in _positions(top):
-        mass: dict[str, float] = {}
-        for tok, lp in alts:
-            key, value = _token_key(tok), to_float(lp)
-            if key in allowed and value is not None and math.isfinite(value):
-                mass[key] = _logaddexp(mass[key], value) if key in mass else value
-        if mass:
-            hi = max(mass.values())
-            exp = {k: math.exp(v - hi) for k, v in mass.items()}
-            total = sum(exp.values())
-            return {k: exp.get(k, 0.0) / total for k in allowed}
+        probs = _softmax_at(alts, allowed)
+        if probs is not None:
+            return probs
     return None
 
 
@@ -86,3 +94,29 @@ def yes_prob_from_logprobs(top_logprobs: LogprobInput | None) -> float:
     """P(yes) over {yes, no} from token log-probabilities; ``DEFAULT_P_YES`` when neither is there."""
     probs = _softmax_first(top_logprobs, ["YES", "NO"])
     return probs["YES"] if probs else DEFAULT_P_YES
+
+
+def _has_newline(token: str) -> bool:
+    return "\n" in token or "Ċ" in token  # Ċ: a byte-level BPE tokenizer's raw newline
+
+
+def letter_and_yes_probs(tokens: Sequence[TokenLogprob], letters: Sequence[str]
+                         ) -> tuple[dict[str, float], float]:
+    """ExploreEQA's two-line white-box reply (a letter, then yes/no): P(letter) on the first
+    line, P(yes) on the yes/no line after it (blank lines skipped; in a one-line reply, the
+    tokens after the letter). Alternatives at the letter token ("Yes" as another way to start
+    the reply) never count as the yes/no answer."""
+    tokens = list(tokens)
+    end, seen_text = len(tokens), False
+    for i, t in enumerate(tokens):
+        head = t.token.replace("Ċ", "\n").split("\n")[0]
+        if _has_newline(t.token) and (seen_text or head.strip()):
+            end = i + 1 if head.strip() else i  # "B\n" ends the line it belongs to
+            break
+        seen_text = seen_text or bool(t.token.strip())
+    first_line, rest = tokens[:end], tokens[end:]
+    keys = [str(x).strip().upper() for x in letters]
+    at = next((i for i, alts in enumerate(_positions(first_line)) if _softmax_at(alts, keys)), None)
+    if not any(t.token.strip() for t in rest):  # one line: yes/no after the letter
+        rest = first_line[at + 1:] if at is not None else first_line
+    return letter_probs_from_logprobs(first_line, letters), yes_prob_from_logprobs(rest)

@@ -11,7 +11,10 @@ from typing import Any
 
 M = 3  # answers asked for per reply (the paper's M)
 DEFAULT_LETTERS = ("A", "B", "C")
-# A candidate listed without a confidence gets the uniform share 100 / m.
+# A candidate listed without a confidence gets the uniform share 100 / m, but never more than
+# MISSING_CONFIDENCE: with one answer asked for (M = 1, ExploreEQA's per-step answer, where the
+# value is used as it is) a reply without a number is a coin flip, not certainty.
+MISSING_CONFIDENCE = 50.0
 # "worth exploring" with no yes/no at all: P(yes) = 0.5; a bare "yes"/"no" without a number
 # is read as 75 % sure.
 DEFAULT_P_YES = 0.5
@@ -30,12 +33,29 @@ _BARE_PCT = re.compile(r"\s" + _NUM + r"[ \t]*(?P<pct>%|percent\b)[\s.)*]*$", re
 _ANY_NUM = re.compile(_NUM + _PCT, re.I)
 _ENUMERATOR = re.compile(r"^\s*(?:[-*•·>]+|\(?[0-9]{1,2}[.)]|\(?[a-z][.)]|#[0-9]+:?)(?=\s)\s*")
 _LABEL = re.compile(r"^(?:answer|option|candidate|guess|response)\s*[0-9]*\s*[:.)\-]\s*", re.I)
-_PAIR = re.compile(r"(?<![A-Za-z0-9])(?:(?i:direction|option|point|letter)\s+)?[(\[]?(?P<letter>[A-Z])"
-                   r"[)\]]?(?![A-Za-z0-9])[ \t]*(?:[:=\-–—,]|\bis\b|\bwith\b)?[ \t]*[(\[]?[ \t]*"
-                   + _NUM + _PCT)
-_LETTER_HEAD = re.compile(r"^\W*(?:(?i:direction|option|point|letter)\s+)?[(\[]?(?P<letter>[A-Z])[)\]]?"
-                          r"(?![A-Za-z0-9]) ?[(:=\-–—]")
 _BARE_LETTER = re.compile(r"(?<![A-Za-z0-9'’])(?P<letter>[A-Z])(?![A-Za-z0-9'’])")
+# Where the confidence of a letter or of "worth exploring" is, in order of preference: after a
+# keyword ("confidence: 80"), a percentage anywhere, a number ending the part ("B - 40",
+# "yes (0.8)"), else the first number that is not a distance or a count ("3 m", "2 rooms",
+# "2nd").
+_PERCENT = re.compile(_NUM + r"[ \t]*(?P<pct>%|percent\b|/[ \t]*100\b)", re.I)
+_TRAILING = re.compile(r"(?:^|(?<=[\s:;,|=(\[\-–—]))" + _NUM + _PCT + r"[\s.,;)\]}*]*$", re.I)
+_UNIT = (r"(?:m|cm|km|ft|feet|foot|metres?|meters?|steps?|rooms?|doors?|s|secs?|seconds?|mins?"
+         r"|minutes?|degrees?|deg|°|x)(?![A-Za-z])")
+_FREE_NUM = re.compile(r"(?<![0-9.])" + _NUM + _PCT + r"(?![ \t]*" + _UNIT + r")(?!\.?[0-9])(?![A-Za-z])",
+                       re.I)
+_CONF_LINE = re.compile(r"^[ \t]*(?:(?:" + "|".join(("confidence", "conf", "probability", "prob", "certainty",
+                                                     "likelihood", "score")) + r")\b|" + _NUM + _PCT
+                        + r"[ \t.]*$)", re.I)
+# A capital letter followed by a lower-case word is the article "A" or the pronoun "I" unless
+# the word is one that follows a direction's letter ("B is best", "A and B: 50").
+_LETTER_AT = re.compile(r"(?<![A-Za-z0-9'’])(?P<letter>[A-Z])(?![A-Za-z0-9'’])(?=[ \t]+(?P<word>[a-z]+))?")
+_AFTER_LETTER = frozenset((
+    "is", "was", "seems", "looks", "has", "gets", "leads", "goes", "with", "and", "or", "then",
+    "at", "for", "because", "since", "as", "first", "second", "third", "next", "last", "best",
+    "probably", "likely", "maybe", "each", "both", "would", "could", "might"))
+_LEAD_SEP = re.compile(r"^[ \t]*[-–—:=]")
+_SHARED = re.compile(r"[)\]]?[ \t]*(?:[,&/+]|and|or)?[ \t]*", re.I)  # "A, B: 50 each"
 _YES_NO = re.compile(r"(?<![A-Za-z])(yes|no|true|false)(?![A-Za-z])", re.I)
 _TEXT_KEYS = ("answer", "text", "direction", "letter", "option", "choice", "name", "label")
 _CONF_KEYS = ("confidence", "conf", "probability", "prob", "score", "certainty", "likelihood", "p")
@@ -236,10 +256,11 @@ def _finish(raws: list[_Raw], m: int, problems: list[str], allowed: Mapping[str,
     fractions = bool(finite) and not any(p for _, _, p in items) and all(n <= 1.0 for n in finite)
     out: list[Candidate] = []
     seen: set[tuple[str, float]] = set()
+    missing = min(100.0 / m, MISSING_CONFIDENCE)
     for text, num, _ in items:
         if num is None:
-            problems.append(f"missing confidence for {text[:20]!r}: default {100.0 / m:.1f}")
-            conf = 100.0 / m
+            problems.append(f"missing confidence for {text[:20]!r}: default {missing:.1f}")
+            conf = missing
         else:
             conf = num * 100.0 if fractions else num
             if conf > 100.0:
@@ -281,27 +302,52 @@ def _letter_of(text: str, allowed: Mapping[str, str]) -> str | None:
     return found[0] if len(set(found)) == 1 else None
 
 
+def _find_confidence(part: str) -> re.Match[str] | None:
+    """The confidence in one letter's part of a line or in the "worth exploring" answer."""
+    hits = list(_KEYWORD.finditer(part))
+    return (hits[-1] if hits else None) or _PERCENT.search(part) or _TRAILING.search(part) \
+        or _FREE_NUM.search(part)
+
+
+def _letter_parts(line: str) -> list[tuple[str, _Raw | None, str]]:
+    """(letter, its confidence, the text after it) for each direction letter of ``line``; a
+    letter's part runs to the next letter."""
+    found = [m for m in _LETTER_AT.finditer(line) if m["word"] is None or m["word"] in _AFTER_LETTER]
+    parts: list[tuple[str, _Raw | None, str]] = []
+    for m, nxt in zip(found, [*found[1:], None]):
+        part = line[m.end():nxt.start() if nxt else len(line)]
+        hit = _find_confidence(_LEAD_SEP.sub("", part, count=1))  # "B-60" is B: 60, not -60
+        parts.append((m["letter"], _Raw(m["letter"], to_float(hit["num"]), bool(hit["pct"])) if hit else None,
+                      part))
+    for i in range(len(parts) - 2, -1, -1):  # "A, B: 50 each": A shares B's confidence
+        letter, raw, part = parts[i]
+        after = parts[i + 1][1]
+        if raw is None and after is not None and _SHARED.fullmatch(part):
+            parts[i] = (letter, _Raw(letter, after.num, after.pct), part)
+    return parts
+
+
 def parse_letters(reply: str, letters: Sequence[str] = DEFAULT_LETTERS, m: int = M) -> ParseResult:
-    """Lettered directions with confidences (``A: 60``, ``B - 30%``, ``C (0.1)``, JSON, one line or
-    many). Only ``letters`` count; the "worth exploring" part is ignored. Never raises."""
+    """Lettered directions with confidences (``A: 60``, ``B - 30%``, ``C (0.1)``, ``B is best
+    (70%), then A (30%)``, ``A, B: 50 each``, JSON, one line or many). Only ``letters`` count;
+    the "worth exploring" part is ignored; letters without a confidence are ignored when others
+    have one. Never raises."""
     problems: list[str] = []
     allowed = {str(x).strip().upper(): str(x).strip() for x in letters if str(x).strip()}
     text = _prepare(reply, problems)
     raws = _from_json(text, problems)
     if raws is None:
-        raws = []
-        lines = [re.split(r"(?i)worth", ln)[0] for ln in text.splitlines()]
-        for line in lines:
-            line = re.sub(r"[*`]", "", line)
+        parts: list[tuple[str, _Raw | None, str]] = []
+        for line in text.splitlines():
+            line = re.sub(r"[*`]", "", re.split(r"(?i)worth", line)[0])
             line = re.sub(r"^\s*([a-z])\s*(?=[:=)])", lambda g: g[1].upper(), line)
-            pairs = [_Raw(p["letter"], to_float(p["num"]), bool(p["pct"])) for p in _PAIR.finditer(line)]
-            head = _LETTER_HEAD.match(line)
-            if not pairs and head:  # "A (through the door, 4 m): 60"
-                conf = _split_confidence(line)[1]
-                pairs = [_Raw(head["letter"], conf.num if conf else None, bool(conf and conf.pct))]
-            raws += pairs
+            parts += _letter_parts(line)
+        raws = [raw for _, raw, _ in parts if raw is not None]
+        bare = [x for x, raw, _ in parts if raw is None and x in allowed]
         if not raws:  # letters without numbers: "B, then A"
-            raws = [_Raw(x, None) for ln in lines for x in _BARE_LETTER.findall(ln) if x in allowed]
+            raws = [_Raw(x, None) for x in bare]
+        elif bare:
+            problems.append(f"ignored letter(s) without a confidence: {', '.join(bare)}")
     if not raws:
         problems.append("no letters found")
     return _finish(raws, m, problems, allowed)
@@ -321,7 +367,9 @@ def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
         lines = text[idx + 5:].split("\n")
         seg = lines[0]
         for extra in lines[1:3]:
-            if _YES_NO.search(seg) or _ANY_NUM.search(seg):
+            # look further while nothing is found, or for the confidence of a bare yes/no
+            # given on the next line ("yes" then "confidence: 80")
+            if _find_confidence(seg) or (_YES_NO.search(seg) and not _CONF_LINE.match(extra)):
                 break
             seg += "\n" + extra
     else:
@@ -329,16 +377,16 @@ def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
         if seg:
             problems.append("no 'worth exploring' line; used the last yes/no")
     words = list(_YES_NO.finditer(seg))
-    nums = list(_ANY_NUM.finditer(seg))
+    hit = _find_confidence(seg)
     word = None
     if words:
-        before = [w for w in words if not nums or w.start() < nums[0].start()]
+        before = [w for w in words if hit is None or w.start() < hit.start()]
         word = (before[-1] if before else words[0])[1].lower()
     conf = None
-    if nums:
-        value = to_float(nums[0]["num"])
+    if hit:
+        value = to_float(hit["num"])
         if value is not None and not math.isnan(value):
-            conf = value / 100.0 if nums[0]["pct"] or value > 1.0 else value
+            conf = value / 100.0 if hit["pct"] or value > 1.0 else value
             if not 0.0 <= conf <= 1.0:
                 problems.append(f"worth-exploring confidence {value:g} clipped")
                 conf = min(max(conf, 0.0), 1.0)
