@@ -120,6 +120,33 @@ def test_the_explore_calls_carry_the_question_and_the_directions(house4, tmp_pat
     assert [rec.step for rec in r.records] == [1, 2, 3, 4]
 
 
+class SequenceScorer:
+    """Relevancy stand-in: the given Sims, one per valid frame, in order."""
+
+    name = "sequence-stub"
+    modality = "text"
+
+    def __init__(self, sims):
+        self.sims = iter(sims)
+
+    def score(self, question, *, image=None, text=None):  # noqa: ANN001, ANN201
+        return next(self.sims)
+
+
+def test_the_agent_may_stop_at_the_minimum_step_itself(house4):
+    """An outlier at step 10 (the default minimum) stops the episode there: steps count from 1
+    and "never before step 10" lets step 10 stop."""
+    scene, q = house4
+    model = StubChatModel(lambda msgs: "A: 50\nworth exploring: no 50"
+                          if msgs[-1].text.startswith("You guide") else "black; 90")
+    sims = [0.1, 0.2] * 4 + [0.15, 5.0] + [0.1] * 10
+    built = build_agent(scene.env, Stack(grouping="rules"), AgentConfig(max_steps=14), "test",
+                        model=model, relevancy=SequenceScorer(sims))
+    r = built.agent.run(scene.env, q.question)
+    assert all(rec.valid for rec in r.records)
+    assert (r.stop_reason, r.steps) == ("relevancy", 10) and r.records[-1].check.sim == 5.0
+
+
 def test_invalid_frames_never_reach_a_model(house4, tmp_path):
     scene, q = house4
 
@@ -221,10 +248,19 @@ class BrightnessScorer:
         return np.array([self.score(question, image=i) for i in items])
 
 
+def _brightness_answer(msgs):
+    """Says how bright the evidence images are, first (best) image first: the answer shows which
+    frames were retrieved and in which order."""
+    if msgs[-1].text.startswith("You guide"):
+        return "A: 70\nB: 30\nworth exploring: yes 80"
+    shares = (60, 30, 10)
+    return "\n".join(f"{np.asarray(im, float).mean() / 255:.4f}; {c}"
+                     for im, c in zip(msgs[-1].images, shares))
+
+
 def test_an_image_vlm_gets_marked_frames_and_the_top_k_images(house4, tmp_path):
     scene, q = house4
-    model = StubChatModel(lambda msgs: "A: 70\nB: 30\nworth exploring: yes 80"
-                          if msgs[-1].text.startswith("You guide") else "black; 80\nbrown; 20\ngrey; 0")
+    model = StubChatModel(_brightness_answer)
     done = ask(q.question, scene, tmp_path, stack=Stack(perception="rgb", grouping="rules"),
                model=model, relevancy=BrightnessScorer(), config=AgentConfig(max_steps=6, top_k=3))
     explore = [r for r in model.requests if r.messages[-1].text.startswith("You guide")]
@@ -237,7 +273,11 @@ def test_an_image_vlm_gets_marked_frames_and_the_top_k_images(house4, tmp_path):
         assert "(the lettered circles in the image)" in request.messages[-1].text
     answer = model.requests[-1].messages[-1]
     assert len(answer.images) == 3 and "the 3 attached images" in answer.text
-    assert done.result.answer == "black"
+    # the brightest frame of the episode (Sim = brightness) went first, unmarked
+    sims = sorted((rec.check.sim for rec in done.result.records if rec.check), reverse=True)
+    assert [s for _, s in done.result.retrieved] == pytest.approx(sims[:3])
+    assert float(done.result.answer) == pytest.approx(sims[0], abs=1e-4)
+    assert done.result.confidence == pytest.approx(0.6)
     assert done.record["backends"]["perception"] == "rgb"
     assert "Semantic-sensor perception" not in done.report_html.read_text()
 
@@ -268,11 +308,16 @@ def test_the_papers_stack_rgb_frames_and_blip2_itm(house4, tmp_path, request):
     pytest.importorskip("transformers", reason="needs the 'vision' extra")
     itm = request.getfixturevalue("blip2")
     scene, q = house4
+    # the first guess is brown, but the two spellings of black together weigh more
     model = StubChatModel(lambda msgs: "A: 60\nB: 40\nworth exploring: yes 70"
-                          if msgs[-1].text.startswith("You guide") else "black; 70\nbrown; 30")
+                          if msgs[-1].text.startswith("You guide") else "brown; 40\nblack; 35\nBlack.; 25")
     done = ask(q.question, scene, tmp_path, stack=Stack(perception="rgb", grouping="rules"),
                model=model, relevancy=itm, config=AgentConfig(max_steps=4, top_k=2))
     sims = [rec.check.sim for rec in done.result.records if rec.check]
     assert len(sims) == 4 and all(0.0 <= s <= 1.0 for s in sims)
     assert done.record["backends"]["relevancy"] == itm.name
-    assert len(model.requests[-1].messages[-1].images) == 2 and done.result.answer == "black"
+    assert len(model.requests[-1].messages[-1].images) == 2
+    assert [st for st, _ in done.result.retrieved] == [
+        rec.step for rec in sorted((r for r in done.result.records if r.check),
+                                   key=lambda r: (-r.check.sim, r.step))][:2]
+    assert (done.result.answer, done.result.confidence) == ("black", pytest.approx(0.6))

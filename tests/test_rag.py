@@ -1,8 +1,11 @@
 """Retrieval of the top-K frames and the RAG answer (SPEC 3.5)."""
 
+import math
+
 import pytest
 
 from efficienteqa.answer import RagAnswerer, TopK
+from efficienteqa.models.base import TokenLogprob
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.vc.grouping import RuleGrouper
 
@@ -39,6 +42,30 @@ def test_answer_from_retrieved_descriptions():
     assert "view 1: You are in the living room" in prompt and "What colour is the sofa?" in prompt
 
 
-def test_malformed_reply_gives_no_answer_not_a_crash():
+def test_an_empty_reply_gives_no_answer_not_a_crash():
+    result = RagAnswerer(StubChatModel([""]), RuleGrouper()).answer("Q?", ["x"])
+    assert (result.answer, result.confidence, result.classes) == ("", 0.0, [])
+    assert "no answers found" in result.problems
+
+
+def test_a_reply_without_confidences_is_the_answer_with_the_repair_recorded():
+    """No number at all: each line is a guess with the default share; alone, it is C* = 1."""
     result = RagAnswerer(StubChatModel(["I cannot tell."]), RuleGrouper()).answer("Q?", ["x"])
-    assert result.confidence <= 1.0 and result.problems
+    assert (result.answer, result.confidence) == ("I cannot tell", 1.0)
+    assert any(p.startswith("missing confidence for 'I cannot tell'") for p in result.problems)
+
+
+def test_m_guesses_are_asked_for_and_kept():
+    model = StubChatModel(["red; 50\nblue; 30\ngreen; 20"])
+    result = RagAnswerer(model, RuleGrouper(), m=2).answer("What colour is the sofa?", ["x"])
+    assert "Give your 2 best guesses" in model.requests[0].messages[0].text
+    assert [c.text for c in result.candidates] == ["red", "blue"]  # at most m
+    assert result.confidence == pytest.approx(50 / 80)
+
+
+def test_the_white_box_answer_reads_token_probabilities():
+    tokens = [TokenLogprob("blue", math.log(0.8)), TokenLogprob(" sofa", math.log(0.5))]
+    model = StubChatModel(["blue sofa"], logprob_fn=lambda text, top: tokens)
+    result = RagAnswerer(model, RuleGrouper(), confidence="token").answer("What is blue?", ["x"])
+    assert (result.answer, result.confidence) == ("blue sofa", pytest.approx(0.4))
+    assert model.requests[0].logprobs == 1 and "one line" in model.requests[0].messages[0].text

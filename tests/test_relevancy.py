@@ -213,6 +213,25 @@ def test_blip2_itm_gives_a_deterministic_probability(blip2, images):
         blip2.score(QUESTION, text="a red sofa")
 
 
+@pytest.mark.parametrize("bias, expected", [((-6.0, 6.0), 1.0), ((6.0, -6.0), 0.0)])
+def test_blip2_score_is_the_match_class_of_the_itm_head(blip2, images, bias, expected):
+    """Index 1 of the ITM head is "match" (BLIP's training labels: 1 = the pair belongs
+    together). A head that only says "match" gives Sim near 1, one that only says "no match"
+    near 0; reading index 0 would swap them."""
+    torch = pytest.importorskip("torch")
+    head = blip2.model.itm_head
+    weight, old_bias = head.weight.detach().clone(), head.bias.detach().clone()
+    try:
+        with torch.no_grad():
+            head.weight.zero_()
+            head.bias.copy_(torch.tensor(bias))
+        assert blip2.score_many(QUESTION, images) == pytest.approx([expected] * 3, abs=1e-4)
+    finally:
+        with torch.no_grad():
+            head.weight.copy_(weight)
+            head.bias.copy_(old_bias)
+
+
 def test_blip2_question_is_truncated_to_32_tokens(blip2, images):
     ids, mask = blip2._question_tokens(" ".join(["sofa"] * 100))
     assert ids.shape == mask.shape == (1, 32)

@@ -29,6 +29,14 @@ def test_no_stop_before_step_ten_however_high_the_outlier():
     assert checks[4].z > 3 and not any(c.stop for c in checks)
 
 
+@pytest.mark.parametrize("min_step, stops_at", [(10, [10]), (9, [10]), (11, [])])
+def test_the_minimum_step_itself_may_stop(min_step, stops_at):
+    """An outlier exactly at step ``min_step`` stops ("never before", not "only after")."""
+    sims = [0.1, 0.2] * 4 + [0.15, 5.0]  # the outlier is step 10
+    checks = run(sims, min_step=min_step)
+    assert checks[9].z > 3 and [c.step for c in checks if c.stop] == stops_at
+
+
 def test_stops_at_the_first_outlier_from_step_ten():
     sims = [0.1, 0.2] * 5 + [0.15, 5.0, 9.0]
     checks = run(sims)
