@@ -8,6 +8,7 @@ import pytest
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.registry import EXPLORERS
+from efficienteqa.models.backends import CHAT_BACKENDS
 from efficienteqa.registry import Registry
 from efficienteqa.relevancy.base import SCORERS
 from efficienteqa.stack import GROUPINGS, PERCEPTIONS
@@ -15,7 +16,8 @@ from efficienteqa.stack import GROUPINGS, PERCEPTIONS
 
 def test_an_unknown_name_is_one_error_listing_the_known_ones():
     for registry, kind in ((EXPLORERS, "explorer"), (SCORERS, "relevancy scorer"),
-                           (PERCEPTIONS, "perception"), (GROUPINGS, "grouping")):
+                           (PERCEPTIONS, "perception"), (GROUPINGS, "grouping"),
+                           (CHAT_BACKENDS, "chat back-end")):
         with pytest.raises(EfficientEQAError) as info:
             registry.build("no-such-thing")
         message = str(info.value)

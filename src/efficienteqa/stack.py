@@ -16,7 +16,7 @@ from efficienteqa.answer.rag import RagAnswerer
 from efficienteqa.envs.base import Environment
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.vlm_scorer import VLMScorer
-from efficienteqa.models.backends import ChatBackend, build_chat_model
+from efficienteqa.models.backends import CHAT_BACKENDS, ChatBackend, build_chat_model
 from efficienteqa.models.base import ChatModel
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
@@ -46,7 +46,7 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
               temperature: float | None = None) -> ChatBackend:
     kind, _, rest = spec.partition(":")
     model, _, url = rest.partition("@")
-    if kind not in ("local", "openai") or not model:
+    if kind not in CHAT_BACKENDS or not model:
         raise EfficientEQAError(f"cannot read the VLM {spec!r}",
                                 fix="use local:MODEL or openai:MODEL[@BASE_URL], "
                                     "e.g. local:qwen2.5-coder-1.5b or openai:gpt-4o")

@@ -40,6 +40,6 @@ class VLMMatchScorer:
         self.problems += problems
         return float(p_yes)
 
-    def score_many(self, question: str, items: Sequence[np.ndarray] | Sequence[str]) -> np.ndarray:
-        key = "image" if self.modality == "image" else "text"
-        return np.array([self.score(question, **{key: item}) for item in items], dtype=float)
+    def score_many(self, question: str, items: Sequence[np.ndarray | str]) -> np.ndarray:
+        return np.array([self.score(question, text=item) if isinstance(item, str)
+                         else self.score(question, image=item) for item in items], dtype=float)
