@@ -224,3 +224,32 @@ def test_cli_report_on_a_folder_that_is_not_a_run_is_one_line(tmp_path, monkeypa
     assert exited.value.code == 1
     lines = capsys.readouterr().out.strip().splitlines()
     assert len(lines) == 1 and "is not an evaluation run" in lines[0]
+
+
+def test_rule_judge_accuracy_is_reported_beside_llm_match(tmp_path):
+    """Synthetic runs carry the rule judge's grade: its accuracy (a failed episode is wrong)
+    stands beside LLM-Match in Table I, per category and on the console; a run without a judge
+    model has rule accuracy and no LLM-Match."""
+    def ruled(i: int, right: bool, **kwargs) -> dict:
+        row = episode(i, **kwargs)
+        if row["status"] == "done":
+            row["rule"] = {"score": 5 if right else 1, "value": 100.0 if right else 0.0, "judge": "rule",
+                           "raw": "rule: ...", "problems": [], "cached": False}
+        return row
+
+    rows = [ruled(0, True, category="count"), ruled(1, False, score=4, category="count"),
+            ruled(2, True, category="colour"), ruled(3, True, status="failed", category="colour")]
+    with_model = write_run(tmp_path / "a", manifest(), rows)
+    no_model = write_run(tmp_path / "b", {**manifest(top_k=3), "judge": None},
+                         [ruled(0, True, judged=False), ruled(1, True, judged=False)])
+    a, b = read_summaries([with_model, no_model])
+    assert (a.rule_accuracy, a.n_rule, a.rule_by_category) == (50.0, 3, {"colour": 50.0, "count": 50.0})
+    assert a.llm_match == pytest.approx((100 + 75 + 100 + 0) / 4) and "rule" in a.backends["judge"]
+    assert b.rule_accuracy == 100.0 and math.isnan(b.llm_match)
+    md = write_report([with_model, no_model], tmp_path / "out")[0].read_text()
+    assert "| Method | Rule-judge accuracy (%) ↑ | LLM-Match (%) ↑ | Avg steps ↓ |" in md
+    assert "| efficienteqa | 50.00 | 68.75 | 12.00 | 2.00 | 4 (3 rule-graded, 3 judged, 1 failed) |" in md
+    assert "| efficienteqa K=3 | 100.00 | - |" in md
+    assert "### Rule-judge accuracy (%) per question category" in md
+    result = CliRunner().invoke(cli.app, ["report", str(with_model)])
+    assert result.exit_code == 0 and "Rule %" in result.output and "50.00" in result.output

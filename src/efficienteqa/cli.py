@@ -229,8 +229,10 @@ def eval_command(
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
     grouping: Grouping = None,
-    judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec; default "
-                                     "local:qwen2.5-coder-1.5b), or 'none'.", show_default=False),
+    judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec), or 'rule'/'none' "
+                                     "for no model. Synthetic questions are always graded by the "
+                                     "rule judge too. Default: rule for synthetic datasets, "
+                                     "local:qwen2.5-coder-1.5b for hm-eqa.", show_default=False),
     judge_mode: str | None = typer.Option(None, help="grade (the judge says 1-5) | yes-prob (1 + 4 "
                                           "P(yes) for 'same answer?') | auto (default: yes-prob for "
                                           "local models).", show_default=False),
@@ -242,7 +244,8 @@ def eval_command(
     preset: Preset = None,
     cache: Cache = None,
 ) -> None:
-    """Run a method on a dataset, resumably: one JSON line per episode, judged by LLM-Match."""
+    """Run a method on a dataset, resumably: one JSON line per episode, graded by the rule judge
+    (synthetic) and by LLM-Match (with a judge model)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -253,7 +256,7 @@ def eval_command(
     )
 
     from efficienteqa.datasets import load_dataset
-    from efficienteqa.eval.methods import RunSpec, resolve
+    from efficienteqa.eval.methods import RunSpec, default_judge, resolve
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
     from efficienteqa.presets import apply_preset, build_config, build_stack, given
@@ -263,11 +266,14 @@ def eval_command(
     resolve(method)  # bad input fails before anything slow
     stack = build_stack(o)
     parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
-    judge_spec = o["judge"] or RunSpec.judge
-    judge_spec = None if judge_spec == "none" else judge_spec
+    dataset = o["dataset"] or "synthetic"
+    judge_spec = o["judge"] or default_judge(dataset)
+    if judge_spec == "rule" and not dataset.startswith("synthetic"):
+        raise EfficientEQAError(f"the rule judge grades synthetic questions only, not {dataset}",
+                                fix="give a judge model (--judge local:MODEL or openai:MODEL)")
+    judge_spec = None if judge_spec in ("none", "rule") else judge_spec
     if judge_spec:
         parse_vlm(judge_spec, images=False)
-    dataset = o["dataset"] or "synthetic"
     questions = load_dataset(dataset, path=hm_eqa_path, limit=o["limit"], assets=assets)
     spec = RunSpec(method=method, dataset=dataset, stack=stack, config=build_config(o),
                    judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"] or "auto", judge_spec or ""),
@@ -282,11 +288,15 @@ def eval_command(
         task = progress.add_task(method, total=len(questions), completed=min(done_before, len(questions)),
                                  info="")
         scores: list[float] = []
+        rules: list[float] = []
 
         def on_episode(row: dict) -> None:
             if row.get("judge"):
                 scores.append(row["judge"]["value"])
-            info = (f"LLM-Match {sum(scores) / len(scores):.1f}" if scores else "")
+            if row.get("rule"):
+                rules.append(row["rule"]["value"])
+            info = "  ".join([*([f"rule {sum(rules) / len(rules):.1f}%"] if rules else []),
+                              *([f"LLM-Match {sum(scores) / len(scores):.1f}"] if scores else [])])
             if row["status"] != "done":
                 console.print(f"[yellow]{row['id']} failed:[/yellow] {row.get('error')}",
                               highlight=False, soft_wrap=True)

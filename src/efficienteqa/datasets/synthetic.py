@@ -62,14 +62,15 @@ def generator_version() -> str:
 
 
 def to_eval_question(q: Question, dataset: str, assets: str) -> EvalQuestion:
-    """A generated question as an EvalQuestion; ``source`` keeps what the oracle knows.
+    """A generated question as an EvalQuestion, with its accepted answers (the ``rule`` judge's
+    key); ``source`` keeps what the oracle knows.
 
     ``source["no_evidence"]`` marks "no" existence answers: nothing to see, so no oracle steps.
     """
     return EvalQuestion(
         id=f"{dataset}/{q.id}", dataset=dataset, scene=f"synthetic:{q.house_seed}",
         question=q.question, answer=q.answer, category=q.category,
-        alternatives=tuple(q.alternatives), oracle_steps=q.oracle_steps,
+        alternatives=tuple(q.alternatives), accepted=tuple(q.accepted), oracle_steps=q.oracle_steps,
         source={"house_seed": q.house_seed, "question_id": q.id, "assets": assets,
                 "evidence": list(q.evidence), "no_evidence": not q.evidence,
                 "oracle_pose": list(q.oracle_pose) if q.oracle_pose else None})

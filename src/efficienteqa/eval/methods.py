@@ -39,7 +39,9 @@ class RunSpec:
     the method's own settings are applied on top by ``method_config``. ``judge``: a VLM spec
     for LLM-Match ("local:MODEL", "openai:MODEL") or None for no judging; ``judge_mode``: see
     ``eval.judge``. ``env``: the simulator of the dataset's scenes, "synthetic" (generated
-    houses with ``assets`` furniture) or "habitat" (HM3D scenes under ``hm3d_root``)."""
+    houses with ``assets`` furniture) or "habitat" (HM3D scenes under ``hm3d_root``). Questions
+    that carry their accepted answers (synthetic datasets) are also graded by the ``rule``
+    judge, whatever ``judge`` is; the CLI's default judge is ``default_judge(dataset)``."""
 
     method: str
     dataset: str
@@ -52,6 +54,12 @@ class RunSpec:
     closed_set: bool = False
     env: str = "synthetic"
     hm3d_root: str | None = None
+
+
+def default_judge(dataset: str) -> str | None:
+    """The LLM-Match judge of a run that names none: no model for synthetic datasets (the
+    ``rule`` judge grades them, exactly and for free), the local model for the others."""
+    return None if dataset.startswith("synthetic") else RunSpec.judge
 
 
 @dataclass

@@ -1,8 +1,10 @@
 """Run a method over a dataset: sequentially, or on Ray workers, resumably.
 
 An episode is the unit of work and of failure. ``run_episode`` runs one and returns its line
-for ``episodes.jsonl`` — the method's answer, steps and usage, the LLM-Match judgement, the wall
-time — or, when anything goes wrong, a ``failed`` line with the one-line error. Only the driver
+for ``episodes.jsonl`` — the method's answer, steps and usage, the ``rule`` judge's grade where
+the question lists its accepted answers (synthetic datasets), the LLM-Match judgement where a
+judge model is given, the wall time — or, when anything goes wrong, a ``failed`` line with the
+one-line error. Only the driver
 appends lines (``records``); a re-run in the same folder skips the episodes already done and
 retries the failed ones.
 
@@ -45,6 +47,15 @@ def build_judge(spec: str, mode: str) -> Any:
     from efficienteqa.stack import parse_vlm
 
     return LLMMatchJudge(build_chat_model(parse_vlm(spec, images=False)), mode=mode)
+
+
+def _rule(q: EvalQuestion, answer: str) -> dict[str, Any] | None:
+    """The rule judge's grade, for questions that carry their accepted answers."""
+    from efficienteqa.eval.rule_judge import RULE_CATEGORIES, rule_judgement
+
+    if not q.accepted or q.category not in RULE_CATEGORIES:
+        return None
+    return rule_judgement(q.question, q.category, q.accepted, answer).to_dict()
 
 
 def _judge(spec: RunSpec, q: EvalQuestion, answer: str) -> dict[str, Any] | None:
@@ -92,6 +103,7 @@ def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
         row.update(status="done", answer=outcome.answer, confidence=outcome.confidence,
                    steps=outcome.steps, budget=outcome.budget, stop_reason=outcome.stop_reason,
                    usage=outcome.usage, backends=outcome.backends, extra=outcome.extra)
+        row["rule"] = _rule(q, outcome.answer)
         row["judge"] = _judge(spec, q, outcome.answer)
     except Exception as exc:  # noqa: BLE001 - one episode's failure must not end the run
         row.update(_failure(exc), traceback=traceback.format_exc(limit=6)[-2000:])
@@ -104,7 +116,7 @@ def _identity(spec: RunSpec, q: EvalQuestion) -> dict[str, Any]:
     """What every line says of its episode, whatever happened to it."""
     return {"id": q.id, "dataset": q.dataset, "method": spec.method, "scene": q.scene,
             "question": q.question, "reference": q.answer, "alternatives": list(q.alternatives),
-            "category": q.category, "oracle_steps": q.oracle_steps}
+            "accepted": list(q.accepted), "category": q.category, "oracle_steps": q.oracle_steps}
 
 
 def _failure(exc: BaseException) -> dict[str, Any]:

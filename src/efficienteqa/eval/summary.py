@@ -7,6 +7,10 @@ summary backs the console, the Markdown and the HTML report. Conventions, stated
 - LLM-Match is the mean over *every* episode of the run: a failed episode, or a done one without
   a grade, scores 0 like a missing answer (SPEC 3.7). A run with no grade at all has no score
   (NaN): 0 would read as "everything was wrong".
+- Rule-judge accuracy (synthetic datasets, ``eval.rule_judge``) is the share (%) of *every*
+  episode that the rule judge graded right, by the same convention: a failed or ungraded
+  episode counts as wrong, and a run without rule grades has none (NaN). It is reported beside
+  LLM-Match, not instead of it.
 - Steps, steps/oracle, stop reasons and model usage are over the done episodes; wall time is over
   every episode that recorded one (a failure costs time too).
 - Means skip missing values and are NaN when nothing is left, so an empty run never crashes.
@@ -69,6 +73,9 @@ class RunSummary:
     code_version: str
     newest: float | None
     errors: dict[str, int] = field(default_factory=dict)
+    rule_accuracy: float = math.nan
+    n_rule: int = 0
+    rule_by_category: dict[str, float] = field(default_factory=dict)
 
     @property
     def tokens(self) -> float:
@@ -91,9 +98,10 @@ def _is_number(v: Any) -> TypeGuard[float]:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def match_value(row: Mapping[str, Any]) -> float:
-    """One episode's LLM-Match (0-100): its grade's value; 0 when failed or not graded."""
-    judged = row.get("judge") if row.get("status") == "done" else None
+def match_value(row: Mapping[str, Any], key: str = "judge") -> float:
+    """One episode's LLM-Match (0-100): its grade's value; 0 when failed or not graded.
+    ``key="rule"``: the rule judge's grade (100 right, 0 wrong)."""
+    judged = row.get(key) if row.get("status") == "done" else None
     if not isinstance(judged, Mapping):
         return 0.0
     value = judged.get("value")
@@ -162,10 +170,14 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
     values = [match_value(r) for r in rows]
     n_judged = sum(isinstance(r.get("judge"), Mapping) for r in done)
     scored = n_judged > 0
+    rule_values = [match_value(r, "rule") for r in rows]
+    n_rule = sum(isinstance(r.get("rule"), Mapping) for r in done)
 
     categories: dict[str, list[float]] = {}
-    for r, v in zip(rows, values):
+    rule_categories: dict[str, list[float]] = {}
+    for r, v, rv in zip(rows, values, rule_values):
         categories.setdefault(str(r.get("category") or UNCATEGORISED), []).append(v)
+        rule_categories.setdefault(str(r.get("category") or UNCATEGORISED), []).append(rv)
 
     # A run in which no episode took a step (the Blind LLM) has no average steps, not 0.
     explored = any((r.get("steps") or 0) > 0 or r.get("stop_reason") is not None for r in done)
@@ -176,6 +188,8 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
     judges = [r["judge"].get("judge") for r in done if isinstance(r.get("judge"), Mapping)]
     backends = {k: _distinct((r.get("backends") or {}).get(k) for r in done) for k in BACKEND_KEYS}
     backends["judge"] = _distinct(judges) or _distinct([manifest.get("judge")])
+    if n_rule:
+        backends["judge"] = ["rule", *backends["judge"]]
     finished = [float(r["finished"]) for r in rows if _is_number(r.get("finished"))]
     planned = manifest.get("questions")
 
@@ -200,6 +214,8 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
         newest=max(finished) if finished else None,
         errors=dict(Counter(str(r.get("error") or "unknown error") for r in rows
                             if r.get("status") != "done").most_common()),
+        rule_accuracy=mean(rule_values) if n_rule else math.nan, n_rule=n_rule,
+        rule_by_category={c: mean(v) for c, v in sorted(rule_categories.items())} if n_rule else {},
     )
 
 

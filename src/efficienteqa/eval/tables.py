@@ -2,7 +2,8 @@
 
 The paper's tables in form — Table I (method | LLM-Match | average steps, plus steps against the
 oracle), Tables II and III (the Z_th and K ablations, found by comparing the runs' settings) —
-plus what the paper leaves out: LLM-Match per question category, and the cost of every run (stop
+plus what the paper leaves out: LLM-Match per question category, the rule judge's accuracy beside
+LLM-Match for synthetic runs (whose accepted answers are known), and the cost of every run (stop
 reasons, model calls and tokens, wall time, failures). Plots are SVG drawn here, so reports need
 no plotting library; the HTML page inlines them, the Markdown links them as files beside it.
 
@@ -36,7 +37,10 @@ SEMANTIC_WARNING = ("Perception is semantic-sensor: the agent reads the simulato
                     "text, not pixels, so these are not image-model numbers.")
 SEMANTIC_SHORT = "reads the simulator's object labels, not pixels: not image-model numbers"
 CONVENTIONS = ("LLM-Match (%) is the mean over every episode of 100 * (score - 1) / 4; a failed or "
-               "ungraded episode scores 0, like a missing answer (SPEC 3.7). Average steps, steps / "
+               "ungraded episode scores 0, like a missing answer (SPEC 3.7). Rule-judge accuracy (%), "
+               "for synthetic questions whose accepted answers are known, is the share of every episode "
+               "that states an accepted answer and no contradicting one (no model involved; a failed "
+               "episode counts as wrong). Average steps, steps / "
                "oracle (the mean per-episode ratio, over episodes with an oracle), stop reasons and "
                "model usage are over the episodes that finished; '-' means not measured.")
 STOP_ORDER = ("relevancy", "budget", "explored", "none")
@@ -113,21 +117,35 @@ def provenance(summaries: Sequence[RunSummary]) -> list[str]:
 # --- tables ----------------------------------------------------------------------------------------
 
 
+RULE_HEADER = "Rule-judge accuracy (%) ↑"
+
+
 def _episodes(s: RunSummary) -> str:
-    return f"{s.n} ({s.n_judged} judged, {s.n_failed} failed)"
+    rule = f"{s.n_rule} rule-graded, " if s.n_rule else ""
+    return f"{s.n} ({rule}{s.n_judged} judged, {s.n_failed} failed)"
+
+
+def _ruled(summaries: Sequence[RunSummary]) -> bool:
+    """Whether any run was graded by the rule judge: its tables then show both scores."""
+    return any(s.n_rule for s in summaries)
 
 
 def table_one(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
-    """The paper's Table I in form, one row per run in the order given."""
-    rows = [[lab, _num(s.llm_match), _num(s.mean_steps), _num(s.steps_over_oracle), _episodes(s)]
+    """The paper's Table I in form, one row per run in the order given; rule-judge accuracy
+    beside LLM-Match where the runs have it."""
+    ruled = _ruled(summaries)
+    rows = [[lab, *([_num(s.rule_accuracy)] if ruled else []), _num(s.llm_match), _num(s.mean_steps),
+             _num(s.steps_over_oracle), _episodes(s)]
             for s, lab in zip(summaries, labels)]
     return Table("Methods compared (the paper's Table I)",
-                 ["Method", "LLM-Match (%) ↑", "Avg steps ↓", "Steps / oracle ↓", "Episodes"],
+                 ["Method", *([RULE_HEADER] if ruled else []), "LLM-Match (%) ↑", "Avg steps ↓",
+                  "Steps / oracle ↓", "Episodes"],
                  rows, provenance(summaries))
 
 
-def category_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
-    """LLM-Match per question category; the header carries n when every run has the same."""
+def category_table(summaries: Sequence[RunSummary], labels: Sequence[str], rule: bool = False) -> Table:
+    """LLM-Match (``rule``: rule-judge accuracy) per question category; the header carries n when
+    every run has the same."""
     categories = sorted({c for s in summaries for c in s.by_category})
     header = ["Method"]
     for c in categories:
@@ -137,13 +155,15 @@ def category_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Ta
     rows = []
     for s, lab in zip(summaries, labels):
         cells = [lab]
+        values = s.rule_by_category if rule else s.by_category
         for c in categories:
-            if c not in s.by_category:
+            if c not in values:
                 cells.append("-")
             else:
-                cells.append(_num(s.by_category[c]) + ("" if uniform else f" (n={s.n_by_category[c]})"))
+                cells.append(_num(values[c]) + ("" if uniform else f" (n={s.n_by_category[c]})"))
         rows.append(cells)
-    return Table("LLM-Match (%) per question category", header, rows, provenance(summaries))
+    name = "Rule-judge accuracy" if rule else "LLM-Match"
+    return Table(f"{name} (%) per question category", header, rows, provenance(summaries))
 
 
 def efficiency_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
@@ -193,14 +213,19 @@ def ablation_blocks(summaries: Sequence[RunSummary], prefix: str) -> list[Table 
         for i, group in enumerate(ablations(summaries, key), 1):
             name = settings_label(group[0].method, group[0].settings, skip=[key])
             suffix = f"-{i}" if i > 1 else ""
-            header = [symbol, "LLM-Match (%) ↑", *(["Avg steps ↓"] if with_steps else []), "Episodes"]
+            ruled = _ruled(group)
+            header = [symbol, *([RULE_HEADER] if ruled else []), "LLM-Match (%) ↑",
+                      *(["Avg steps ↓"] if with_steps else []), "Episodes"]
             rows = [[f"{s.settings[key]:g}" if isinstance(s.settings[key], float) else str(s.settings[key]),
-                     _num(s.llm_match), *([_num(s.mean_steps)] if with_steps else []), _episodes(s)]
+                     *([_num(s.rule_accuracy)] if ruled else []), _num(s.llm_match),
+                     *([_num(s.mean_steps)] if with_steps else []), _episodes(s)]
                     for s in group]
             blocks.append(Table(f"Ablation over {symbol}: {name} (the paper's Table {paper})",
                                 header, rows, provenance(group)))
             xs = [float(s.settings[key]) for s in group]
             plots = [("llm-match", "LLM-Match (%)", [s.llm_match for s in group])]
+            if ruled:
+                plots.insert(0, ("rule", "Rule-judge accuracy (%)", [s.rule_accuracy for s in group]))
             if with_steps:
                 plots.append(("steps", "Avg steps", [s.mean_steps for s in group]))
             for tag, y_label, ys in plots:
@@ -212,13 +237,19 @@ def ablation_blocks(summaries: Sequence[RunSummary], prefix: str) -> list[Table 
 
 
 def accuracy_figure(summaries: Sequence[RunSummary], labels: Sequence[str], prefix: str) -> Figure:
-    """LLM-Match against average steps, one labelled point per run; a run that took no steps
-    (the Blind LLM) is a dashed level line."""
-    points = [(s.mean_steps, s.llm_match, lab) for s, lab in zip(summaries, labels)
+    """LLM-Match (rule-judge accuracy where every run has it) against average steps, one
+    labelled point per run; a run that took no steps (the Blind LLM) is a dashed level line."""
+    rule = all(s.n_rule for s in summaries) and bool(summaries)
+    name = "Rule-judge accuracy" if rule else "LLM-Match"
+
+    def score(s: RunSummary) -> float:
+        return s.rule_accuracy if rule else s.llm_match
+
+    points = [(s.mean_steps, score(s), lab) for s, lab in zip(summaries, labels)
               if not math.isnan(s.mean_steps)]
-    levels = [(s.llm_match, lab) for s, lab in zip(summaries, labels) if math.isnan(s.mean_steps)]
-    return Figure(f"{prefix}-accuracy-steps.svg", "LLM-Match vs average steps (up and left is better)",
-                  xy_svg(points, x_label="Avg steps", y_label="LLM-Match (%)", levels=levels))
+    levels = [(score(s), lab) for s, lab in zip(summaries, labels) if math.isnan(s.mean_steps)]
+    return Figure(f"{prefix}-accuracy-steps.svg", f"{name} vs average steps (up and left is better)",
+                  xy_svg(points, x_label="Avg steps", y_label=f"{name} (%)", levels=levels))
 
 
 def build_sections(summaries: Sequence[RunSummary]) -> list[Section]:
@@ -231,8 +262,10 @@ def build_sections(summaries: Sequence[RunSummary]) -> list[Section]:
         section = Section(f"Dataset: {dataset}")
         if any(SEMANTIC_SENSOR in s.backends.get("perception", []) for s in runs):
             section.blocks.append(SEMANTIC_WARNING)
-        section.blocks += [table_one(runs, labels), accuracy_figure(runs, labels, prefix),
-                           category_table(runs, labels), efficiency_table(runs, labels)]
+        section.blocks += [table_one(runs, labels), accuracy_figure(runs, labels, prefix)]
+        if _ruled(runs):
+            section.blocks.append(category_table(runs, labels, rule=True))
+        section.blocks += [category_table(runs, labels), efficiency_table(runs, labels)]
         failures = failures_table(runs, labels)
         if failures is not None:
             section.blocks.append(failures)
@@ -391,14 +424,17 @@ def read_summaries(folders: Sequence[Path]) -> list[RunSummary]:
 
 
 def overview_rows(summaries: Sequence[RunSummary]) -> tuple[list[str], list[list[str]]]:
-    """Table I for an 80-column console: dataset, method, LLM-Match, steps, steps / oracle, and
-    episodes done of those run."""
+    """Table I for an 80-column console: dataset, method, rule-judge accuracy (where any run has
+    it), LLM-Match, steps, steps / oracle, and episodes done of those run."""
+    ruled = _ruled(summaries)
     rows = []
     for dataset in dict.fromkeys(s.dataset for s in summaries):
         runs = [s for s in summaries if s.dataset == dataset]
-        rows += [[dataset, lab, _num(s.llm_match), _num(s.mean_steps), _num(s.steps_over_oracle),
-                  f"{s.n_done}/{s.n}"] for s, lab in zip(runs, distinct_labels(runs))]
-    return ["Dataset", "Method", "LLM-Match", "Steps", "Steps/oracle", "Done"], rows
+        rows += [[dataset, lab, *([_num(s.rule_accuracy)] if ruled else []), _num(s.llm_match),
+                  _num(s.mean_steps), _num(s.steps_over_oracle), f"{s.n_done}/{s.n}"]
+                 for s, lab in zip(runs, distinct_labels(runs))]
+    return ["Dataset", "Method", *(["Rule %"] if ruled else []), "LLM-Match", "Steps",
+            "Steps/oracle", "Done"], rows
 
 
 def render_report(summaries: Sequence[RunSummary], out: Path) -> tuple[Path, Path]:

@@ -2,6 +2,8 @@
 
 Every question names its evidence objects (what must be seen to answer it). Objects are referred
 to as "the <category> in the <room>", so a question is only asked where that phrase is unique.
+Every question also lists the answers a grader must accept (``accepted``: synonyms, a number as
+digits or words, grey/gray, "on"/"open" for a yes; see ``answers``).
 """
 
 from __future__ import annotations
@@ -13,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
+from efficienteqa.envs.synthetic import answers
 from efficienteqa.envs.synthetic.house import House, PlacedObject
 from efficienteqa.errors import EfficientEQAError
 
 CATEGORIES = ("identification", "count", "existence", "state", "location", "colour")
-NUMBER_WORDS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine",
-                "ten", "eleven", "twelve")
+NUMBER_WORDS = answers.NUMBER_WORDS
 # Objects that are too generic or too many to be the subject of a question.
 UNASKED = frozenset({"door", "chair", "kitchen cabinet"})
 MIN_EVIDENCE_PIXELS = 250  # at 640x480; scaled by image area for other sizes
@@ -28,8 +30,11 @@ MIN_EVIDENCE_PIXELS = 250  # at 640x480; scaled by image area for other sizes
 class Question:
     """One question with its exact answer and acceptable alternatives.
 
-    ``oracle_steps``: the fewest observations (the start view is step 1, each further step is a
-    move of at most 3 m) after which every evidence object is in view; None when there is no
+    ``accepted``: every form of the answer a grader accepts (the rule judge's key, with
+    ``answers.lexicon(category)`` for the values that contradict it); empty in question files
+    written before it existed. ``oracle_steps``: the fewest observations (the start view is
+    step 1, each further step is a move of at most 3 m) after which every evidence object is in
+    view; None when there is no
     evidence to see (a "no" existence answer) or it cannot be seen from anywhere reachable.
     """
 
@@ -42,6 +47,7 @@ class Question:
     evidence: list[int] = field(default_factory=list)
     oracle_steps: int | None = None
     oracle_pose: tuple[float, float, float] | None = None
+    accepted: list[str] = field(default_factory=list)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self))
@@ -81,10 +87,10 @@ def generate_questions(house: House, rng: np.random.Generator, per_category: int
         else:
             picks = sorted(rng.permutation(len(options))[:per_category].tolist())
         for idx in picks:
-            text, answer, alternatives, evidence = options[idx]
+            text, answer, alternatives, evidence, accepted = options[idx]
             alternatives = [a for a in dict.fromkeys(alternatives) if a != answer]
             out.append(Question(f"syn-{house.seed}-{len(out):02d}", house.seed, kind, text,
-                                answer, alternatives, evidence))
+                                answer, alternatives, evidence, accepted=answers.unique(accepted)))
     return out
 
 
@@ -99,7 +105,8 @@ def _balanced(rng: np.random.Generator, options: list[Template], k: int) -> list
     return sorted(picks)
 
 
-Template = tuple[str, str, list[str], list[int]]
+# (question, answer, alternatives, evidence object ids, accepted answers)
+Template = tuple[str, str, list[str], list[int], list[str]]
 
 
 def _unique_in_room(house: House) -> list[PlacedObject]:
@@ -115,7 +122,8 @@ def _identification(house: House) -> list[Template]:
         if len(on_top) == 1:
             item = on_top[0]
             out.append((f"What is on {_the(house, surface)}?", f"a {item.category}",
-                        [item.category, item.name.lower()], [surface.id, item.id]))
+                        [item.category, item.name.lower()], [surface.id, item.id],
+                        answers.category_forms(item.category, item.name)))
     return out
 
 
@@ -126,7 +134,8 @@ def _count(house: House) -> list[Template]:
         n = len(chairs)
         if n:
             out.append((f"How many chairs are around {_the(house, table)}?", str(n),
-                        [NUMBER_WORDS[n], f"{n} chairs"], [table.id, *chairs]))
+                        [NUMBER_WORDS[n], f"{n} chairs"], [table.id, *chairs],
+                        answers.number_forms(n)))
     return out
 
 
@@ -134,7 +143,7 @@ def _existence(house: House, rng: np.random.Generator) -> list[Template]:
     present = _unique_in_room(house)
     out: list[Template] = [
         (f"Is there a {o.category} in the {house.room(o.room_id).name}?", "yes",
-         [f"yes, there is a {o.category}"], [o.id])
+         [f"yes, there is a {o.category}"], [o.id], answers.polarity_forms("yes"))
         for o in present if o.support_id is None
     ]
     categories = sorted({o.category for o in present if o.support_id is None})
@@ -144,7 +153,7 @@ def _existence(house: House, rng: np.random.Generator) -> list[Template]:
         if absent:
             cat = absent[int(rng.integers(len(absent)))]
             out.append((f"Is there a {cat} in the {room.name}?", "no",
-                        [f"no, there is no {cat}"], []))
+                        [f"no, there is no {cat}"], [], answers.polarity_forms("no")))
     return out
 
 
@@ -154,7 +163,8 @@ def _state(house: House) -> list[Template]:
         if o.state in ("on", "off"):
             yes = o.state == "on"
             out.append((f"Is {_the(house, o)} on?", "yes" if yes else "no",
-                        ["yes, it is on" if yes else "no, it is off"], [o.id]))
+                        ["yes, it is on" if yes else "no, it is off"], [o.id],
+                        answers.polarity_forms("yes" if yes else "no", "on")))
     for o in house.objects:
         if o.category == "door" and o.state is not None:
             door_id = {v: int(k) for k, v in house.meta["door_objects"].items()}[o.id]
@@ -163,7 +173,8 @@ def _state(house: House) -> list[Template]:
             is_open = o.state == "open"
             out.append((f"Is the door between the {a} and the {b} open?",
                         "yes" if is_open else "no",
-                        ["yes, it is open" if is_open else "no, it is closed"], [o.id]))
+                        ["yes, it is open" if is_open else "no, it is closed"], [o.id],
+                        answers.polarity_forms("yes" if is_open else "no", "open")))
     return out
 
 
@@ -177,15 +188,18 @@ def _location(house: House) -> list[Template]:
         if o.support_id is not None:
             surface = house.object(o.support_id).category
             out.append((f"Where is the {o.category}?", f"on the {surface} in the {room}",
-                        [f"on the {surface}", f"in the {room}"], [o.id, o.support_id]))
+                        [f"on the {surface}", f"in the {room}"], [o.id, o.support_id],
+                        [*answers.room_forms(room), *answers.category_forms(surface)]))
         else:
-            out.append((f"Where is the {o.category}?", f"in the {room}", [room], [o.id]))
+            out.append((f"Where is the {o.category}?", f"in the {room}", [room], [o.id],
+                        answers.room_forms(room)))
     return out
 
 
 def _colour(house: House) -> list[Template]:
     return [
-        (f"What colour is {_the(house, o)}?", o.colour, [f"it is {o.colour}"], [o.id])
+        (f"What colour is {_the(house, o)}?", o.colour, [f"it is {o.colour}"], [o.id],
+         answers.colour_forms(o.colour))
         for o in _unique_in_room(house) if o.colour_rgb is not None
     ]
 
