@@ -17,9 +17,9 @@ def test_budget_is_three_steps_per_root_square_metre():
     assert step_budget(100.0) == 30
     assert step_budget(120.28) == 32  # int(10.967 * 3) = int(32.9)
     assert step_budget(0.01) == 1
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="floor area must be a positive number"):
         step_budget(0.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="floor area"):
         step_budget(float("nan"))
 
 
@@ -60,6 +60,18 @@ def test_threshold_is_strict():
     above = run([0.0, 1.0, 2.0, 4.0 + 1e-9], min_step=1)[-1]
     assert (at.mu, at.sigma, at.z, at.threshold) == (1.0, 1.0, 3.0, 4.0) and not at.stop
     assert above.stop
+
+
+def test_a_spread_at_the_guard_counts_as_zero():
+    # history 0, 1, 2: sigma = 1 exactly; with sigma_eps = 1 there is no z, so no stop
+    at = run([0.0, 1.0, 2.0, 9.0], min_step=1, sigma_eps=1.0)[-1]
+    assert (at.sigma, at.z, at.threshold, at.stop) == (1.0, None, 4.0, False)
+    assert run([0.0, 1.0, 2.0, 9.0], min_step=1, sigma_eps=0.99)[-1].stop
+
+
+def test_each_check_records_its_step_and_sim():
+    checks = run([0.3, 0.5, 0.4])
+    assert [(c.step, c.sim) for c in checks] == [(1, 0.3), (2, 0.5), (3, 0.4)]
 
 
 def test_zero_spread_never_stops():

@@ -194,6 +194,114 @@ def test_parse_worth_exploring_table(reply, p_yes, clean):
     assert (problems == []) is clean, problems
 
 
+@pytest.mark.parametrize("reply, m, expected", [
+    (None, 3, []), (7, 1, [("7", 50)]),  # not a string: None is nothing, anything else its text
+    ("red  \t sofa; 60", 3, [("red sofa", 60)]),  # runs of spaces are one
+    ("   ```\nred; 60\n```", 3, [("red", 60)]),  # code fences, even indented
+    ("---\nred; 60\nblue; 40", 3, [("red", 60), ("blue", 40)]),  # a line without words
+    ("**red sofa**; 60\n`blue`; 40", 3, [("red sofa", 60), ("blue", 40)]),  # markdown
+    ("XBOX!; 60\n'radio'; 40", 3, [("XBOX", 60), ("radio", 40)]),
+    ("red (0.5%)\nblue (0.25%)", 3, [("red", 0.5), ("blue", 0.25)]),  # a percent is no fraction
+    ("red: 1.5\nblue: 0.5", 3, [("red", 1.5), ("blue", 0.5)]),  # not all <= 1: not fractions
+    ("red: 60, blue: 40", 3, [("red", 60), ("blue", 40)]),
+    ("answer: red\n- confidence: 80", 3, [("red", 80)]),
+    ("My guesses: \nkitchen\nbedroom", 3, [("kitchen", 100 / 3), ("bedroom", 100 / 3)]),
+    ("red; 60\nblue; 40", 0, [("red", 60)]),  # m < 1 counts as 1
+    ('[{"answer": "red", "confidence": "0.5%"}, {"answer": "blue", "confidence": "high"}]', 3,
+     [("red", 0.5), ("blue", 100 / 3)]),
+    ('[{"answer": "red"}, {"answer": "blue", "confidence": 40}]', 3, [("red", 100 / 3), ("blue", 40)]),
+    ('["red; 60", "blue (30%)", "green"]', 3, [("red", 60), ("blue", 30), ("green", 100 / 3)]),
+    ('note {x} [["sofa", 60]]', 3, [("sofa", 60)]),  # a broken object, then a good list
+    ('a { [["sofa", 60]]', 3, [("sofa", 60)]),  # an object that never closes
+    ('{"a": {"b": {"c": {"d": {"e": {"f": {"red": 60}}}}}}}', 3, [("red", 60)]),  # 6 levels deep
+    ('{"' + "x" * 60 + '": 50, "' + "y" * 61 + '": 50}', 3, [("x" * 60, 50)]),  # keys up to 60
+])
+def test_parse_candidates_reads(reply, m, expected):
+    assert _pairs(parse_candidates(reply, m)) == expected
+
+
+def test_json_deeper_than_six_levels_is_not_read_as_json():
+    deep = '{"a": {"b": {"c": {"d": {"e": {"f": {"g": {"red": 60}}}}}}}}'
+    assert [c.text for c in parse_candidates(deep).candidates] == [deep[2:]]  # read as one odd line
+
+
+@pytest.mark.parametrize("reply, m, problems", [
+    ('Sure: [{"answer": "kitchen", "confidence": 0.9}]', 3, ["ignored text around the JSON"]),
+    ('[["sofa", 60]]x', 3, ["ignored text around the JSON"]),
+    ("red; nan\nblue; 50", 3, ["non-numeric confidence (NaN)", "missing confidence for 'red': default 33.3"]),
+    ("red; 150\nblue; -5", 3, ["confidence 150 clipped to 100", "negative confidence -5 set to 0"]),
+    ("red; 100.5\nblue; 0\ngreen; 0.5%", 3, ["confidence 100.5 clipped to 100"]),
+    ("a; 40\nb; 30\nc; 20\nd; 10", 3, ["4 candidates, kept the first 3"]),
+    ("red; 60\nred; 60\nblue; 40", 3, ["duplicate line 'red' dropped"]),
+    ('"; 50\nred; 50', 3, ["empty answer dropped"]),
+    ("kitchen", 1, ["missing confidence for 'kitchen': default 50.0"]),
+    ("the abcdefghijklmnopqrstuvwxyz", 3,
+     ["missing confidence for 'the abcdefghijklmnop': default 33.3"]),  # named by 20 characters
+    ("", 3, ["no answers found"]),
+    ("A" * 20_000, 3, ["missing confidence for 'AAAAAAAAAAAAAAAAAAAA': default 33.3"]),
+    ("A" * 20_001, 3, ["reply cut to 20000 characters",
+                       "missing confidence for 'AAAAAAAAAAAAAAAAAAAA': default 33.3"]),
+])
+def test_parse_candidates_names_each_repair(reply, m, problems):
+    assert parse_candidates(reply, m).problems == problems
+
+
+@pytest.mark.parametrize("reply, expected, problems", [
+    ("A: 60\nD: 20\nB: 30", [("A", 60), ("B", 30)], ["unknown letter 'D' dropped"]),
+    ('{"somewhere over the rainbow": 60, "A": 40}', [("A", 40)],
+     ["unknown letter 'somewhere over the r' dropped"]),
+    ("nothing useful", [], ["no letters found"]),
+    ("B 70%, then A or C", [("B", 70)], ["ignored letter(s) without a confidence: A, C"]),
+    ('Here: {"A": 60, "B": 40}', [("A", 60), ("B", 40)], ["ignored text around the JSON"]),
+    ('{"worth_exploring": 70, "A": 60, "Worth it": 80}', [("A", 60)], []),  # worth keys skipped
+    ('[{"direction": "Direction B", "confidence": 70}, {"direction": "(A)", "confidence": 30}]',
+     [("B", 70), ("A", 30)], []),
+    ('{"go to B": 60, "a": 40}', [("B", 60), ("A", 40)], []),
+    ('{"A or B": 60, "x": 40}', [], ["unknown letter 'A or B' dropped", "unknown letter 'x' dropped"]),
+    ("A: 0.6%\nB: 0.4%", [("A", 0.6), ("B", 0.4)], []),  # percent, not fractions
+    ("A, B: 0.5% each", [("A", 0.5), ("B", 0.5)], []),
+    ("A, B, C: 30 each", [("A", 30), ("B", 30), ("C", 30)], []),
+    ("C: 20, A, B: 40", [("C", 20), ("A", 40), ("B", 40)], []),  # A shares with B, not C
+    ("A or B", [("A", 100 / 3), ("B", 100 / 3)],
+     ["missing confidence for 'A': default 33.3", "missing confidence for 'B': default 33.3"]),
+    ("B: 70% sure, 2nd of 3", [("B", 70)], []),  # a percentage beats a trailing number
+])
+def test_parse_letters_reads_and_names_each_repair(reply, expected, problems):
+    result = parse_letters(reply, ["A", "B", "C"])
+    assert _pairs(result) == expected
+    assert result.problems == problems
+
+
+@pytest.mark.parametrize("reply, p_yes, problems", [
+    ("Yes 70", 0.7, ["no 'worth exploring' line; used the last yes/no"]),
+    ("worth exploring: yes 250", 1.0, ["worth-exploring confidence 250 clipped"]),
+    ("worth exploring: yes 150", 1.0, ["worth-exploring confidence 150 clipped"]),
+    ("worth exploring: yes -20", 0.0, ["worth-exploring confidence -20 clipped"]),
+    ("worth exploring: yes 0", 0.0, []),
+    ("worth exploring: yes 100", 1.0, []),
+    ("worth exploring: yes 1", 1.0, []),  # at most 1 is a probability
+    ("worth exploring: yes 1.5", 0.015, []),  # above 1 a percentage
+    ("", DEFAULT_P_YES, ["no worth-exploring answer: default P(yes) = 0.5"]),
+    ("worth exploring: 30", 0.3, ["worth-exploring number without yes/no: read as P(yes)"]),
+    ("worth exploring: yes", 0.75, ["worth-exploring 'yes' without a confidence: 0.75"]),
+    ("NOT worth exploring", 0.25, ["worth-exploring 'no' without a confidence: 0.75"]),
+    ("worth exploring: yes nan", 0.75, ["worth-exploring 'yes' without a confidence: 0.75"]),
+    ("worth exploring: true 80", 0.8, []),
+    ("worth exploring: 80, yes", 0.8, []),  # the number first
+    ("worth exploring: yes, confidence 80, 2nd door 3", 0.8, []),  # the labelled number
+    ("worth exploring: yes 90%, confidence 80", 0.8, []),  # the label beats a percentage
+    ("Is it worth it? yes\nworth exploring: no 80", 0.2, []),  # the last "worth"
+    ("worth exploring: yes\nA: 60", 0.75, ["worth-exploring 'yes' without a confidence: 0.75"]),
+    ("worth exploring: yes 80\nconfidence: 90", 0.8, []),  # the line's own number first
+    ("worth exploring: no, 90\nthanks", pytest.approx(0.1), []),
+    ("worth exploring:\n\nyes 70", 0.7, []),  # up to two lines further
+    ("worth exploring:\n\n\nyes 70", DEFAULT_P_YES, ["no worth-exploring answer: default P(yes) = 0.5"]),
+])
+def test_parse_worth_exploring_reads_and_names_each_repair(reply, p_yes, problems):
+    p, found = parse_worth_exploring(reply)
+    assert p == pytest.approx(p_yes) and found == problems
+
+
 # ---------------------------------------------------------------------------- normalise, group, argmax
 
 def test_normalise():

@@ -125,16 +125,17 @@ def to_float(s: object) -> float | None:
         return None
 
 
-def _split_confidence(line: str) -> tuple[str, _Raw | None]:
-    """(text before the confidence, the confidence) of one line; (line, None) when it has none."""
+def _split_confidence(line: str) -> _Raw:
+    """The text before the confidence and the confidence of one line (``num`` None when the
+    line has none, and then the text is the whole line)."""
     hits = list(_KEYWORD.finditer(line))
     match = hits[-1] if hits else None
     for rx in (_PAREN, _SEPARATED, _BARE_PCT):
         if match is None:
             match = rx.search(line)
     if match is None:
-        return line, None
-    return line[:match.start()], _Raw("", to_float(match["num"]), bool(match["pct"]))
+        return _Raw(line, None)
+    return _Raw(line[:match.start()], to_float(match["num"]), bool(match["pct"]))
 
 
 def _clean_text(s: str) -> str:
@@ -184,8 +185,7 @@ def _walk_json(obj: object, out: list[_Raw], depth: int) -> None:
     elif isinstance(obj, list):
         for item in obj:
             if isinstance(item, str):
-                head, raw = _split_confidence(item)
-                out.append(_Raw(head, raw.num, raw.pct) if raw else _Raw(item, None))
+                out.append(_split_confidence(item))
             elif isinstance(item, list) and len(item) == 2 and isinstance(item[0], str):
                 out.append(_json_raw(item[0], item[1]))
             else:
@@ -205,31 +205,31 @@ _CONF_LABEL = re.compile(r"(?i)(?:" + "|".join(_CONF_KEYS) + r")?")
 def _split_pairs(line: str) -> list[str]:
     """``red: 60, blue: 30`` -> two lines, but only if every part carries a confidence."""
     parts = re.split(r"(?<=[0-9%)])[ \t]*[,;|][ \t]+", line)
-    if len(parts) > 1 and all(_split_confidence(p)[1] is not None for p in parts):
+    if len(parts) > 1 and all(_split_confidence(p).num is not None for p in parts):
         return parts
     return [line]
 
 
 def _from_lines(text: str, problems: list[str]) -> list[_Raw]:
-    rows: list[tuple[str, _Raw | None]] = []
+    rows: list[_Raw] = []
     for line in text.splitlines():
         for part in _split_pairs(line):
             if not re.search(r"\w", part):
                 continue
-            head, raw = _split_confidence(part)
-            if (raw is not None and rows and rows[-1][1] is None
-                    and _CONF_LABEL.fullmatch(head.strip(" \t:=-*"))):
+            row = _split_confidence(part)
+            if (row.num is not None and rows and rows[-1].num is None
+                    and _CONF_LABEL.fullmatch(row.text.strip(" \t:=-*"))):
                 # "answer: red" then "confidence: 80" on the next line: one candidate
-                rows[-1] = (rows[-1][0], raw)
+                rows[-1] = _Raw(rows[-1].text, row.num, row.pct)
                 continue
-            rows.append((head, raw))
-    if any(raw is not None for _, raw in rows):
-        dropped = sum(raw is None for _, raw in rows)
+            rows.append(row)
+    if any(row.num is not None for row in rows):
+        dropped = sum(row.num is None for row in rows)
         if dropped:
             problems.append(f"ignored {dropped} line(s) without a confidence")
-        return [_Raw(head, raw.num, raw.pct) for head, raw in rows if raw is not None]
+        return [row for row in rows if row.num is not None]
     # No confidences anywhere: every line that is not a header is an answer.
-    return [_Raw(head, None) for head, _ in rows if not head.rstrip().endswith(":")]
+    return [row for row in rows if not row.text.rstrip().endswith(":")]
 
 
 def _finish(raws: list[_Raw], m: int, problems: list[str], allowed: Mapping[str, str] | None = None
