@@ -11,7 +11,7 @@ from efficienteqa.envs.synthetic.catalog import Catalog
 from efficienteqa.envs.synthetic.colours import recoloured
 from efficienteqa.envs.synthetic.house import House, PlacedObject
 from efficienteqa.envs.synthetic.layout import WALL_HEIGHT_M, Wall
-from efficienteqa.envs.synthetic.mesh import MeshPart, box_part, pose_matrix
+from efficienteqa.envs.synthetic.mesh import MeshPart, box_part, pose_matrix, rgb3
 from efficienteqa.envs.synthetic.render import PointLight, SceneGeometry
 from efficienteqa.envs.synthetic.textures import floor_texture, wall_texture
 
@@ -67,13 +67,13 @@ def _switched(part: MeshPart, on: bool, screen: bool) -> MeshPart:
         return replace(part, emissive=1.0, colour=_glow(part.colour))
     if screen:
         return replace(part, colour=(0.02, 0.02, 0.02), texture=None)
-    return replace(part, colour=tuple(0.55 * c for c in part.colour))
+    return replace(part, colour=rgb3(0.55 * c for c in part.colour))
 
 
 def _glow(colour: tuple[float, float, float]) -> tuple[float, float, float]:
     """A lit screen or bulb: bright, slightly tinted by its own colour."""
     c = np.asarray(colour)
-    return tuple(np.clip(0.75 + 0.25 * c / max(c.max(), 1e-3), 0, 1).tolist())  # type: ignore[return-value]
+    return rgb3(np.clip(0.75 + 0.25 * c / max(c.max(), 1e-3), 0, 1))
 
 
 def build_geometry(house: House, catalog: Catalog) -> SceneGeometry:

@@ -26,11 +26,12 @@ from io import BytesIO
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.envs.synthetic.colours import colour_name, mesh_colour, part_mean_rgb
 from efficienteqa.envs.synthetic.decimate import decimate
-from efficienteqa.envs.synthetic.mesh import MeshPart
+from efficienteqa.envs.synthetic.mesh import MeshPart, rgb3
 from efficienteqa.envs.synthetic.vocabulary import (
     EXCLUDED_SOURCE_CATEGORIES,
     LAMP_CATEGORIES,
@@ -137,14 +138,21 @@ def _read_texture(zf: zipfile.ZipFile, folder: str, name: str) -> np.ndarray | N
     return np.asarray(img, np.uint8).copy()
 
 
-def _parse_obj(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, list], list]:
+_Floats = npt.NDArray[np.float64]
+
+
+def _parse_obj(text: str) -> tuple[_Floats, _Floats, _Floats, dict[str, npt.NDArray[np.int64]],
+                                   list[str]]:
     """-> positions (V, 3), uvs (T, 2), normals (N, 3), {material: [corner rows]}, mtllibs.
 
     Corner rows are (face, v, vt, vn) with 0-based indices and -1 where absent; polygons are
     fan-triangulated so every 3 consecutive rows form a triangle.
     """
-    vs, vts, vns, libs = [], [], [], []
-    groups: dict[str, list] = {}
+    vs: list[list[str]] = []
+    vts: list[list[str]] = []
+    vns: list[list[str]] = []
+    libs: list[str] = []
+    groups: dict[str, list[tuple[int, ...]]] = {}
     rows = groups.setdefault("", [])
     nface = 0
     for line in text.splitlines():
@@ -155,13 +163,14 @@ def _parse_obj(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str,
         elif line.startswith("vn"):
             vns.append(line.split()[1:4])
         elif line.startswith("f "):
-            corners, now = [], (len(vs), len(vts), len(vns))
-            for c in line.split()[1:]:
-                idx = [int(x) if x else 0 for x in (c.split("/") + ["", ""])[:3]]
+            corners: list[list[int]] = []
+            now = (len(vs), len(vts), len(vns))
+            for token in line.split()[1:]:
+                idx = [int(x) if x else 0 for x in (token.split("/") + ["", ""])[:3]]
                 corners.append([x + n + 1 if x < 0 else x for x, n in zip(idx, now, strict=True)])
             for k in range(1, len(corners) - 1):  # fan
-                for c in (corners[0], corners[k], corners[k + 1]):
-                    rows.append((nface, *c))
+                for corner in (corners[0], corners[k], corners[k + 1]):
+                    rows.append((nface, *corner))
                 nface += 1
         elif line.startswith("usemtl"):
             rows = groups.setdefault(line[6:].strip(), [])
@@ -169,7 +178,7 @@ def _parse_obj(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str,
             libs.append(line[6:].strip())
     arrays = [np.array(a, np.float64).reshape(-1, w) for a, w in ((vs, 3), (vts, 2), (vns, 3))]
     counts = [len(a) for a in arrays]
-    out: dict[str, list] = {}
+    out: dict[str, npt.NDArray[np.int64]] = {}
     for mat, r in groups.items():
         if not r:
             continue
@@ -191,7 +200,8 @@ def _slug(text: str) -> str:
 
 
 def _size_m(piece: dict[str, str]) -> tuple[float, float, float]:
-    return tuple(round(float(piece[k]) / 100, 5) for k in ("width", "depth", "height"))  # type: ignore
+    width, depth, height = (round(float(piece[k]) / 100, 5) for k in ("width", "depth", "height"))
+    return width, depth, height
 
 
 def convert_model(zf: zipfile.ZipFile, piece: dict[str, str]) -> list[MeshPart]:
@@ -249,7 +259,7 @@ def convert_model(zf: zipfile.ZipFile, piece: dict[str, str]) -> list[MeshPart]:
             if tex is not None:
                 uvs = np.where(uniq[:, 1:2] >= 0, uv[np.maximum(uniq[:, 1], 0)], 0.0)
         part = MeshPart(positions=verts.astype(np.float32), normals=vn.astype(np.float32),
-                        faces=faces, colour=tuple(float(c) for c in mat["Kd"]),
+                        faces=faces, colour=rgb3(mat["Kd"]),
                         uvs=None if uvs is None else uvs.astype(np.float32), texture=tex,
                         material=name)
         if part.area_m2 > 0:
@@ -299,7 +309,7 @@ def _save_parts(path: Path, parts: list[MeshPart]) -> None:
                        f"p{i}_faces": p.faces})
         if p.uvs is not None and p.texture is not None:
             arrays.update({f"p{i}_uvs": p.uvs, f"p{i}_texture": p.texture})
-    np.savez_compressed(path, **arrays)
+    np.savez_compressed(path, allow_pickle=False, **arrays)
 
 
 def _load_parts(path: Path) -> list[MeshPart]:
@@ -309,7 +319,7 @@ def _load_parts(path: Path) -> list[MeshPart]:
             has_tex = f"p{i}_texture" in z.files
             parts.append(MeshPart(
                 positions=z[f"p{i}_positions"], normals=z[f"p{i}_normals"],
-                faces=z[f"p{i}_faces"], colour=tuple(float(c) for c in colour),
+                faces=z[f"p{i}_faces"], colour=rgb3(colour),
                 uvs=z[f"p{i}_uvs"] if has_tex else None,
                 texture=z[f"p{i}_texture"] if has_tex else None, material=str(mat)))
     return parts

@@ -7,8 +7,9 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
+import numpy.typing as npt
 
-from efficienteqa.envs.synthetic.mesh import MeshPart
+from efficienteqa.envs.synthetic.mesh import MeshPart, rgb3
 
 PALETTE: dict[str, tuple[float, float, float]] = {
     "white": (0.92, 0.92, 0.92), "black": (0.05, 0.05, 0.05), "grey": (0.5, 0.5, 0.5),
@@ -45,7 +46,7 @@ def colour_name(rgb: Sequence[float]) -> str:
     return "pink" if v > 0.5 else "purple"
 
 
-def part_mean_rgb(part: MeshPart) -> np.ndarray:
+def part_mean_rgb(part: MeshPart) -> npt.NDArray[np.float64]:
     rgb = np.asarray(part.colour, np.float64)
     if part.texture is not None:  # Kd multiplies the texture
         rgb = rgb * part.texture[..., :3].reshape(-1, 3).mean(0) / 255.0
@@ -68,7 +69,7 @@ def mesh_colour(parts: Sequence[MeshPart]) -> tuple[float, float, float]:
     idx = _dominant(parts)
     w = np.array([parts[i].area_m2 for i in idx]) + 1e-12
     rgb = sum(wi * part_mean_rgb(parts[i]) for wi, i in zip(w, idx, strict=True)) / w.sum()
-    return tuple(float(c) for c in rgb)  # type: ignore[return-value]
+    return rgb3(rgb)
 
 
 def recoloured(parts: Sequence[MeshPart], rgb: Sequence[float]) -> list[MeshPart]:
@@ -78,7 +79,7 @@ def recoloured(parts: Sequence[MeshPart], rgb: Sequence[float]) -> list[MeshPart
     for i in _dominant(parts):
         p = parts[i]
         if p.texture is None:
-            out[i] = replace(p, colour=tuple(float(c) for c in target))
+            out[i] = replace(p, colour=rgb3(target))
             continue
         # keep the texture's detail as luminance with mean 0.85 (Kd = rgb / 0.85 restores the
         # target); contrast is reduced just enough that no texel clips at 1
@@ -87,5 +88,5 @@ def recoloured(parts: Sequence[MeshPart], rgb: Sequence[float]) -> list[MeshPart
         k = min(1.0, (1 / 0.85 - 1) / max(float(rel.max()), 1e-6))
         lum = np.clip(0.85 * 255 * (1 + k * rel), 0, 255).astype(np.uint8)
         out[i] = replace(p, texture=np.repeat(lum[..., None], 3, axis=2),
-                         colour=tuple(float(c) for c in np.clip(target / 0.85, 0, 1)))
+                         colour=rgb3(np.clip(target / 0.85, 0, 1)))
     return out

@@ -8,9 +8,11 @@ are exact. Doorways (0.9 m each side) stay clear.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy import ndimage
 
 from efficienteqa.envs.synthetic.catalog import Catalog, CatalogEntry
@@ -85,6 +87,8 @@ ROOM_RULES: dict[str, tuple[Rule, ...]] = {
 SURFACES = ("coffee table", "dining table", "table", "kitchen cabinet", "nightstand", "desk",
             "cabinet", "tv stand", "bookshelf")
 SMALL_PER_SURFACE = (0, 2)
+# (point on the inner wall line, inward normal, lo, hi along the wall)
+_Wall = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float, float]
 
 
 @dataclass
@@ -178,7 +182,7 @@ class _RoomFurnisher:
         self.placed.append(obj)
         return obj
 
-    def _walls(self) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    def _walls(self) -> list[_Wall]:
         """(point on the inner wall line, inward normal, lo, hi along the wall) for 4 walls."""
         b = self.interior
         return [
@@ -188,7 +192,7 @@ class _RoomFurnisher:
             (np.array([b.x1, 0.0]), np.array([-1.0, 0.0]), b.y0, b.y1),
         ]
 
-    def _against_wall(self, entry: CatalogEntry, wall, t: float) -> PlacedObject | None:
+    def _against_wall(self, entry: CatalogEntry, wall: _Wall, t: float) -> PlacedObject | None:
         point, normal, _, _ = wall
         along = 0 if normal[0] == 0 else 1
         pos = point + normal * (entry.size_m[1] / 2 + 0.02)
@@ -207,14 +211,18 @@ class _RoomFurnisher:
     def _try(self, entry: CatalogEntry, placement: str, anchor: PlacedObject | None
              ) -> PlacedObject | None:
         w, d, _ = entry.size_m
-        if anchor is None and placement not in ("wall", "centre", "ceiling"):
-            return None
-        if placement == "on":
-            return self._on(entry, anchor)
         if placement == "ceiling":
             cx, cy = (anchor.x, anchor.y) if anchor else self.room.centre
             return self._add(entry, cx, cy, anchor.yaw if anchor else 0.0,
                              z=max(entry.elevation_m, 1.9))
+        if placement == "wall":
+            return self._sampled(lambda: self._wall_sample(entry))
+        if placement == "centre":
+            return self._sampled(lambda: self._centre_sample(entry))
+        if anchor is None:  # every other placement is relative to an anchor
+            return None
+        if placement == "on":
+            return self._on(entry, anchor)
         if placement == "above":
             back = np.array([anchor.x, anchor.y]) - _front(anchor.yaw) * (anchor.size_m[1] - d) / 2
             return self._add(entry, back[0], back[1], anchor.yaw, z=max(entry.elevation_m, MOUNTED_Z_M))
@@ -232,28 +240,40 @@ class _RoomFurnisher:
                 if obj := self._add(entry, pos[0], pos[1], anchor.yaw):
                     return obj
             return None
-        for _ in range(40):  # sampled placements
-            obj = None
-            if placement == "wall":
-                wall = self._walls()[int(self.rng.integers(4))]
-                if wall[3] - wall[2] >= w:
-                    t = self.rng.uniform(wall[2] + w / 2, wall[3] - w / 2)
-                    obj = self._against_wall(entry, wall, t)
-            elif placement == "centre":
-                cx, cy = self.room.centre
-                long_x = (self.interior.x1 - self.interior.x0) >= (self.interior.y1 - self.interior.y0)
-                yaw = 0.0 if long_x == (w >= d) else math.pi / 2
-                obj = self._add(entry, cx + self.rng.normal(0, 0.2), cy + self.rng.normal(0, 0.2), yaw)
-            elif placement == "opposite":
-                f = _front(anchor.yaw)
-                wall = next(wl for wl in self._walls() if np.allclose(wl[1], -f, atol=1e-3))
-                along = 0 if wall[1][0] == 0 else 1
-                obj = self._against_wall(entry, wall, (anchor.x, anchor.y)[along] + self.rng.normal(0, 0.3))
-            else:
-                raise ValueError(f"unknown placement {placement!r}")
-            if obj is not None:
+        if placement == "opposite":
+            return self._sampled(lambda: self._opposite_sample(entry, anchor))
+        raise ValueError(f"unknown placement {placement!r}")
+
+    @staticmethod
+    def _sampled(sample: Callable[[], PlacedObject | None], tries: int = 40) -> PlacedObject | None:
+        """The first placement that fits among ``tries`` random ones."""
+        for _ in range(tries):
+            if (obj := sample()) is not None:
                 return obj
         return None
+
+    def _wall_sample(self, entry: CatalogEntry) -> PlacedObject | None:
+        """Against a random wall, at a random point along it."""
+        w = entry.size_m[0]
+        wall = self._walls()[int(self.rng.integers(4))]
+        if wall[3] - wall[2] < w:
+            return None
+        return self._against_wall(entry, wall, self.rng.uniform(wall[2] + w / 2, wall[3] - w / 2))
+
+    def _centre_sample(self, entry: CatalogEntry) -> PlacedObject | None:
+        """Near the room centre, its long side along the room's."""
+        w, d, _ = entry.size_m
+        cx, cy = self.room.centre
+        long_x = (self.interior.x1 - self.interior.x0) >= (self.interior.y1 - self.interior.y0)
+        yaw = 0.0 if long_x == (w >= d) else math.pi / 2
+        return self._add(entry, cx + self.rng.normal(0, 0.2), cy + self.rng.normal(0, 0.2), yaw)
+
+    def _opposite_sample(self, entry: CatalogEntry, anchor: PlacedObject) -> PlacedObject | None:
+        """On the wall the anchor faces, near the anchor's position along it."""
+        f = _front(anchor.yaw)
+        wall = next(wl for wl in self._walls() if np.allclose(wl[1], -f, atol=1e-3))
+        along = 0 if wall[1][0] == 0 else 1
+        return self._against_wall(entry, wall, (anchor.x, anchor.y)[along] + self.rng.normal(0, 0.3))
 
     def _on(self, entry: CatalogEntry, support: PlacedObject) -> PlacedObject | None:
         """On the support's top surface, clear of its siblings and of any part of the support
@@ -301,7 +321,7 @@ class _RoomFurnisher:
                 facing = -np.sign(off[1 - long_local]) * np.eye(2)[1 - long_local]
                 seats.append((np.array([table.x, table.y]) + rot @ off, rot @ facing))
         wanted = int(self.rng.integers(2, len(seats) + 1))
-        chairs = []
+        chairs: list[int] = []
         for idx in self.rng.permutation(len(seats)):
             if len(chairs) == wanted:
                 break

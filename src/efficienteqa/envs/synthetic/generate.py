@@ -142,7 +142,7 @@ def _recolour(rng: np.random.Generator, objects: list[PlacedObject], layout: Lay
     for idx in rng.permutation(len(candidates))[: int(rng.integers(2, 4))]:
         obj = candidates[int(idx)]
         name = RECOLOURS[int(rng.integers(len(RECOLOURS)))]
-        obj.colour, obj.colour_rgb = name, tuple(PALETTE[name])
+        obj.colour, obj.colour_rgb = name, PALETTE[name]
 
 
 def _informative_yaw(house: House, grid: OccupancyGrid, start_xy: tuple[float, float],
@@ -150,7 +150,7 @@ def _informative_yaw(house: House, grid: OccupancyGrid, start_xy: tuple[float, f
     """Face open space where the most objects are in the field of view and in sight."""
     start = np.array(start_xy)
     yaws = np.arange(n_yaws) * (2 * math.pi / n_yaws)
-    rays = grid.ray_length(start, yaws)
+    rays = grid.ray_length(start_xy, yaws)
     half_fov = math.radians(CameraSpec().hfov_deg) / 2 * 0.8
     visible = np.zeros(n_yaws)
     for o in house.objects:
@@ -159,7 +159,7 @@ def _informative_yaw(house: House, grid: OccupancyGrid, start_xy: tuple[float, f
         if not 1.0 <= dist <= 7.0:
             continue
         near_side = start + offset * (1 - (max(o.size_m[:2]) / 2 + 0.1) / dist)  # off its footprint
-        if not grid.line_of_sight(start, near_side):
+        if not grid.line_of_sight(start_xy, (float(near_side[0]), float(near_side[1]))):
             continue
         bearing = math.atan2(offset[1], offset[0])
         diff = np.abs((yaws - bearing + math.pi) % (2 * math.pi) - math.pi)

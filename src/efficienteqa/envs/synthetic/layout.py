@@ -232,18 +232,19 @@ def _place_doors(rng: np.random.Generator, rooms: list[Room]) -> list[Door]:
 
     doors: list[Door] = []
     loops = []
-    for _, a, b, edge in edges:
-        ra, rb = find(a), find(b)
+    for _, a_id, b_id, edge in edges:
+        ra, rb = find(a_id), find(b_id)
         if ra != rb:
             parent[ra] = rb
-            doors.append(_door_on(rng, len(doors), rooms[a], b, edge, is_open=True))
+            doors.append(_door_on(rng, len(doors), rooms[a_id], b_id, edge, is_open=True))
         else:
-            loops.append((a, b, edge))
+            loops.append((a_id, b_id, edge))
     if len({find(r.id) for r in rooms}) != 1:
         raise RuntimeError("layout is not connected")  # cannot happen for a tiling; guard anyway
     for idx in rng.permutation(len(loops))[: int(rng.integers(0, 3))]:
-        a, b, edge = loops[int(idx)]
-        doors.append(_door_on(rng, len(doors), rooms[a], b, edge, is_open=bool(rng.random() < 0.4)))
+        a_id, b_id, edge = loops[int(idx)]
+        doors.append(_door_on(rng, len(doors), rooms[a_id], b_id, edge,
+                              is_open=bool(rng.random() < 0.4)))
     return doors
 
 

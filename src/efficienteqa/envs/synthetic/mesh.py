@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 
 import numpy as np
+import numpy.typing as npt
 
 
 @dataclass
@@ -46,6 +48,12 @@ class MeshPart:
         return float(0.5 * np.linalg.norm(cross, axis=1).sum())
 
 
+def rgb3(values: Iterable[float]) -> tuple[float, float, float]:
+    """Exactly three numbers (a list, an array row, a generator) as an RGB tuple of floats."""
+    r, g, b = (float(c) for c in values)
+    return r, g, b
+
+
 def pose_matrix(x: float, y: float, z: float, yaw_rad: float) -> np.ndarray:
     """4x4 transform: rotate by yaw about +z, then translate."""
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
@@ -60,7 +68,10 @@ def box_part(size_m: tuple[float, float, float], colour: tuple[float, float, flo
     """An axis-aligned box with flat normals; ``centre`` is the box centre."""
     half = np.asarray(size_m, dtype=np.float32) / 2
     c = np.asarray(centre, dtype=np.float32)
-    positions, normals, uvs, faces = [], [], [], []
+    positions: list[npt.NDArray[np.float32]] = []
+    normals: list[npt.NDArray[np.float32]] = []
+    uvs: list[tuple[float, float]] = []
+    faces: list[tuple[int, int, int]] = []
     for axis in range(3):
         for sign in (-1.0, 1.0):
             normal = np.zeros(3, np.float32)

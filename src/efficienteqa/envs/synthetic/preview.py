@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import textwrap
+from collections.abc import Callable
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -48,8 +49,8 @@ def topdown_map(env: SyntheticEnv, questions: list[Question] | None = None) -> I
     return image
 
 
-def _arrow(draw: ImageDraw.ImageDraw, px, pose: Pose2D, colour: tuple[int, int, int],
-           label: str) -> None:
+def _arrow(draw: ImageDraw.ImageDraw, px: Callable[[float, float], tuple[float, float]],
+           pose: Pose2D, colour: tuple[int, int, int], label: str) -> None:
     x, y = px(pose.x, pose.y)
     tip = px(pose.x + 0.6 * math.cos(pose.yaw), pose.y + 0.6 * math.sin(pose.yaw))
     draw.ellipse((x - 7, y - 7, x + 7, y + 7), fill=colour, outline=(255, 255, 255), width=2)
@@ -74,7 +75,7 @@ def contact_sheet(env: SyntheticEnv, questions: list[Question], columns: int = 3
     for k, (pose, caption) in enumerate(views):
         col, row = k % columns, k // columns
         x, y = col * thumb[0], row * (thumb[1] + caption_h)
-        rgb = Image.fromarray(env.observe(pose).rgb).resize(thumb, Image.BILINEAR)
+        rgb = Image.fromarray(env.observe(pose).rgb).resize(thumb, Image.Resampling.BILINEAR)
         sheet.paste(rgb, (x, y))
         text = "\n".join(textwrap.wrap(caption, width=52)[:3])
         draw.multiline_text((x + 4, y + thumb[1] + 2), text, fill=(0, 0, 0), font=font)

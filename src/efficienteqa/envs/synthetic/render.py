@@ -17,7 +17,7 @@ import hashlib
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from typing import Concatenate, ParamSpec, TypeVar
 
 import moderngl
 import numpy as np
@@ -191,26 +191,30 @@ class _Batch:
     cells: slice  # this batch's rows of Renderer._cell_* (index ranges in floor-grid cells)
 
 
-_F = TypeVar("_F", bound=Callable[..., Any])
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
 
 
-def _current(method: _F) -> _F:
+def _current(method: Callable[Concatenate[Renderer, _P], _R]
+             ) -> Callable[Concatenate[Renderer, _P], _R]:
     """Make the renderer's GL context current for the call: several renderers (contexts) may
     live in one thread, and creating or releasing one changes which context is current."""
 
     @functools.wraps(method)
-    def wrapper(self: Renderer, *args: Any, **kwargs: Any) -> Any:
+    def wrapper(self: Renderer, *args: _P.args, **kwargs: _P.kwargs) -> _R:
         if self._ctx is None:
             raise RuntimeError("the renderer is closed")
         with self._ctx:
             return method(self, *args, **kwargs)
 
-    return wrapper  # type: ignore[return-value]
+    return wrapper
 
 
 def _create_context() -> moderngl.Context:
     try:
-        return moderngl.create_standalone_context(backend="egl")
+        # moderngl-stubs 5.13 annotates **settings as Dict[str, Any]; the values are plain
+        # settings (backend="egl" is the documented headless call)
+        return moderngl.create_standalone_context(backend="egl")  # type: ignore[arg-type]
     except Exception as exc:  # missing libEGL / Mesa drivers, no device
         raise EfficientEQAError(f"cannot create an off-screen EGL OpenGL context: {exc}",
                                 fix=_EGL_FIX) from exc
@@ -218,6 +222,14 @@ def _create_context() -> moderngl.Context:
 
 def _texture_key(texture: np.ndarray) -> str:
     return f"{texture.shape}:{hashlib.blake2b(np.ascontiguousarray(texture).data).hexdigest()}"
+
+
+def _uniform(program: moderngl.Program, name: str) -> moderngl.Uniform:
+    """The program's uniform ``name`` (not a block, attribute or varying of that name)."""
+    member = program[name]
+    if not isinstance(member, moderngl.Uniform):
+        raise TypeError(f"{name!r} is a {type(member).__name__}, not a uniform")
+    return member
 
 
 def _vertices(part: MeshPart, colour: np.ndarray) -> np.ndarray:
@@ -303,6 +315,8 @@ class Renderer:
             for prog in (*self._programs.values(), self._depth_program):
                 prog.release()
         self._ctx.release()
+        # None marks the renderer closed (checked by @_current); typed as always open so that
+        # the methods it guards need no narrowing
         self._ctx = None  # type: ignore[assignment]
 
     def __enter__(self) -> Renderer:
@@ -402,7 +416,7 @@ class Renderer:
         scene = self._scene
         assert scene is not None
         sun = -np.asarray(scene.sun_direction, np.float64)
-        sun /= max(np.linalg.norm(sun), 1e-9)
+        sun /= max(float(np.linalg.norm(sun)), 1e-9)
         lights = scene.lights[:MAX_LIGHTS]
         pos = np.zeros((MAX_LIGHTS, 3), np.float32)
         col = np.zeros((MAX_LIGHTS, 3), np.float32)
@@ -420,15 +434,15 @@ class Renderer:
             "u_light_pos": pos.tobytes(), "u_light_col": col.tobytes(),
             "u_light_inv_r2": inv_r2.tobytes(), "u_tex": 0,
         }
-        self._depth_program["u_view_proj"].write(values["u_view_proj"])
+        _uniform(self._depth_program, "u_view_proj").write(values["u_view_proj"])
         for prog in self._programs.values():
             for name, value in values.items():
                 if name not in prog:
                     continue
                 if isinstance(value, bytes):
-                    prog[name].write(value)
+                    _uniform(prog, name).write(value)
                 else:
-                    prog[name].value = value
+                    _uniform(prog, name).value = value
 
     def _visible_ranges(self, view_proj: np.ndarray) -> list[list[tuple[int, int]]]:
         """Per batch, the (first index, index count) runs of cells that touch the frustum."""
@@ -469,7 +483,9 @@ class Renderer:
             # Opaque depth first (cheap), then shade each pixel once: llvmpipe is fragment-bound.
             targets["depth"].use()
             for batch, batch_runs in zip(self._batches, runs, strict=True):
-                for first, count in batch_runs if batch.depth_vao is not None else ():
+                if batch.depth_vao is None:  # cutout batches: alpha decides, not depth alone
+                    continue
+                for first, count in batch_runs:
                     batch.depth_vao.render(moderngl.TRIANGLES, vertices=count, first=first)
             ctx.depth_func = "<="
         targets["all"].use()
@@ -478,7 +494,7 @@ class Renderer:
             if not batch_runs:
                 continue
             prog = self._programs[batch.cutout]
-            prog["u_textured"].value = batch.texture is not None
+            _uniform(prog, "u_textured").value = batch.texture is not None
             if batch.texture is not None:
                 batch.texture.use(0)
             for first, count in batch_runs:
