@@ -17,8 +17,11 @@ scene: setup
 test: setup
 	$(VENV)/bin/pytest -q
 
+# ruff, mypy and the import contracts of docs/ARCHITECTURE.md (CI runs it beside the tests).
 lint: setup
-	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff check src tests benchmarks scripts
+	$(VENV)/bin/mypy src
+	$(VENV)/bin/lint-imports
 
 bench: setup
 	$(VENV)/bin/python benchmarks/render_bench.py
