@@ -7,11 +7,18 @@ absent (frontier-only, random) or the ground-truth oracle (explore/oracle.py).
     python benchmarks/explore_bench.py cost      # ms per step in a 6-room house
     python benchmarks/explore_bench.py coverage  # explored floor vs step, frontier-only vs random
     python benchmarks/explore_bench.py steering  # steps to see the evidence, oracle SFE vs frontier-only
+
+House seeds: the development houses 0-20 (``--seeds training``) are the ones every earlier
+choice of the explorer was tuned on; the held-out houses 2000-2999 (``--seeds held-out``, the
+default of ``steering``) were never used for tuning and are disjoint from the synthetic split
+(100-999, ``datasets/synthetic.py``) and the relevancy calibration (1000-1019). Report targets
+on held-out houses only.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import time
 from collections.abc import Callable
@@ -21,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from efficienteqa.agent import mapper_for
+from efficienteqa.datasets.synthetic import parse_seeds
 from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
@@ -29,6 +37,15 @@ from efficienteqa.explore.oracle import OracleScorer, evidence_distance_field
 from efficienteqa.explore.registry import make_explorer
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.scenes import synthetic_questions
+
+TRAINING_SEEDS = range(0, 21)  # development houses: tuned on
+HELD_OUT_SEEDS = range(2000, 3000)  # never used for tuning
+
+
+def seed_set(spec: str) -> list[int]:
+    """"training" (0-20), "held-out" (2000-2999), or explicit seeds ("0-9", "3,5")."""
+    named = {"training": TRAINING_SEEDS, "held-out": HELD_OUT_SEEDS}
+    return list(named[spec]) if spec in named else parse_seeds(spec)
 
 
 def step_budget(env: SyntheticEnv) -> int:
@@ -63,6 +80,8 @@ class Episode:
     first_near: int | None = None  # first step within NEAR_M (path) of the evidence
     steps: int = 0
     step_ms: list[float] = field(default_factory=list)
+    moves: int = 0  # moves asked of the environment
+    refused: int = 0  # of which the environment refused
 
 
 NEAR_M = 2.0
@@ -70,8 +89,10 @@ NEAR_M = 2.0
 
 def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         scorer: SemanticScorer | None = None, seen: Callable[[np.ndarray], bool] | None = None,
-        coverage: bool = False, distance_m: Callable[[tuple[float, float]], float] | None = None
-        ) -> Episode:
+        coverage: bool = False, distance_m: Callable[[tuple[float, float]], float] | None = None,
+        to_budget: bool = False) -> Episode:
+    """One episode of ``budget`` steps at most. It ends when ``seen`` first holds, unless
+    ``to_budget`` (then it goes on, for the coverage at the budget)."""
     mapper = make_mapper(env)
     module = ExploreModule(mapper, make_explorer(explorer), scorer, seed=seed)
     floor = truth_floor(env, mapper) if coverage else None
@@ -82,9 +103,10 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         if (ep.first_near is None and distance_m is not None
                 and distance_m((obs.pose.x, obs.pose.y)) <= NEAR_M):
             ep.first_near = step
-        if seen is not None and seen(obs.instance):
+        if ep.first_seen is None and seen is not None and seen(obs.instance):
             ep.first_seen = step
-            break
+            if not to_budget:
+                break
         start = time.perf_counter()
         out = module.step(obs, step)
         ep.step_ms.append(1e3 * (time.perf_counter() - start))
@@ -93,8 +115,13 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         if out.decision.done:
             break
         obs, _, _, _, info = env.step(out.decision.pose)
+        ep.moves += 1
         if info["blocked"]:
+            ep.refused += 1
             module.blocked((out.decision.pose.x, out.decision.pose.y))
+    if floor is not None and ep.steps > len(ep.coverage):  # the last frame, fused but not planned on
+        mapper.update(obs)
+        ep.coverage.append(mapper.state((obs.pose.x, obs.pose.y)).explored_floor_share(floor))
     return ep
 
 
@@ -156,38 +183,65 @@ def cmd_coverage(args: argparse.Namespace) -> None:
 
 
 def cmd_steering(args: argparse.Namespace) -> None:
-    rows = []
-    for seed in houses(10_000, args.assets):
+    seeds = seed_set(args.seeds)
+    rows: list[dict] = []
+    methods = ("frontier-only", "sfe")
+    for seed in seeds:
         if len(rows) >= args.questions:
             break
         with SyntheticEnv.from_seed(seed, args.assets) as env:
             budget = step_budget(env)
-            for q in synthetic_questions(env):
-                if not q.evidence or len(rows) >= args.questions:
-                    continue
-                rows.append(_steer(env, q, budget, seed, args.repeats))
-                r = rows[-1]
-                print(f"{q.id} {q.category:14s} oracle {r['oracle']:2d}  frontier-only "
-                      f"{r['frontier-only']:5.1f}  oracle-SFE {r['sfe']:5.1f}  {q.question}")
-    fo = np.array([r["frontier-only"] for r in rows], float)
-    sfe = np.array([r["sfe"] for r in rows], float)
-    oracle = np.array([r["oracle"] for r in rows], float)
-    print(f"\n{len(rows)} questions x {args.repeats} seeds ({args.assets}); steps until the "
-          "evidence is first in view (budget + 1 when never seen):")
-    print(f"  oracle steps   mean {oracle.mean():.2f}")
-    print(f"  frontier-only  mean {fo.mean():.2f}  (x{fo.mean() / oracle.mean():.2f} oracle), "
-          f"unseen {int((fo > [r['budget'] for r in rows]).sum())}")
-    print(f"  oracle SFE     mean {sfe.mean():.2f}  (x{sfe.mean() / oracle.mean():.2f} oracle), "
-          f"unseen {int((sfe > [r['budget'] for r in rows]).sum())}")
-    print(f"  oracle SFE needs {1 - sfe.mean() / fo.mean():.0%} fewer steps than frontier-only")
-    fo_near = np.mean([r["frontier-only near"] for r in rows])
-    sfe_near = np.mean([r["sfe near"] for r in rows])
+            asked = [q for q in synthetic_questions(env) if q.evidence]
+            # A few questions per house, their order turned by the seed: many houses, every kind.
+            turn = seed % len(asked) if asked else 0
+            for q in (asked[turn:] + asked[:turn])[:args.per_house]:
+                if len(rows) >= args.questions:
+                    break
+                row = _steer(env, q, budget, seed, args.repeats, args.to_budget)
+                rows.append(row)
+                print(f"{q.id} {q.category:14s} oracle {row['oracle']:2d}  "
+                      + "  ".join(f"{m} {np.mean(_steps(row, m)):5.1f}" for m in methods)
+                      + f"  {q.question}", flush=True)
+    print(f"\n{len(rows)} questions in {len({r['house'] for r in rows})} houses "
+          f"(seeds {args.seeds}: {sorted({r['house'] for r in rows})}) x {args.repeats} explorer "
+          f"seeds ({args.assets}); steps until the evidence is first in view (budget + 1 when "
+          "never seen):")
+    oracle = np.mean([r["oracle"] for r in rows])
+    print(f"  oracle steps   mean {oracle:.2f}")
+    means = {}
+    for m in methods:
+        steps = np.concatenate([_steps(r, m) for r in rows])
+        never = np.mean([s is None for r in rows for s in r[m]["first_seen"]])
+        cover = np.mean([c for r in rows for c in r[m]["coverage"]])
+        moves = sum(sum(r[m]["moves"]) for r in rows)
+        refused = sum(sum(r[m]["refused"]) for r in rows)
+        taken = sum(sum(r[m]["steps"]) for r in rows)
+        means[m] = steps.mean()
+        print(f"  {m:13s}  mean {steps.mean():.2f} (x{steps.mean() / oracle:.2f} oracle), "
+              f"never seen {never:.1%}, floor explored at the "
+              f"{'budget' if args.to_budget else 'end'} {cover:.1%}, refused moves "
+              f"{refused}/{moves} ({refused / max(taken, 1):.1%} of {taken} steps)")
+    print(f"  oracle SFE needs {1 - means['sfe'] / means['frontier-only']:.0%} fewer steps than "
+          "frontier-only")
+    near = {m: np.mean([np.mean(r[m]["near"]) for r in rows]) for m in methods}
     print(f"  steps until within {NEAR_M} m (path) of the evidence or seeing it: frontier-only "
-          f"{fo_near:.2f}, oracle SFE {sfe_near:.2f} ({1 - sfe_near / fo_near:.0%} fewer)")
+          f"{near['frontier-only']:.2f}, oracle SFE {near['sfe']:.2f} "
+          f"({1 - near['sfe'] / near['frontier-only']:.0%} fewer)")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "steering.json").write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1))
+    print(f"rows: {out / 'steering.json'}")
 
 
-def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int) -> dict:
-    """Mean steps over ``repeats`` explorer seeds for each method (SFE samples frontiers)."""
+def _steps(row: dict, method: str) -> np.ndarray:
+    """Steps until first in view per explorer seed; budget + 1 when never seen."""
+    return np.array([s if s is not None else row["budget"] + 1 for s in row[method]["first_seen"]],
+                    float)
+
+
+def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
+           to_budget: bool) -> dict:
+    """Each method's episodes over ``repeats`` explorer seeds (SFE samples frontiers)."""
     objects = [env.house.object(e) for e in q.evidence]
     centre = np.mean([[o.x, o.y] for o in objects], axis=0)
     rooms = {(r.x0, r.y0, r.x1, r.y1) for r in (env.house.room(o.room_id) for o in objects)}
@@ -205,27 +259,43 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int)
     def glimpsed(instance: np.ndarray) -> bool:  # GSV: any evidence in view, even small
         return any(evidence_visible(instance, [e], min_pixels=20) for e in q.evidence)
 
-    row = {"oracle": q.oracle_steps, "budget": budget}
+    row: dict = {"id": q.id, "house": seed, "category": q.category, "oracle": q.oracle_steps,
+                 "budget": budget}
     for name, scorer in (("frontier-only", None), ("sfe", OracleScorer(distance_m, glimpsed))):
-        steps, near = [], []
+        got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
+                                                "moves", "refused")}
         for r in range(repeats):
             ep = run(env, name, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
-                     distance_m=distance_m)
-            steps.append(ep.first_seen if ep.first_seen is not None else budget + 1)
-            # Seeing implies having got near enough; an episode stops when it sees.
-            near.append(ep.first_near or (ep.first_seen if ep.first_seen else budget + 1))
-        row[name] = float(np.mean(steps))
-        row[name + " near"] = float(np.mean(near))
+                     coverage=True, distance_m=distance_m, to_budget=to_budget)
+            got["first_seen"].append(ep.first_seen)
+            # Seeing implies having got near enough.
+            got["near"].append(ep.first_near or ep.first_seen or budget + 1)
+            got["coverage"].append(ep.coverage[-1] if ep.coverage else 0.0)
+            got["steps"].append(ep.steps)
+            got["moves"].append(ep.moves)
+            got["refused"].append(ep.refused)
+        row[name] = got
     return row
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                     epilog=__doc__.split("\n\n", 1)[1],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("job", choices=["cost", "coverage", "steering"])
     parser.add_argument("--assets", default="sh3d", choices=["sh3d", "builtin"])
     parser.add_argument("--houses", type=int, default=10)
     parser.add_argument("--questions", type=int, default=30)
-    parser.add_argument("--repeats", type=int, default=1, help="explorer seeds per question")
+    parser.add_argument("--repeats", type=int, default=3, help="explorer seeds per question")
+    parser.add_argument("--seeds", default="held-out",
+                        help="steering houses: 'held-out' (2000-2999, never tuned on; report "
+                             "these), 'training' (0-20, the development houses), or seeds such "
+                             "as '0-9'")
+    parser.add_argument("--per-house", type=int, default=3,
+                        help="steering: at most this many questions per house")
+    parser.add_argument("--to-budget", action=argparse.BooleanOptionalAction, default=True,
+                        help="steering: run every episode to its budget (floor coverage at the "
+                             "budget), recording when the evidence was first in view")
     parser.add_argument("--out", default="out/bench")
     parser.add_argument("--explored-depth", type=float, default=None,
                         help="metres along the optical axis within which floor counts as explored")
