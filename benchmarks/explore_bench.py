@@ -33,7 +33,7 @@ from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.module import ExploreModule, SemanticScorer
-from efficienteqa.explore.oracle import OracleScorer, evidence_distance_field
+from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer, evidence_distance_field
 from efficienteqa.explore.registry import make_explorer
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.scenes import synthetic_questions
@@ -82,6 +82,10 @@ class Episode:
     step_ms: list[float] = field(default_factory=list)
     moves: int = 0  # moves asked of the environment
     refused: int = 0  # of which the environment refused
+    asked: int = 0  # steps that offered lettered directions to the scorer
+    points: int = 0  # prompted points
+    off_floor: int = 0  # of which not navigable on the true grid
+    uninformed: int = 0  # asked steps where no point had a finite oracle distance
 
 
 NEAR_M = 2.0
@@ -110,6 +114,11 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         start = time.perf_counter()
         out = module.step(obs, step)
         ep.step_ms.append(1e3 * (time.perf_counter() - start))
+        if out.prompts:
+            ep.asked += 1
+            ep.points += len(out.prompts)
+            ep.off_floor += sum(not env.is_navigable(*p.xy) for p in out.prompts)
+            ep.uninformed += bool(out.score and "unreachable" in out.score.info)
         if floor is not None:
             ep.coverage.append(out.state.explored_floor_share(floor))
         if out.decision.done:
@@ -185,6 +194,7 @@ def cmd_coverage(args: argparse.Namespace) -> None:
 def cmd_steering(args: argparse.Namespace) -> None:
     seeds = seed_set(args.seeds)
     rows: list[dict] = []
+    flagged: list[dict] = []  # questions whose evidence has no view reachable from the start
     methods = ("frontier-only", "sfe")
     for seed in seeds:
         if len(rows) >= args.questions:
@@ -198,6 +208,11 @@ def cmd_steering(args: argparse.Namespace) -> None:
                 if len(rows) >= args.questions:
                     break
                 row = _steer(env, q, budget, seed, args.repeats, args.to_budget)
+                if not row["reachable"]:
+                    flagged.append(row)
+                    print(f"{q.id} FLAGGED: no view of the evidence is reachable from the start; "
+                          "left out", flush=True)
+                    continue
                 rows.append(row)
                 print(f"{q.id} {q.category:14s} oracle {row['oracle']:2d}  "
                       + "  ".join(f"{m} {np.mean(_steps(row, m)):5.1f}" for m in methods)
@@ -206,6 +221,8 @@ def cmd_steering(args: argparse.Namespace) -> None:
           f"(seeds {args.seeds}: {sorted({r['house'] for r in rows})}) x {args.repeats} explorer "
           f"seeds ({args.assets}); steps until the evidence is first in view (budget + 1 when "
           "never seen):")
+    if flagged:
+        print(f"  left out, no reachable view of the evidence: {', '.join(r['id'] for r in flagged)}")
     oracle = np.mean([r["oracle"] for r in rows])
     print(f"  oracle steps   mean {oracle:.2f}")
     means = {}
@@ -223,13 +240,19 @@ def cmd_steering(args: argparse.Namespace) -> None:
               f"{refused}/{moves} ({refused / max(taken, 1):.1%} of {taken} steps)")
     print(f"  oracle SFE needs {1 - means['sfe'] / means['frontier-only']:.0%} fewer steps than "
           "frontier-only")
+    total = {k: sum(sum(r["sfe"][k]) for r in rows)
+             for k in ("steps", "asked", "points", "off_floor", "uninformed")}
+    print(f"  oracle SFE: {total['asked'] / max(total['steps'], 1):.0%} of steps offered lettered "
+          f"directions; {total['off_floor']}/{total['points']} prompted points off the navigable "
+          f"floor; {total['uninformed']} asked steps where no point led to the evidence")
     near = {m: np.mean([np.mean(r[m]["near"]) for r in rows]) for m in methods}
     print(f"  steps until within {NEAR_M} m (path) of the evidence or seeing it: frontier-only "
           f"{near['frontier-only']:.2f}, oracle SFE {near['sfe']:.2f} "
           f"({1 - near['sfe'] / near['frontier-only']:.0%} fewer)")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "steering.json").write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1))
+    (out / "steering.json").write_text(json.dumps({"args": vars(args), "rows": rows,
+                                                   "flagged": flagged}, indent=1))
     print(f"rows: {out / 'steering.json'}")
 
 
@@ -245,13 +268,15 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
     objects = [env.house.object(e) for e in q.evidence]
     centre = np.mean([[o.x, o.y] for o in objects], axis=0)
     rooms = {(r.x0, r.y0, r.x1, r.y1) for r in (env.house.room(o.room_id) for o in objects)}
-    # Path distance to the evidence from its own room(s): a plain snap to the nearest floor
-    # cell can land behind a wall (see evidence_distance_field).
-    field_m = evidence_distance_field(env.grid, centre, ROBOT_RADIUS_M, sorted(rooms), 2.0)
-
-    def distance_m(xy) -> float:
-        i, j = env.grid.spec.world_to_cell(np.asarray(xy))
-        return float(field_m[i, j]) if env.grid.spec.contains((i, j)) else math.inf
+    # Path distance to the evidence's views reachable from the start: the floor near it in its
+    # own room(s) (a plain snap to the nearest floor cell can land behind a wall) and the
+    # oracle's pose; a prompt point off the navigable floor counts from the nearest navigable
+    # cell (see explore/oracle.py).
+    start = (env.house.start.x, env.house.start.y)
+    views = [q.oracle_pose[:2]] if q.oracle_pose else []
+    field_m = evidence_distance_field(env.grid, centre, ROBOT_RADIUS_M, sorted(rooms), 2.0,
+                                      start_xy=start, views=views)
+    distance_m = EvidenceDistance(env.grid, field_m, ROBOT_RADIUS_M)
 
     def seen(instance: np.ndarray) -> bool:
         return evidence_visible(instance, q.evidence)
@@ -260,10 +285,11 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
         return any(evidence_visible(instance, [e], min_pixels=20) for e in q.evidence)
 
     row: dict = {"id": q.id, "house": seed, "category": q.category, "oracle": q.oracle_steps,
-                 "budget": budget}
+                 "budget": budget, "reachable": distance_m.reachable}
     for name, scorer in (("frontier-only", None), ("sfe", OracleScorer(distance_m, glimpsed))):
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
-                                                "moves", "refused")}
+                                                "moves", "refused", "asked", "points",
+                                                "off_floor", "uninformed")}
         for r in range(repeats):
             ep = run(env, name, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
                      coverage=True, distance_m=distance_m, to_budget=to_budget)
@@ -272,8 +298,8 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
             got["near"].append(ep.first_near or ep.first_seen or budget + 1)
             got["coverage"].append(ep.coverage[-1] if ep.coverage else 0.0)
             got["steps"].append(ep.steps)
-            got["moves"].append(ep.moves)
-            got["refused"].append(ep.refused)
+            for k in ("moves", "refused", "asked", "points", "off_floor", "uninformed"):
+                got[k].append(getattr(ep, k))
         row[name] = got
     return row
 
