@@ -253,3 +253,31 @@ def test_rule_judge_accuracy_is_reported_beside_llm_match(tmp_path):
     assert "### Rule-judge accuracy (%) per question category" in md
     result = CliRunner().invoke(cli.app, ["report", str(with_model)])
     assert result.exit_code == 0 and "Rule %" in result.output and "50.00" in result.output
+
+
+def test_evidence_in_view_and_refused_moves_are_summarised_and_tabled(tmp_path):
+    """First-seen step and first-seen / oracle over the episodes that saw the evidence, the
+    never-seen and in-top-K shares over those with ground truth, refused moves per step taken;
+    rows without ground truth (None) or from older runs (no key) count in none of them."""
+    def seen(i: int, first: int | None, top_k: bool | None, oracle: int | None = 4,
+             refused: int | None = 0, **kwargs) -> dict:
+        row = episode(i, oracle=oracle, **kwargs)
+        if row["status"] == "done":
+            row.update(evidence_first_seen_step=first, evidence_in_top_k=top_k, refused_moves=refused)
+        return row
+
+    rows = [seen(0, 6, True, oracle=3, refused=1), seen(1, 12, False, oracle=4),
+            seen(2, None, False, refused=2), seen(3, None, None), episode(4),
+            seen(5, 2, True, status="failed")]
+    s = summarise(manifest(), rows)
+    assert s.n_evidence == 3 and s.first_seen_mean == 9.0
+    assert s.first_seen_over_oracle == pytest.approx((6 / 3 + 12 / 4) / 2)
+    assert s.never_seen == pytest.approx(1 / 3) and s.evidence_in_top_k == pytest.approx(1 / 3)
+    assert s.refused_per_step == pytest.approx(3 / 48)  # 4 episodes record it, 12 steps each
+    old = summarise(manifest(), [episode(0), episode(1)])
+    assert old.n_evidence == 0 and math.isnan(old.never_seen) and math.isnan(old.refused_per_step)
+    md = write_report([write_run(tmp_path / "run", manifest(), rows)], tmp_path / "out")[0].read_text()
+    assert "| Method | First seen, step ↓ | First seen / oracle ↓ | Never seen ↓ |" in md
+    assert "| efficienteqa | 9.00 | 2.50 | 33% | 33% | 6% | 3 |" in md
+    bare = write_report([write_run(tmp_path / "old", manifest(), [episode(0)])], tmp_path / "o2")
+    assert "First seen" not in bare[0].read_text()

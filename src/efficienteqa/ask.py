@@ -17,6 +17,7 @@ from efficienteqa.observation import Observation
 from efficienteqa.records import write_json
 from efficienteqa.relevancy.base import RelevancyScorer
 from efficienteqa.report.episode import episode_record
+from efficienteqa.report.evidence import EvidenceWatch
 from efficienteqa.report.frames import FrameCollector
 from efficienteqa.report.html import write_report
 from efficienteqa.scenes import Scene, open_scene
@@ -62,15 +63,18 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         perception = built.agent.perception
         describe = (lambda obs: str(perception.frame(obs))) if perception.modality == "text" else None
         frames = FrameCollector(describe=describe)
+        truth = known_question(opened.questions, question)
+        # Ground truth for the record only: the hook notes frames, the agent never sees them.
+        watch = EvidenceWatch(truth.evidence if truth is not None else None)
 
         def hook(record: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
+            watch(record, obs, out_step)
             if report:
                 frames(record, obs, out_step)
             if on_step is not None:
                 on_step(record, obs, out_step)
 
         result = built.agent.run(opened.env, question, start=start, on_step=hook)
-        truth = known_question(opened.questions, question)
         reference: dict[str, Any] | None = None
         if truth is not None:
             reference = {"id": truth.id, "answer": truth.answer,
@@ -79,7 +83,7 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
                 reference["oracle_steps"] = truth.oracle_steps
         record = episode_record(result, config=config, backends=built.backends,
                                 scene=opened.name, exchanges=built.model.exchanges,
-                                reference=reference)
+                                reference=reference, evidence=watch.fields(result.retrieved))
         episode_json = write_json(out / "episode.json", record)
         html = (write_report(out / "report.html", record, map_url(result), frames.frames,
                              frames.descriptions) if report else None)

@@ -74,6 +74,10 @@ class Outcome:
     usage: dict[str, Any] = field(default_factory=dict)  # calls, cached_calls, tokens, latency_s
     backends: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
+    # From the ground truth after the episode (report.evidence); None where unknown.
+    evidence_first_seen_step: int | None = None
+    evidence_in_top_k: bool | None = None
+    refused_moves: int | None = None  # moves the environment refused (agent methods)
 
 
 MethodFn = Callable[[EvalQuestion, RunSpec, Path], Outcome]
@@ -130,7 +134,10 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
                    usage=_usage(record["model"]["exchanges"]), backends=record["backends"],
                    extra={"retrieved": record["retrieved"],
                           "answer_problems": record["answer_problems"],
-                          "timing": record["timing"]})
+                          "timing": record["timing"]},
+                   evidence_first_seen_step=record["evidence_first_seen_step"],
+                   evidence_in_top_k=record["evidence_in_top_k"],
+                   refused_moves=record.get("refused_moves"))
 
 
 def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:

@@ -102,7 +102,10 @@ def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
         outcome = resolve(spec.method)(q, spec, episode_folder(out, q.id))
         row.update(status="done", answer=outcome.answer, confidence=outcome.confidence,
                    steps=outcome.steps, budget=outcome.budget, stop_reason=outcome.stop_reason,
-                   usage=outcome.usage, backends=outcome.backends, extra=outcome.extra)
+                   usage=outcome.usage, backends=outcome.backends, extra=outcome.extra,
+                   evidence_first_seen_step=outcome.evidence_first_seen_step,
+                   evidence_in_top_k=outcome.evidence_in_top_k,
+                   refused_moves=outcome.refused_moves)
         row["rule"] = _rule(q, outcome.answer)
         row["judge"] = _judge(spec, q, outcome.answer)
     except Exception as exc:  # noqa: BLE001 - one episode's failure must not end the run

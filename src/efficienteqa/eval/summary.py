@@ -13,6 +13,11 @@ summary backs the console, the Markdown and the HTML report. Conventions, stated
   LLM-Match, not instead of it.
 - Steps, steps/oracle, stop reasons and model usage are over the done episodes; wall time is over
   every episode that recorded one (a failure costs time too).
+- Evidence in view (``report.evidence``) is over the done episodes whose question has ground
+  truth (synthetic questions with evidence): the mean first-seen step and the mean per-episode
+  ratio first-seen / oracle steps are over the episodes that saw the evidence, the never-seen
+  share and the in-top-K share over all of them. Refused moves per step: the moves the
+  environment refused over the steps taken, over the done episodes that record them.
 - Means skip missing values and are NaN when nothing is left, so an empty run never crashes.
 """
 
@@ -76,6 +81,12 @@ class RunSummary:
     rule_accuracy: float = math.nan
     n_rule: int = 0
     rule_by_category: dict[str, float] = field(default_factory=dict)
+    n_evidence: int = 0  # done episodes with ground truth on the evidence
+    first_seen_mean: float = math.nan
+    first_seen_over_oracle: float = math.nan
+    never_seen: float = math.nan  # share (0-1) of n_evidence
+    evidence_in_top_k: float = math.nan  # share (0-1) of n_evidence
+    refused_per_step: float = math.nan
 
     @property
     def tokens(self) -> float:
@@ -192,6 +203,12 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
         backends["judge"] = ["rule", *backends["judge"]]
     finished = [float(r["finished"]) for r in rows if _is_number(r.get("finished"))]
     planned = manifest.get("questions")
+    known = [r for r in done if isinstance(r.get("evidence_in_top_k"), bool)]
+    seen = [r for r in known if _is_number(r.get("evidence_first_seen_step"))]
+    seen_ratios = [r["evidence_first_seen_step"] / r["oracle_steps"] for r in seen
+                   if _is_number(r.get("oracle_steps")) and r["oracle_steps"] > 0]
+    refusing = [r for r in done if _is_number(r.get("refused_moves")) and _is_number(r.get("steps"))]
+    taken = sum(r["steps"] for r in refusing)
 
     return RunSummary(
         method=str(manifest.get("method", "?")), dataset=str(manifest.get("dataset", "?")),
@@ -216,6 +233,12 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
                             if r.get("status") != "done").most_common()),
         rule_accuracy=mean(rule_values) if n_rule else math.nan, n_rule=n_rule,
         rule_by_category={c: mean(v) for c, v in sorted(rule_categories.items())} if n_rule else {},
+        n_evidence=len(known),
+        first_seen_mean=mean(r["evidence_first_seen_step"] for r in seen),
+        first_seen_over_oracle=mean(seen_ratios),
+        never_seen=1 - len(seen) / len(known) if known else math.nan,
+        evidence_in_top_k=mean(float(r["evidence_in_top_k"]) for r in known),
+        refused_per_step=sum(r["refused_moves"] for r in refusing) / taken if taken else math.nan,
     )
 
 

@@ -43,6 +43,11 @@ CONVENTIONS = ("LLM-Match (%) is the mean over every episode of 100 * (score - 1
                "episode counts as wrong). Average steps, steps / "
                "oracle (the mean per-episode ratio, over episodes with an oracle), stop reasons and "
                "model usage are over the episodes that finished; '-' means not measured.")
+EVIDENCE_NOTE = ("Computed after each episode from the ground truth (the agent never sees it): a "
+                 "frame shows the evidence when every evidence object covers the oracle's pixel "
+                 "threshold. First seen and first seen / oracle are over the episodes that saw it; "
+                 "never seen and in top-K (the frames the answer read) over every episode whose "
+                 "question has evidence.")
 STOP_ORDER = ("relevancy", "budget", "explored", "none")
 PLOT_W, PLOT_H, PAD = 540, 340, 56
 CSS = """
@@ -185,6 +190,24 @@ def efficiency_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> 
                  provenance(summaries))
 
 
+def evidence_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table | None:
+    """When the evidence was first in view (ground truth, after the episode) and refused moves;
+    None when no run has ground truth on its evidence."""
+    if not any(s.n_evidence for s in summaries):
+        return None
+
+    def pct(v: float) -> str:
+        return "-" if math.isnan(v) else f"{100 * v:.0f}%"
+
+    rows = [[lab, _num(s.first_seen_mean), _num(s.first_seen_over_oracle), pct(s.never_seen),
+             pct(s.evidence_in_top_k), pct(s.refused_per_step), str(s.n_evidence)]
+            for s, lab in zip(summaries, labels)]
+    return Table("Evidence in view: first-seen step, against the oracle, never seen",
+                 ["Method", "First seen, step ↓", "First seen / oracle ↓", "Never seen ↓",
+                  "Evidence in top-K ↑", "Refused moves / step ↓", "Episodes with evidence"],
+                 rows, [EVIDENCE_NOTE, *provenance(summaries)])
+
+
 def failures_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table | None:
     rows = [[lab, error, str(count)] for s, lab in zip(summaries, labels)
             for error, count in list(s.errors.items())[:5]]
@@ -266,6 +289,9 @@ def build_sections(summaries: Sequence[RunSummary]) -> list[Section]:
         if _ruled(runs):
             section.blocks.append(category_table(runs, labels, rule=True))
         section.blocks += [category_table(runs, labels), efficiency_table(runs, labels)]
+        evidence = evidence_table(runs, labels)
+        if evidence is not None:
+            section.blocks.append(evidence)
         failures = failures_table(runs, labels)
         if failures is not None:
             section.blocks.append(failures)

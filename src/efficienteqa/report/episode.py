@@ -8,6 +8,7 @@ from typing import Any
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepRecord
 from efficienteqa.models.recording import Exchange
 from efficienteqa.records import code_version, plain
+from efficienteqa.report.evidence import FIELDS
 
 
 def step_dict(r: StepRecord) -> dict[str, Any]:
@@ -26,15 +27,18 @@ def step_dict(r: StepRecord) -> dict[str, Any]:
 
 def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict[str, Any],
                    scene: str, exchanges: Sequence[Exchange] = (),
-                   reference: dict[str, Any] | None = None) -> dict[str, Any]:
+                   reference: dict[str, Any] | None = None,
+                   evidence: dict[str, Any] | None = None) -> dict[str, Any]:
     """The whole episode. ``backends``: which environment, perception, VLM, relevancy scorer
-    (and judge) produced it; ``reference``: ground truth where known (answer, oracle_steps)."""
+    (and judge) produced it; ``reference``: ground truth where known (answer, oracle_steps);
+    ``evidence``: when the evidence was in view (``report.evidence``; None where unknown)."""
     a = result.answer_result
     calls = list(exchanges)
     return plain({
         "question": result.question, "answer": result.answer, "confidence": result.confidence,
         "steps": result.steps, "stop_reason": result.stop_reason, "budget": result.budget,
         "oracle_steps": (reference or {}).get("oracle_steps"),
+        **{k: (evidence or {}).get(k) for k in FIELDS},
         "reference": reference, "scene": scene,
         "retrieved": [{"step": s, "sim": sim} for s, sim in result.retrieved],
         "answer_classes": [{"text": c.text, "confidence": c.confidence} for c in a.classes],
