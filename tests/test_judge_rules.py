@@ -69,6 +69,9 @@ def test_stance_reads_state_words_against_the_question(text, value, bare):
     ("Is the bike in the garage?", "No", "A blue bike", 1),
     ("Is the bike in the garage?", "Yes", "It is in the garage", None),  # restates: a yes
     ("Is the bike in the garage?", "Yes", "There is one next to the car", None),
+    ("Where is the mop?", "In the laundry room", "A green plastic mop", 1),  # no place
+    ("Where is the mop?", "In the laundry room", "laundry room", None),  # a place, said short
+    ("Where is the mop?", "In the laundry room", "It is a mop for the floor", None),
     ("Where is the blue vase?", "On the shelf", "the blue vase", 1),
     ("Where is the blue vase?", "On the shelf", "a vase on the shelf", None),
     ("Which rug is in the hall?", "The red one", "a rug", 1),

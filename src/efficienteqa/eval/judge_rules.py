@@ -25,7 +25,10 @@ never at an item's id, and says why it decided. In order, the first that decides
    did, ... and offers no "or" choice), the reference is a bare yes/no, and the response
    holds no yes/no cue at all (no yes/no word, negation, state word, "there is", or a verb
    that restates the question): 1 ("a red bike" for "Is the bike next to the bed?").
-7. **echo**: every content word of the response is a word of the question and none is a word
+7. **no place for "where"**: the question asks where, the reference names a place (a spatial
+   word: in, on, next to, under, ...), and the response holds no spatial word and no word of
+   the reference ("a robot vacuum cleaner" for "Where is the roomba?"): 1.
+8. **echo**: every content word of the response is a word of the question and none is a word
    of the reference ("lamp" for "Is the lamp next to the bed on?"): 1.
 
 Otherwise ``rule_score`` returns None and the model judges.
@@ -65,6 +68,13 @@ STATES = {"on": "off", "off": "on", "open": "closed", "closed": "open", "shut": 
 # anything else ("on the table").
 _STATE_ON_BEFORE = frozenset({"and", "but", "right", "now", "currently", "still", "already",
                               "again", "too", "as", "yet", "so", "or"})
+# Words that place something: a "where" answer holds at least one.
+SPATIAL = frozenset({
+    "in", "on", "at", "under", "underneath", "beneath", "below", "above", "over", "behind",
+    "beside", "besides", "next", "near", "nearby", "by", "between", "inside", "outside", "against",
+    "around", "atop", "top", "bottom", "front", "back", "corner", "left", "right", "hanging",
+    "leaning", "upstairs", "downstairs", "here", "there", "room", "floor", "wall",
+})
 AUXILIARIES = frozenset({"is", "are", "was", "were", "am", "do", "does", "did", "has", "have",
                          "had", "can", "could", "will", "would", "should"})
 NUMBER_WORDS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine",
@@ -317,6 +327,9 @@ def rule_score(question: str, reference: str, response: str, extra: Sequence[str
     if yes_no_question(question) and ref.bare and ref.value in ("yes", "no") and got.cues == 0 \
             and not there_is and not _restates(tokens):
         return Ruled(MIN_SCORE, "no yes or no to a yes/no question")
+    if "where" in words(question) and any(w in SPATIAL for w in words(reference)) \
+            and not any(w in SPATIAL for w in tokens) and not said & accepted:
+        return Ruled(MIN_SCORE, "no place for a where question")
     asked = content(question)
     if said and said <= asked and not said & accepted \
             and not (yes_no_question(question) and _restates(tokens)):
