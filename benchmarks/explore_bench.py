@@ -32,7 +32,8 @@ from efficienteqa.datasets.synthetic import parse_seeds
 from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
-from efficienteqa.explore.module import ExploreModule, SemanticScorer
+from efficienteqa.explore.module import REFUSAL_RETRIES as module_retries
+from efficienteqa.explore.module import ExploreModule, SemanticScorer, move
 from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer, evidence_distance_field
 from efficienteqa.explore.registry import make_explorer
 from efficienteqa.mapping.maps2d import Mapper
@@ -54,6 +55,8 @@ def step_budget(env: SyntheticEnv) -> int:
 
 WINDOW: tuple[float, float, float, float] | None = None  # --window: explored window override
 EXPLORED_DEPTH: float | None = None  # --explored-depth override
+STOP_CLEARANCE: float | None = None  # --stop-clearance override
+REFUSAL_RETRIES = module_retries  # --refusal-retries override
 
 
 def make_mapper(env: SyntheticEnv) -> Mapper:
@@ -80,8 +83,9 @@ class Episode:
     first_near: int | None = None  # first step within NEAR_M (path) of the evidence
     steps: int = 0
     step_ms: list[float] = field(default_factory=list)
-    moves: int = 0  # moves asked of the environment
+    moves: int = 0  # moves asked of the environment (re-planned tries included)
     refused: int = 0  # of which the environment refused
+    lost: int = 0  # steps whose every try was refused: the robot stayed
     asked: int = 0  # steps that offered lettered directions to the scorer
     points: int = 0  # prompted points
     off_floor: int = 0  # of which not navigable on the true grid
@@ -98,7 +102,8 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
     """One episode of ``budget`` steps at most. It ends when ``seen`` first holds, unless
     ``to_budget`` (then it goes on, for the coverage at the budget)."""
     mapper = make_mapper(env)
-    module = ExploreModule(mapper, make_explorer(explorer), scorer, seed=seed)
+    extra = {} if STOP_CLEARANCE is None else {"stop_clearance_m": STOP_CLEARANCE}
+    module = ExploreModule(mapper, make_explorer(explorer, **extra), scorer, seed=seed)
     floor = truth_floor(env, mapper) if coverage else None
     obs, _ = env.reset()
     ep = Episode()
@@ -123,11 +128,13 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
             ep.coverage.append(out.state.explored_floor_share(floor))
         if out.decision.done:
             break
-        obs, _, _, _, info = env.step(out.decision.pose)
-        ep.moves += 1
-        if info["blocked"]:
-            ep.refused += 1
-            module.blocked((out.decision.pose.x, out.decision.pose.y))
+        moved = move(env, module, obs.pose, out.decision, step, REFUSAL_RETRIES)
+        obs = moved.obs
+        ep.moves += moved.refused + (not moved.blocked)
+        ep.refused += moved.refused
+        ep.lost += moved.blocked
+        if moved.decision.done:
+            break
     if floor is not None and ep.steps > len(ep.coverage):  # the last frame, fused but not planned on
         mapper.update(obs)
         ep.coverage.append(mapper.state((obs.pose.x, obs.pose.y)).explored_floor_share(floor))
@@ -232,12 +239,14 @@ def cmd_steering(args: argparse.Namespace) -> None:
         cover = np.mean([c for r in rows for c in r[m]["coverage"]])
         moves = sum(sum(r[m]["moves"]) for r in rows)
         refused = sum(sum(r[m]["refused"]) for r in rows)
+        lost = sum(sum(r[m]["lost"]) for r in rows)
         taken = sum(sum(r[m]["steps"]) for r in rows)
         means[m] = steps.mean()
         print(f"  {m:13s}  mean {steps.mean():.2f} (x{steps.mean() / oracle:.2f} oracle), "
               f"never seen {never:.1%}, floor explored at the "
               f"{'budget' if args.to_budget else 'end'} {cover:.1%}, refused moves "
-              f"{refused}/{moves} ({refused / max(taken, 1):.1%} of {taken} steps)")
+              f"{refused}/{moves} ({refused / max(taken, 1):.1%} of {taken} steps; "
+              f"{lost / max(taken, 1):.1%} of steps lost)")
     print(f"  oracle SFE needs {1 - means['sfe'] / means['frontier-only']:.0%} fewer steps than "
           "frontier-only")
     total = {k: sum(sum(r["sfe"][k]) for r in rows)
@@ -288,7 +297,7 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
                  "budget": budget, "reachable": distance_m.reachable}
     for name, scorer in (("frontier-only", None), ("sfe", OracleScorer(distance_m, glimpsed))):
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
-                                                "moves", "refused", "asked", "points",
+                                                "moves", "refused", "lost", "asked", "points",
                                                 "off_floor", "uninformed")}
         for r in range(repeats):
             ep = run(env, name, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
@@ -298,7 +307,7 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
             got["near"].append(ep.first_near or ep.first_seen or budget + 1)
             got["coverage"].append(ep.coverage[-1] if ep.coverage else 0.0)
             got["steps"].append(ep.steps)
-            for k in ("moves", "refused", "asked", "points", "off_floor", "uninformed"):
+            for k in ("moves", "refused", "lost", "asked", "points", "off_floor", "uninformed"):
                 got[k].append(getattr(ep, k))
         row[name] = got
     return row
@@ -325,13 +334,22 @@ def main() -> None:
     parser.add_argument("--out", default="out/bench")
     parser.add_argument("--explored-depth", type=float, default=None,
                         help="metres along the optical axis within which floor counts as explored")
+    parser.add_argument("--stop-clearance", type=float, default=None,
+                        help="metres of map clearance the planner wants where a move ends "
+                             "(default: the explorer's; 0: where the path is cut, as before)")
+    parser.add_argument("--refusal-retries", type=int, default=None,
+                        help="re-plans within a step after a refused move (default "
+                             f"{module_retries}; 0: a refused move spends the step, as before)")
     parser.add_argument("--window", type=float, nargs=4, default=None,
                         metavar=("U0", "U1", "V0", "V1"),
                         help="explored window as image fractions (default: the Mapper's)")
     args = parser.parse_args()
-    global WINDOW, EXPLORED_DEPTH
+    global WINDOW, EXPLORED_DEPTH, STOP_CLEARANCE, REFUSAL_RETRIES
     WINDOW = tuple(args.window) if args.window else None
     EXPLORED_DEPTH = args.explored_depth
+    STOP_CLEARANCE = args.stop_clearance
+    if args.refusal_retries is not None:
+        REFUSAL_RETRIES = args.refusal_retries
     {"cost": cmd_cost, "coverage": cmd_coverage, "steering": cmd_steering}[args.job](args)
 
 

@@ -100,3 +100,30 @@ def test_a_question_of_ones_own_has_no_evidence_record(house4, tmp_path):
                config=AgentConfig(max_steps=3), report=False)
     record = json.loads(done.episode_json.read_text())
     assert all(k in record and record[k] is None for k in FIELDS)
+
+
+@needs_egl
+def test_eval_rows_carry_the_evidence_record_refused_moves_and_oracle_steps(tmp_path, monkeypatch):
+    from efficienteqa import stack as stack_module
+    from efficienteqa.datasets.synthetic import to_eval_question
+    from efficienteqa.eval.methods import RunSpec
+    from efficienteqa.eval.runner import run_eval
+
+    with SyntheticEnv.from_seed(4, "builtin") as env:
+        q = next(x for x in synthetic_questions(env) if x.id == "syn-4-10")
+        desk = env.house.object(q.evidence[0])
+        room = env.house.room(desk.room_id).name
+    monkeypatch.setattr(stack_module, "build_chat_model",
+                        lambda backend: seeking_model(desk.category, room))
+    spec = RunSpec(method="frontier-only", dataset="synthetic-test", judge=None, assets="builtin",
+                   stack=Stack(relevancy="overlap", grouping="rules"),
+                   config=AgentConfig(max_steps=4))
+    question = to_eval_question(q, "synthetic-test", "builtin")
+    run_eval(spec, [question], tmp_path, prepare=False)
+    row = json.loads((tmp_path / "episodes.jsonl").read_text().splitlines()[-1])
+    assert row["status"] == "done", row.get("error")
+    record = json.loads(next((tmp_path / "episodes").rglob("episode.json")).read_text())
+    assert row["oracle_steps"] == q.oracle_steps
+    for key in ("evidence_first_seen_step", "evidence_in_top_k", "refused_moves"):
+        assert row[key] == record[key]
+    assert isinstance(row["evidence_in_top_k"], bool) and isinstance(row["refused_moves"], int)

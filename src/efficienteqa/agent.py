@@ -26,7 +26,13 @@ import numpy as np
 from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
-from efficienteqa.explore.module import ExploreModule, ExploreStep, SemanticScorer
+from efficienteqa.explore.module import (
+    REFUSAL_RETRIES,
+    ExploreModule,
+    ExploreStep,
+    SemanticScorer,
+    move,
+)
 from efficienteqa.explore.registry import make_explorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
@@ -58,6 +64,12 @@ class AgentConfig:
     seed: int = 0
     confidence: Confidence = "verbalized"
     answer_at: str = "retrieval"  # one of ANSWER_AT
+    # Beyond the paper (SPEC 8), None: the default. Re-plans within a step after the
+    # environment refuses a move (None: explore.module.REFUSAL_RETRIES; 0: a refused move
+    # spends the step); the clearance the planner wants where a move ends (None: the
+    # explorer's default; 0: stop where the path is cut).
+    refusal_retries: int | None = None
+    stop_clearance_m: float | None = None
 
     def __post_init__(self) -> None:
         if self.answer_at not in ANSWER_AT:
@@ -80,7 +92,8 @@ class StepRecord:
     target_xy: tuple[float, float] | None = None
     n_frontiers: int = 0
     decision: str = ""
-    blocked: bool = False
+    blocked: bool = False  # the step's move was refused, every try: the robot stayed
+    refused: int = 0  # moves the environment refused during this step (re-planned or not)
     calls: list[int] = field(default_factory=list)  # indices into the model exchanges
     timings_ms: dict[str, float] = field(default_factory=dict)
     step_answer: dict[str, Any] | None = None  # answer_at="best-step": answer, confidence, value
@@ -106,6 +119,10 @@ class EpisodeResult:
     @property
     def trajectory(self) -> list[Pose2D]:
         return [Pose2D(*r.pose) for r in self.records]
+
+    @property
+    def refused_moves(self) -> int:
+        return sum(r.refused for r in self.records)
 
 
 StepHook = Callable[[StepRecord, Observation, ExploreStep | None], None]
@@ -153,8 +170,11 @@ class Agent:
         t0 = time.perf_counter()
         obs, _ = env.reset(options={"start": start} if start is not None else None)
         budget = cfg.max_steps or step_budget(env.floor_area_m2)
-        explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)),
-                                make_explorer(cfg.explorer), self.scorer, seed=cfg.seed)
+        explorer = (make_explorer(cfg.explorer) if cfg.stop_clearance_m is None
+                    else make_explorer(cfg.explorer, stop_clearance_m=cfg.stop_clearance_m))
+        explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)), explorer,
+                                self.scorer, seed=cfg.seed)
+        retries = REFUSAL_RETRIES if cfg.refusal_retries is None else cfg.refusal_retries
         stopper = RelevancyStopper(cfg.stop)
         top: TopK[str | np.ndarray] = TopK(cfg.top_k)
         best_step: tuple[float, int, float, AnswerResult] | None = None  # value, step, Sim, answer
@@ -204,11 +224,15 @@ class Agent:
                 stop_reason = "explored"
                 break
             t = time.perf_counter()
-            obs, _, _, _, info = env.step(decision.pose)
+            moved = move(env, explore, obs.pose, decision, step, retries)
             record.timings_ms["env"] = 1e3 * (time.perf_counter() - t)
-            if info.get("blocked"):
-                record.blocked = True
-                explore.blocked((decision.pose.x, decision.pose.y))
+            obs, record.refused, record.blocked = moved.obs, moved.refused, moved.blocked
+            if moved.decision is not decision:  # re-planned after a refusal
+                decision = moved.decision
+                _fill_decision(record, decision)
+                if decision.done:
+                    stop_reason = "explored"
+                    break
         t = time.perf_counter()
         if cfg.answer_at == "best-step":
             if best_step is None:  # no valid frame at all: nothing was seen
@@ -232,10 +256,13 @@ class Agent:
 
 
 def _fill(record: StepRecord, out: ExploreStep) -> None:
-    d = out.decision
     record.prompts = [{"letter": p.letter, "xy": p.xy, "pixel": p.pixel} for p in out.prompts]
     record.lsv, record.gsv = dict(out.lsv), out.gsv
     record.p_yes = out.score.p_yes if out.score is not None else None
+    _fill_decision(record, out.decision)
+
+
+def _fill_decision(record: StepRecord, d: Decision) -> None:
     record.frontier_xy = d.frontier.xy if d.frontier is not None else None
     record.target_xy = d.target_xy
     record.n_frontiers = len(d.frontiers)

@@ -13,8 +13,10 @@ from typing import Protocol
 
 import numpy as np
 
+from efficienteqa.envs.base import Environment
 from efficienteqa.explore.base import Decision, Explorer
 from efficienteqa.explore.prompting import candidate_points
+from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.values import SemanticValueMap, gsv_from_yes, lsv_from_confidences
@@ -84,3 +86,49 @@ class ExploreModule:
     def blocked(self, pose_xy: tuple[float, float], radius_m: float = 0.3) -> None:
         """The environment refused a move there: keep the planner away from it."""
         self.mapper.block(pose_xy, radius_m)
+
+    def replan(self, pose: Pose2D, step: int) -> Decision:
+        """Decide again on the map as it is (a refused move learnt): no frame is fused and no
+        scorer is asked, so a retry costs no step and no model call."""
+        state = self.mapper.state((pose.x, pose.y))
+        use_values = self.scorer is not None and step > VALUE_WARMUP_STEPS
+        return self.explorer.decide(state, pose, self.values.smoothed() if use_values else None,
+                                    step)
+
+
+REFUSAL_RETRIES = 3  # re-plans within one step after a refused move
+
+
+@dataclass
+class Moved:
+    """The outcome of ``move``: the observation after it, the decision carried out (the last
+    one tried when every try was refused), and the refusals on the way."""
+
+    obs: Observation
+    info: dict
+    decision: Decision
+    refused: int
+
+    @property
+    def blocked(self) -> bool:
+        return bool(self.info.get("blocked"))
+
+
+def move(env: Environment, explore: ExploreModule, pose: Pose2D, decision: Decision, step: int,
+         retries: int = REFUSAL_RETRIES) -> Moved:
+    """Ask ``env`` to move to ``decision.pose``; when it refuses, mark the spot blocked on the
+    map and re-plan from ``pose`` within the same step, at most ``retries`` times (0: a
+    refused move spends the step, as the paper's loop would). A re-plan that finds nothing
+    left to explore ends the tries; the caller sees it as ``decision.done``."""
+    refused = 0
+    while True:
+        obs, _, _, _, info = env.step(decision.pose)
+        if not info.get("blocked"):
+            return Moved(obs, info, decision, refused)
+        refused += 1
+        explore.blocked((decision.pose.x, decision.pose.y))
+        if refused > retries:
+            return Moved(obs, info, decision, refused)
+        decision = explore.replan(pose, step)
+        if decision.done:
+            return Moved(obs, info, decision, refused)

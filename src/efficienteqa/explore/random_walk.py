@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from efficienteqa.explore.base import Decision
-from efficienteqa.explore.sfe import cut_path
+from efficienteqa.explore.sfe import cut_path, settle
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.state import MapState
 
@@ -20,6 +20,8 @@ class RandomConfig:
     max_step_m: float = 3.0  # goal within this path distance
     robot_radius_m: float = 0.25  # as in SFEConfig
     snap_m: float = 0.5
+    stop_clearance_m: float = 0.45  # as in SFEConfig
+    settle_m: float = 0.25
 
 
 class RandomExplorer:
@@ -55,7 +57,8 @@ class RandomExplorer:
             return Decision(pose, pose.xy[None, :].copy(), reason="stuck")
         if np.linalg.norm(path[0] - pose.xy) > 1e-9:
             path = np.vstack([pose.xy, path])
-        path = cut_path(path, cfg.max_step_m)
+        path = settle(grid, cut_path(path, cfg.max_step_m), radius, cfg.stop_clearance_m,
+                      cfg.settle_m, cfg.max_step_m, cfg.snap_m)
         d = path[-1] - path[-2]
         yaw = math.atan2(d[1], d[0]) if np.linalg.norm(d) > 1e-9 else pose.yaw
         return Decision(Pose2D(float(path[-1][0]), float(path[-1][1]), yaw), path,

@@ -49,6 +49,13 @@ class SFEConfig:
     looked_factor: float = 1e-3  # their weight, as reported
     max_looks: int = 2  # looked at this often (from the back-off, then up close): never again
     tight_radius_m: float = 0.1  # second try when nothing is reachable at robot_radius_m
+    # Stop where the map leaves room: a move's end with less clearance than this is moved, by
+    # at most settle_m, to a reachable cell that has it (0: stop where the path is cut). The
+    # map's 0.1 m cells put a wall up to a cell nearer than it shows: ends at 0.25 m from the
+    # mapped wall were refused by the environment in 7% of frontier-only steps (development
+    # houses 0-9); 0.45 m left 1.3%, mostly objects the map had not seen.
+    stop_clearance_m: float = 0.45
+    settle_m: float = 0.25  # below reached_m: a settled end still reaches its target
 
 
 @dataclass
@@ -130,7 +137,8 @@ class FrontierExplorer:
             return stay
         if np.linalg.norm(path[0] - pose.xy) > 1e-9:
             path = np.vstack([pose.xy, path])
-        path = cut_path(path, cfg.max_step_m)
+        path = settle(grid, cut_path(path, cfg.max_step_m), target.radius_m,
+                      cfg.stop_clearance_m, cfg.settle_m, cfg.max_step_m, cfg.snap_m)
         yaw = self._facing(path, np.asarray(target.frontier.xy), pose.yaw)
         end = path[-1]
         return Decision(Pose2D(float(end[0]), float(end[1]), yaw), path,
@@ -243,6 +251,54 @@ def sample_index(rng: np.random.Generator, weights: np.ndarray,
         ok = np.ones(len(w), bool) if allowed is None else np.asarray(allowed, bool)
         p = ok / ok.sum()
     return int(rng.choice(len(p), p=p))
+
+
+def settle(grid: OccupancyGrid, path: np.ndarray, radius_m: float, clearance_m: float,
+           within_m: float, max_step_m: float, snap_m: float) -> np.ndarray:
+    """``path`` (K, 2), from the robot, with its end moved where the map leaves room to stand.
+
+    An end whose cell has less than ``clearance_m`` of clearance on ``grid`` moves to the
+    nearest cell within ``within_m`` of it that has that much, reachable at ``radius_m`` within
+    ``max_step_m`` of path; failing that, to the roomiest such cell if it is roomier. The new
+    path is planned to it and cut at ``max_step_m``. ``clearance_m`` 0: the path unchanged."""
+    end = path[-1]
+    spec = grid.spec
+    i, j = spec.world_to_cell(end)
+    inside = bool(spec.contains((i, j)))
+    room = grid.clearance()
+    here = float(room[i, j]) if inside else 0.0
+    if clearance_m <= 0 or here >= clearance_m:
+        return path
+    start = (float(path[0][0]), float(path[0][1]))
+    # the window of cells around the end
+    reach = int(math.ceil(within_m / spec.resolution_m))
+    i0, j0 = max(int(i) - reach, 0), max(int(j) - reach, 0)
+    i1, j1 = min(int(i) + reach + 1, spec.shape[0]), min(int(j) + reach + 1, spec.shape[1])
+    if i0 >= i1 or j0 >= j1:
+        return path
+    dist = grid.distance_field(start, radius_m, snap_m)[i0:i1, j0:j1]
+    ii, jj = np.mgrid[i0:i1, j0:j1]
+    xy = spec.cell_to_world(np.stack([ii, jj], axis=-1))
+    gap = np.linalg.norm(xy - end, axis=-1)
+    # the robot stands up to half a cell diagonal off its cell's centre
+    ok = (gap <= within_m) & (dist <= max_step_m - spec.resolution_m * math.sqrt(0.5))
+    cell_room = room[i0:i1, j0:j1]
+    if not ok.any():
+        return path
+    roomy = ok & (cell_room >= clearance_m)
+    if roomy.any():
+        k = np.unravel_index(np.argmin(np.where(roomy, gap, np.inf)), gap.shape)
+    else:
+        k = np.unravel_index(np.argmax(np.where(ok, cell_room, -np.inf)), gap.shape)
+        if cell_room[k] <= here:
+            return path
+    goal = (float(xy[k][0]), float(xy[k][1]))
+    moved = grid.shortest_path(start, goal, radius_m, snap_m)
+    if moved is None:
+        return path
+    if np.linalg.norm(moved[0] - path[0]) > 1e-9:
+        moved = np.vstack([path[0], moved])
+    return cut_path(moved, max_step_m)
 
 
 def cut_path(path: np.ndarray, max_m: float) -> np.ndarray:

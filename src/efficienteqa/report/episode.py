@@ -19,7 +19,7 @@ def step_dict(r: StepRecord) -> dict[str, Any]:
         "z": c.z if c else None, "threshold": c.threshold if c else None,
         "prompts": r.prompts, "lsv": r.lsv, "gsv": r.gsv, "p_yes": r.p_yes,
         "frontier": r.frontier_xy, "target": r.target_xy, "n_frontiers": r.n_frontiers,
-        "decision": r.decision, "blocked": r.blocked, "calls": r.calls,
+        "decision": r.decision, "blocked": r.blocked, "refused": r.refused, "calls": r.calls,
         "step_answer": r.step_answer,
         "timings_ms": {k: round(v, 2) for k, v in r.timings_ms.items()},
     })
@@ -37,6 +37,7 @@ def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict
     return plain({
         "question": result.question, "answer": result.answer, "confidence": result.confidence,
         "steps": result.steps, "stop_reason": result.stop_reason, "budget": result.budget,
+        "refused_moves": result.refused_moves,
         "oracle_steps": (reference or {}).get("oracle_steps"),
         **{k: (evidence or {}).get(k) for k in FIELDS},
         "reference": reference, "scene": scene,
