@@ -12,7 +12,10 @@ LIMIT=${LIMIT:-10}
 OUT=${OUT:-out/eval}
 EQA=${EQA:-.venv/bin/efficienteqa}
 RAY_LIMIT=${RAY_LIMIT:-40}
-run() { echo "==> $*"; "$EQA" eval --dataset synthetic --relevancy minilm "$@" || echo "failed: $*"; }
+# Synthetic runs are graded by the rule judge (no model) and, with JUDGE, by LLM-Match beside it
+# (a later --judge in the arguments wins: the Ray runs below use none).
+JUDGE=${JUDGE:-local:qwen2.5-coder-1.5b}
+run() { echo "==> $*"; "$EQA" eval --dataset synthetic --relevancy minilm --judge "$JUDGE" "$@" || echo "failed: $*"; }
 
 run --method efficienteqa --limit "$LIMIT" --out "$OUT/syn-efficienteqa"
 run --method blind --limit "$LIMIT" --out "$OUT/syn-blind"

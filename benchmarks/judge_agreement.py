@@ -170,8 +170,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     judges = args.judge or [DEFAULT_JUDGE]
     modes = args.judge_mode or ["auto"]
     scratch = tempfile.TemporaryDirectory() if args.fresh else None
-    dump = []
-    finals = []
+    dump: list[dict[str, Any]] = []
+    finals: list[str] = []
     try:
         for spec in judges:
             for mode in dict.fromkeys(resolve_mode(m, spec) for m in modes):
