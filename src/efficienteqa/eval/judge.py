@@ -37,6 +37,8 @@ from efficienteqa.eval.judge_rules import MAX_SCORE, MIN_SCORE, rule_score
 from efficienteqa.models.base import ChatModel, Message, TokenLogprob
 from efficienteqa.vc.prompts import load_prompt
 
+PROMPTS = "efficienteqa.eval"  # the judge's templates: eval/prompts/*.txt
+
 # A grade that stays unreadable after the retry counts as wrong: a broken judge must never
 # raise the metric.
 DEFAULT_SCORE = MIN_SCORE
@@ -187,8 +189,8 @@ def render_prompt(question: str, reference: str, response: str, extra: Sequence[
     accepted = [e.strip() for e in extra if e and e.strip()]
     if accepted:
         answers += "\nAlso accepted: " + "; ".join(accepted)
-    return load_prompt(template).format(question=question.strip(), answers=answers,
-                                       response=response)
+    return load_prompt(template, PROMPTS).format(question=question.strip(), answers=answers,
+                                                 response=response)
 
 
 JUDGE_MODES = ("grade", "yes-prob")
@@ -196,7 +198,8 @@ JUDGE_MODES = ("grade", "yes-prob")
 
 def prompt_version(mode: str = "grade") -> str:
     """A hash of everything the judge is told, so a changed prompt does not reuse old grades."""
-    text = load_prompt("judge") + "\n" + REMINDER if mode == "grade" else load_prompt("judge_same")
+    text = (load_prompt("judge", PROMPTS) + "\n" + REMINDER if mode == "grade"
+            else load_prompt("judge_same", PROMPTS))
     return hashlib.sha256(f"{mode}\n{text}".encode()).hexdigest()[:16]
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import functools
 from importlib import resources
 
-HOME = "efficienteqa.vc"  # where a template named without its package lives (grouping, judge)
+HOME = "efficienteqa.vc"  # where a template named without its package lives (grouping)
 
 
 @functools.cache
