@@ -432,6 +432,12 @@ def test_yes_prob_from_logprobs():
     assert yes_prob_from_logprobs(None) == DEFAULT_P_YES
 
 
+@pytest.mark.parametrize("yes, no", [("Yes!", "no?"), ("ĠYes;", "Ġno!"), ("▁yes!", "▁No.")])
+def test_yes_prob_reads_yes_and_no_with_any_punctuation(yes, no):
+    p = yes_prob_from_logprobs([(yes, math.log(0.3)), (no, math.log(0.1))])
+    assert p == pytest.approx(0.75)
+
+
 def test_answer_and_confidence_on_separate_labelled_lines():
     # Qwen2.5-Coder-1.5B wrote this for a count question in an agent episode
     reply = ("answer: brown chair\nconfidence: 80\nanswer: dining room\nconfidence: 75\n"

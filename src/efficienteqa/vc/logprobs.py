@@ -46,8 +46,9 @@ def _positions(top: LogprobInput | None) -> list[list[tuple[str, float]]]:
 
 
 def _token_key(token: object) -> str:
-    """``" (B"``, ``"ĠB"``, ``"▁b."`` -> ``"B"``: tokenizer space marks, brackets, case dropped."""
-    return str(token).replace("Ġ", " ").replace("▁", " ").strip().strip("()[]{}.:,*\"'").upper()
+    """``" (B"``, ``"ĠB"``, ``"▁b."``, ``"Yes!"`` -> ``"B"``/``"YES"``: tokenizer space marks, brackets,
+    punctuation and case dropped."""
+    return str(token).replace("Ġ", " ").replace("▁", " ").strip().strip("()[]{}.:;,!?*\"'").upper()
 
 
 def _logaddexp(a: float, b: float) -> float:
