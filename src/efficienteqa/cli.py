@@ -54,6 +54,12 @@ NoEarlyStop = Annotated[bool, typer.Option("--no-early-stop", help="Explore to t
 TopK = Annotated[int | None, typer.Option("--top-k", help="Frames retrieved for the answer "
                                           "(the paper's K).", show_default=False)]
 MaxSteps = Annotated[int | None, typer.Option(help="Step budget (default int(sqrt(area)*3)).")]
+RefusalRetries = Annotated[int | None, typer.Option(
+    help="Re-plans within one step after the environment refuses a move (left out: the agent's "
+    "default; 0: a refused move spends the step, as in the paper's set-up).", show_default=False)]
+StopClearance = Annotated[float | None, typer.Option(
+    "--stop-clearance-m", help="Clearance (m) the planner wants where a move ends (left out: the "
+    "explorer's default; 0: stop where the 3 m cut falls, as in the paper's set-up).", show_default=False)]
 Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
 Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
@@ -101,6 +107,8 @@ def ask_command(
     no_early_stop: NoEarlyStop = False,
     top_k: TopK = None,
     max_steps: MaxSteps = None,
+    refusal_retries: RefusalRetries = None,
+    stop_clearance_m: StopClearance = None,
     explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
     vlm: Vlm = None,
@@ -223,6 +231,8 @@ def eval_command(
     no_early_stop: NoEarlyStop = False,
     top_k: TopK = None,
     max_steps: MaxSteps = None,
+    refusal_retries: RefusalRetries = None,
+    stop_clearance_m: StopClearance = None,
     seed: Seed = None,
     vlm: Vlm = None,
     temperature: Temperature = None,

@@ -30,6 +30,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "vlm": PAPER_VLM, "temperature": 1.0, "perception": "rgb", "relevancy": "blip2-itm",
         "grouping": "llm", "z_th": 3.0, "top_k": 5,
         "judge": PAPER_VLM, "judge_mode": "grade",
+        # the paper's stepping: a move ends where the 3 m cut falls, a refused move spends a step
+        "refusal_retries": 0, "stop_clearance_m": 0.0,
     },
 }
 
