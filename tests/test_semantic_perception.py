@@ -115,7 +115,7 @@ def test_directions_name_the_objects_near_each_point():
     out = describe_directions(make_frame(), prompts, FakeLabels(), min_pixels=10)
     assert out == {
         "A": "in the kitchen, 1.5 m away; a white lamp (on), two brown chairs.",
-        "B": "towards the hallway, 4.0 m away; a red sofa.",
+        "B": "towards the hallway, floor of the kitchen in view, 4.0 m away; a red sofa.",
     }
 
 
@@ -132,7 +132,7 @@ def test_a_direction_names_its_room_only_where_that_floor_is_seen():
     obs.depth_m[30:35], obs.instance[30:35] = 0.0, -1  # the hallway's floor is not seen
     out = describe_directions(obs, prompts, FakeLabels(), min_pixels=10)
     assert out == {"A": "in the kitchen, 1.5 m away; a white lamp (on), two brown chairs.",
-                   "B": "4.0 m away; a red sofa."}
+                   "B": "floor of the kitchen in view, 4.0 m away; a red sofa."}
 
 
 def test_noise_drops_everything_at_rate_one():
@@ -269,3 +269,30 @@ def test_an_object_names_its_room_only_when_that_floor_is_seen():
     d = describe_frame(obs, FakeLabels(), min_pixels=10)
     assert d.text.endswith("a red sofa on the left, 3.0 m.") and d.rooms_through_doorways == ()
     assert "a red sofa" in SemanticPerception(FakeLabels()).relevancy_text(obs).splitlines()
+
+
+def test_a_direction_names_every_room_whose_floor_its_part_of_the_image_shows():
+    # with a 3 m radius the part around A (in the kitchen) also holds the hallway's floor
+    out = describe_directions(make_frame(), [_prompt("A", (2.5, 1.0))], FakeLabels(),
+                              radius_m=3.0, min_pixels=10)
+    assert out["A"].startswith("in the kitchen, floor of the hallway in view, 1.5 m away; ")
+    obs = make_frame()
+    obs.depth_m[30:35], obs.instance[30:35] = 0.0, -1  # the hallway's floor is not seen
+    out = describe_directions(obs, [_prompt("A", (2.5, 1.0))], FakeLabels(), radius_m=3.0,
+                              min_pixels=10)
+    assert out["A"].startswith("in the kitchen, 1.5 m away; ") and "hallway" not in out["A"]
+
+
+@pytest.mark.parametrize("state, hallway_floor, lead", [
+    ("open", True, "; an open door to the hallway."),
+    ("open", False, "."),  # the hallway's floor is not in the frame: where it leads is not seen
+    ("closed", True, "."),
+])
+def test_an_open_door_near_a_point_says_where_it_leads(state, hallway_floor, lead):
+    obs = _frame_with_door()
+    if not hallway_floor:
+        obs.depth_m[30:35], obs.instance[30:35] = 0.0, -1
+    out = describe_directions(obs, [_prompt("A", (3.5, 1.8))], DoorLabels(state), radius_m=1.0,
+                              min_pixels=10)
+    assert f"a brown door ({state})" in out["A"] and out["A"].endswith(f"a red sofa{lead}")
+    assert ("door to" in out["A"]) == (lead != ".")

@@ -203,7 +203,10 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
 
     A pixel is near a point when it back-projects within ``radius_m`` (on the floor plane) of the
     point, or lies in a small pixel window around the point's pixel. An object is near when some
-    of its pixels are; the point's room is named only when enough of that room's floor is near.
+    of its pixels are; the point's room is named only when enough of that room's floor is near,
+    and so is every other room whose floor is near ("floor of the hallway in view"). An open
+    door near the point says where it leads ("an open door to the hallway") when that room's
+    floor is in the frame; a closed door says nothing of what lies behind it.
     """
     objects = visible_objects(obs, labels, min_pixels, noise)
     floor = floor_view(obs, labels)
@@ -214,6 +217,8 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
     half = max(2.0, WINDOW_FRACTION * w)
     min_near = max(1, scaled_min_pixels(h, w) // 5)
     robot_room = labels.room_at(obs.pose.x, obs.pose.y)
+    frame_rooms = floor.in_view(threshold)
+    camera_xy = (float(obs.cam_to_world[0, 3]), float(obs.cam_to_world[1, 3]))
     out = {}
     for p in prompts:
         px, py = float(p.xy[0]), float(p.xy[1])
@@ -227,15 +232,21 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
             if int(mask.sum()) >= min(min_near, o.pixels):
                 hits.append((float(np.median(planar[mask])), o.instance_id, o.label))
         hits.sort(key=lambda t: (t[0], t[1]))
+        here = floor.in_view(threshold, near)  # rooms whose floor this part shows, near first
         room = labels.room_at(px, py)
-        if room is not None and floor.pixels(near).get(room, 0) < threshold:
+        if room not in here:
             room = None  # that room's floor is not in view there
         where = "" if room is None else (f"in the {room}, " if room == robot_room
                                          else f"towards the {room}, ")
+        others = [r for r in here if r != room]
+        if others:
+            where += "floor of " + _and_list([f"the {r}" for r in others]) + " in view, "
         distance = math.hypot(px - obs.pose.x, py - obs.pose.y)
         seen = _group_phrases([label for _, _, label in hits], max_groups)
+        leads = _open_door_leads([label for _, _, label in hits], set(frame_rooms), camera_xy)
         out[p.letter] = (f"{where}{distance:.1f} m away; "
-                         + (", ".join(seen) if seen else "no objects seen there") + ".")
+                         + (", ".join(seen) if seen else "no objects seen there")
+                         + "".join(f"; an open door to the {r}" for r in leads) + ".")
     return out
 
 
@@ -285,6 +296,25 @@ def _where(label: ObjectLabel, in_view: set[str], robot_room: str | None,
     if room is not None and (room in in_view or room == robot_room):
         return f"in the {room}"
     return None
+
+
+def _and_list(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _open_door_leads(labels: list[ObjectLabel], in_view: set[str],
+                     camera_xy: tuple[float, float]) -> list[str]:
+    """Where the open doors among ``labels`` lead: the room beyond each (the side away from the
+    camera), when that room's floor is in the frame; a closed door leads nowhere in view."""
+    leads: list[str] = []
+    for label in labels:
+        sides = label.door
+        if sides is None or label.state != "open":
+            continue
+        near = sides.side(*camera_xy)
+        beyond = [r for r in sides.rooms if r is not None and r != near and r in in_view]
+        leads += [r for r in beyond if r not in leads]
+    return leads
 
 
 def _apply_noise(objects: list[VisibleObject], noise: NoiseConfig, obs: Observation
