@@ -57,6 +57,16 @@ WINDOW: tuple[float, float, float, float] | None = None  # --window: explored wi
 EXPLORED_DEPTH: float | None = None  # --explored-depth override
 STOP_CLEARANCE: float | None = None  # --stop-clearance override
 REFUSAL_RETRIES = module_retries  # --refusal-retries override
+EXPLORER_CONFIG: dict = {}  # --set FIELD=VALUE overrides of the explorer's config
+
+# Semantic scorers for steering: name -> factory(env, question, evidence distance, glimpsed).
+# "oracle" is the ground truth; others (model-free text scorers, model elicitations) register
+# here. A steering method is "frontier-only" or "sfe:SCORER" ("sfe" alone is "sfe:oracle").
+ScorerFactory = Callable[[SyntheticEnv, Question, EvidenceDistance, Callable[[np.ndarray], bool]],
+                         SemanticScorer]
+STEERING_SCORERS: dict[str, ScorerFactory] = {
+    "oracle": lambda env, q, distance_m, glimpsed: OracleScorer(distance_m, glimpsed),
+}
 
 
 def make_mapper(env: SyntheticEnv) -> Mapper:
@@ -98,11 +108,13 @@ NEAR_M = 2.0
 def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         scorer: SemanticScorer | None = None, seen: Callable[[np.ndarray], bool] | None = None,
         coverage: bool = False, distance_m: Callable[[tuple[float, float]], float] | None = None,
-        to_budget: bool = False) -> Episode:
+        to_budget: bool = False, question: str = "") -> Episode:
     """One episode of ``budget`` steps at most. It ends when ``seen`` first holds, unless
     ``to_budget`` (then it goes on, for the coverage at the budget)."""
     mapper = make_mapper(env)
-    extra = {} if STOP_CLEARANCE is None else {"stop_clearance_m": STOP_CLEARANCE}
+    extra = dict(EXPLORER_CONFIG)
+    if STOP_CLEARANCE is not None:
+        extra["stop_clearance_m"] = STOP_CLEARANCE
     module = ExploreModule(mapper, make_explorer(explorer, **extra), scorer, seed=seed)
     floor = truth_floor(env, mapper) if coverage else None
     obs, _ = env.reset()
@@ -117,7 +129,7 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
             if not to_budget:
                 break
         start = time.perf_counter()
-        out = module.step(obs, step)
+        out = module.step(obs, step, question)
         ep.step_ms.append(1e3 * (time.perf_counter() - start))
         if out.prompts:
             ep.asked += 1
@@ -202,7 +214,8 @@ def cmd_steering(args: argparse.Namespace) -> None:
     seeds = seed_set(args.seeds)
     rows: list[dict] = []
     flagged: list[dict] = []  # questions whose evidence has no view reachable from the start
-    methods = ("frontier-only", "sfe")
+    methods = tuple(dict.fromkeys(["frontier-only"] + [steering_method(m)
+                                                       for m in args.methods.split(",")]))
     for seed in seeds:
         if len(rows) >= args.questions:
             break
@@ -214,7 +227,7 @@ def cmd_steering(args: argparse.Namespace) -> None:
             for q in (asked[turn:] + asked[:turn])[:args.per_house]:
                 if len(rows) >= args.questions:
                     break
-                row = _steer(env, q, budget, seed, args.repeats, args.to_budget)
+                row = _steer(env, q, budget, seed, args.repeats, args.to_budget, methods)
                 if not row["reachable"]:
                     flagged.append(row)
                     print(f"{q.id} FLAGGED: no view of the evidence is reachable from the start; "
@@ -247,17 +260,19 @@ def cmd_steering(args: argparse.Namespace) -> None:
               f"{'budget' if args.to_budget else 'end'} {cover:.1%}, refused moves "
               f"{refused}/{moves} ({refused / max(taken, 1):.1%} of {taken} steps; "
               f"{lost / max(taken, 1):.1%} of steps lost)")
-    print(f"  oracle SFE needs {1 - means['sfe'] / means['frontier-only']:.0%} fewer steps than "
-          "frontier-only")
-    total = {k: sum(sum(r["sfe"][k]) for r in rows)
-             for k in ("steps", "asked", "points", "off_floor", "uninformed")}
-    print(f"  oracle SFE: {total['asked'] / max(total['steps'], 1):.0%} of steps offered lettered "
-          f"directions; {total['off_floor']}/{total['points']} prompted points off the navigable "
-          f"floor; {total['uninformed']} asked steps where no point led to the evidence")
     near = {m: np.mean([np.mean(r[m]["near"]) for r in rows]) for m in methods}
-    print(f"  steps until within {NEAR_M} m (path) of the evidence or seeing it: frontier-only "
-          f"{near['frontier-only']:.2f}, oracle SFE {near['sfe']:.2f} "
-          f"({1 - near['sfe'] / near['frontier-only']:.0%} fewer)")
+    for m in methods:
+        if m == "frontier-only":
+            continue
+        total = {k: sum(sum(r[m][k]) for r in rows)
+                 for k in ("steps", "asked", "points", "off_floor", "uninformed")}
+        print(f"  {m}: {1 - means[m] / means['frontier-only']:.0%} fewer steps than "
+              f"frontier-only; {total['asked'] / max(total['steps'], 1):.0%} of steps offered "
+              f"lettered directions; {total['off_floor']}/{total['points']} prompted points off "
+              f"the navigable floor; {total['uninformed']} asked steps where no point led to the "
+              f"evidence; steps until within {NEAR_M} m (path) of the evidence or seeing it "
+              f"{near[m]:.2f} against frontier-only {near['frontier-only']:.2f} "
+              f"({1 - near[m] / near['frontier-only']:.0%} fewer)")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "steering.json").write_text(json.dumps({"args": vars(args), "rows": rows,
@@ -271,8 +286,19 @@ def _steps(row: dict, method: str) -> np.ndarray:
                     float)
 
 
+def steering_method(name: str) -> str:
+    """"frontier-only" or "sfe:SCORER" ("sfe" is "sfe:oracle"); an unknown scorer is an error."""
+    if name == "frontier-only":
+        return name
+    explorer, _, scorer = name.partition(":")
+    if explorer != "sfe" or (scorer or "oracle") not in STEERING_SCORERS:
+        raise SystemExit(f"unknown steering method {name!r}: frontier-only or sfe:SCORER with "
+                         f"SCORER one of {', '.join(STEERING_SCORERS)}")
+    return f"sfe:{scorer or 'oracle'}"
+
+
 def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
-           to_budget: bool) -> dict:
+           to_budget: bool, methods: tuple[str, ...] = ("frontier-only", "sfe:oracle")) -> dict:
     """Each method's episodes over ``repeats`` explorer seeds (SFE samples frontiers)."""
     objects = [env.house.object(e) for e in q.evidence]
     centre = np.mean([[o.x, o.y] for o in objects], axis=0)
@@ -295,13 +321,17 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
 
     row: dict = {"id": q.id, "house": seed, "category": q.category, "oracle": q.oracle_steps,
                  "budget": budget, "reachable": distance_m.reachable}
-    for name, scorer in (("frontier-only", None), ("sfe", OracleScorer(distance_m, glimpsed))):
+    for name in methods:
+        scorer = (None if name == "frontier-only"
+                  else STEERING_SCORERS[name.partition(":")[2]](env, q, distance_m, glimpsed))
+        explorer = name.partition(":")[0]
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
                                                 "moves", "refused", "lost", "asked", "points",
                                                 "off_floor", "uninformed")}
         for r in range(repeats):
-            ep = run(env, name, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
-                     coverage=True, distance_m=distance_m, to_budget=to_budget)
+            ep = run(env, explorer, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
+                     coverage=True, distance_m=distance_m, to_budget=to_budget,
+                     question=q.question)
             got["first_seen"].append(ep.first_seen)
             # Seeing implies having got near enough.
             got["near"].append(ep.first_near or ep.first_seen or budget + 1)
@@ -331,6 +361,12 @@ def main() -> None:
     parser.add_argument("--to-budget", action=argparse.BooleanOptionalAction, default=True,
                         help="steering: run every episode to its budget (floor coverage at the "
                              "budget), recording when the evidence was first in view")
+    parser.add_argument("--methods", default="frontier-only,sfe:oracle",
+                        help="steering: comma-separated; frontier-only comes first, then "
+                             "sfe:SCORER with SCORER one of " + ", ".join(STEERING_SCORERS))
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                        help="override a field of the explorer's config (repeatable), e.g. "
+                             "--set backoff_m=1.0")
     parser.add_argument("--out", default="out/bench")
     parser.add_argument("--explored-depth", type=float, default=None,
                         help="metres along the optical axis within which floor counts as explored")
@@ -345,6 +381,9 @@ def main() -> None:
                         help="explored window as image fractions (default: the Mapper's)")
     args = parser.parse_args()
     global WINDOW, EXPLORED_DEPTH, STOP_CLEARANCE, REFUSAL_RETRIES
+    for item in args.set:
+        key, _, value = item.partition("=")
+        EXPLORER_CONFIG[key] = json.loads(value)
     WINDOW = tuple(args.window) if args.window else None
     EXPLORED_DEPTH = args.explored_depth
     STOP_CLEARANCE = args.stop_clearance
