@@ -33,6 +33,7 @@ from efficienteqa.explore.module import (
     SemanticScorer,
     move,
 )
+from efficienteqa.explore.prompting import PROMPT_CONFIGS
 from efficienteqa.explore.registry import make_explorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
@@ -70,8 +71,13 @@ class AgentConfig:
     # explorer's default; 0: stop where the path is cut).
     refusal_retries: int | None = None
     stop_clearance_m: float | None = None
+    # Where prompt points may lie: "default" (from 1 m, asks at more steps) or "paper"
+    # (SPEC 3.3: 2-10 m); see explore.prompting.PROMPT_CONFIGS.
+    prompts: str = "default"
 
     def __post_init__(self) -> None:
+        if self.prompts not in PROMPT_CONFIGS:
+            raise ValueError(f"prompts must be one of {tuple(PROMPT_CONFIGS)}, not {self.prompts!r}")
         if self.answer_at not in ANSWER_AT:
             raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
 
@@ -173,7 +179,7 @@ class Agent:
         explorer = (make_explorer(cfg.explorer) if cfg.stop_clearance_m is None
                     else make_explorer(cfg.explorer, stop_clearance_m=cfg.stop_clearance_m))
         explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)), explorer,
-                                self.scorer, seed=cfg.seed)
+                                self.scorer, seed=cfg.seed, prompts=PROMPT_CONFIGS[cfg.prompts])
         retries = REFUSAL_RETRIES if cfg.refusal_retries is None else cfg.refusal_retries
         stopper = RelevancyStopper(cfg.stop)
         top: TopK[str | np.ndarray] = TopK(cfg.top_k)
