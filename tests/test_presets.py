@@ -15,7 +15,8 @@ NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "t
                  "max_steps": None, "seed": None, "explorer": None, "vlm": None,
                  "temperature": None, "perception": None, "relevancy": None, "grouping": None,
                  "cache": None, "dataset": None, "limit": None, "env": None, "judge": None,
-                 "judge_mode": None, "refusal_retries": None, "stop_clearance_m": None}
+                 "judge_mode": None, "refusal_retries": None, "stop_clearance_m": None,
+                 "prompts": None}
 
 
 def test_options_left_out_take_the_dataclass_defaults():
@@ -26,11 +27,11 @@ def test_options_left_out_take_the_dataclass_defaults():
 def test_given_options_reach_the_dataclasses():
     o = {**NOTHING_GIVEN, "z_th": 1.5, "min_stop_step": 4, "top_k": 3, "max_steps": 12, "seed": 7,
          "explorer": "random", "relevancy": "overlap", "cache": False, "temperature": 0.5,
-         "refusal_retries": 0, "stop_clearance_m": 0.3}
+         "refusal_retries": 0, "stop_clearance_m": 0.3, "prompts": "paper"}
     config = build_config(o)
     assert config.stop == StopConfig(z_th=1.5, min_step=4)
     assert (config.top_k, config.max_steps, config.seed, config.explorer) == (3, 12, 7, "random")
-    assert (config.refusal_retries, config.stop_clearance_m) == (0, 0.3)
+    assert (config.refusal_retries, config.stop_clearance_m, config.prompts) == (0, 0.3, "paper")
     stack = build_stack(o)
     assert (stack.relevancy, stack.cache, stack.temperature) == ("overlap", False, 0.5)
     assert stack.vlm == Stack().vlm
@@ -50,10 +51,15 @@ def test_a_preset_fills_only_what_was_left_out():
     assert o["seed"] is None  # the preset does not name it: the dataclass default applies
     assert build_stack(o).perception == "rgb"
     config = build_config(o)  # the paper's stepping: no re-plans, no clearance at a move's end
-    assert (config.refusal_retries, config.stop_clearance_m) == (0, 0.0)
+    assert (config.refusal_retries, config.stop_clearance_m, config.prompts) == (0, 0.0, "paper")
     assert build_config(NOTHING_GIVEN).refusal_retries is None  # the default re-plans
 
 
 def test_an_unknown_preset_is_one_clear_error():
     with pytest.raises(EfficientEQAError, match="unknown preset"):
         apply_preset("papr", NOTHING_GIVEN)
+
+
+def test_a_value_the_agent_refuses_is_one_clear_error():
+    with pytest.raises(EfficientEQAError, match="prompts must be one of"):
+        build_config({**NOTHING_GIVEN, "prompts": "bogus"})

@@ -32,6 +32,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "judge": PAPER_VLM, "judge_mode": "grade",
         # the paper's stepping: a move ends where the 3 m cut falls, a refused move spends a step
         "refusal_retries": 0, "stop_clearance_m": 0.0,
+        # SPEC 3.3's prompt points, 2-10 m away and 1 m apart
+        "prompts": "paper",
     },
 }
 
@@ -72,4 +74,7 @@ def build_config(options: Mapping[str, Any]) -> AgentConfig:
     if options.get("no_early_stop"):
         stop = replace(stop, enabled=False)
     agent_fields = [f.name for f in fields(AgentConfig) if f.name != "stop"]
-    return AgentConfig(stop=stop, **given(options, agent_fields))
+    try:
+        return AgentConfig(stop=stop, **given(options, agent_fields))
+    except ValueError as exc:  # a value the dataclass refuses, e.g. --prompts bogus
+        raise EfficientEQAError(str(exc), fix="see efficienteqa ask --help") from None
