@@ -22,7 +22,7 @@ import json
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +35,7 @@ from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.module import REFUSAL_RETRIES as module_retries
 from efficienteqa.explore.module import ExploreModule, SemanticScorer, move
 from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer, evidence_distance_field
+from efficienteqa.explore.prompting import PAPER_PROMPTS, PromptConfig
 from efficienteqa.explore.registry import make_explorer
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.scenes import synthetic_questions
@@ -58,6 +59,7 @@ EXPLORED_DEPTH: float | None = None  # --explored-depth override
 STOP_CLEARANCE: float | None = None  # --stop-clearance override
 REFUSAL_RETRIES = module_retries  # --refusal-retries override
 EXPLORER_CONFIG: dict = {}  # --set FIELD=VALUE overrides of the explorer's config
+PROMPTS = PromptConfig()  # --prompt FIELD=VALUE overrides; --prompt paper: SPEC 3.3's
 
 # Semantic scorers for steering: name -> factory(env, question, evidence distance, glimpsed).
 # "oracle" is the ground truth; others (model-free text scorers, model elicitations) register
@@ -115,7 +117,8 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
     extra = dict(EXPLORER_CONFIG)
     if STOP_CLEARANCE is not None:
         extra["stop_clearance_m"] = STOP_CLEARANCE
-    module = ExploreModule(mapper, make_explorer(explorer, **extra), scorer, seed=seed)
+    module = ExploreModule(mapper, make_explorer(explorer, **extra), scorer, seed=seed,
+                           prompts=PROMPTS)
     floor = truth_floor(env, mapper) if coverage else None
     obs, _ = env.reset()
     ep = Episode()
@@ -367,6 +370,9 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                         help="override a field of the explorer's config (repeatable), e.g. "
                              "--set backoff_m=1.0")
+    parser.add_argument("--prompt", action="append", default=[], metavar="FIELD=VALUE",
+                        help="override a field of the prompt points' PromptConfig (repeatable); "
+                             "'--prompt paper' starts from SPEC 3.3's (2-10 m, 1 m apart)")
     parser.add_argument("--out", default="out/bench")
     parser.add_argument("--explored-depth", type=float, default=None,
                         help="metres along the optical axis within which floor counts as explored")
@@ -380,7 +386,15 @@ def main() -> None:
                         metavar=("U0", "U1", "V0", "V1"),
                         help="explored window as image fractions (default: the Mapper's)")
     args = parser.parse_args()
-    global WINDOW, EXPLORED_DEPTH, STOP_CLEARANCE, REFUSAL_RETRIES
+    global WINDOW, EXPLORED_DEPTH, STOP_CLEARANCE, REFUSAL_RETRIES, PROMPTS
+    prompt: dict = {}
+    for item in args.prompt:
+        if item == "paper":
+            PROMPTS = PAPER_PROMPTS
+            continue
+        key, _, value = item.partition("=")
+        prompt[key] = json.loads(value)
+    PROMPTS = replace(PROMPTS, **prompt)
     for item in args.set:
         key, _, value = item.partition("=")
         EXPLORER_CONFIG[key] = json.loads(value)

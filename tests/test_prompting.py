@@ -7,7 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from efficienteqa.explore.prompting import candidate_points, project_floor_points
+from efficienteqa.explore.prompting import (
+    PAPER_PROMPTS,
+    PROMPT_CONFIGS,
+    PromptConfig,
+    candidate_points,
+    project_floor_points,
+    prompt_points,
+)
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.navgrid import OccupancyGrid
@@ -136,3 +143,31 @@ def test_unexplored_candidates_are_preferred():
     # With everything explored the usual candidates come back.
     state.explored = free.copy()
     assert len(_candidates(state)) >= 2
+
+
+def test_default_prompts_ask_where_no_point_is_2_m_away():
+    """A small room (no floor 2 m from the robot): SPEC 3.3's 2-10 m finds no point to ask
+    about; the default PromptConfig asks about points from 1 m, 0.75 m apart."""
+    free = np.zeros(SPEC.shape, dtype=bool)
+    (i0, j0), (i1, j1) = (SPEC.world_to_cell((ROBOT.x + dx, ROBOT.y + dy))
+                          for dx, dy in ((-0.5, -1.0), (1.6, 1.0)))
+    free[i0:i1 + 1, j0:j1 + 1] = True  # rows along y, columns along x
+    state = _state(free)
+    args = (state, camera_to_world(ROBOT, CAMERA), CAMERA.intrinsics,
+            (CAMERA.width, CAMERA.height), 0)
+    assert prompt_points(*args, PAPER_PROMPTS) == []
+    points = prompt_points(*args, PromptConfig())
+    assert len(points) >= 2
+    robot = np.array(state.robot_xy)
+    for p in points:
+        assert 1.0 <= np.linalg.norm(np.array(p.xy) - robot) < 2.0
+    for a in points:
+        for b in points:
+            if a is not b:
+                assert np.linalg.norm(np.array(a.xy) - np.array(b.xy)) >= 0.75
+
+
+def test_the_paper_prompts_are_spec_3_3():
+    paper = PAPER_PROMPTS
+    assert (paper.min_m, paper.max_m, paper.merge_m, paper.n) == (2.0, 10.0, 1.0, 3)
+    assert PROMPT_CONFIGS["paper"] is PAPER_PROMPTS and PROMPT_CONFIGS["default"] == PromptConfig()

@@ -60,6 +60,9 @@ RefusalRetries = Annotated[int | None, typer.Option(
 StopClearance = Annotated[float | None, typer.Option(
     "--stop-clearance-m", help="Clearance (m) the planner wants where a move ends (left out: the "
     "explorer's default; 0: stop where the 3 m cut falls, as in the paper's set-up).", show_default=False)]
+Prompts = Annotated[str | None, typer.Option(
+    help="Where lettered prompt points may lie: default (from 1 m away, so more steps ask) or "
+    "paper (2-10 m, SPEC 3.3).", show_default=False)]
 Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
 Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
@@ -109,6 +112,7 @@ def ask_command(
     max_steps: MaxSteps = None,
     refusal_retries: RefusalRetries = None,
     stop_clearance_m: StopClearance = None,
+    prompts: Prompts = None,
     explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
     vlm: Vlm = None,
@@ -233,6 +237,7 @@ def eval_command(
     max_steps: MaxSteps = None,
     refusal_retries: RefusalRetries = None,
     stop_clearance_m: StopClearance = None,
+    prompts: Prompts = None,
     seed: Seed = None,
     vlm: Vlm = None,
     temperature: Temperature = None,

@@ -15,7 +15,7 @@ import numpy as np
 
 from efficienteqa.envs.base import Environment
 from efficienteqa.explore.base import Decision, Explorer
-from efficienteqa.explore.prompting import candidate_points
+from efficienteqa.explore.prompting import PromptConfig, prompt_points
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.state import MapState
@@ -57,8 +57,10 @@ class ExploreModule:
     (the frontier-only and random references)."""
 
     def __init__(self, mapper: Mapper, explorer: Explorer, scorer: SemanticScorer | None = None,
-                 values: SemanticValueMap | None = None, seed: int = 0) -> None:
+                 values: SemanticValueMap | None = None, seed: int = 0,
+                 prompts: PromptConfig | None = None) -> None:
         self.mapper, self.explorer, self.scorer = mapper, explorer, scorer
+        self.prompt_config = prompts or PromptConfig()
         self.values = values if values is not None else SemanticValueMap(mapper.spec)
         self.seed = seed
         explorer.reset(seed)
@@ -70,8 +72,8 @@ class ExploreModule:
         gsv = score = None
         if self.scorer is not None and obs.invalid_fraction < 0.5:
             h, w = obs.depth_m.shape
-            prompts = candidate_points(state, obs.cam_to_world, obs.intrinsics, (w, h),
-                                       np.random.default_rng([self.seed, step]))
+            prompts = prompt_points(state, obs.cam_to_world, obs.intrinsics, (w, h),
+                                    np.random.default_rng([self.seed, step]), self.prompt_config)
             if prompts:
                 score = self.scorer.score(obs, prompts, question)
                 letters = [p.letter for p in prompts]
