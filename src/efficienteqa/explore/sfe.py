@@ -21,7 +21,7 @@ from efficienteqa.explore.frontiers import (
     frontier_weights,
     frontiers_from_cells,
 )
-from efficienteqa.geometry import Pose2D
+from efficienteqa.geometry import Pose2D, wrap_angle
 from efficienteqa.mapping.navgrid import OccupancyGrid, path_length, truncate_path
 from efficienteqa.mapping.state import MapState
 
@@ -56,6 +56,38 @@ class SFEConfig:
     # houses 0-9); 0.45 m left 1.3%, mostly objects the map had not seen.
     stop_clearance_m: float = 0.45
     settle_m: float = 0.25  # below reached_m: a settled end still reaches its target
+    # Beyond SPEC 3.2 (SPEC 8). The distance term d of the weight is the planned path length
+    # to the standing point (False: the straight line to the frontier, as SPEC 3.2): a room
+    # behind a wall is not near.
+    path_distance: bool = False
+    # Stand backoff_m of planned path before the frontier (on the way to it) instead of
+    # backoff_m behind it against its normal: a frontier seen through a doorway at an angle has
+    # a sideways normal, and the point behind it lies beside the doorway, facing the wall.
+    stand_on_path: bool = False
+    # When no frontier has a reachable cell within max_stand_shift_m of its standing point
+    # (a sliver of floor seen through a doorway), head for the reachable cell nearest it,
+    # however far, instead of ending the episode: going closer maps the way in.
+    approach_unreachable: bool = False
+    # Where a move ends, turn to the view wedge (the explored window: +-view_half_deg out to
+    # view_range_m) with the most unexplored cells in sight, unless facing the frontier sees
+    # at least view_keep_share of that (False: face the frontier, as SPEC 3.2).
+    view_gain: bool = False
+    view_range_m: float = 5.0
+    view_half_deg: float = 40.0
+    view_keep_share: float = 0.8
+    # "sample": draw a frontier in proportion to its weight (SPEC 3.2); "best": the heaviest.
+    choice: str = "sample"
+    # A decision that would take the same view again (stay within reached_m, turn less than
+    # idle_turn_deg) counts as a look at its frontier and is made again (False: such a step
+    # is spent, as SPEC 3.2's loop would).
+    skip_idle: bool = False
+    idle_turn_deg: float = 30.0
+    idle_retries: int = 4
+    # Frontiers of fewer cells than this (0: off) get their weight x small_frontier_factor:
+    # mostly floor hidden behind furniture, rarely the way into a room; still chosen when
+    # nothing bigger is reachable.
+    small_frontier_cells: int = 0
+    small_frontier_factor: float = 1e-3
 
 
 @dataclass
@@ -81,22 +113,39 @@ class FrontierExplorer:
 
     def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
                step: int) -> Decision:
-        """The next pose (see the module docstring); ``done`` when no frontier is reachable."""
+        """The next pose (see the module docstring); ``done`` when no frontier is reachable.
+
+        With ``skip_idle``, a decision that would take the same view again (the robot stays
+        within ``reached_m`` and turns less than ``idle_turn_deg``) counts as a look at its
+        frontier and the choice is made again, at most ``idle_retries`` times."""
+        decision = self._decide(state, pose, values, step)
+        cfg = self.config
+        for _ in range(cfg.idle_retries if cfg.skip_idle else 0):
+            if decision.done or decision.frontier is None or not idle(decision.pose, pose,
+                                                                      cfg.reached_m,
+                                                                      cfg.idle_turn_deg):
+                break
+            self._record_look(decision.frontier.xy)
+            self._target = None
+            decision = self._decide(state, pose, values, step)
+        return decision
+
+    def _decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
+                step: int) -> Decision:
         cfg = self.config
         cells = frontier_cells(state.island, state.unexplored, cfg.frontier)
         frontiers = frontiers_from_cells(state, cells, cfg.frontier)
-        weights = frontier_weights(state, frontiers, pose, values if cfg.use_values else None,
-                                   step, cfg.frontier)
-        stay = Decision(pose, pose.xy[None, :].copy(), frontiers=frontiers, weights=weights,
-                        done=True)
+        values = values if cfg.use_values else None
+        stay = Decision(pose, pose.xy[None, :].copy(), frontiers=frontiers, done=True)
         if not frontiers:
             self._target = None
+            stay.weights = np.zeros(0)
             stay.reason = "no frontier"
             return stay
         looks = self._looks(np.array([f.xy for f in frontiers]))
         # Looked at once from the back-off point: one more look, from the frontier itself.
         backoff = np.where(looks == 0, cfg.backoff_m, 0.0)
-        stay.weights = weights = np.where(looks == 0, weights, weights * cfg.looked_factor)
+        stay.weights = weights = self._weights(state, frontiers, pose, values, step, looks)
         grid = state.island_grid
         start = (pose.x, pose.y)
 
@@ -112,17 +161,31 @@ class FrontierExplorer:
             # back as a blocked move and is mapped).
             # Fresh frontiers first at the planning radius; then, at the tight radius, fresh
             # ones and second looks (which would otherwise be planned back to the same spot).
-            tiers = ((cfg.robot_radius_m, looks == 0),
-                     (cfg.tight_radius_m, looks < cfg.max_looks))
-            for wanted, allowed in tiers:
+            # With approach_unreachable, last: any of those, from the reachable cell nearest
+            # its back-off point however far that is.
+            tiers = [(cfg.robot_radius_m, looks == 0, cfg.max_stand_shift_m),
+                     (cfg.tight_radius_m, looks < cfg.max_looks, cfg.max_stand_shift_m)]
+            if cfg.approach_unreachable:
+                tiers.append((cfg.tight_radius_m, looks < cfg.max_looks, math.inf))
+            for wanted, allowed, shift_m in tiers:
                 reachable, radius = self._reachable(grid, start, wanted)
                 if reachable is None:
                     continue
-                stands, ok = self._standing_points(state, frontiers, reachable, backoff)
+                stands, ok = self._standing_points(state, frontiers, reachable, backoff,
+                                                   shift_m)
                 ok &= allowed
                 if ok.any():
-                    k = sample_index(self._rng, np.where(ok, weights, 0.0), ok)
-                    self._target = _Target(frontiers[k], stands[k], radius)
+                    if cfg.path_distance:
+                        dist = grid.distance_field(start, radius, cfg.snap_m)
+                        stay.weights = weights = self._weights(
+                            state, frontiers, pose, values, step, looks,
+                            path_lengths(state, dist, stands, pose))
+                    k = self._choose(np.where(ok, weights, 0.0), ok)
+                    stand = stands[k]
+                    if cfg.stand_on_path and backoff[k] > 0:
+                        stand = self._approach(state, grid, start, reachable, radius,
+                                               np.asarray(frontiers[k].xy), backoff[k], stand)
+                    self._target = _Target(frontiers[k], stand, radius)
                     break
             else:
                 stay.reason = "no reachable frontier"
@@ -141,6 +204,9 @@ class FrontierExplorer:
                       cfg.stop_clearance_m, cfg.settle_m, cfg.max_step_m, cfg.snap_m)
         yaw = self._facing(path, np.asarray(target.frontier.xy), pose.yaw)
         end = path[-1]
+        if cfg.view_gain:
+            yaw = view_yaw(state, end, yaw, cfg.view_range_m, cfg.view_half_deg,
+                           cfg.view_keep_share)
         return Decision(Pose2D(float(end[0]), float(end[1]), yaw), path,
                         target_xy=goal, frontier=target.frontier, frontiers=frontiers,
                         weights=weights, reason=reason)
@@ -157,6 +223,40 @@ class FrontierExplorer:
         return (reachable if reachable.any() else None), radius_m
 
     # ----- helpers -------------------------------------------------------------------------
+    def _weights(self, state: MapState, frontiers: list[Frontier], pose: Pose2D,
+                 values: np.ndarray | None, step: int, looks: np.ndarray,
+                 distance_m: np.ndarray | None = None) -> np.ndarray:
+        """SPEC 3.2 weights (K,), x ``looked_factor`` for frontiers already looked at."""
+        cfg = self.config
+        weights = frontier_weights(state, frontiers, pose, values, step, cfg.frontier,
+                                   distance_m)
+        if cfg.small_frontier_cells:
+            small = np.array([f.size for f in frontiers]) < cfg.small_frontier_cells
+            weights = np.where(small, weights * cfg.small_frontier_factor, weights)
+        return np.where(looks == 0, weights, weights * cfg.looked_factor)
+
+    def _approach(self, state: MapState, grid: OccupancyGrid, start: tuple[float, float],
+                  reachable: np.ndarray, radius_m: float, frontier_xy: np.ndarray,
+                  backoff_m: float, fallback: np.ndarray) -> np.ndarray:
+        """The point ``backoff_m`` metres of path before the reachable cell nearest the
+        frontier point, on the planned path to it: through a doorway, in the doorway's line
+        and in sight of the frontier. ``fallback`` when there is no such path."""
+        cells = np.argwhere(reachable)
+        xy = state.spec.cell_to_world(cells)
+        goal = xy[np.argmin(np.linalg.norm(xy - frontier_xy, axis=1))]
+        path = grid.shortest_path(start, (float(goal[0]), float(goal[1])), radius_m,
+                                  self.config.snap_m)
+        if path is None:
+            return fallback
+        return truncate_path(path[::-1], backoff_m)
+
+    def _choose(self, weights: np.ndarray, ok: np.ndarray) -> int:
+        """The frontier to head for: sampled in proportion to ``weights`` (SPEC 3.2), or the
+        heaviest one with ``choice`` "best"."""
+        if self.config.choice == "best":
+            return int(np.argmax(np.where(ok, weights, -np.inf)))
+        return sample_index(self._rng, weights, ok)
+
     def _keep_target(self, state: MapState, cells: np.ndarray, reachable: np.ndarray,
                      pose: Pose2D) -> bool:
         """Whether the committed target is still pending, alive and reachable."""
@@ -190,15 +290,15 @@ class FrontierExplorer:
         self._looked.append([xy, 1])
 
     def _standing_points(self, state: MapState, frontiers: list[Frontier],
-                         reachable: np.ndarray, backoff_m: np.ndarray
+                         reachable: np.ndarray, backoff_m: np.ndarray, max_shift_m: float
                          ) -> tuple[np.ndarray, np.ndarray]:
         """Standing points (K, 2) m, ``backoff_m`` (K,) behind each frontier against its normal.
 
         Where that point is not a reachable cell (outside the house past an oblique doorway,
         inside furniture), shorter back-offs are tried (2/3, 1/3, 0 of it); failing those, the
         reachable cell nearest the full back-off point, then the one nearest the frontier
-        point. ok (K,) is False where no reachable cell lies within ``max_stand_shift_m``."""
-        spec, cfg = state.spec, self.config
+        point. ok (K,) is False where no reachable cell lies within ``max_shift_m``."""
+        spec = state.spec
         points = np.array([f.xy for f in frontiers])
         normals = np.array([f.normal for f in frontiers])
 
@@ -215,11 +315,11 @@ class FrontierExplorer:
         j = np.clip(j, 0, spec.shape[1] - 1)
         _, (ni, nj) = ndimage.distance_transform_edt(~reachable, return_indices=True)
         stands = spec.cell_to_world(np.stack([ni[i, j], nj[i, j]], axis=-1))
-        ok = np.linalg.norm(stands - full, axis=1) <= cfg.max_stand_shift_m
+        ok = np.linalg.norm(stands - full, axis=1) <= max_shift_m
         # Next: the reachable cell nearest the frontier point itself (an oblique doorway edge).
         fi, fj = (np.clip(a, 0, n - 1) for a, n in zip(spec.world_to_cell(points), spec.shape))
         near = spec.cell_to_world(np.stack([ni[fi, fj], nj[fi, fj]], axis=-1))
-        use = ~ok & (np.linalg.norm(near - points, axis=1) <= cfg.max_stand_shift_m)
+        use = ~ok & (np.linalg.norm(near - points, axis=1) <= max_shift_m)
         stands[use], ok = near[use], ok | use
         for fraction in (0.0, 1 / 3, 2 / 3, 1.0):  # the longest back-off that works wins
             xy = points - fraction * backoff_m[:, None] * normals
@@ -237,6 +337,59 @@ class FrontierExplorer:
         seg = np.diff(path, axis=0)
         seg = seg[np.linalg.norm(seg, axis=1) > 1e-9]
         return math.atan2(seg[-1][1], seg[-1][0]) if len(seg) else yaw
+
+
+def ray_gain(state: MapState, xy: np.ndarray, range_m: float, n_rays: int = 360
+             ) -> np.ndarray:
+    """Unexplored cells (n_rays,) a ray from ``xy`` (m) passes, every cell size out to
+    ``range_m``, before its first occupied cell; ray k points at yaw 2 pi k / n_rays."""
+    spec = state.spec
+    angles = 2 * np.pi * np.arange(n_rays) / n_rays
+    steps = np.arange(1, int(range_m / spec.resolution_m) + 1) * spec.resolution_m
+    pts = np.asarray(xy, float)[None, None, :] + steps[None, :, None] * np.stack(
+        [np.cos(angles), np.sin(angles)], axis=-1)[:, None, :]
+    i, j = spec.world_to_cell(pts)
+    inside = spec.contains((i, j))
+    i, j = np.clip(i, 0, spec.shape[0] - 1), np.clip(j, 0, spec.shape[1] - 1)
+    open_ = np.cumprod(inside & ~state.occupied[i, j], axis=1).astype(bool)
+    return (open_ & state.unexplored[i, j]).sum(axis=1)
+
+
+def view_yaw(state: MapState, xy: np.ndarray, facing: float, range_m: float, half_deg: float,
+             keep_share: float) -> float:
+    """The yaw (rad) whose view wedge (+-``half_deg``, ``range_m``) holds the most unexplored
+    cells in sight from ``xy``; ``facing`` unless that one holds less than ``keep_share`` of
+    the best."""
+    gain = ray_gain(state, xy, range_m).astype(float)
+    n = len(gain)
+    half = int(round(half_deg * n / 360))
+    wedge = np.sum([np.roll(gain, k) for k in range(-half, half + 1)], axis=0)
+    k_face = int(round(facing * n / (2 * np.pi))) % n
+    best = int(np.argmax(wedge))
+    if wedge[best] <= 0 or wedge[k_face] >= keep_share * wedge[best]:
+        return facing
+    return float(wrap_angle(2 * np.pi * best / n))
+
+
+def idle(new: Pose2D, pose: Pose2D, within_m: float, turn_deg: float) -> bool:
+    """Whether ``new`` is within ``within_m`` metres of ``pose`` and turned less than
+    ``turn_deg`` degrees from it (wrapped): the same view again."""
+    turn = abs(float(wrap_angle(new.yaw - pose.yaw)))
+    return bool(np.hypot(new.x - pose.x, new.y - pose.y) <= within_m
+                and turn < math.radians(turn_deg))
+
+
+def path_lengths(state: MapState, dist: np.ndarray, stands: np.ndarray, pose: Pose2D
+                 ) -> np.ndarray:
+    """Path length (m) from the robot to each standing point (K, 2) on the distance field
+    ``dist`` (m, on ``state.spec``); the straight line where a point has no finite one."""
+    i, j = state.spec.world_to_cell(stands)
+    inside = state.spec.contains((i, j))
+    out = np.linalg.norm(stands - pose.xy, axis=1)
+    d = dist[np.clip(i, 0, dist.shape[0] - 1), np.clip(j, 0, dist.shape[1] - 1)]
+    use = inside & np.isfinite(d)
+    out[use] = d[use]
+    return out
 
 
 def sample_index(rng: np.random.Generator, weights: np.ndarray,

@@ -1,0 +1,153 @@
+"""Exploration efficiency options of the frontier explorer (issue 15 part 2, SPEC 8)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from efficienteqa.explore.frontiers import FrontierConfig
+from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig, idle, ray_gain, view_yaw
+from efficienteqa.geometry import Pose2D
+from test_sfe import corridor, make_state
+
+
+def test_idle_is_the_same_view_again():
+    pose = Pose2D(1.0, 1.0, math.pi - 0.1)
+    assert idle(Pose2D(1.1, 1.1, -math.pi + 0.1), pose, 0.3, 30.0)  # wrapped: 11 deg
+    assert not idle(Pose2D(1.1, 1.1, 0.0), pose, 0.3, 30.0)  # turned round
+    assert not idle(Pose2D(1.5, 1.0, pose.yaw), pose, 0.3, 30.0)  # moved
+
+
+def one_end() -> tuple:
+    """The corridor with only its +x end unexplored; the robot on that frontier's standing
+    point, facing it: the SPEC 3.2 choice is to stay and look again."""
+    state = corridor(slice(0, 110))
+    explorer = FrontierExplorer(SFEConfig(use_values=False))
+    explorer.reset(0)
+    d = explorer.decide(state, Pose2D(6.0, 1.0, 0.0), None, 1)
+    stand = Pose2D(d.target_xy[0], d.target_xy[1], 0.0)
+    return make_state(state.free, state.explored, stand.xy), stand
+
+
+def test_skip_idle_goes_up_close_instead_of_taking_the_same_view():
+    state, pose = one_end()
+    paper = FrontierExplorer(SFEConfig(use_values=False))
+    paper.reset(0)
+    d = paper.decide(state, pose, None, 2)
+    assert idle(d.pose, pose, 0.3, 30.0)
+    skip = FrontierExplorer(SFEConfig(use_values=False, skip_idle=True))
+    skip.reset(0)
+    d = skip.decide(state, pose, None, 2)
+    assert not d.done and d.pose.x - pose.x == pytest.approx(1.5, abs=0.15)
+
+
+def room_behind_wall() -> tuple:
+    """A 10 x 6 m floor split by a wall at y = 3 m with a door at its +x end; the robot at
+    (2, 1.5). Unexplored: the -x part of the room over the wall (its frontier 3 m away in a
+    straight line, 14 m by path) and the +x part of the robot's room (4 m either way)."""
+    free = np.zeros((60, 100), dtype=bool)
+    free[1:-1, 1:-1] = True
+    free[29:31, :] = False  # the wall
+    free[29:31, 88:98] = True  # the door
+    explored = np.ones_like(free)
+    explored[31:, :30] = False
+    explored[:29, 60:] = False
+    return make_state(free, explored, (2.0, 1.5)), Pose2D(2.0, 1.5, 0.0)
+
+
+def test_path_distance_prefers_the_frontier_near_by_path():
+    state, pose = room_behind_wall()
+    over_the_wall = {}
+    for path_distance in (False, True):
+        explorer = FrontierExplorer(SFEConfig(
+            use_values=False, path_distance=path_distance, choice="best",
+            frontier=FrontierConfig(distance_scale_m=3.0)))
+        explorer.reset(0)
+        over_the_wall[path_distance] = explorer.decide(state, pose, None, 1).frontier.xy[1] > 3
+    assert over_the_wall == {False: True, True: False}
+
+
+def test_small_frontiers_weigh_less_but_are_still_chosen():
+    free = np.zeros((40, 100), dtype=bool)
+    free[1:-1, 1:-1] = True
+    explored = np.ones_like(free)
+    explored[18:20, 20:24] = False  # a 0.2 x 0.4 m hole 2 m away: one small frontier
+    explored[1:-1, 80:] = False  # the way on: the far end, 4 m away
+    state = make_state(free, explored, (4.0, 2.0))
+    pose = Pose2D(4.0, 2.0, math.pi)
+    weights = {}
+    for cells in (0, 10):
+        explorer = FrontierExplorer(SFEConfig(use_values=False, small_frontier_cells=cells))
+        explorer.reset(0)
+        d = explorer.decide(state, pose, None, 1)
+        weights[cells] = (d.weights, np.array([f.size for f in d.frontiers]))
+    (plain, sizes), (small, _) = weights[0], weights[10]
+    assert (sizes < 10).any() and (sizes >= 10).any()
+    assert small == pytest.approx(np.where(sizes < 10, plain * 1e-3, plain))
+    explored[1:-1, 80:] = True  # only the hole is left: still chosen
+    explorer = FrontierExplorer(SFEConfig(use_values=False, small_frontier_cells=10))
+    explorer.reset(0)
+    assert not explorer.decide(make_state(free, explored, (4.0, 2.0)), pose, None, 1).done
+
+
+def doorway() -> tuple:
+    """Two 10 x 3 m rooms, a wall at y = 3 m with a 1 m door at x = 4-5 m; the robot at
+    (8, 1.5) in the lower room. Of the upper room only x > 4 m is explored: its frontier lies
+    just past the door, its normal along -x, so SPEC 3.2's back-off point is beside the door in
+    the upper room, out of the doorway's line."""
+    free = np.zeros((62, 100), dtype=bool)
+    free[1:-1, 1:-1] = True
+    free[30:32, :] = False
+    free[30:32, 40:50] = True
+    explored = np.ones_like(free)
+    explored[32:, :40] = False
+    return make_state(free, explored, (8.0, 1.5)), Pose2D(8.0, 1.5, 0.0)
+
+
+def test_stand_on_path_stands_in_the_doorway_line_before_the_frontier():
+    state, pose = doorway()
+    targets = {}
+    for on_path in (False, True):
+        explorer = FrontierExplorer(SFEConfig(use_values=False, stand_on_path=on_path))
+        explorer.reset(0)
+        d = explorer.decide(state, pose, None, 1)
+        targets[on_path] = (np.array(d.target_xy), np.array(d.frontier.xy))
+    paper, frontier = targets[False]
+    assert paper == pytest.approx(frontier + [1.5, 0.0])  # behind it, against its normal
+    on_path, _ = targets[True]
+    grid = state.island_grid
+    to_frontier = grid.distance_field(tuple(on_path), 0.25)
+    i, j = state.spec.world_to_cell(frontier)
+    assert on_path[1] < 3.5 and 4.0 < on_path[0] < 5.0  # in the doorway (y 3-3.2 m), facing in
+    assert to_frontier[i, j] == pytest.approx(1.5, abs=0.3)  # 1.5 m of path before it
+
+
+def test_approach_unreachable_heads_for_a_sliver_instead_of_ending():
+    free = np.zeros((60, 60), dtype=bool)
+    free[1:20, 1:-1] = True  # the robot's room, 6 x 2 m, all explored
+    free[20:59, 30] = True  # a 1-cell passage (navigable at no radius) 3.9 m long
+    explored = np.ones_like(free)
+    explored[50:, :] = False  # its far end unexplored: 1.5 m back from there is no floor
+    state = make_state(free, explored, (1.0, 1.0))
+    pose = Pose2D(1.0, 1.0, 0.0)
+    paper = FrontierExplorer(SFEConfig(use_values=False))
+    paper.reset(0)
+    assert paper.decide(state, pose, None, 1).reason == "no reachable frontier"
+    explorer = FrontierExplorer(SFEConfig(use_values=False, approach_unreachable=True))
+    explorer.reset(0)
+    d = explorer.decide(state, pose, None, 1)
+    assert not d.done and abs(d.target_xy[0] - 3.05) < 0.3 and d.target_xy[1] > 1.4
+
+
+def test_view_yaw_turns_to_the_unexplored_room_in_sight():
+    state, _ = doorway()  # unexplored: the upper room's x < 4 m, seen through the door
+    below_door = np.array([4.5, 2.5])
+    yaw = view_yaw(state, below_door, 0.0, 5.0, 40.0, 0.8)
+    assert 60 < math.degrees(yaw) < 130  # through the door, not along the explored room
+    assert view_yaw(state, below_door, math.radians(100), 5.0, 40.0, 0.8) == pytest.approx(
+        math.radians(100))  # facing there already: kept
+    walled = np.array([9.0, 0.5])  # the wall hides the upper room: nothing to turn to
+    assert view_yaw(state, walled, 0.3, 5.0, 40.0, 0.8) == 0.3
+    assert ray_gain(state, walled, 5.0).sum() == 0
