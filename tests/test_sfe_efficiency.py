@@ -151,3 +151,19 @@ def test_view_yaw_turns_to_the_unexplored_room_in_sight():
     walled = np.array([9.0, 0.5])  # the wall hides the upper room: nothing to turn to
     assert view_yaw(state, walled, 0.3, 5.0, 40.0, 0.8) == 0.3
     assert ray_gain(state, walled, 5.0).sum() == 0
+
+
+def test_approach_unreachable_goes_on_after_every_frontier_was_looked_at():
+    state, pose = one_end()  # a frontier that stays unexplored however often it is looked at
+    ends = {}
+    for approach in (False, True):
+        explorer = FrontierExplorer(SFEConfig(use_values=False, approach_unreachable=approach))
+        explorer.reset(0)
+        here = pose
+        for step in range(1, 10):
+            d = explorer.decide(make_state(state.free, state.explored, here.xy), here, None, step)
+            if d.done:
+                break
+            here = d.pose
+        ends[approach] = d.reason if d.done else None
+    assert ends == {False: "no reachable frontier", True: None}

@@ -64,8 +64,9 @@ class SFEConfig:
     # backoff_m behind it against its normal: a frontier seen through a doorway at an angle has
     # a sideways normal, and the point behind it lies beside the doorway, facing the wall.
     stand_on_path: bool = False
-    # When no frontier has a reachable cell within max_stand_shift_m of its standing point
-    # (a sliver of floor seen through a doorway), head for the reachable cell nearest it,
+    # When no frontier is left to choose (none has a reachable cell within max_stand_shift_m
+    # of its standing point, as a sliver of floor seen through a doorway, or every one was
+    # looked at max_looks times), head for the reachable cell nearest one's standing point,
     # however far, instead of ending the episode: going closer maps the way in.
     approach_unreachable: bool = False
     # Where a move ends, turn to the view wedge (the explored window: +-view_half_deg out to
@@ -161,12 +162,12 @@ class FrontierExplorer:
             # back as a blocked move and is mapped).
             # Fresh frontiers first at the planning radius; then, at the tight radius, fresh
             # ones and second looks (which would otherwise be planned back to the same spot).
-            # With approach_unreachable, last: any of those, from the reachable cell nearest
-            # its back-off point however far that is.
+            # With approach_unreachable, last: any frontier, looked at or not, from the
+            # reachable cell nearest its back-off point however far that is.
             tiers = [(cfg.robot_radius_m, looks == 0, cfg.max_stand_shift_m),
                      (cfg.tight_radius_m, looks < cfg.max_looks, cfg.max_stand_shift_m)]
             if cfg.approach_unreachable:
-                tiers.append((cfg.tight_radius_m, looks < cfg.max_looks, math.inf))
+                tiers.append((cfg.tight_radius_m, looks >= 0, math.inf))
             for wanted, allowed, shift_m in tiers:
                 reachable, radius = self._reachable(grid, start, wanted)
                 if reachable is None:
