@@ -36,7 +36,7 @@ from efficienteqa.explore.module import REFUSAL_RETRIES as module_retries
 from efficienteqa.explore.module import ExploreModule, SemanticScorer, move
 from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer, evidence_distance_field
 from efficienteqa.explore.prompting import PAPER_PROMPTS, PromptConfig
-from efficienteqa.explore.registry import make_explorer
+from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, make_explorer
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.scenes import synthetic_questions
 
@@ -59,6 +59,7 @@ EXPLORED_DEPTH: float | None = None  # --explored-depth override
 STOP_CLEARANCE: float | None = None  # --stop-clearance override
 REFUSAL_RETRIES = module_retries  # --refusal-retries override
 EXPLORER_CONFIG: dict = {}  # --set FIELD=VALUE overrides of the explorer's config
+EXPLORATION = "default"  # --exploration: a key of explore.registry.EXPLORATIONS
 PROMPTS = PromptConfig()  # --prompt FIELD=VALUE overrides; --prompt paper: SPEC 3.3's
 
 # Semantic scorers for steering: name -> factory(env, question, evidence distance, glimpsed).
@@ -114,7 +115,7 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
     """One episode of ``budget`` steps at most. It ends when ``seen`` first holds, unless
     ``to_budget`` (then it goes on, for the coverage at the budget)."""
     mapper = make_mapper(env)
-    extra = dict(EXPLORER_CONFIG)
+    extra = {**exploration_options(explorer, EXPLORATION), **EXPLORER_CONFIG}
     if STOP_CLEARANCE is not None:
         extra["stop_clearance_m"] = STOP_CLEARANCE
     module = ExploreModule(mapper, make_explorer(explorer, **extra), scorer, seed=seed,
@@ -373,6 +374,10 @@ def main() -> None:
     parser.add_argument("--prompt", action="append", default=[], metavar="FIELD=VALUE",
                         help="override a field of the prompt points' PromptConfig (repeatable); "
                              "'--prompt paper' starts from SPEC 3.3's (2-10 m, 1 m apart)")
+    parser.add_argument("--exploration", default="default", choices=list(EXPLORATIONS),
+                        help="the frontier explorer's options beyond SPEC 3.2: default, or "
+                             "paper (every one off; with --stop-clearance 0 --refusal-retries 0 "
+                             "--prompt paper: the paper preset)")
     parser.add_argument("--out", default="out/bench")
     parser.add_argument("--explored-depth", type=float, default=None,
                         help="metres along the optical axis within which floor counts as explored")
@@ -386,7 +391,8 @@ def main() -> None:
                         metavar=("U0", "U1", "V0", "V1"),
                         help="explored window as image fractions (default: the Mapper's)")
     args = parser.parse_args()
-    global WINDOW, EXPLORED_DEPTH, STOP_CLEARANCE, REFUSAL_RETRIES, PROMPTS
+    global WINDOW, EXPLORED_DEPTH, STOP_CLEARANCE, REFUSAL_RETRIES, PROMPTS, EXPLORATION
+    EXPLORATION = args.exploration
     prompt: dict = {}
     for item in args.prompt:
         if item == "paper":

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from efficienteqa.explore.frontiers import FrontierConfig
+from efficienteqa.explore.registry import exploration_options, make_explorer
 from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig, idle, ray_gain, view_yaw
 from efficienteqa.geometry import Pose2D
 from test_sfe import corridor, make_state
@@ -167,3 +169,13 @@ def test_approach_unreachable_goes_on_after_every_frontier_was_looked_at():
             here = d.pose
         ends[approach] = d.reason if d.done else None
     assert ends == {False: "no reachable frontier", True: None}
+
+
+def test_the_paper_exploration_switches_every_option_off():
+    paper = SFEConfig(**exploration_options("sfe", "paper"))
+    assert not (paper.skip_idle or paper.stand_on_path or paper.approach_unreachable
+                or paper.view_gain or paper.path_distance or paper.small_frontier_cells)
+    assert paper.choice == "sample" and paper.frontier == FrontierConfig()
+    assert exploration_options("random", "paper") == {}
+    assert make_explorer("frontier-only", **exploration_options("frontier-only", "paper")
+                         ).config == replace(paper, use_values=False)

@@ -34,7 +34,7 @@ from efficienteqa.explore.module import (
     move,
 )
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
-from efficienteqa.explore.registry import make_explorer
+from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, make_explorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
 from efficienteqa.mapping.state import MapState
@@ -74,8 +74,14 @@ class AgentConfig:
     # Where prompt points may lie: "default" (from 1 m, asks at more steps) or "paper"
     # (SPEC 3.3: 2-10 m); see explore.prompting.PROMPT_CONFIGS.
     prompts: str = "default"
+    # The frontier explorer's options beyond SPEC 3.2: "default" (SFEConfig's) or "paper"
+    # (every one off); see explore.registry.EXPLORATIONS.
+    exploration: str = "default"
 
     def __post_init__(self) -> None:
+        if self.exploration not in EXPLORATIONS:
+            raise ValueError(f"exploration must be one of {tuple(EXPLORATIONS)}, "
+                             f"not {self.exploration!r}")
         if self.prompts not in PROMPT_CONFIGS:
             raise ValueError(f"prompts must be one of {tuple(PROMPT_CONFIGS)}, not {self.prompts!r}")
         if self.answer_at not in ANSWER_AT:
@@ -176,8 +182,10 @@ class Agent:
         t0 = time.perf_counter()
         obs, _ = env.reset(options={"start": start} if start is not None else None)
         budget = cfg.max_steps or step_budget(env.floor_area_m2)
-        explorer = (make_explorer(cfg.explorer) if cfg.stop_clearance_m is None
-                    else make_explorer(cfg.explorer, stop_clearance_m=cfg.stop_clearance_m))
+        options = exploration_options(cfg.explorer, cfg.exploration)
+        if cfg.stop_clearance_m is not None:
+            options["stop_clearance_m"] = cfg.stop_clearance_m
+        explorer = make_explorer(cfg.explorer, **options)
         explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)), explorer,
                                 self.scorer, seed=cfg.seed, prompts=PROMPT_CONFIGS[cfg.prompts])
         retries = REFUSAL_RETRIES if cfg.refusal_retries is None else cfg.refusal_retries

@@ -63,6 +63,9 @@ StopClearance = Annotated[float | None, typer.Option(
 Prompts = Annotated[str | None, typer.Option(
     help="Where lettered prompt points may lie: default (from 1 m away, so more steps ask) or "
     "paper (2-10 m, SPEC 3.3).", show_default=False)]
+Exploration = Annotated[str | None, typer.Option(
+    help="The frontier explorer's options beyond the paper: default, or paper (SPEC 3.2's "
+    "explorer, every one off).", show_default=False)]
 Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
 Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
@@ -113,6 +116,7 @@ def ask_command(
     refusal_retries: RefusalRetries = None,
     stop_clearance_m: StopClearance = None,
     prompts: Prompts = None,
+    exploration: Exploration = None,
     explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
     vlm: Vlm = None,
@@ -238,6 +242,7 @@ def eval_command(
     refusal_retries: RefusalRetries = None,
     stop_clearance_m: StopClearance = None,
     prompts: Prompts = None,
+    exploration: Exploration = None,
     seed: Seed = None,
     vlm: Vlm = None,
     temperature: Temperature = None,

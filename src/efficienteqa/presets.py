@@ -32,8 +32,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "judge": PAPER_VLM, "judge_mode": "grade",
         # the paper's stepping: a move ends where the 3 m cut falls, a refused move spends a step
         "refusal_retries": 0, "stop_clearance_m": 0.0,
-        # SPEC 3.3's prompt points, 2-10 m away and 1 m apart
-        "prompts": "paper",
+        # SPEC 3.3's prompt points, 2-10 m away and 1 m apart; SPEC 3.2's frontier explorer
+        "prompts": "paper", "exploration": "paper",
     },
 }
 

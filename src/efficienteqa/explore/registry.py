@@ -1,6 +1,7 @@
 """The explorer registry: ``make_explorer(name, **config)`` builds "sfe", "frontier-only" or
 "random"; ``config`` holds fields of the explorer's config dataclass (``SFEConfig`` or
-``RandomConfig``).
+``RandomConfig``). ``EXPLORATIONS`` names sets of frontier-explorer options: "default" (the
+dataclass defaults) and "paper" (SPEC 3.2's explorer, every option beyond it off).
 """
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from typing import Any
 
 from efficienteqa.explore.base import Explorer
 from efficienteqa.explore.random_walk import RandomConfig, RandomExplorer
-from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig
+from efficienteqa.explore.sfe import PAPER_SFE, FrontierExplorer, SFEConfig
 from efficienteqa.registry import Registry
 
 
@@ -34,3 +35,12 @@ EXPLORERS.register("random", _random)
 def make_explorer(name: str, **config: Any) -> Explorer:
     """The explorer registered as ``name``; ``config`` overrides its config fields."""
     return EXPLORERS.build(name, **config)
+
+
+EXPLORATIONS: dict[str, dict[str, Any]] = {"default": {}, "paper": PAPER_SFE}
+
+
+def exploration_options(explorer: str, exploration: str) -> dict[str, Any]:
+    """The config fields that ``exploration`` (a key of ``EXPLORATIONS``) sets on
+    ``explorer``: none for explorers other than "sfe" and "frontier-only"."""
+    return dict(EXPLORATIONS[exploration]) if explorer in ("sfe", "frontier-only") else {}

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy import ndimage
@@ -89,6 +90,13 @@ class SFEConfig:
     # nothing bigger is reachable.
     small_frontier_cells: int = 0
     small_frontier_factor: float = 1e-3
+
+
+# SPEC 3.2's explorer: every SFEConfig option beyond it off (the paper preset; the stepping
+# options stop_clearance_m and the refusal retries are set apart, by AgentConfig).
+PAPER_SFE: dict[str, Any] = {"skip_idle": False, "stand_on_path": False,
+                             "approach_unreachable": False, "view_gain": False,
+                             "path_distance": False, "choice": "sample", "small_frontier_cells": 0}
 
 
 @dataclass
