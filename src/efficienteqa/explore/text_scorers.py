@@ -1,0 +1,270 @@
+"""Semantic scorers that read the direction texts without a chat model (issue 15 part 4).
+
+A text model on the offline stack reads each lettered direction as text (the ``semantic``
+perception). These scorers read the same texts, plus how far each point lies from the robot,
+and give each letter a confidence: the baselines a semantic scorer must beat (random, the
+nearest point, keyword overlap) and MiniLM similarity between the question and each direction.
+``DirectionScorer`` turns any of them into the explore module's ``SemanticScorer``.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from efficienteqa.explore.module import SemanticScore
+from efficienteqa.observation import Observation, PromptPoint
+from efficienteqa.perception.base import Perception
+from efficienteqa.relevancy.text import MiniLMScorer, content_words
+from efficienteqa.vc.parse import DEFAULT_P_YES
+
+
+@dataclass(frozen=True)
+class DirectionFrame:
+    """What a direction scorer reads of one prompted frame: the question, the view text, each
+    letter's direction text, and each point's straight-line range from the robot (metres)."""
+
+    question: str
+    view: str
+    directions: Mapping[str, str]
+    ranges_m: Mapping[str, float]
+
+    @property
+    def letters(self) -> list[str]:
+        return list(self.directions)
+
+
+Scores = tuple[dict[str, float], dict[str, Any]]
+
+
+class DirectionTextScorer(Protocol):
+    """Per-letter confidences (non-negative, any scale) and an info dict (``problems``: what
+    could not be read; the scorer then degrades to uniform)."""
+
+    name: str
+
+    def letter_scores(self, frame: DirectionFrame) -> Scores: ...
+
+
+def uniform(letters: Sequence[str]) -> dict[str, float]:
+    return {x: 1.0 / len(letters) for x in letters} if letters else {}
+
+
+def softmax(values: Mapping[str, float], temperature: float) -> dict[str, float]:
+    """Confidences from scores: exp(v / temperature), normalised to sum to 1."""
+    keys = list(values)
+    v = np.array([values[k] for k in keys], float) / temperature
+    e = np.exp(v - v.max())
+    return {k: float(x) for k, x in zip(keys, e / e.sum())}
+
+
+def frame_of(perception: Perception, obs: Observation, prompts: Sequence[PromptPoint],
+             question: str) -> DirectionFrame:
+    """The direction frame of an observation, as ``perception`` describes it (a VLM's
+    perception gives letters only: their texts are empty)."""
+    request = perception.explore_request(obs, prompts)
+    texts = request.directions if isinstance(request.directions, Mapping) else {}
+    return DirectionFrame(question, request.view,
+                          {p.letter: str(texts.get(p.letter, "")) for p in prompts},
+                          {p.letter: float(np.hypot(p.xy[0] - obs.pose.x, p.xy[1] - obs.pose.y))
+                           for p in prompts})
+
+
+class DirectionScorer:
+    """The explore module's ``SemanticScorer`` from a direction scorer: the letters' confidences
+    are the LSV; P(worth exploring) is ``p_yes`` (these scorers do not answer the GSV question,
+    so every prompted frame gets the same GSV and only the LSV steers)."""
+
+    def __init__(self, scorer: DirectionTextScorer, perception: Perception,
+                 p_yes: float = DEFAULT_P_YES) -> None:
+        self.scorer, self.perception, self.p_yes = scorer, perception, p_yes
+        self.name = scorer.name
+
+    def score(self, obs: Observation, prompts: list[PromptPoint], question: str) -> SemanticScore:
+        frame = frame_of(self.perception, obs, prompts, question)
+        scores, info = self.scorer.letter_scores(frame)
+        return SemanticScore(scores, self.p_yes, {**info, "scorer": self.name})
+
+
+class RandomDirections:
+    """Uniformly random confidences from a seeded generator: the chance reference."""
+
+    name = "random"
+
+    def __init__(self, seed: int = 0) -> None:
+        self.rng = np.random.default_rng(seed)
+
+    def letter_scores(self, frame: DirectionFrame) -> Scores:
+        return {x: float(self.rng.random()) for x in frame.letters}, {}
+
+
+class NearestDirections:
+    """No semantics: the nearer a point, the higher its confidence (exp(-range / ``scale_m``))."""
+
+    name = "nearest"
+
+    def __init__(self, scale_m: float = 1.0) -> None:
+        self.scale_m = scale_m
+
+    def letter_scores(self, frame: DirectionFrame) -> Scores:
+        return nearness(frame, self.scale_m), {}
+
+
+def nearness(frame: DirectionFrame, scale_m: float = 1.0) -> dict[str, float]:
+    """exp(-range / scale_m) normalised over the letters: a prior for the nearest point."""
+    return softmax({x: -float(frame.ranges_m.get(x, 0.0)) for x in frame.letters}, scale_m)
+
+
+class KeywordDirections:
+    """The share of the question's content words found in each direction's text (uniform when
+    none is found anywhere)."""
+
+    name = "keyword"
+
+    def letter_scores(self, frame: DirectionFrame) -> Scores:
+        wanted = content_words(frame.question)
+        hits = {x: len(wanted & content_words(t)) / max(len(wanted), 1)
+                for x, t in frame.directions.items()}
+        if not any(hits.values()):
+            return uniform(frame.letters), {}
+        return hits, {}
+
+
+def direction_parts(text: str) -> list[str]:
+    """The phrases of a direction text ("towards the hallway", "a brown door (open)", "an open
+    door to the kitchen"), split at semicolons and commas; distances ("2.3 m away") dropped."""
+    parts = [p.strip(" .") for chunk in text.split(";") for p in chunk.split(",")]
+    return [p for p in parts if p and not p.endswith(" m away")] or [text]
+
+
+class EmbeddingDirections:
+    """MiniLM cosine between the question and each direction's text: the whole text, or with
+    ``parts`` its best phrase (a direction that shows the asked-about room or object among
+    much else). Confidences are a softmax at ``temperature``; ``near_weight`` > 0 multiplies in
+    the nearness prior (``nearness`` to that power)."""
+
+    def __init__(self, embedder: MiniLMScorer, parts: bool = False, temperature: float = 0.05,
+                 near_weight: float = 0.0, name: str = "minilm") -> None:
+        self.embedder, self.parts, self.temperature = embedder, parts, temperature
+        self.near_weight, self.name = near_weight, name
+
+    @classmethod
+    def from_package(cls, **kwargs: Any) -> EmbeddingDirections:
+        return cls(MiniLMScorer.from_package(num_threads=1), **kwargs)
+
+    def cosines(self, frame: DirectionFrame) -> dict[str, float]:
+        texts = {x: (direction_parts(t) if self.parts else [t]) for x, t in frame.directions.items()}
+        flat = [p for ps in texts.values() for p in ps]
+        vectors = self.embedder.embed([frame.question, *flat])
+        sims = vectors[1:] @ vectors[0]
+        out, at = {}, 0
+        for x, ps in texts.items():
+            out[x] = float(sims[at:at + len(ps)].max())
+            at += len(ps)
+        return out
+
+    def letter_scores(self, frame: DirectionFrame) -> Scores:
+        if not frame.question.strip() or not any(t.strip() for t in frame.directions.values()):
+            return uniform(frame.letters), {"problems": ["no question or no direction text: uniform"]}
+        scores = softmax(self.cosines(frame), self.temperature)
+        if self.near_weight:
+            near = nearness(frame)
+            scores = {x: v * near[x] ** self.near_weight for x, v in scores.items()}
+        return scores, {}
+
+
+# -- a learned combination: direction features and a conditional logit ----------------------
+# The features read the semantic perception's direction text ("towards the dining room, floor
+# of the hallway in view, 5.4 m away; a black table; an open door to the hallway.") and the
+# point's range; none needs a chat model. See ``LogitDirections``.
+_ROOM = re.compile(r"^(in|towards) the ([a-z ]+?), ")
+_FLOOR = re.compile(r"floor of (.+?) in view")
+_DOOR = re.compile(r"open door to the ([a-z ]+)")
+_HERE = re.compile(r"You are in the ([a-z ]+?)\.")
+
+
+@dataclass(frozen=True)
+class DirectionRooms:
+    """The rooms a direction text names: ``at`` the point's room (None when its floor is not in
+    view there), ``towards`` whether that is another room than the robot's, ``floor`` other
+    rooms whose floor is in view there, ``doors`` where open doors there lead."""
+
+    at: str | None
+    towards: bool
+    floor: tuple[str, ...]
+    doors: tuple[str, ...]
+
+    @property
+    def all(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys([*([self.at] if self.at else []), *self.floor, *self.doors]))
+
+
+def direction_rooms(text: str) -> DirectionRooms:
+    """The rooms named in one direction text (see ``perception.semantic.describe_directions``)."""
+    m = _ROOM.match(text)
+    floor: list[str] = []
+    for group in _FLOOR.findall(text):
+        floor += [r.strip()[4:] for r in re.split(r", | and ", group) if r.strip().startswith("the ")]
+    return DirectionRooms(m.group(2) if m else None, bool(m and m.group(1) == "towards"),
+                          tuple(floor), tuple(_DOOR.findall(text)))
+
+
+FEATURES = ("towards", "floor", "door", "hallway", "question_room", "keyword", "no_objects",
+            "range_m", "nearest", "cosine", "room_cosine")
+
+
+def direction_features(frame: DirectionFrame, embedder: MiniLMScorer | None = None) -> np.ndarray:
+    """(letters, len(FEATURES)) features of each direction, in ``FEATURES`` order:
+    towards another room; other rooms' floor in view; an open door there; the hallway named;
+    a room the question names is named; any question word in the text; no objects seen there;
+    range (m); the nearest point; and with an ``embedder`` (else 0) the MiniLM cosine of the
+    question with the direction's best phrase and with its best-matching room name ("the
+    office"), each minus the frame's mean."""
+    wanted = content_words(frame.question)
+    rows, cos, room_cos = [], [], []
+    ranges = [float(frame.ranges_m.get(x, 0.0)) for x in frame.letters]
+    q = embedder.embed([frame.question])[0] if embedder is not None and wanted else None
+    for x, r in zip(frame.letters, ranges):
+        text = frame.directions.get(x, "")
+        rooms = direction_rooms(text)
+        named = any(content_words(room) - {"room"} and content_words(room) <= wanted | {"room"}
+                    for room in rooms.all)
+        rows.append([float(rooms.towards), float(bool(rooms.floor)), float(bool(rooms.doors)),
+                     float("hallway" in rooms.all), float(named),
+                     float(bool(wanted & content_words(text))), float("no objects" in text), r,
+                     float(r <= min(ranges))])
+        if q is not None:
+            cos.append(float((embedder.embed(direction_parts(text)) @ q).max()))  # type: ignore[union-attr]
+            names = [f"the {room}" for room in rooms.all]
+            room_cos.append(float((embedder.embed(names) @ q).max()) if names else 0.0)  # type: ignore[union-attr]
+        else:
+            cos.append(0.0)
+            room_cos.append(0.0)
+    c, rc = np.array(cos), np.array(room_cos)
+    return np.column_stack([np.array(rows, float), c - c.mean(), rc - rc.mean()])
+
+
+class LogitDirections:
+    """A conditional logit over the directions of a frame: confidence of a letter is
+    softmax(features . ``weights``) (``direction_features``). The weights are fitted on the
+    training houses (``benchmarks/direction_bench.py fit``); without an ``embedder`` the two
+    cosine features are 0 and their weights unused."""
+
+    def __init__(self, weights: Sequence[float], embedder: MiniLMScorer | None = None,
+                 name: str = "logit") -> None:
+        if len(weights) != len(FEATURES):
+            raise ValueError(f"{len(FEATURES)} weights expected ({', '.join(FEATURES)}), "
+                             f"got {len(weights)}")
+        self.weights, self.embedder, self.name = np.asarray(weights, float), embedder, name
+
+    def letter_scores(self, frame: DirectionFrame) -> Scores:
+        if not frame.letters:
+            return {}, {"problems": ["no directions"]}
+        z = direction_features(frame, self.embedder) @ self.weights
+        if not np.isfinite(z).all():
+            return uniform(frame.letters), {"problems": ["non-finite features: uniform"]}
+        return softmax(dict(zip(frame.letters, z.tolist())), 1.0), {}
