@@ -41,7 +41,7 @@ def house4(catalog):
 def _episode(scene, question, model, tmp_path, max_steps, **kw):
     desk = scene.env.house.object(question.evidence[0])
     room = scene.env.house.room(desk.room_id).name
-    return ask(question.question, scene, tmp_path, stack=Stack(grouping="rules"),
+    return ask(question.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=model(desk.category, room), relevancy=MentionScorer(desk.category, room),
                config=AgentConfig(max_steps=max_steps, **kw))
 
@@ -107,14 +107,14 @@ def test_the_white_box_baseline_needs_logprobs(house4, tmp_path):
     scene, q = house4
     blind = StubChatModel(["x"], capabilities=Capabilities(logprobs=False))
     with pytest.raises(EfficientEQAError, match="log-probabilities"):
-        ask(q.question, scene, tmp_path, stack=Stack(grouping="rules"), model=blind,
+        ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"), model=blind,
             relevancy=MentionScorer("desk"), config=AgentConfig(confidence="token"))
 
 
 def test_the_explore_calls_carry_the_question_and_the_directions(house4, tmp_path):
     scene, q = house4
     model = seeking_model("desk", "office")
-    built = build_agent(scene.env, Stack(grouping="rules"), AgentConfig(max_steps=4),
+    built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"), AgentConfig(max_steps=4),
                         "test", model=model, relevancy=WordOverlapScorer())
     r = built.agent.run(scene.env, q.question)
     explore = [e for e in built.model.exchanges if e.phase.startswith("step")]
@@ -144,7 +144,7 @@ def test_the_agent_may_stop_at_the_minimum_step_itself(house4):
     model = StubChatModel(lambda msgs: "A: 50\nworth exploring: no 50"
                           if msgs[-1].text.startswith("You guide") else "black; 90")
     sims = [0.1, 0.2] * 4 + [0.15, 5.0] + [0.1] * 10
-    built = build_agent(scene.env, Stack(grouping="rules"), AgentConfig(max_steps=14), "test",
+    built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"), AgentConfig(max_steps=14), "test",
                         model=model, relevancy=SequenceScorer(sims))
     r = built.agent.run(scene.env, q.question)
     assert all(rec.valid for rec in r.records)
@@ -179,7 +179,7 @@ def test_invalid_frames_never_reach_a_model(house4, tmp_path):
     seen = []
     model = StubChatModel(lambda msgs: seen.append(msgs[-1].text) or "A: 50\nworth exploring: no 0"
                           if msgs[-1].text.startswith("You guide") else "unknown; 100")
-    built = build_agent(env, Stack(grouping="rules"), AgentConfig(max_steps=6), "test",
+    built = build_agent(env, Stack(grouping="rules", explore_scorer="vlm"), AgentConfig(max_steps=6), "test",
                         model=model, relevancy=WordOverlapScorer())
     r = built.agent.run(env, q.question)
     assert [rec.valid for rec in r.records] == [False, True, False, True, False, True]
@@ -190,7 +190,7 @@ def test_invalid_frames_never_reach_a_model(house4, tmp_path):
 def test_frontier_only_makes_no_explore_calls(house4, tmp_path):
     scene, q = house4
     model = StubChatModel(["unknown; 100"])
-    done = ask(q.question, scene, tmp_path, stack=Stack(grouping="rules"), model=model,
+    done = ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"), model=model,
                relevancy=WordOverlapScorer(), config=AgentConfig(explorer="frontier-only", max_steps=5))
     assert len(model.requests) == 1 and done.result.steps == 5
 

@@ -175,7 +175,7 @@ def refusing_house(catalog):
 def _run(scene, q, tmp_path, **config):
     desk = scene.env.house.object(q.evidence[0])
     room = scene.env.house.room(desk.room_id).name
-    done = ask(q.question, scene, tmp_path, stack=Stack(grouping="rules"),
+    done = ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=seeking_model(desk.category, room), relevancy=MentionScorer(desk.category, room),
                config=AgentConfig(max_steps=4, **config), report=False)
     return json.loads(done.episode_json.read_text())

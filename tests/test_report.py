@@ -48,7 +48,7 @@ def report(catalog, tmp_path_factory):
     out = tmp_path_factory.mktemp("report")
     try:
         done = ask(q.question, Scene(env, "synthetic:4 (builtin)", questions), out,
-                   stack=Stack(grouping="rules"), model=seeking_model("desk", "office"),
+                   stack=Stack(grouping="rules", explore_scorer="vlm"), model=seeking_model("desk", "office"),
                    relevancy=MentionScorer("desk", "office"), config=AgentConfig(max_steps=30))
     finally:
         env.close()

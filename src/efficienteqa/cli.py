@@ -80,6 +80,11 @@ Relevancy = Annotated[str | None, typer.Option(
     help="minilm (default) | minilm-match (MiniLM calibrated to a match probability) | overlap | "
     "vlm-match (the VLM answers 'does this view show it?') | blip2-itm | clip | siglip.",
     show_default=False)]
+ExploreScorer = Annotated[str | None, typer.Option(
+    help="Where the semantic values come from: auto (default: the VLM's verbalized confidence "
+    "when it reads images or with token confidence, else direction-logit) | vlm | "
+    "direction-logit (no model: features of the direction texts) | nearest | keyword.",
+    show_default=False)]
 Grouping = Annotated[str | None, typer.Option(help="How equivalent answers are grouped: llm "
                                               "(default) | rules.", show_default=False)]
 Cache = Annotated[bool | None, typer.Option("--cache/--no-cache", help="Replay identical model "
@@ -124,6 +129,7 @@ def ask_command(
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
     grouping: Grouping = None,
+    explore_scorer: ExploreScorer = None,
     seed: Seed = None,
     env: Env = None,
     hm3d_root: Hm3dRoot = None,
@@ -249,6 +255,7 @@ def eval_command(
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
     grouping: Grouping = None,
+    explore_scorer: ExploreScorer = None,
     judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec), or 'rule'/'none' "
                                      "for no model. Synthetic questions are always graded by the "
                                      "rule judge too. Default: rule for synthetic datasets, "

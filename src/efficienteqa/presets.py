@@ -29,6 +29,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "dataset": "hm-eqa", "limit": 100, "env": "habitat",
         "vlm": PAPER_VLM, "temperature": 1.0, "perception": "rgb", "relevancy": "blip2-itm",
         "grouping": "llm", "z_th": 3.0, "top_k": 5,
+        # the VLM's verbalized confidence gives the semantic values (SPEC 3.3)
+        "explore_scorer": "vlm",
         "judge": PAPER_VLM, "judge_mode": "grade",
         # the paper's stepping: a move ends where the 3 m cut falls, a refused move spends a step
         "refusal_retries": 0, "stop_clearance_m": 0.0,

@@ -15,6 +15,14 @@ from efficienteqa.agent import Agent, AgentConfig
 from efficienteqa.answer.rag import RagAnswerer
 from efficienteqa.envs.base import Environment
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.explore.module import SemanticScorer
+from efficienteqa.explore.text_scorers import (
+    LOGIT_WEIGHTS,
+    DirectionScorer,
+    KeywordDirections,
+    LogitDirections,
+    NearestDirections,
+)
 from efficienteqa.explore.vlm_scorer import VLMScorer
 from efficienteqa.models.backends import CHAT_BACKENDS, ChatBackend, build_chat_model
 from efficienteqa.models.base import ChatModel
@@ -32,7 +40,10 @@ MINILM_KINDS = ("minilm", "minilm-match")
 class Stack:
     """Which back-ends an episode uses. ``vlm``: "local:MODEL" or "openai:MODEL[@BASE_URL]";
     ``cache``: replay identical model requests from the response cache (off for timings);
-    ``temperature``: the VLM's sampling temperature for every call (None: 0, greedy)."""
+    ``temperature``: the VLM's sampling temperature for every call (None: 0, greedy);
+    ``explore_scorer``: where the semantic values come from (``EXPLORE_SCORERS``; "auto": the
+    VLM's verbalized confidence when it reads images or token probabilities are asked for,
+    else ``OFFLINE_EXPLORE_SCORER``)."""
 
     vlm: str = "local:qwen2.5-coder-1.5b"
     perception: str = "semantic"
@@ -40,6 +51,7 @@ class Stack:
     grouping: str = "llm"
     cache: bool = True
     temperature: float | None = None
+    explore_scorer: str = "auto"
 
 
 def parse_vlm(spec: str, images: bool, cache: bool = True,
@@ -82,6 +94,55 @@ GROUPINGS: Registry[Grouper] = Registry("grouping")
 GROUPINGS.register("rules", lambda **_: RuleGrouper())
 GROUPINGS.register("llm", lambda model, relevancy: LLMGrouper(
     model, embedder=getattr(relevancy, "embed", None)))
+
+
+# Semantic scorers of the explore module (SPEC 3.3; issue 15 part 4). "vlm" is the paper's:
+# the agent's own model with verbalized confidence (or token probabilities when the config asks
+# for them). The others read the semantic perception's direction texts without a model; the
+# direction benchmark (benchmarks/direction_bench.py) chose "direction-logit" for the offline
+# stack, whose 1.5B text model gives the same confidences at every step.
+EXPLORE_SCORERS: Registry[SemanticScorer] = Registry("explore scorer")
+EXPLORE_SCORERS.register("vlm", lambda model, perception, config: VLMScorer(
+    model, perception, confidence=config.confidence))
+EXPLORE_SCORERS.register("direction-logit", lambda perception, **_: DirectionScorer(
+    LogitDirections(LOGIT_WEIGHTS, name="direction-logit"), perception))
+EXPLORE_SCORERS.register("nearest", lambda perception, **_: DirectionScorer(
+    NearestDirections(), perception))
+EXPLORE_SCORERS.register("keyword", lambda perception, **_: DirectionScorer(
+    KeywordDirections(), perception))
+OFFLINE_EXPLORE_SCORER = "direction-logit"
+EXPLORE_SCORER_LABELS = {
+    "direction-logit": "direction-logit (no model: features of the direction texts, weights "
+                       "fitted on training houses)",
+    "nearest": "nearest (no model: the nearest prompted point)",
+    "keyword": "keyword (no model: question words in the direction texts)",
+}
+
+
+def explore_scorer_name(stack: Stack, perception: Perception, config: AgentConfig) -> str:
+    """The explore scorer a stack uses: its ``explore_scorer``, or for "auto" the VLM's when it
+    reads images or token probabilities are asked for (the white-box baseline), else
+    ``OFFLINE_EXPLORE_SCORER``. A text scorer needs text directions."""
+    name = stack.explore_scorer
+    if name == "auto":
+        text = perception.modality == "text" and config.confidence != "token"
+        return OFFLINE_EXPLORE_SCORER if text else "vlm"
+    if name not in EXPLORE_SCORERS:
+        raise EfficientEQAError(f"unknown explore scorer {name!r}",
+                                fix=f"use auto or one of {', '.join(EXPLORE_SCORERS.names())}")
+    if name != "vlm" and perception.modality != "text":
+        raise EfficientEQAError(f"explore scorer {name!r} reads direction texts, which "
+                                f"{perception.name} perception does not give",
+                                fix="use --perception semantic, or --explore-scorer vlm")
+    return name
+
+
+def explore_scorer_label(name: str, model: ChatModel, config: AgentConfig) -> str:
+    """What the back-ends record: the scorer and where its values come from."""
+    if name == "vlm":
+        how = "token probabilities" if config.confidence == "token" else "verbalized confidence"
+        return f"vlm ({how} of {model.name})"
+    return EXPLORE_SCORER_LABELS.get(name, name)
 
 
 def build_perception(name: str, env: Environment) -> Perception:
@@ -127,8 +188,9 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
 
         relevancy = VLMMatchScorer(recorder, perception.modality)
     relevancy = relevancy or build_relevancy(stack.relevancy)
-    scorer = (VLMScorer(recorder, perception, confidence=config.confidence)
-              if config.explorer == "sfe" else None)
+    scorer_name = explore_scorer_name(stack, perception, config)
+    scorer = (EXPLORE_SCORERS.build(scorer_name, model=recorder, perception=perception,
+                                    config=config) if config.explorer == "sfe" else None)
     if config.confidence == "token":
         from efficienteqa.vc.logprobs import require_logprobs
 
@@ -140,5 +202,7 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder)
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,
                 "vlm_backend": vlm_backend,
-                "relevancy": relevancy.name, "grouping": stack.grouping, "judge": None}
+                "relevancy": relevancy.name, "grouping": stack.grouping,
+                "explore_scorer": (explore_scorer_label(scorer_name, model, config)
+                                   if scorer is not None else None), "judge": None}
     return BuiltAgent(agent, recorder, backends)

@@ -153,7 +153,8 @@ def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     grouper = build_grouper(spec.stack.grouping, model, embedder)  # type: ignore[arg-type]
     result = blind_answer(model, q.question, grouper)
     backends = {"environment": None, "perception": None, "vlm": model.name,
-                "vlm_backend": spec.stack.vlm, "relevancy": None, "grouping": spec.stack.grouping}
+                "vlm_backend": spec.stack.vlm, "relevancy": None, "grouping": spec.stack.grouping,
+                "explore_scorer": None}
     return Outcome(result.answer, result.confidence, 0,
                    usage=_usage([e.to_dict() for e in model.exchanges]),
                    backends=backends, extra={"answer_problems": result.problems})

@@ -104,12 +104,14 @@ def _slug(text: str) -> str:
 def provenance(summaries: Sequence[RunSummary]) -> list[str]:
     """The note under a table: its back-ends (every distinct value where runs differ, with what
     semantic-sensor perception means), the newest episode and the code."""
-    names = {"vlm": "VLM"}
+    names = {"vlm": "VLM", "explore_scorer": "explore scorer"}
     parts = []
     for key in (*BACKEND_KEYS, "judge"):
         if key == "grouping":
             continue
         values = sorted({v for s in summaries for v in s.backends.get(key, [])})
+        if key == "explore_scorer" and not values:  # runs recorded before it was
+            continue
         text = f"{names.get(key, key)} {', '.join(values) or '-'}"
         if key == "perception" and SEMANTIC_SENSOR in values:
             text += f" ({SEMANTIC_SHORT})"
