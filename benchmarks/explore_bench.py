@@ -72,6 +72,22 @@ STEERING_SCORERS: dict[str, ScorerFactory] = {
 }
 
 
+def _text_scorer(name: str) -> ScorerFactory:
+    """A model-free direction scorer of the offline stack (stack.EXPLORE_SCORERS) over the
+    semantic perception's direction texts (issue 15 part 4)."""
+    def factory(env: SyntheticEnv, q: Question, distance_m: EvidenceDistance,
+                glimpsed: Callable[[np.ndarray], bool]) -> SemanticScorer:
+        from efficienteqa.perception.semantic import SemanticPerception
+        from efficienteqa.stack import EXPLORE_SCORERS
+
+        return EXPLORE_SCORERS.build(name, perception=SemanticPerception(env.scene_labels()))
+    return factory
+
+
+for _name in ("direction-logit", "nearest", "keyword"):
+    STEERING_SCORERS[_name] = _text_scorer(_name)
+
+
 def make_mapper(env: SyntheticEnv) -> Mapper:
     extra: dict = {"explored_window": WINDOW} if WINDOW else {}
     if EXPLORED_DEPTH is not None:
