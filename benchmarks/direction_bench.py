@@ -239,6 +239,7 @@ def _scorers() -> dict[str, Callable[[], object]]:
         "minilm-parts": lambda: ts.EmbeddingDirections.from_package(parts=True),
         "minilm-parts-near": lambda: ts.EmbeddingDirections.from_package(parts=True,
                                                                          near_weight=1.0),
+        "direction-logit": lambda: ts.LogitDirections(ts.LOGIT_WEIGHTS, name="direction-logit"),
     }
     from efficienteqa.explore.vlm_scorer import ELICITATIONS
 
@@ -267,7 +268,7 @@ def evaluate(scorer: object, frames: Sequence[Frame], name: str) -> Result:
         credits.append(top1_credit(scores, f.best))
         rhos.append(spearman(scores, f.distances_m))
     return Result(name, len(frames), float(np.mean(credits)), float(np.mean(rhos)),
-                  1e3 * float(np.median(times)), problems)
+                  1e3 * float(np.mean(times)), problems)
 
 
 def oracle_result(frames: Sequence[Frame]) -> Result:
@@ -282,6 +283,8 @@ def cmd_score(args: argparse.Namespace) -> None:
     frames = load_frames(args.frames)
     if args.limit and args.limit < len(frames):  # evenly spaced over the file: every house
         frames = [frames[int(i)] for i in np.linspace(0, len(frames) - 1, args.limit).round()]
+    if args.take:
+        frames = frames[:args.take]
     houses = sorted({f.house for f in frames})
     print(f"{len(frames)} frames from {len(houses)} houses ({houses[0]}-{houses[-1]}: "
           f"{','.join(map(str, houses))}), {len({f.question_id for f in frames})} questions; "
@@ -298,7 +301,7 @@ def cmd_score(args: argparse.Namespace) -> None:
         r = results[-1]
         print(f"  {r.name:22s} top-1 {r.top1:.3f}  spearman {r.spearman:+.3f}  "
               f"{r.ms:8.1f} ms/frame  unreadable {r.problems}", flush=True)
-    print("\n| scorer | frames | top-1 | Spearman | ms/frame (median) | unreadable |")
+    print("\n| scorer | frames | top-1 | Spearman | ms/frame (mean) | unreadable |")
     print("|---|---|---|---|---|---|")
     for r in results:
         print(f"| {r.name} | {r.frames} | {r.top1:.3f} | {r.spearman:+.3f} | {r.ms:.1f} | "
@@ -380,6 +383,8 @@ def main() -> None:
     score.add_argument("--scorers", default="random,nearest,keyword,minilm")
     score.add_argument("--limit", type=int, default=0, help="N frames evenly spaced over the file (the "
                        "model's elicitations are slow on 2 cores)")
+    score.add_argument("--take", type=int, default=0,
+                       help="then only the first N of those (a smaller run of the same frames)")
     score.add_argument("--json", default="", help="write the results here too")
     fit = sub.add_parser("fit", help="fit the logit scorer's weights on training frames")
     fit.add_argument("frames")

@@ -273,6 +273,6 @@ class LogitDirections:
 # Fitted with `python benchmarks/direction_bench.py fit out/direction/train.jsonl --no-embed
 # --l2 0.01` on 2026-11-24: 446 frames of training houses 0-20 (5 questions per house, at most 8
 # frames per episode), in FEATURES order; top-1 by leave-houses-out cross-validation 0.621
-# (nearest point 0.479; l2 0.003 / 0.03: 0.605 / 0.583). The two MiniLM features added nothing
-# in cross-validation, so the default needs no embedder (weights 0).
+# (nearest point 0.479; l2 0.003 / 0.03: 0.605 / 0.583). With the two MiniLM features (--embed)
+# 0.628, within noise for 40-140 ms per frame, so the default needs no embedder (weights 0).
 LOGIT_WEIGHTS = (0.7048, 0.2443, 0.1324, 1.1067, 0.6570, 0.5475, 0.4052, -0.0067, 0.4747, 0.0, 0.0)
