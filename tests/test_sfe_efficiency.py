@@ -10,9 +10,23 @@ import pytest
 
 from efficienteqa.explore.frontiers import FrontierConfig
 from efficienteqa.explore.registry import exploration_options, make_explorer
-from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig, idle, ray_gain, view_yaw
+from efficienteqa.explore.sfe import (
+    PAPER_SFE,
+    FrontierExplorer,
+    SFEConfig,
+    idle,
+    ray_gain,
+    view_yaw,
+)
 from efficienteqa.geometry import Pose2D
 from test_sfe import corridor, make_state
+
+
+def spec_explorer(**options: object) -> FrontierExplorer:
+    """Frontier-only as SPEC 3.2 (every option off) but for ``options``, seeded 0."""
+    explorer = FrontierExplorer(SFEConfig(**{**PAPER_SFE, "use_values": False, **options}))
+    explorer.reset(0)
+    return explorer
 
 
 def test_idle_is_the_same_view_again():
@@ -26,8 +40,7 @@ def one_end() -> tuple:
     """The corridor with only its +x end unexplored; the robot on that frontier's standing
     point, facing it: the SPEC 3.2 choice is to stay and look again."""
     state = corridor(slice(0, 110))
-    explorer = FrontierExplorer(SFEConfig(use_values=False))
-    explorer.reset(0)
+    explorer = spec_explorer()
     d = explorer.decide(state, Pose2D(6.0, 1.0, 0.0), None, 1)
     stand = Pose2D(d.target_xy[0], d.target_xy[1], 0.0)
     return make_state(state.free, state.explored, stand.xy), stand
@@ -35,12 +48,10 @@ def one_end() -> tuple:
 
 def test_skip_idle_goes_up_close_instead_of_taking_the_same_view():
     state, pose = one_end()
-    paper = FrontierExplorer(SFEConfig(use_values=False))
-    paper.reset(0)
+    paper = spec_explorer()
     d = paper.decide(state, pose, None, 2)
     assert idle(d.pose, pose, 0.3, 30.0)
-    skip = FrontierExplorer(SFEConfig(use_values=False, skip_idle=True))
-    skip.reset(0)
+    skip = spec_explorer(skip_idle=True)
     d = skip.decide(state, pose, None, 2)
     assert not d.done and d.pose.x - pose.x == pytest.approx(1.5, abs=0.15)
 
@@ -63,10 +74,8 @@ def test_path_distance_prefers_the_frontier_near_by_path():
     state, pose = room_behind_wall()
     over_the_wall = {}
     for path_distance in (False, True):
-        explorer = FrontierExplorer(SFEConfig(
-            use_values=False, path_distance=path_distance, choice="best",
-            frontier=FrontierConfig(distance_scale_m=3.0)))
-        explorer.reset(0)
+        explorer = spec_explorer(path_distance=path_distance, choice="best",
+                         frontier=FrontierConfig(distance_scale_m=3.0))
         over_the_wall[path_distance] = explorer.decide(state, pose, None, 1).frontier.xy[1] > 3
     assert over_the_wall == {False: True, True: False}
 
@@ -81,16 +90,14 @@ def test_small_frontiers_weigh_less_but_are_still_chosen():
     pose = Pose2D(4.0, 2.0, math.pi)
     weights = {}
     for cells in (0, 10):
-        explorer = FrontierExplorer(SFEConfig(use_values=False, small_frontier_cells=cells))
-        explorer.reset(0)
+        explorer = spec_explorer(small_frontier_cells=cells)
         d = explorer.decide(state, pose, None, 1)
         weights[cells] = (d.weights, np.array([f.size for f in d.frontiers]))
     (plain, sizes), (small, _) = weights[0], weights[10]
     assert (sizes < 10).any() and (sizes >= 10).any()
     assert small == pytest.approx(np.where(sizes < 10, plain * 1e-3, plain))
     explored[1:-1, 80:] = True  # only the hole is left: still chosen
-    explorer = FrontierExplorer(SFEConfig(use_values=False, small_frontier_cells=10))
-    explorer.reset(0)
+    explorer = spec_explorer(small_frontier_cells=10)
     assert not explorer.decide(make_state(free, explored, (4.0, 2.0)), pose, None, 1).done
 
 
@@ -112,8 +119,7 @@ def test_stand_on_path_stands_in_the_doorway_line_before_the_frontier():
     state, pose = doorway()
     targets = {}
     for on_path in (False, True):
-        explorer = FrontierExplorer(SFEConfig(use_values=False, stand_on_path=on_path))
-        explorer.reset(0)
+        explorer = spec_explorer(stand_on_path=on_path)
         d = explorer.decide(state, pose, None, 1)
         targets[on_path] = (np.array(d.target_xy), np.array(d.frontier.xy))
     paper, frontier = targets[False]
@@ -134,11 +140,9 @@ def test_approach_unreachable_heads_for_a_sliver_instead_of_ending():
     explored[50:, :] = False  # its far end unexplored: 1.5 m back from there is no floor
     state = make_state(free, explored, (1.0, 1.0))
     pose = Pose2D(1.0, 1.0, 0.0)
-    paper = FrontierExplorer(SFEConfig(use_values=False))
-    paper.reset(0)
+    paper = spec_explorer()
     assert paper.decide(state, pose, None, 1).reason == "no reachable frontier"
-    explorer = FrontierExplorer(SFEConfig(use_values=False, approach_unreachable=True))
-    explorer.reset(0)
+    explorer = spec_explorer(approach_unreachable=True)
     d = explorer.decide(state, pose, None, 1)
     assert not d.done and abs(d.target_xy[0] - 3.05) < 0.3 and d.target_xy[1] > 1.4
 
@@ -159,8 +163,7 @@ def test_approach_unreachable_goes_on_after_every_frontier_was_looked_at():
     state, pose = one_end()  # a frontier that stays unexplored however often it is looked at
     ends = {}
     for approach in (False, True):
-        explorer = FrontierExplorer(SFEConfig(use_values=False, approach_unreachable=approach))
-        explorer.reset(0)
+        explorer = spec_explorer(approach_unreachable=approach)
         here = pose
         for step in range(1, 10):
             d = explorer.decide(make_state(state.free, state.explored, here.xy), here, None, step)
