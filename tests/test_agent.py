@@ -144,7 +144,8 @@ def test_the_agent_may_stop_at_the_minimum_step_itself(house4):
     model = StubChatModel(lambda msgs: "A: 50\nworth exploring: no 50"
                           if msgs[-1].text.startswith("You guide") else "black; 90")
     sims = [0.1, 0.2] * 4 + [0.15, 5.0] + [0.1] * 10
-    built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"), AgentConfig(max_steps=14), "test",
+    built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"),
+                        AgentConfig(max_steps=14), "test",
                         model=model, relevancy=SequenceScorer(sims))
     r = built.agent.run(scene.env, q.question)
     assert all(rec.valid for rec in r.records)

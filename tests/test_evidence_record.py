@@ -95,7 +95,8 @@ def test_episode_json_records_when_the_evidence_was_in_view(house4, tmp_path):
 @needs_egl
 def test_a_question_of_ones_own_has_no_evidence_record(house4, tmp_path):
     scene, _ = house4
-    done = ask("Is there a piano anywhere?", scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
+    done = ask("Is there a piano anywhere?", scene, tmp_path,
+               stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=seeking_model("piano", "hall"), relevancy=MentionScorer("piano"),
                config=AgentConfig(max_steps=3), report=False)
     record = json.loads(done.episode_json.read_text())
