@@ -70,7 +70,9 @@ class SFEConfig:
     # Stand backoff_m of planned path before the frontier (on the way to it) instead of
     # backoff_m behind it against its normal: a frontier seen through a doorway at an angle has
     # a sideways normal, and the point behind it lies beside the doorway, facing the wall.
-    # Off: with the defaults it saw the evidence later (oracle SFE 18.0 -> 21.1 steps).
+    # Off: with the defaults, an earlier form (which also turned in place at frontiers nearer
+    # than backoff_m by path) saw the evidence later (oracle SFE 18.0 -> 21.1 steps); this
+    # form is not measured yet.
     stand_on_path: bool = False
     # When no frontier is left to choose (none has a reachable cell within max_stand_shift_m
     # of its standing point, as a sliver of floor seen through a doorway, or every one was
