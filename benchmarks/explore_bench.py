@@ -38,6 +38,7 @@ from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer, evidence
 from efficienteqa.explore.prompting import PAPER_PROMPTS, PromptConfig
 from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, make_explorer
 from efficienteqa.mapping.maps2d import Mapper
+from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
 
 TRAINING_SEEDS = range(0, 21)  # development houses: tuned on
@@ -296,8 +297,45 @@ def cmd_steering(args: argparse.Namespace) -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "steering.json").write_text(json.dumps({"args": vars(args), "rows": rows,
-                                                   "flagged": flagged}, indent=1))
+                                                   "flagged": flagged,
+                                                   "code_version": code_version()}, indent=1))
     print(f"rows: {out / 'steering.json'}")
+
+
+def method_summary(rows: list[dict], method: str) -> dict[str, float]:
+    """One method's figures over ``rows`` of a steering run: mean steps until the evidence is
+    first in view (never seen: budget + 1), the same over the oracle's steps, the share never
+    seen, floor coverage at the episode's end, refused moves and prompted steps per step."""
+    steps = np.concatenate([_steps(r, method) for r in rows])
+    taken = max(sum(sum(r[method]["steps"]) for r in rows), 1)
+    return {"steps": float(steps.mean()),
+            "x_oracle": float(steps.mean() / np.mean([r["oracle"] for r in rows])),
+            "never": float(np.mean([s is None for r in rows for s in r[method]["first_seen"]])),
+            "coverage": float(np.mean([c for r in rows for c in r[method]["coverage"]])),
+            "refused": sum(sum(r[method]["refused"]) for r in rows) / taken,
+            "asked": sum(sum(r[method]["asked"]) for r in rows) / taken}
+
+
+def cmd_table(args: argparse.Namespace) -> None:
+    """A markdown table of steering runs (their steering.json files): one line per run and
+    method, with the share of steps fewer than the run's frontier-only."""
+    print("| run | method | steps to the evidence (x oracle) | never seen | floor explored | "
+          "fewer steps than frontier-only | steps offering directions | refused moves / step |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name in args.files:
+        run = json.loads(Path(name).read_text())
+        rows, a = run["rows"], run["args"]
+        label = (f"{Path(name).parent.name} ({len(rows)} questions x {a['repeats']} seeds, "
+                 f"{a['seeds']}, {run.get('code_version', 'code version not recorded')})")
+        base = method_summary(rows, "frontier-only")["steps"]
+        methods = [m for m in rows[0] if m == "frontier-only" or m.startswith("sfe")]
+        for m in methods:
+            f = method_summary(rows, m)
+            fewer = "" if m == "frontier-only" else f"{1 - f['steps'] / base:.0%}"
+            asked = "" if m == "frontier-only" else f"{f['asked']:.0%}"
+            cover = f"{f['coverage']:.1%}" if a["to_budget"] else "(episodes end at first sight)"
+            print(f"| {label} | {m} | {f['steps']:.2f} (x{f['x_oracle']:.2f}) | {f['never']:.1%} "
+                  f"| {cover} | {fewer} | {asked} | {f['refused']:.1%} |")
 
 
 def _steps(row: dict, method: str) -> np.ndarray:
@@ -367,7 +405,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
                                      epilog=__doc__.split("\n\n", 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("job", choices=["cost", "coverage", "steering"])
+    parser.add_argument("job", choices=["cost", "coverage", "steering", "table"])
+    parser.add_argument("files", nargs="*", help="table: steering.json files of earlier runs")
     parser.add_argument("--assets", default="sh3d", choices=["sh3d", "builtin"])
     parser.add_argument("--houses", type=int, default=10)
     parser.add_argument("--questions", type=int, default=30)
@@ -425,7 +464,8 @@ def main() -> None:
     STOP_CLEARANCE = args.stop_clearance
     if args.refusal_retries is not None:
         REFUSAL_RETRIES = args.refusal_retries
-    {"cost": cmd_cost, "coverage": cmd_coverage, "steering": cmd_steering}[args.job](args)
+    jobs = {"cost": cmd_cost, "coverage": cmd_coverage, "steering": cmd_steering, "table": cmd_table}
+    jobs[args.job](args)
 
 
 if __name__ == "__main__":
