@@ -301,13 +301,31 @@ def cmd_score(args: argparse.Namespace) -> None:
         r = results[-1]
         print(f"  {r.name:22s} top-1 {r.top1:.3f}  spearman {r.spearman:+.3f}  "
               f"{r.ms:8.1f} ms/frame  unreadable {r.problems}", flush=True)
-    print("\n| scorer | frames | top-1 | Spearman | ms/frame (mean) | unreadable |")
-    print("|---|---|---|---|---|---|")
-    for r in results:
-        print(f"| {r.name} | {r.frames} | {r.top1:.3f} | {r.spearman:+.3f} | {r.ms:.1f} | "
-              f"{r.problems} |")
+    print()
+    print_table([asdict(r) for r in results])
     if args.json:
         Path(args.json).write_text(json.dumps([asdict(r) for r in results], indent=1))
+
+
+def print_table(results: Sequence[dict], run: str = "") -> None:
+    """The markdown table of scorer results (dicts of ``evaluate``'s fields)."""
+    lead = "| run " if run else ""
+    print(f"{lead}| scorer | frames | top-1 | Spearman | ms/frame (mean) | unreadable |")
+    print("|---" * (6 + bool(run)) + "|")
+    for r in results:
+        cell = f"| {run} " if run else ""
+        print(f"{cell}| {r['name']} | {r['frames']} | {r['top1']:.3f} | {r['spearman']:+.3f} | "
+              f"{r['ms']:.1f} | {r['problems']} |")
+
+
+def cmd_table(args: argparse.Namespace) -> None:
+    """The README's table from the ``--json`` files of earlier ``score`` runs."""
+    for k, name in enumerate(args.files):
+        rows = json.loads(Path(name).read_text())
+        if k:
+            print()
+        print(f"{name}:")
+        print_table(rows)
 
 
 def fit_logit(features: Sequence[np.ndarray], best: Sequence[np.ndarray], l2: float = 0.05
@@ -391,8 +409,10 @@ def main() -> None:
     fit.add_argument("--l2", type=float, default=0.05)
     fit.add_argument("--embed", action=argparse.BooleanOptionalAction, default=True,
                      help="with the two MiniLM cosine features")
+    table = sub.add_parser("table", help="print the tables of earlier score runs (--json files)")
+    table.add_argument("files", nargs="+")
     args = parser.parse_args()
-    {"frames": cmd_frames, "score": cmd_score, "fit": cmd_fit}[args.job](args)
+    {"frames": cmd_frames, "score": cmd_score, "fit": cmd_fit, "table": cmd_table}[args.job](args)
 
 
 if __name__ == "__main__":
