@@ -89,6 +89,26 @@ for _name in ("direction-logit", "nearest", "keyword"):
     STEERING_SCORERS[_name] = _text_scorer(_name)
 
 
+def _sharp_logit(temperature: float) -> ScorerFactory:
+    """direction-logit with its softmax at ``temperature`` (sharper values, same ranking)."""
+    def factory(env: SyntheticEnv, q: Question, distance_m: EvidenceDistance,
+                glimpsed: Callable[[np.ndarray], bool]) -> SemanticScorer:
+        from efficienteqa.explore.text_scorers import (
+            LOGIT_WEIGHTS,
+            DirectionScorer,
+            LogitDirections,
+        )
+        from efficienteqa.perception.semantic import SemanticPerception
+
+        return DirectionScorer(LogitDirections(LOGIT_WEIGHTS, temperature=temperature),
+                               SemanticPerception(env.scene_labels()))
+    return factory
+
+
+for _t in (0.5, 0.25):
+    STEERING_SCORERS[f"direction-logit-t{_t}"] = _sharp_logit(_t)
+
+
 def make_mapper(env: SyntheticEnv) -> Mapper:
     extra: dict = {"explored_window": WINDOW} if WINDOW else {}
     if EXPLORED_DEPTH is not None:

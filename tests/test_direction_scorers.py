@@ -223,3 +223,12 @@ def test_spearman_against_negative_distances(bench):
     assert bench.spearman({"A": 0.5, "B": 0.9, "C": 0.1}, d) == pytest.approx(1.0)
     assert bench.spearman({"A": 0.5, "B": 0.1, "C": 0.9}, d) == pytest.approx(-1.0)
     assert bench.spearman({"A": 0.3, "B": 0.3, "C": 0.3}, d) == 0.0
+
+
+def test_a_colder_logit_keeps_the_ranking_and_sharpens_the_confidences():
+    from efficienteqa.explore.text_scorers import LOGIT_WEIGHTS, LogitDirections
+
+    warm, _ = LogitDirections(LOGIT_WEIGHTS).letter_scores(frame())
+    cold, _ = LogitDirections(LOGIT_WEIGHTS, temperature=0.25).letter_scores(frame())
+    assert sorted(warm, key=warm.get) == sorted(cold, key=cold.get)
+    assert max(cold.values()) > max(warm.values())

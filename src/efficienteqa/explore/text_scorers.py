@@ -255,11 +255,12 @@ class LogitDirections:
     cosine features are 0 and their weights unused."""
 
     def __init__(self, weights: Sequence[float], embedder: MiniLMScorer | None = None,
-                 name: str = "logit") -> None:
+                 name: str = "logit", temperature: float = 1.0) -> None:
         if len(weights) != len(FEATURES):
             raise ValueError(f"{len(FEATURES)} weights expected ({', '.join(FEATURES)}), "
                              f"got {len(weights)}")
         self.weights, self.embedder, self.name = np.asarray(weights, float), embedder, name
+        self.temperature = temperature  # below 1: sharper confidences, the same ranking
 
     def letter_scores(self, frame: DirectionFrame) -> Scores:
         if not frame.letters:
@@ -267,7 +268,7 @@ class LogitDirections:
         z = direction_features(frame, self.embedder) @ self.weights
         if not np.isfinite(z).all():
             return uniform(frame.letters), {"problems": ["non-finite features: uniform"]}
-        return softmax(dict(zip(frame.letters, z.tolist())), 1.0), {}
+        return softmax(dict(zip(frame.letters, z.tolist())), self.temperature), {}
 
 
 # Fitted with `python benchmarks/direction_bench.py fit out/direction/train.jsonl --no-embed
