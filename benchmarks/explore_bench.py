@@ -342,11 +342,14 @@ def cmd_table(args: argparse.Namespace) -> None:
     print("| run | method | steps to the evidence (x oracle) | never seen | floor explored | "
           "fewer steps than frontier-only | steps offering directions | refused moves / step |")
     print("|---|---|---|---|---|---|---|---|")
+    notes: list[str] = []
     for name in args.files:
         run = json.loads(Path(name).read_text())
         rows, a = run["rows"], run["args"]
-        label = (f"{Path(name).parent.name} ({len(rows)} questions x {a['repeats']} seeds, "
-                 f"{a['seeds']}, {run.get('code_version', 'code version not recorded')})")
+        label = Path(name).parent.name
+        notes.append(f"- `{label}`: {len(rows)} questions in houses "
+                     f"{', '.join(map(str, sorted({r['house'] for r in rows})))} x {a['repeats']} "
+                     f"explorer seeds; code {run.get('code_version', 'not recorded')}")
         base = method_summary(rows, "frontier-only")["steps"]
         methods = [m for m in rows[0] if m == "frontier-only" or m.startswith("sfe")]
         for m in methods:
@@ -356,6 +359,7 @@ def cmd_table(args: argparse.Namespace) -> None:
             cover = f"{f['coverage']:.1%}" if a["to_budget"] else "(episodes end at first sight)"
             print(f"| {label} | {m} | {f['steps']:.2f} (x{f['x_oracle']:.2f}) | {f['never']:.1%} "
                   f"| {cover} | {fewer} | {asked} | {f['refused']:.1%} |")
+    print("\n" + "\n".join(notes))
 
 
 def _steps(row: dict, method: str) -> np.ndarray:
