@@ -39,10 +39,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import explore_bench  # noqa: E402  (the steering benchmark's episode set-up)
 
 from efficienteqa.envs.synthetic.env import SyntheticEnv  # noqa: E402
-from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M  # noqa: E402
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible  # noqa: E402
 from efficienteqa.explore.module import ExploreModule, SemanticScore, move  # noqa: E402
-from efficienteqa.explore.oracle import EvidenceDistance, evidence_distance_field  # noqa: E402
 from efficienteqa.explore.registry import make_explorer  # noqa: E402
 from efficienteqa.explore.text_scorers import DirectionFrame  # noqa: E402
 from efficienteqa.observation import Observation, PromptPoint  # noqa: E402
@@ -148,14 +146,7 @@ def _finite_or_none(d: float) -> float | None:
 def episode_frames(env: SyntheticEnv, q: Question, seed: int, explorer_seed: int
                    ) -> tuple[list[Frame], int]:
     """The labelled frames of one episode, and how many prompted frames were dropped."""
-    objects = [env.house.object(e) for e in q.evidence]
-    centre = np.mean([[o.x, o.y] for o in objects], axis=0)
-    rooms = {(r.x0, r.y0, r.x1, r.y1) for r in (env.house.room(o.room_id) for o in objects)}
-    start = (env.house.start.x, env.house.start.y)
-    views = [q.oracle_pose[:2]] if q.oracle_pose else []
-    field_m = evidence_distance_field(env.grid, centre, ROBOT_RADIUS_M, sorted(rooms), 2.0,
-                                      start_xy=start, views=views)
-    distance_m = EvidenceDistance(env.grid, field_m, ROBOT_RADIUS_M)
+    distance_m = explore_bench.evidence_distance(env, q)
     if not distance_m.reachable:
         return [], 0
     recorder = FrameRecorder(SemanticPerception(env.scene_labels()), distance_m, q, seed)

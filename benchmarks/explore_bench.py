@@ -379,21 +379,29 @@ def steering_method(name: str) -> str:
     return f"sfe:{scorer or 'oracle'}"
 
 
+def evidence_centre(env: SyntheticEnv, q: Question) -> np.ndarray:
+    """The mean (x, y) of the question's evidence objects, metres."""
+    return np.mean([[o.x, o.y] for o in (env.house.object(e) for e in q.evidence)], axis=0)
+
+
+def evidence_distance(env: SyntheticEnv, q: Question) -> EvidenceDistance:
+    """Path distance to the evidence's views reachable from the start: the floor near it in its
+    own room(s) (a plain snap to the nearest floor cell can land behind a wall) and the oracle's
+    pose; a point off the navigable floor counts from the nearest navigable cell (see
+    explore/oracle.py). ``reachable`` is False when no view is reachable from the start."""
+    objects = [env.house.object(e) for e in q.evidence]
+    rooms = {(r.x0, r.y0, r.x1, r.y1) for r in (env.house.room(o.room_id) for o in objects)}
+    start = (env.house.start.x, env.house.start.y)
+    views = [q.oracle_pose[:2]] if q.oracle_pose else []
+    field_m = evidence_distance_field(env.grid, evidence_centre(env, q), ROBOT_RADIUS_M,
+                                      sorted(rooms), 2.0, start_xy=start, views=views)
+    return EvidenceDistance(env.grid, field_m, ROBOT_RADIUS_M)
+
+
 def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
            to_budget: bool, methods: tuple[str, ...] = ("frontier-only", "sfe:oracle")) -> dict:
     """Each method's episodes over ``repeats`` explorer seeds (SFE samples frontiers)."""
-    objects = [env.house.object(e) for e in q.evidence]
-    centre = np.mean([[o.x, o.y] for o in objects], axis=0)
-    rooms = {(r.x0, r.y0, r.x1, r.y1) for r in (env.house.room(o.room_id) for o in objects)}
-    # Path distance to the evidence's views reachable from the start: the floor near it in its
-    # own room(s) (a plain snap to the nearest floor cell can land behind a wall) and the
-    # oracle's pose; a prompt point off the navigable floor counts from the nearest navigable
-    # cell (see explore/oracle.py).
-    start = (env.house.start.x, env.house.start.y)
-    views = [q.oracle_pose[:2]] if q.oracle_pose else []
-    field_m = evidence_distance_field(env.grid, centre, ROBOT_RADIUS_M, sorted(rooms), 2.0,
-                                      start_xy=start, views=views)
-    distance_m = EvidenceDistance(env.grid, field_m, ROBOT_RADIUS_M)
+    distance_m = evidence_distance(env, q)
 
     def seen(instance: np.ndarray) -> bool:
         return evidence_visible(instance, q.evidence)

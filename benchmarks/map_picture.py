@@ -13,17 +13,21 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from explore_bench import evidence_centre, evidence_distance  # noqa: E402  (the oracle set-up)
+
 from efficienteqa.agent import mapper_for
 from efficienteqa.envs.synthetic.env import SyntheticEnv
-from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.module import REFUSAL_RETRIES, ExploreModule, move
-from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer, evidence_distance_field
+from efficienteqa.explore.oracle import OracleScorer
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
 from efficienteqa.explore.registry import EXPLORATIONS, make_explorer
 from efficienteqa.geometry import Pose2D
@@ -53,15 +57,11 @@ class Run:
 def episode(env: SyntheticEnv, q: Question, side: dict, method: str, seed: int,
             budget: int) -> Run:
     """One episode to the budget; the map picture of its last state."""
-    objects = [env.house.object(e) for e in q.evidence]
-    centre = np.mean([[o.x, o.y] for o in objects], axis=0)
-    rooms = sorted({(r.x0, r.y0, r.x1, r.y1) for r in (env.house.room(o.room_id) for o in objects)})
+    centre = evidence_centre(env, q)
     start = (env.house.start.x, env.house.start.y)
-    field_m = evidence_distance_field(env.grid, centre, ROBOT_RADIUS_M, rooms, 2.0, start_xy=start,
-                                      views=[q.oracle_pose[:2]] if q.oracle_pose else [])
     scorer = None
     if method == "sfe":
-        scorer = OracleScorer(EvidenceDistance(env.grid, field_m, ROBOT_RADIUS_M),
+        scorer = OracleScorer(evidence_distance(env, q),
                               lambda inst: any(evidence_visible(inst, [e], min_pixels=20)
                                                for e in q.evidence))
     mapper = mapper_for(env, start)
