@@ -5,6 +5,7 @@ import math
 import pytest
 
 from efficienteqa.answer import RagAnswerer, TopK
+from efficienteqa.answer.rag import View, same_view
 from efficienteqa.models.base import TokenLogprob
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.vc.grouping import RuleGrouper
@@ -23,6 +24,36 @@ def test_ties_keep_the_earlier_frame():
     for step in range(1, 6):
         top.push(0.5, step, step)
     assert [r.step for r in top.best()] == [1, 2]
+
+
+def test_top_k_holds_distinct_views():
+    """Three frames from one spot (the robot did not move) and one elsewhere: K = 3 retrieves
+    the best of the three copies and the other view, not the copies."""
+    top = TopK(3)
+    here = View(1.0, 2.0, 0.0, "You are in the kitchen. Visible: a red chair ahead, 0.9 m.")
+    top.push(0.5, 1, "copy 1", here)
+    top.push(0.8, 2, "copy 2", View(1.1, 2.05, math.radians(10), "a slightly different text"))
+    top.push(0.8, 3, "copy 3", View(1.0, 2.0, 0.0, here.text))  # a tie: the earlier stays
+    top.push(0.3, 4, "elsewhere", View(5.0, 2.0, 0.0, "You are in the hallway."))
+    assert [(r.step, r.item) for r in top.best()] == [(2, "copy 2"), (4, "elsewhere")]
+
+
+def test_same_description_is_the_same_view_wherever_it_was_taken():
+    text = "You are in the hallway. Visible: a brown door (open), 2.0 m."
+    assert same_view(View(0.0, 0.0, 0.0, text), View(3.0, 0.0, math.pi, text))
+    assert not same_view(View(0.0, 0.0, 0.0, "a"), View(0.0, 0.0, math.radians(20), "b"))
+    assert same_view(View(0.0, 0.0, math.radians(179), None), View(0.2, 0.0, math.radians(-179)))
+    assert not same_view(View(0.0, 0.0, 0.0), View(0.3, 0.0, 0.0))
+
+
+def test_a_duplicate_view_evicted_and_seen_again_competes_afresh():
+    top = TopK(1)
+    top.push(0.4, 1, "a", View(0.0, 0.0, 0.0))
+    top.push(0.6, 2, "b", View(4.0, 0.0, 0.0))
+    top.push(0.9, 3, "a again", View(0.0, 0.0, 0.0))
+    assert [r.item for r in top.best()] == ["a again"]
+    top.push(0.95, 4, "a once more", View(0.0, 0.0, 0.0))
+    assert [r.item for r in top.best()] == ["a once more"]
 
 
 def test_fewer_frames_than_k():

@@ -203,3 +203,15 @@ def test_without_retries_a_refused_move_spends_the_step(refusing_house, tmp_path
     assert steps[0]["blocked"] and steps[1]["blocked"] and not steps[2]["blocked"]
     assert steps[0]["pose"] == steps[1]["pose"] == steps[2]["pose"]  # two steps spent in place
     assert record["refused_moves"] == 2 and record["config"]["refusal_retries"] == 0
+
+
+@needs_egl
+def test_retrieval_sends_the_model_one_frame_per_view(refusing_house, tmp_path):
+    """Three steps spent in place are one view: the answer reads it once (the default), or
+    three times with SPEC 3.5's retrieval (--repeated-views, the paper preset)."""
+    scene, q = refusing_house
+    distinct = _run(scene, q, tmp_path / "distinct", refusal_retries=0)
+    repeated = _run(scene, q, tmp_path / "repeated", refusal_retries=0, distinct_views=False)
+    assert sorted(r["step"] for r in repeated["retrieved"]) == [1, 2, 3, 4]  # K = 5
+    kept = sorted(r["step"] for r in distinct["retrieved"])
+    assert len(kept) == 2 and kept[0] in (1, 2, 3) and kept[1] == 4

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK
+from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK, View
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
 from efficienteqa.explore.module import (
@@ -74,6 +74,9 @@ class AgentConfig:
     # Where prompt points may lie: "default" (from 1 m, asks at more steps) or "paper"
     # (SPEC 3.3: 2-10 m); see explore.prompting.PROMPT_CONFIGS.
     prompts: str = "default"
+    # Retrieval keeps K different views (answer.rag.same_view); False: SPEC 3.5's top-K frames,
+    # copies of one view included.
+    distinct_views: bool = True
     # The frontier explorer's options beyond SPEC 3.2: "default" (SFEConfig's) or "paper"
     # (every one off); see explore.registry.EXPLORATIONS.
     exploration: str = "default"
@@ -209,7 +212,10 @@ class Agent:
                     else:
                         sim = self.relevancy.score(question, text=self.perception.relevancy_text(obs))
                 record.check = stopper.check(step, sim)
-                top.push(sim, step, frame)
+                view = (View(obs.pose.x, obs.pose.y, obs.pose.yaw,
+                             frame if isinstance(frame, str) else None)
+                        if cfg.distinct_views else None)
+                top.push(sim, step, frame, view)
                 record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
                 if cfg.answer_at == "best-step":
                     with self._phase(f"step {step}"):

@@ -66,6 +66,9 @@ Prompts = Annotated[str | None, typer.Option(
 Exploration = Annotated[str | None, typer.Option(
     help="The frontier explorer's options beyond the paper: default, or paper (SPEC 3.2's "
     "explorer, every one off).", show_default=False)]
+DistinctViews = Annotated[bool | None, typer.Option(
+    "--distinct-views/--repeated-views", help="Retrieve K different views (default), or the K "
+    "most relevant frames even when they repeat one view (SPEC 3.5).", show_default=False)]
 Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
 Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
@@ -121,6 +124,7 @@ def ask_command(
     refusal_retries: RefusalRetries = None,
     stop_clearance_m: StopClearance = None,
     prompts: Prompts = None,
+    distinct_views: DistinctViews = None,
     exploration: Exploration = None,
     explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
@@ -248,6 +252,7 @@ def eval_command(
     refusal_retries: RefusalRetries = None,
     stop_clearance_m: StopClearance = None,
     prompts: Prompts = None,
+    distinct_views: DistinctViews = None,
     exploration: Exploration = None,
     seed: Seed = None,
     vlm: Vlm = None,

@@ -36,6 +36,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "refusal_retries": 0, "stop_clearance_m": 0.0,
         # SPEC 3.3's prompt points, 2-10 m away and 1 m apart; SPEC 3.2's frontier explorer
         "prompts": "paper", "exploration": "paper",
+        # SPEC 3.5's retrieval: the K most relevant frames, repeats of one view included
+        "distinct_views": False,
     },
 }
 

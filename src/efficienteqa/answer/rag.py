@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Generic, Literal, TypeVar
@@ -34,24 +35,68 @@ class Ranked(Generic[T]):
     item: T
 
 
+@dataclass(frozen=True)
+class View:
+    """Where a frame was taken (x, y metres, yaw radians) and, for text perception, what it
+    said: enough to tell two frames that show the model the same thing."""
+
+    x: float
+    y: float
+    yaw: float
+    text: str | None = None
+
+
+SAME_POSE_M = 0.25  # frames taken this close ...
+SAME_YAW_DEG = 15.0  # ... and turned less than this apart show the same view
+
+
+def same_view(a: View, b: View, pose_m: float = SAME_POSE_M, yaw_deg: float = SAME_YAW_DEG) -> bool:
+    """Whether two frames are near-duplicates: the same pose (within ``pose_m`` and
+    ``yaw_deg``), or the same description (the same objects at the same ranges, read by a text
+    model as the same evidence)."""
+    if a.text is not None and a.text == b.text:
+        return True
+    turn = abs((a.yaw - b.yaw + math.pi) % (2 * math.pi) - math.pi)
+    return math.hypot(a.x - b.x, a.y - b.y) <= pose_m and math.degrees(turn) <= yaw_deg
+
+
 class TopK(Generic[T]):
-    """The ``k`` items of highest Sim seen so far. Ties keep the earlier step."""
+    """The ``k`` items of highest Sim seen so far. Ties keep the earlier step.
+
+    Items pushed with a ``View`` are distinct views: a frame that ``same_view`` matches with
+    one held replaces it when its Sim is higher and is dropped otherwise, so K retrieved frames
+    are K different views (a robot that did not move between steps sends the model one frame,
+    not three copies). Items pushed without a view are all kept, as SPEC 3.5 reads."""
 
     def __init__(self, k: int = TOP_K) -> None:
         if k < 1:
             raise ValueError(f"top-K needs k >= 1, got {k}")
         self.k = k
         self._heap: list[tuple[float, int, int, Ranked[T]]] = []
+        self._views: dict[int, View] = {}  # entry order -> its view
         self._order = itertools.count()
 
-    def push(self, sim: float, step: int, item: T) -> None:
+    def push(self, sim: float, step: int, item: T, view: View | None = None) -> None:
         # Among equal Sims the heap root is the latest step, so a later frame never evicts an
         # earlier one of the same relevancy.
         entry = (sim, -step, next(self._order), Ranked(sim, step, item))
+        if view is not None:
+            twin = next((e for e in self._heap if e[2] in self._views
+                         and same_view(self._views[e[2]], view)), None)
+            if twin is not None:
+                if entry[:2] <= twin[:2]:
+                    return  # the view held is as relevant: keep it
+                self._heap.remove(twin)
+                del self._views[twin[2]]
+                heapq.heapify(self._heap)
+            self._views[entry[2]] = view
         if len(self._heap) < self.k:
             heapq.heappush(self._heap, entry)
         elif entry[:2] > self._heap[0][:2]:
-            heapq.heapreplace(self._heap, entry)
+            dropped = heapq.heapreplace(self._heap, entry)
+            self._views.pop(dropped[2], None)
+        else:
+            self._views.pop(entry[2], None)
 
     def best(self) -> list[Ranked[T]]:
         """Best first (highest Sim, then earliest step)."""
