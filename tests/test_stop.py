@@ -106,3 +106,68 @@ def test_incremental_statistics_match_the_batch_ones(sims):
     for i, c in enumerate(checks[2:], start=2):
         assert c.mu == pytest.approx(np.mean(sims[:i]), abs=1e-6)
         assert c.sigma == pytest.approx(np.std(sims[:i], ddof=1), abs=1e-6)
+
+
+# Stop rules beyond the paper (SPEC 8): each on a sequence where it and "paper" disagree.
+
+SPIKE_AT_8 = [0.10, 0.12, 0.11, 0.13, 0.10, 0.12, 0.11, 0.90, 0.12, 0.11, 0.13, 0.12]
+
+
+def stops(sims, **cfg):
+    return [c.step for c in run(sims, **cfg) if c.stop]
+
+
+def test_paper_misses_a_spike_before_step_ten_and_lookback_stops_at_ten():
+    """The README demo's case: the spike at step 8 inflates sigma, paper never fires after it."""
+    assert stops(SPIKE_AT_8) == []
+    checks = run(SPIKE_AT_8, rule="lookback")
+    assert [c.step for c in checks if c.stop] == [10, 11, 12]
+    assert checks[9].tested_step == 8 and checks[9].z > 3
+    # leave-one-out: the other nine frames' mean and sample std
+    others = SPIKE_AT_8[:7] + SPIKE_AT_8[8:10]
+    assert checks[9].mu == pytest.approx(np.mean(others))
+    assert checks[9].sigma == pytest.approx(np.std(others, ddof=1))
+
+
+def test_lookback_does_not_stop_on_an_early_frame_that_is_no_outlier():
+    sims = [0.1, 0.3, 0.2, 0.35, 0.15, 0.3, 0.25, 0.4, 0.2, 0.3]
+    assert stops(sims, rule="lookback") == []
+
+
+def test_robust_baseline_is_not_inflated_by_an_earlier_spike():
+    """After a spike, paper's sigma is large; median/MAD barely moves, so a second spike fires."""
+    sims = [0.10, 0.12, 0.11, 0.13, 0.10, 0.95, 0.12, 0.11, 0.13, 0.12, 0.11, 0.60]
+    assert stops(sims) == []
+    checks = run(sims, rule="robust")
+    assert [c.step for c in checks if c.stop] == [12]
+    assert checks[11].mu == pytest.approx(np.median(sims[:11]))
+    mad = np.median(np.abs(np.array(sims[:11]) - np.median(sims[:11])))
+    assert checks[11].sigma == pytest.approx(1.4826 * mad)
+
+
+def test_floor_under_sigma_stops_a_flat_history_from_firing_on_a_small_bump():
+    sims = [0.500, 0.501, 0.500, 0.501, 0.500, 0.501, 0.500, 0.501, 0.500, 0.52]
+    assert stops(sims) == [10]  # sigma 5e-4: a 0.02 bump is z ~ 39
+    checks = run(sims, rule="floor", sigma_floor=0.02)
+    assert not checks[9].stop and checks[9].sigma == pytest.approx(0.02)
+    assert stops(sims[:9] + [0.7], rule="floor", sigma_floor=0.02) == [10]  # a real spike does
+
+
+def test_combined_rule_and_unknown_names():
+    assert stops(SPIKE_AT_8, rule="lookback+floor") == [10, 11, 12]
+    assert stops(SPIKE_AT_8, rule="lookback+robust")[:1] == [10]
+    for bad in ("bogus", "lookback+lookback", "paper+floor", ""):
+        with pytest.raises(ValueError, match="unknown stop rule"):
+            StopConfig(rule=bad)
+
+
+def test_paper_preset_keeps_the_paper_rule_and_the_option_reaches_the_config():
+    from efficienteqa.errors import EfficientEQAError
+    from efficienteqa.presets import apply_preset, build_config
+
+    base = {"stop_rule": None, "z_th": None, "min_stop_step": None}
+    assert build_config(apply_preset("paper", base)).stop.rule == "paper"
+    assert build_config(base | {"stop_rule": "lookback+floor"}).stop.rule == "lookback+floor"
+    assert build_config(apply_preset("paper", base | {"stop_rule": "robust"})).stop.rule == "robust"
+    with pytest.raises(EfficientEQAError, match="unknown stop rule"):
+        build_config(base | {"stop_rule": "nope"})

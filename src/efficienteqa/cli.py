@@ -50,6 +50,9 @@ ZTh = Annotated[float | None, typer.Option("--z-th", help="Stop when a frame's r
                                            show_default=False)]
 MinStopStep = Annotated[int | None, typer.Option(help="Never stop before this step (default "
                                                  f"{StopConfig.min_step}).", show_default=False)]
+StopRuleOpt = Annotated[str | None, typer.Option(
+    "--stop-rule", help="paper (SPEC 3.4) | lookback | robust | floor, or parts joined by '+' "
+    f"(e.g. lookback+floor); default {StopConfig.rule}.", show_default=False)]
 NoEarlyStop = Annotated[bool, typer.Option("--no-early-stop", help="Explore to the budget.")]
 TopK = Annotated[int | None, typer.Option("--top-k", help="Frames retrieved for the answer "
                                           "(the paper's K).", show_default=False)]
@@ -118,6 +121,7 @@ def ask_command(
     start: str | None = typer.Option(None, help="Start pose X,Y,YAW_DEG (default: the scene's)."),
     z_th: ZTh = None,
     min_stop_step: MinStopStep = None,
+    stop_rule: StopRuleOpt = None,
     no_early_stop: NoEarlyStop = False,
     top_k: TopK = None,
     max_steps: MaxSteps = None,
@@ -246,6 +250,7 @@ def eval_command(
     address: str | None = typer.Option(None, help="A Ray cluster address (default: a local Ray)."),
     z_th: ZTh = None,
     min_stop_step: MinStopStep = None,
+    stop_rule: StopRuleOpt = None,
     no_early_stop: NoEarlyStop = False,
     top_k: TopK = None,
     max_steps: MaxSteps = None,

@@ -29,6 +29,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "dataset": "hm-eqa", "limit": 100, "env": "habitat",
         "vlm": PAPER_VLM, "temperature": 1.0, "perception": "rgb", "relevancy": "blip2-itm",
         "grouping": "llm", "z_th": 3.0, "top_k": 5,
+        # SPEC 3.4's z-rule: mean and sample std of the earlier frames, no stop before step 10
+        "stop_rule": "paper",
         # the VLM's verbalized confidence gives the semantic values (SPEC 3.3)
         "explore_scorer": "vlm",
         "judge": PAPER_VLM, "judge_mode": "grade",
@@ -42,7 +44,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 # Command-line names of StopConfig fields (the others are named as their fields).
-_STOP_OPTIONS = {"z_th": "z_th", "min_stop_step": "min_step"}
+_STOP_OPTIONS = {"z_th": "z_th", "min_stop_step": "min_step", "stop_rule": "rule"}
 
 
 def apply_preset(name: str | None, options: Mapping[str, Any]) -> dict[str, Any]:
@@ -74,7 +76,11 @@ def build_config(options: Mapping[str, Any]) -> AgentConfig:
     from efficienteqa.agent import AgentConfig
     from efficienteqa.stop import StopConfig
 
-    stop = StopConfig(**{_STOP_OPTIONS[k]: v for k, v in given(options, _STOP_OPTIONS).items()})
+    try:
+        stop = StopConfig(**{_STOP_OPTIONS[k]: v
+                             for k, v in given(options, _STOP_OPTIONS).items()})
+    except ValueError as exc:  # e.g. --stop-rule bogus
+        raise EfficientEQAError(str(exc), fix="see efficienteqa ask --help") from None
     if options.get("no_early_stop"):
         stop = replace(stop, enabled=False)
     agent_fields = [f.name for f in fields(AgentConfig) if f.name != "stop"]

@@ -4,6 +4,19 @@ Every valid frame gets ``Sim(I_t, Q)``. Against the mean and *sample* standard d
 frames before it, ``z = (Sim_t - mu) / sigma``; the robot stops at the first frame with
 ``z > z_th``, never before ``min_step``. Statistics are kept incrementally (Welford), so a check
 costs the same at step 5 and at step 500.
+
+Stop rules beyond the paper (SPEC 8), named by ``StopConfig.rule``; components join with "+":
+
+- ``paper``: SPEC 3.4 exactly. ``mu``, ``sigma`` = mean, sample std (n-1) of ``Sim_1..Sim_{t-1}``;
+  stop at the first ``t >= min_step`` with ``(Sim_t - mu) / sigma > z_th``.
+- ``robust``: ``mu`` = median, ``sigma`` = 1.4826 * MAD of the earlier frames (the modified
+  z-score of Iglewicz-Hoaglin, ``0.6745 (x - median) / MAD``), so one spike barely moves the
+  baseline.
+- ``floor``: ``sigma = max(sigma, sigma_floor)``: a flat history does not make a small bump an
+  outlier.
+- ``lookback``: from ``min_step`` on, the best frame of the whole history ``j = argmax Sim`` is
+  tested against all the other frames (leave-one-out ``mu``, ``sigma``), so a spike at step 8
+  stops the robot at step 10 if it is still an outlier there.
 """
 
 from __future__ import annotations
@@ -11,9 +24,50 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 Z_TH = 3.0
 MIN_STEP = 10
 STEPS_PER_SQRT_M2 = 3
+SIGMA_FLOOR = 0.02
+MAD_TO_SIGMA = 1.4826  # 1 / 0.6745: MAD of a normal sample -> its standard deviation
+RULE_PARTS = ("lookback", "robust", "floor")
+STOP_RULES = ("paper", "lookback", "robust", "floor", "lookback+floor", "lookback+robust",
+              "robust+floor", "lookback+robust+floor")
+
+
+def rule_parts(rule: str) -> frozenset[str]:
+    """The components of a rule name: ``paper`` has none, ``lookback+floor`` two."""
+    if rule == "paper":
+        return frozenset()
+    parts = rule.split("+")
+    if not parts or any(p not in RULE_PARTS for p in parts) or len(set(parts)) != len(parts):
+        raise ValueError(f"unknown stop rule {rule!r}: use paper or {', '.join(RULE_PARTS)} "
+                         "joined by '+'")
+    return frozenset(parts)
+
+
+def baseline(history: list[float] | np.ndarray, robust: bool = False,
+             sigma_floor: float = 0.0) -> tuple[float | None, float | None]:
+    """``(mu, sigma)`` of ``history``: mean and sample std (n-1), or with ``robust`` the median
+    and ``1.4826 * median(|x - median|)``; sigma raised to ``sigma_floor``. None until two
+    values exist."""
+    x = np.asarray(history, dtype=float)
+    if len(x) < 2:
+        return (float(x[0]) if len(x) else None), None
+    if robust:
+        mu = float(np.median(x))
+        sigma = MAD_TO_SIGMA * float(np.median(np.abs(x - mu)))
+    else:
+        mu, sigma = float(x.mean()), float(x.std(ddof=1))
+    return mu, max(sigma, sigma_floor)
+
+
+def zscore(sim: float, mu: float | None, sigma: float | None, eps: float = 1e-9) -> float | None:
+    """``(sim - mu) / sigma``; None where sigma is missing or at most ``eps`` (the guard)."""
+    if mu is None or sigma is None or sigma <= eps:
+        return None
+    return (sim - mu) / sigma
 
 
 def step_budget(floor_area_m2: float, per_sqrt_m2: float = STEPS_PER_SQRT_M2) -> int:
@@ -27,18 +81,26 @@ def step_budget(floor_area_m2: float, per_sqrt_m2: float = STEPS_PER_SQRT_M2) ->
 class StopConfig:
     """``z_th``: the outlier threshold; ``min_step``: no stop before this step; ``enabled``:
     False runs to the budget (the ExploreEQA baselines); ``sigma_eps``: a spread at or below it
-    counts as zero (the guard: no z, no stop)."""
+    counts as zero (the guard: no z, no stop); ``rule``: ``paper`` (SPEC 3.4) or a rule beyond
+    it (module docstring); ``sigma_floor``: the floor of rules with ``floor``."""
 
     z_th: float = Z_TH
     min_step: int = MIN_STEP
     enabled: bool = True
     sigma_eps: float = 1e-9
+    rule: str = "paper"
+    sigma_floor: float = SIGMA_FLOOR
+
+    def __post_init__(self) -> None:
+        rule_parts(self.rule)  # raises on an unknown name
 
 
 @dataclass(frozen=True)
 class StopCheck:
     """One frame's check. ``mu``/``sigma`` are over the earlier frames (None until two exist);
-    ``z`` is None where sigma is missing or zero; ``threshold`` = mu + z_th * sigma."""
+    ``z`` is None where sigma is missing or zero; ``threshold`` = mu + z_th * sigma.
+    ``tested_step``: the frame tested (the current one, or under ``lookback`` the best so far,
+    with ``mu``/``sigma`` over all the other frames)."""
 
     step: int
     sim: float
@@ -47,6 +109,7 @@ class StopCheck:
     z: float | None
     threshold: float | None
     stop: bool
+    tested_step: int | None = None
 
 
 class RelevancyStopper:
@@ -54,6 +117,8 @@ class RelevancyStopper:
 
     def __init__(self, config: StopConfig | None = None) -> None:
         self.config = config or StopConfig()
+        self.parts = rule_parts(self.config.rule)
+        self.history: list[tuple[int, float]] = []
         self.n = 0
         self._mean = 0.0
         self._m2 = 0.0  # sum of squared deviations from the running mean
@@ -71,6 +136,8 @@ class RelevancyStopper:
         if not math.isfinite(sim):
             raise ValueError(f"relevancy must be finite, got {sim} at step {step}")
         cfg = self.config
+        if self.parts:
+            return self._check_beyond(step, sim)
         mu, sigma = self.mu, self.sigma
         z = threshold = None
         if mu is not None and sigma is not None:
@@ -78,10 +145,29 @@ class RelevancyStopper:
             if sigma > cfg.sigma_eps:
                 z = (sim - mu) / sigma
         stop = cfg.enabled and step >= cfg.min_step and z is not None and z > cfg.z_th
-        self._add(sim)
-        return StopCheck(step, sim, mu, sigma, z, threshold, stop)
+        self._add(step, sim)
+        return StopCheck(step, sim, mu, sigma, z, threshold, stop, step)
 
-    def _add(self, sim: float) -> None:
+    def _check_beyond(self, step: int, sim: float) -> StopCheck:
+        cfg = self.config
+        robust = "robust" in self.parts
+        floor = cfg.sigma_floor if "floor" in self.parts else 0.0
+        sims = [s for _, s in self.history]
+        tested, value, others = step, sim, sims
+        if "lookback" in self.parts and step >= cfg.min_step and sims:
+            every = sims + [sim]
+            j = int(np.argmax(every))  # the first of equal maxima
+            tested = self.history[j][0] if j < len(sims) else step
+            value, others = every[j], every[:j] + every[j + 1:]
+        mu, sigma = baseline(others, robust, floor)
+        z = zscore(value, mu, sigma, cfg.sigma_eps)
+        threshold = mu + cfg.z_th * sigma if mu is not None and sigma is not None else None
+        stop = cfg.enabled and step >= cfg.min_step and z is not None and z > cfg.z_th
+        self._add(step, sim)
+        return StopCheck(step, sim, mu, sigma, z, threshold, stop, tested)
+
+    def _add(self, step: int, sim: float) -> None:
+        self.history.append((step, sim))
         self.n += 1
         delta = sim - self._mean
         self._mean += delta / self.n
