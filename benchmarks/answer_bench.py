@@ -48,13 +48,42 @@ import explore_bench  # noqa: E402  (seed_set)
 from efficienteqa.envs.synthetic.env import SyntheticEnv  # noqa: E402
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M  # noqa: E402
 from efficienteqa.envs.synthetic.questions import CATEGORIES, Question, evidence_visible  # noqa: E402
-from efficienteqa.geometry import Pose2D  # noqa: E402
-from efficienteqa.eval.rule_judge import rule_judgement  # noqa: E402
 from efficienteqa.eval.judge_rules import MAX_SCORE  # noqa: E402
+from efficienteqa.eval.rule_judge import rule_judgement  # noqa: E402
+from efficienteqa.geometry import Pose2D  # noqa: E402
 from efficienteqa.perception.semantic import SemanticPerception  # noqa: E402
 from efficienteqa.scenes import synthetic_questions  # noqa: E402
 
-VARIANTS = ("default", "first-guess", "token")
+VARIANTS = ("default", "first-guess", "token", "token-hints")
+
+# ``token-hints``: the direct prompt of ``token`` with one short hint per question form (the
+# issue's "short question-type hints"), written on training houses 0-3 from the wrong answers of
+# the other variants. The semantic description lists objects with their direction and range and
+# never says what stands on what, so "what is on X" can only be read from what is seen at X.
+HINTS = (
+    (r"^how many\b", "Count the listed objects of that kind in that place (each \"a ...\" entry is "
+                     "one object, even when the same words repeat). Answer with one number."),
+    (r"^what colou?r\b", "Answer with the colour word written before that object."),
+    (r"^where\b", "Answer with the room the object is in: the room named after it, or else the "
+                  "room the robot is in. Not a direction."),
+    (r"^is there\b", "Answer yes only if an object of that kind is listed in that room; "
+                     "otherwise no."),
+    (r"^(is|are)\b", "Answer yes or no, from the state written in brackets or beside the object."),
+    (r"^what is on\b", "Name the small object seen at about the same place (direction and range) "
+                       "as that furniture; never the furniture itself."),
+)
+HINT_PROMPT = """A robot explored a home. Answer the question from what it saw.
+What it saw:
+{evidence}
+Question: {question}
+{hint}
+Reply with the answer only, in a few words, on one line."""
+
+
+def hint_for(question: str) -> str:
+    """The hint of the first form ``question`` matches ("" when none)."""
+    q = question.strip().lower()
+    return next((h for pattern, h in HINTS if re.search(pattern, q)), "")
 HEADINGS = 8
 
 
@@ -187,23 +216,53 @@ def questions(seeds: Sequence[int], per_category: int, assets: str
 # -- answering -----------------------------------------------------------------------------
 def build_answerer(variant: str):  # noqa: ANN201 (RagAnswerer and its model)
     from efficienteqa.answer.rag import RagAnswerer
-    from efficienteqa.stack import Stack, build_grouper, build_relevancy, parse_vlm
     from efficienteqa.models.backends import build_chat_model
+    from efficienteqa.stack import Stack, build_grouper, build_relevancy, parse_vlm
     from efficienteqa.vc.parse import M
 
     stack = Stack()
     model = build_chat_model(parse_vlm(stack.vlm, images=False, cache=stack.cache))
-    if variant == "token":
+    if variant in ("token", "token-hints"):
         return RagAnswerer(model, build_grouper("rules", model, None), m=M, confidence="token"), stack
     grouper = build_grouper(stack.grouping, model, build_relevancy(stack.relevancy))
     return RagAnswerer(model, grouper, m=M), stack
+
+
+def hinted_token_answer(model, question: str, frames: list[str]):  # noqa: ANN001, ANN201
+    """``answer_token_probability`` with ``HINT_PROMPT``: the first line of a greedy reply, its
+    confidence the product of its tokens' probabilities (leading blanks skipped, -inf or NaN
+    make it 0)."""
+    from efficienteqa.answer.vc import evidence_text
+    from efficienteqa.models.base import Message
+    from efficienteqa.vc.parse import AnswerClass, AnswerResult, Candidate, to_float
+    from efficienteqa.vc.usage import usage_of
+
+    text, _ = evidence_text(frames)
+    prompt = HINT_PROMPT.format(evidence=text, question=question, hint=hint_for(question))
+    resp = model.chat([Message("user", prompt)], max_tokens=24, temperature=0.0, logprobs=1)
+    raw = resp.text or ""
+    logprob, started = 0.0, False
+    for token in resp.logprobs or []:
+        if not started and not token.token.strip():
+            continue
+        if started and "\n" in token.token:
+            break
+        started = True
+        value = to_float(token.logprob)
+        logprob += -math.inf if value is None or math.isnan(value) else min(value, 0.0)
+    answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""
+    confidence = math.exp(logprob) if resp.logprobs and answer else 0.0
+    candidates = [Candidate(answer, confidence)] if answer else []
+    classes = [AnswerClass(answer, candidates, confidence)] if answer else []
+    return AnswerResult(answer, confidence, classes, candidates, [], raw, usage_of(resp))
 
 
 def answer_row(answerer, variant: str, q: Question, frames: list[str]) -> dict:  # noqa: ANN001
     from efficienteqa.vc.parse import M, parse_candidates
 
     t0 = time.perf_counter()
-    res = answerer.answer(q.question, frames)
+    res = (hinted_token_answer(answerer.model, q.question, frames) if variant == "token-hints"
+           else answerer.answer(q.question, frames))
     seconds = time.perf_counter() - t0
     answer, confidence = res.answer, float(res.confidence)
     if variant == "first-guess":
@@ -251,7 +310,7 @@ def cmd_run(args: argparse.Namespace) -> None:
 
 def cmd_table(args: argparse.Namespace) -> None:
     for path in args.files:
-        rows = [json.loads(line) for line in open(path)]
+        rows = [json.loads(line) for line in Path(path).read_text().splitlines()]
         print(f"{path}: houses {sorted({r['house'] for r in rows})}")
         print(format_table(rows[0]["variant"] if rows else path, rows) + "\n")
 
