@@ -191,7 +191,7 @@ def trajectories(seeds: range, scorer: MiniLMScorer, explorer_seeds: int) -> lis
 def simulate(steps: list[int], sims: np.ndarray, seen: list[bool]) -> dict:
     """The agent's stop rule over a fixed trajectory: stop step, whether the evidence was in view
     at the stop frame, and the first step it was in view up to the stop."""
-    stopper = RelevancyStopper(StopConfig())
+    stopper = RelevancyStopper(StopConfig(rule="paper"))
     first_seen = stop = None
     stop_at_evidence = False
     for step, sim, s in zip(steps, sims, seen):

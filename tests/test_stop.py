@@ -9,6 +9,7 @@ from efficienteqa.stop import RelevancyStopper, StopConfig, step_budget
 
 
 def run(sims, **cfg):
+    cfg.setdefault("rule", "paper")  # SPEC 3.4's rule unless a test names another
     stopper = RelevancyStopper(StopConfig(**cfg))
     return [stopper.check(step, s) for step, s in enumerate(sims, start=1)]
 
@@ -151,6 +152,14 @@ def test_floor_under_sigma_stops_a_flat_history_from_firing_on_a_small_bump():
     checks = run(sims, rule="floor", sigma_floor=0.02)
     assert not checks[9].stop and checks[9].sigma == pytest.approx(0.02)
     assert stops(sims[:9] + [0.7], rule="floor", sigma_floor=0.02) == [10]  # a real spike does
+
+
+def test_the_default_rule_is_the_benchmarked_combination():
+    assert StopConfig().rule == "lookback+robust+floor" and StopConfig().sigma_floor == 0.1
+    # the README demo's case: a spike before step 10 stops the robot at step 10
+    stopper = RelevancyStopper()
+    assert [c.step for c in (stopper.check(s, x) for s, x in enumerate(SPIKE_AT_8, 1))
+            if c.stop][:1] == [10]
 
 
 def test_combined_rule_and_unknown_names():
