@@ -2,22 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 from scipy.stats import mannwhitneyu
+
+from conftest import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "answer_bench.py"
-    spec = importlib.util.spec_from_file_location("answer_bench", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["answer_bench"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("answer_bench")
 
 
 def test_auc_separates_ranks_ties_count_half_and_matches_mann_whitney(bench):

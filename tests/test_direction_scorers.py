@@ -3,13 +3,11 @@ with a stub model, the explore scorer a stack picks, and the direction benchmark
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import pytest
 
+from conftest import load_benchmark
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.text_scorers import (
@@ -195,12 +193,7 @@ def test_the_paper_preset_keeps_the_vlm():
 # -- the benchmark's labelling --------------------------------------------------------------
 @pytest.fixture(scope="module")
 def bench():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "direction_bench.py"
-    spec = importlib.util.spec_from_file_location("direction_bench", path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["direction_bench"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("direction_bench")
 
 
 def test_best_letters_are_the_closest_and_unlabelled_frames_are_dropped(bench):
