@@ -70,7 +70,7 @@ def test_frame_text_is_exact():
     d = describe_frame(make_frame(), FakeLabels(), min_pixels=10)
     assert d.text == (
         "You are in the kitchen. Visible: a white lamp (on) ahead, 2.0 m; "
-        "a brown chair slightly right, 2.5 m; a brown chair slightly right, 2.5 m; "
+        "two brown chairs slightly right, 2.5 m; "
         "a red sofa on the left, 3.0 m, in the hallway. Through a doorway: the hallway.")
     assert d.room == "kitchen" and d.rooms_through_doorways == ("hallway",)
     assert [o.instance_id for o in d.objects] == [7, 11, 12, 5]
@@ -87,9 +87,51 @@ def test_small_objects_are_left_out_and_the_threshold_scales():
     assert scaled_min_pixels(48, 64) == 2
 
 
-def test_max_objects_keeps_the_nearest():
+def test_max_objects_keeps_the_nearest_entries_and_never_cuts_a_group():
     d = describe_frame(make_frame(), FakeLabels(), min_pixels=10, max_objects=2)
-    assert [o.instance_id for o in d.objects] == [7, 11]
+    assert [o.instance_id for o in d.objects] == [7, 11, 12]  # the lamp, then both chairs
+    assert d.text.endswith("two brown chairs slightly right, 2.5 m. Through a doorway: the hallway.")
+
+
+def test_identical_objects_are_counted_with_their_bearing_span_and_distance_range():
+    obs = make_frame()
+    obs.instance[10:21, 5:15] = 14  # a third brown chair where the sofa was, on the left, 3.0 m
+    obs.instance[22:24, 60:62] = 13  # and one in the hallway, on the right, 4.0 m
+    extra = {13: ObjectLabel("chair", "brown", None, "hallway"),
+             14: ObjectLabel("chair", "brown", None, "kitchen")}
+    LABELS.update(extra)
+    try:
+        d = describe_frame(obs, FakeLabels(), min_pixels=4)
+    finally:
+        for i in extra:
+            del LABELS[i]
+    assert d.text == (
+        "You are in the kitchen. Visible: a blue cup on the right, 1.2 m; a white lamp (on) "
+        "ahead, 2.0 m; three brown chairs on the left to slightly right, 2.5-3.0 m; a brown chair "
+        "on the right, 4.0 m, in the hallway. Through a doorway: the hallway.")
+    assert [o.instance_id for o in d.objects] == [9, 7, 11, 12, 14, 13]  # still one by one
+
+
+def test_a_stack_seen_in_the_frame_is_described_as_standing_on_its_support():
+    # a box on the floor 2 m ahead (its front face up to z = 0.41 m on rows 33-39; a level
+    # camera 1 m high sees z = 1 - (v + 0.5 - 24) / 16 there) and a cup on top (rows 30-32)
+    obs = make_frame()
+    obs.instance[33:40, 20:28], obs.depth_m[33:40, 20:28] = 30, 2.0
+    obs.instance[30:33, 22:26], obs.depth_m[30:33, 22:26] = 31, 2.0
+    extra = {30: ObjectLabel("box", "grey", None, "kitchen"), 31: LABELS[9]}
+    LABELS.update(extra)
+    try:
+        d = describe_frame(obs, FakeLabels(), min_pixels=4)
+        obs.instance[33:40, 20:28] = 0  # without the box in the frame the cup stands on nothing
+        alone = describe_frame(obs, FakeLabels(), min_pixels=4)
+    finally:
+        for i in extra:
+            del LABELS[i]
+    assert "; a grey box slightly left, 2.0 m; a blue cup on the grey box, slightly left, 2.0 m;" in d.text
+    assert {o.instance_id: o.on for o in d.objects if o.instance_id in extra} == {
+        30: None, 31: "the grey box"}  # the box's bottom is at the floor
+    assert all(o.on is None for o in alone.objects)
+    assert "two blue cups slightly left to on the right, 1.2-2.0 m" in alone.text
 
 
 def test_bearing_words():
@@ -175,16 +217,19 @@ def test_synthetic_house_descriptions_match_the_instance_buffer():
             ids, counts = np.unique(obs.instance[obs.depth_m > 0], return_counts=True)
             big = {int(i) for i, n in zip(ids, counts) if i > 0 and n >= scaled_min_pixels(120, 160)}
             listed = {o.instance_id for o in d.objects}
-            assert len(listed) == min(len(big), MAX_OBJECTS) and listed <= big
+            entries = d.text.count(";") + 1 if listed else 0  # a group of objects is one entry
+            assert listed <= big and entries <= MAX_OBJECTS
+            assert listed == big or entries == MAX_OBJECTS
             depth = {i: float(np.median(obs.depth_m[(obs.instance == i) & (obs.depth_m > 0)]))
                      for i in big}
             if big - listed:  # the ones left out lie no nearer than any listed (0.1 m rounding)
-                assert max(depth[i] for i in listed) <= min(depth[i] for i in big - listed) + 0.1
+                assert min(depth[i] for i in listed) <= min(depth[i] for i in big - listed) + 0.1
             for o in d.objects:
                 truth = env.house.object(o.instance_id)
                 assert o.instance_id in ids and o.label.category == truth.category
                 assert o.label.colour == truth.colour and o.label.state == truth.state
-                assert o.phrase(d.room).split(",")[0] in d.text
+                noun = {"tv": "TV", "tv stand": "TV stand"}.get(o.label.category, o.label.category)
+                assert f"{o.label.colour} {noun[:-1]}" in d.text  # singular or plural
             assert describe_frame(obs, labels) == d  # deterministic
 
 
@@ -296,3 +341,39 @@ def test_an_open_door_near_a_point_says_where_it_leads(state, hallway_floor, lea
                               min_pixels=10)
     assert f"a brown door ({state})" in out["A"] and out["A"].endswith(f"a red sofa{lead}")
     assert ("door to" in out["A"]) == (lead != ".")
+
+
+def _sh3d_env(seed: int):
+    from pathlib import Path
+
+    from efficienteqa.envs.synthetic.catalog import DEFAULT_SOURCE
+    from efficienteqa.envs.synthetic.env import SyntheticEnv
+
+    if not Path(DEFAULT_SOURCE).exists():
+        pytest.skip("apt-get install sweethome3d-furniture")
+    return SyntheticEnv.from_seed(seed, "sh3d")
+
+
+@needs_egl
+def test_a_lamp_on_a_nightstand_is_said_to_stand_on_it_in_a_rendered_frame():
+    # house 1's "What is on the nightstand in the bedroom?" seen from its oracle pose; the relation
+    # comes from the frame's depth and instance buffers, not from the house's support_id
+    with _sh3d_env(1) as env:
+        nightstand, lamp = env.house.object(2), env.house.object(3)
+        assert (nightstand.category, lamp.category, lamp.support_id) == ("nightstand", "desk lamp", 2)
+        d = describe_frame(env.observe(Pose2D(1.575, 4.025, -2.2502)), env.scene_labels())
+    on = {o.instance_id: o.on for o in d.objects}
+    assert on[3] == f"the {nightstand.colour} nightstand"
+    assert f"a {lamp.colour} desk lamp ({lamp.state}) on the {nightstand.colour} nightstand, " in d.text
+    assert on[2] is None and on[1] is None  # the nightstand and the bed stand on the floor
+
+
+@needs_egl
+def test_the_chairs_around_a_table_are_counted_in_a_rendered_frame():
+    with _sh3d_env(0) as env:
+        chairs = [o for o in env.house.objects if o.id in (37, 38, 39, 40)]
+        assert {o.category for o in chairs} == {"chair"} and len({o.colour for o in chairs}) == 1
+        d = describe_frame(env.observe(Pose2D(7.875, 4.725, 1.6575)), env.scene_labels())
+    assert f"four {chairs[0].colour} chairs slightly left to slightly right, " in d.text
+    assert d.text.count(" chair") == 1 and {37, 38, 39, 40} <= {o.instance_id for o in d.objects}
+    assert all(o.on is None for o in d.objects if o.instance_id in (36, 37, 38, 39, 40))

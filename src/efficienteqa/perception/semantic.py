@@ -13,6 +13,21 @@ point: near the point). A closed door names at most the room on the camera's sid
 
 Bearings come from the pixel column of an object's centroid (degrees, positive = left of the
 optical axis); distances are the median depth of its pixels (metres along the optical axis).
+
+The frame text lists the visible objects near to far, each with what it stands on when the frame
+shows that ("a white desk lamp (on) on the brown nightstand, slightly left, 1.2 m"), and counts
+identical objects (same category, colour, state, support and place) as one entry ("four black
+chairs on the left to ahead, 1.4-2.2 m"), so that questions such as "What is on the nightstand?"
+or "How many chairs are in the dining room?" can be answered from the words. The support relation
+is as honest as the rest: it is read off the frame alone, never off the scene's own records. Each
+object's pixels are back-projected to 3D (depth, intrinsics, pose); A stands on B when both are
+visible, A's lowest points lie within SUPPORT_GAP_M of B's highest points (or of a shelf or
+worktop below B's top: SURFACE_SHARE of B's points at that height), A's median horizontal
+position lies within B's visible horizontal extent and A is no wider than B (both with
+SUPPORT_MARGIN_M to spare); of several such B, the one whose top is closest to A's bottom. Doors
+and objects whose lowest points are near the floor stand on nothing, and a support hidden from
+the camera is never named. Tuned on the oracle frames of training houses 0-20: every "What is on
+...?" item (28/28) is said to stand on its surface; 1 of 101 stated relations is wrong.
 """
 
 from __future__ import annotations
@@ -43,6 +58,13 @@ WINDOW_FRACTION = 0.05  # half-width of the pixel window around a prompt point, 
 _NUMBER_WORDS = ("zero", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine")
 _DISPLAY = {"tv": "TV", "tv stand": "TV stand"}
 _CELL_OFFSET = 1 << 20  # keeps cell indices non-negative for the 1-D cell key
+SUPPORT_GAP_M = 0.08  # A's bottom within this of B's top: A stands on B
+SUPPORT_MARGIN_M = 0.1  # A's centre may lie this far outside B's visible horizontal extent
+SURFACE_SHARE = 0.1  # or when this share of B's points lies at A's bottom (a shelf, a worktop)
+ON_FLOOR_M = 0.1  # an object whose bottom is this low stands on the floor
+_LOW_PCT, _HIGH_PCT = 2.0, 98.0  # robust "lowest" and "highest" of an object's visible points
+STRIDE_WIDTH = 320  # the support test reads every (width // this)-th pixel each way: fewer
+# points on large frames (a quarter at 640x480), all of them on small ones
 
 
 @dataclass(frozen=True)
@@ -76,14 +98,12 @@ class VisibleObject:
     distance_m: float
     where: str | None = None  # "in the hallway", "between the kitchen and the hallway": only
     # what the frame shows (set by describe_frame)
+    on: str | None = None  # what it stands on as the frame shows it, "the brown nightstand"
 
     def phrase(self, robot_room: str | None = None) -> str:
-        """E.g. "a lamp (on) on the left, 3.4 m, in the hallway"; the place is left out when it
-        is the robot's own room."""
-        text = f"{_noun_phrase(self.label, 1)} {self.bearing}, {self.distance_m:.1f} m"
-        if self.where and not (robot_room and self.where == f"in the {robot_room}"):
-            text += f", {self.where}"
-        return text
+        """E.g. "a lamp (on) on the left, 3.4 m, in the hallway" or "a white cup on the brown
+        table, ahead, 1.2 m"; the place is left out when it is the robot's own room."""
+        return _entry_phrase([self], robot_room)
 
 
 @dataclass(frozen=True)
@@ -171,22 +191,31 @@ def describe_frame(obs: Observation, labels: SceneLabels, min_pixels: int | None
                    max_objects: int = MAX_OBJECTS, noise: NoiseConfig | None = None
                    ) -> FrameDescription:
     """The frame as a compact paragraph, e.g. "You are in the kitchen. Visible: a grey
-    refrigerator ahead, 2.1 m; a lamp (on) on the left, 3.4 m. Through a doorway: the hallway."
-    At most ``max_objects`` objects, the nearest."""
+    refrigerator ahead, 2.1 m; a white cup on the grey table, slightly left, 1.2 m; two brown
+    chairs slightly left to ahead, 1.4-1.6 m; a lamp (on) on the left, 3.4 m. Through a doorway:
+    the hallway." At most ``max_objects`` entries (a group of identical objects is one), the
+    nearest; ``objects`` holds the individual objects of those entries."""
     seen = visible_objects(obs, labels, min_pixels, noise)
     h, w = obs.depth_m.shape
     threshold = scaled_min_pixels(h, w) if min_pixels is None else min_pixels
-    in_view = floor_view(obs, labels).in_view(threshold)
+    points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)
+    in_view = floor_view(obs, labels, points).in_view(threshold)
     here = labels.room_at(obs.pose.x, obs.pose.y)
     furnished = any(o.label.door is None and o.label.room == here for o in seen)
     room = here if here is not None and (here in in_view or furnished) else None
     camera_xy = (float(obs.cam_to_world[0, 3]), float(obs.cam_to_world[1, 3]))
-    objects = tuple(replace(o, where=_where(o.label, set(in_view), room, camera_xy))
-                    for o in seen[:max_objects])
+    on = {i: _support_name(b.label) for i, b in _supports(obs, points, seen).items()}
+    groups: dict[tuple[object, ...], list[VisibleObject]] = {}
+    for o in seen:  # near to far, so groups are in order of their nearest member
+        o = replace(o, where=_where(o.label, set(in_view), room, camera_xy), on=on.get(o.instance_id))
+        groups.setdefault((o.label.category, o.label.colour, o.label.state, o.where, o.on),
+                          []).append(o)
+    entries = list(groups.values())[:max_objects]
+    objects = tuple(o for group in entries for o in group)
     others = tuple(r for r in in_view if r != here)
     parts = [f"You are in the {room}." if room else "The room you are in is not in view."]
     if objects:
-        parts.append("Visible: " + "; ".join(o.phrase(room) for o in objects) + ".")
+        parts.append("Visible: " + "; ".join(_entry_phrase(g, room) for g in entries) + ".")
     else:
         parts.append("Visible: nothing but walls and floor.")
     if others:
@@ -251,11 +280,14 @@ def describe_directions(obs: Observation, prompts: Sequence[PromptPoint], labels
 
 
 # -- helpers ---------------------------------------------------------------------------------
-def floor_view(obs: Observation, labels: SceneLabels) -> FloorView:
+def floor_view(obs: Observation, labels: SceneLabels, points: np.ndarray | None = None
+               ) -> FloorView:
     """The rooms whose floor the frame shows: structure pixels (instance 0) at floor height,
-    each named by ``labels.room_at`` at the centre of its ROOM_CELL_M cell."""
+    each named by ``labels.room_at`` at the centre of its ROOM_CELL_M cell. ``points``: the
+    frame's back-projection, when the caller has it."""
     h, w = obs.depth_m.shape
-    points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)
+    if points is None:
+        points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)
     floor = (obs.depth_m > 0) & (np.abs(points[..., 2]) < FLOOR_TOLERANCE_M)
     if obs.instance is not None:
         floor &= obs.instance == 0
@@ -296,6 +328,73 @@ def _where(label: ObjectLabel, in_view: set[str], robot_room: str | None,
     if room is not None and (room in in_view or room == robot_room):
         return f"in the {room}"
     return None
+
+
+def _supports(obs: Observation, points: np.ndarray, objects: list[VisibleObject]
+              ) -> dict[int, VisibleObject]:
+    """What each object stands on, as the frame shows it: instance id -> the visible support.
+    Only the back-projected pixels of the visible objects are read (see the module docstring)."""
+    if obs.instance is None or len(objects) < 2:
+        return {}
+    k = max(1, obs.depth_m.shape[1] // STRIDE_WIDTH)
+    instance, depth, points = obs.instance[::k, ::k], obs.depth_m[::k, ::k], points[::k, ::k]
+    valid = (depth > 0) & np.isin(instance, [o.instance_id for o in objects])
+    ids, xyz = instance[valid], points[valid]
+    order = np.argsort(ids, kind="stable")
+    unique, starts = np.unique(ids[order], return_index=True)
+    slices = dict(zip(unique.tolist(), np.split(xyz[order], starts[1:])))
+    stats = {}  # id -> (z, bottom, top, median xy, min xy, max xy) of its visible points
+    objects = [o for o in objects if o.instance_id in slices]  # a sliver may miss the stride
+    for o in objects:
+        p = slices[o.instance_id]
+        bottom, top = np.percentile(p[:, 2], (_LOW_PCT, _HIGH_PCT))
+        stats[o.instance_id] = (p[:, 2], float(bottom), float(top), np.median(p[:, :2], axis=0),
+                                p[:, :2].min(axis=0), p[:, :2].max(axis=0))
+    out: dict[int, VisibleObject] = {}
+    for a in objects:
+        _, bottom, _, centre, a_lo, a_hi = stats[a.instance_id]
+        if a.label.door is not None or bottom < ON_FLOOR_M:
+            continue
+        best: tuple[float, VisibleObject] | None = None
+        for b in objects:
+            bz, _, top, _, lo, hi = stats[b.instance_id]
+            if (b is a or b.label.door is not None or top < bottom - SUPPORT_GAP_M
+                    or np.any(centre < lo - SUPPORT_MARGIN_M) or np.any(centre > hi + SUPPORT_MARGIN_M)
+                    or np.any(a_hi - a_lo > hi - lo + 2 * SUPPORT_MARGIN_M)):
+                continue  # B is too low, A's centre is not over B, or A is wider than B
+            gap = abs(bottom - top)
+            if gap > SUPPORT_GAP_M:  # or a shelf or worktop of B below its top, at A's bottom
+                if np.mean(np.abs(bz - bottom) <= SUPPORT_GAP_M / 2) < SURFACE_SHARE:
+                    continue
+                gap = SUPPORT_GAP_M
+            if best is None or gap < best[0]:
+                best = (gap, b)
+        if best is not None:
+            out[a.instance_id] = best[1]
+    return out
+
+
+def _support_name(label: ObjectLabel) -> str:
+    """ "the brown nightstand": colour and category, without the state."""
+    noun = _DISPLAY.get(label.category, label.category)
+    return f"the {label.colour} {noun}" if label.colour else f"the {noun}"
+
+
+def _entry_phrase(group: list[VisibleObject], robot_room: str | None) -> str:
+    """One entry of the frame text: an object, or identical objects counted ("four black chairs
+    on the left to ahead, 1.4-2.2 m"; bearings from leftmost to rightmost, distances near-far)."""
+    first = group[0]
+    text = _noun_phrase(first.label, len(group))
+    if first.on:
+        text += f" on {first.on},"
+    by_bearing = sorted(group, key=lambda o: -o.bearing_deg)
+    left, right = by_bearing[0].bearing, by_bearing[-1].bearing
+    text += f" {left}" if left == right else f" {left} to {right}"
+    near, far = min(o.distance_m for o in group), max(o.distance_m for o in group)
+    text += f", {near:.1f} m" if near == far else f", {near:.1f}-{far:.1f} m"
+    if first.where and not (robot_room and first.where == f"in the {robot_room}"):
+        text += f", {first.where}"
+    return text
 
 
 def _and_list(items: list[str]) -> str:
