@@ -11,18 +11,20 @@ mimic a top-K with other views (default 0: the oracle frame alone).
 
 Variants (``--variant``):
 
-- ``default``: today's ``RagAnswerer`` (M=3 verbalized candidates, LLM grouping with MiniLM
-  proposals, argmax of the grouped normalised confidences);
+- ``paper``: SPEC 3.5's answer, ``RagAnswerer`` with M=3 verbalized candidates, LLM grouping
+  with MiniLM proposals, argmax of the grouped normalised confidences (``--answer paper``);
 - ``first-guess``: the first candidate of the same reply (same prompt, so the response cache
   replays it), no grouping; its own verbalized confidence / 100;
 - ``token``: ``RagAnswerer(confidence="token")``: one greedy answer to ``answer_token.txt``,
-  confidence its token probability.
+  confidence its token probability (the white-box baseline's answer);
+- ``direct``: the agent's default answer (``--answer direct``): the same with a one-line hint
+  for the question's form (``answer.vc.question_hint``).
 
 Graded by the rule judge. Per question a JSONL row is cached in ``--out`` (runs resume).
 
-    python benchmarks/answer_bench.py run --seeds training --variant default --per-category 4
+    python benchmarks/answer_bench.py run --seeds training --variant paper --per-category 4
     python benchmarks/answer_bench.py run --seeds held-out --variant token --per-category 6
-    python benchmarks/answer_bench.py table out/answer_bench/held-out-default.jsonl
+    python benchmarks/answer_bench.py table out/answer_bench/held-out-direct.jsonl
 
 Develop on the training houses (0-20); report the held-out houses (2000 and up).
 """
@@ -54,36 +56,7 @@ from efficienteqa.geometry import Pose2D  # noqa: E402
 from efficienteqa.perception.semantic import SemanticPerception  # noqa: E402
 from efficienteqa.scenes import synthetic_questions  # noqa: E402
 
-VARIANTS = ("default", "first-guess", "token", "token-hints")
-
-# ``token-hints``: the direct prompt of ``token`` with one short hint per question form (the
-# issue's "short question-type hints"), written on training houses 0-3 from the wrong answers of
-# the other variants. The semantic description lists objects with their direction and range and
-# never says what stands on what, so "what is on X" can only be read from what is seen at X.
-HINTS = (
-    (r"^how many\b", "Count the listed objects of that kind in that place (each \"a ...\" entry is "
-                     "one object, even when the same words repeat). Answer with one number."),
-    (r"^what colou?r\b", "Answer with the colour word written before that object."),
-    (r"^where\b", "Answer with the room the object is in: the room named after it, or else the "
-                  "room the robot is in. Not a direction."),
-    (r"^is there\b", "Answer yes only if an object of that kind is listed in that room; "
-                     "otherwise no."),
-    (r"^(is|are)\b", "Answer yes or no, from the state written in brackets or beside the object."),
-    (r"^what is on\b", "Name the small object seen at about the same place (direction and range) "
-                       "as that furniture; never the furniture itself."),
-)
-HINT_PROMPT = """A robot explored a home. Answer the question from what it saw.
-What it saw:
-{evidence}
-Question: {question}
-{hint}
-Reply with the answer only, in a few words, on one line."""
-
-
-def hint_for(question: str) -> str:
-    """The hint of the first form ``question`` matches ("" when none)."""
-    q = question.strip().lower()
-    return next((h for pattern, h in HINTS if re.search(pattern, q)), "")
+VARIANTS = ("paper", "first-guess", "token", "direct")
 HEADINGS = 8
 
 
@@ -222,47 +195,18 @@ def build_answerer(variant: str):  # noqa: ANN201 (RagAnswerer and its model)
 
     stack = Stack()
     model = build_chat_model(parse_vlm(stack.vlm, images=False, cache=stack.cache))
-    if variant in ("token", "token-hints"):
-        return RagAnswerer(model, build_grouper("rules", model, None), m=M, confidence="token"), stack
+    if variant in ("token", "direct"):
+        return RagAnswerer(model, build_grouper("rules", model, None), m=M, confidence="token",
+                           direct=variant == "direct"), stack
     grouper = build_grouper(stack.grouping, model, build_relevancy(stack.relevancy))
     return RagAnswerer(model, grouper, m=M), stack
-
-
-def hinted_token_answer(model, question: str, frames: list[str]):  # noqa: ANN001, ANN201
-    """``answer_token_probability`` with ``HINT_PROMPT``: the first line of a greedy reply, its
-    confidence the product of its tokens' probabilities (leading blanks skipped, -inf or NaN
-    make it 0)."""
-    from efficienteqa.answer.vc import evidence_text
-    from efficienteqa.models.base import Message
-    from efficienteqa.vc.parse import AnswerClass, AnswerResult, Candidate, to_float
-    from efficienteqa.vc.usage import usage_of
-
-    text, _ = evidence_text(frames)
-    prompt = HINT_PROMPT.format(evidence=text, question=question, hint=hint_for(question))
-    resp = model.chat([Message("user", prompt)], max_tokens=24, temperature=0.0, logprobs=1)
-    raw = resp.text or ""
-    logprob, started = 0.0, False
-    for token in resp.logprobs or []:
-        if not started and not token.token.strip():
-            continue
-        if started and "\n" in token.token:
-            break
-        started = True
-        value = to_float(token.logprob)
-        logprob += -math.inf if value is None or math.isnan(value) else min(value, 0.0)
-    answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""
-    confidence = math.exp(logprob) if resp.logprobs and answer else 0.0
-    candidates = [Candidate(answer, confidence)] if answer else []
-    classes = [AnswerClass(answer, candidates, confidence)] if answer else []
-    return AnswerResult(answer, confidence, classes, candidates, [], raw, usage_of(resp))
 
 
 def answer_row(answerer, variant: str, q: Question, frames: list[str]) -> dict:  # noqa: ANN001
     from efficienteqa.vc.parse import M, parse_candidates
 
     t0 = time.perf_counter()
-    res = (hinted_token_answer(answerer.model, q.question, frames) if variant == "token-hints"
-           else answerer.answer(q.question, frames))
+    res = answerer.answer(q.question, frames)
     seconds = time.perf_counter() - t0
     answer, confidence = res.answer, float(res.confidence)
     if variant == "first-guess":
@@ -320,7 +264,7 @@ def main() -> None:
     sub = ap.add_subparsers(dest="cmd", required=True)
     run = sub.add_parser("run")
     run.add_argument("--seeds", default="training")
-    run.add_argument("--variant", choices=VARIANTS, default="default")
+    run.add_argument("--variant", choices=VARIANTS, default="direct")
     run.add_argument("--per-category", type=int, default=6)
     run.add_argument("--extra", type=int, default=0, help="other frames of the house")
     run.add_argument("--assets", default="sh3d")

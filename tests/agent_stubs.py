@@ -25,6 +25,12 @@ def _answer_from_views(prompt: str, noun: str) -> str | None:
     return match.group(1) if match else None
 
 
+def _bare(prompt: str) -> bool:
+    """Whether an answer prompt asks for the answer alone (the direct and token answers), not
+    for M guesses with confidences."""
+    return "Reply with the answer only" in prompt
+
+
 def _pick_direction(prompt: str, noun: str, room: str) -> str:
     """The direction that mentions ``noun``, else ``room``, else the first letter."""
     dirs = _directions(prompt)
@@ -42,6 +48,8 @@ def seeking_model(noun: str, room: str) -> StubChatModel:
             return f"{_pick_direction(prompt, noun, room)}: 90\nworth exploring: yes 90"
         if prompt.startswith("A robot explored a home"):
             colour = _answer_from_views(prompt, noun)
+            if _bare(prompt):  # the direct answer
+                return colour or "unknown"
             return f"{colour}; 90\nunknown; 5\ngrey; 5" if colour else "unknown; 100\ngrey; 1\nred; 1"
         return "no"  # grouping: keep answers apart
 
@@ -59,7 +67,7 @@ def averse_model(noun: str, room: str) -> StubChatModel:
                           if noun not in d and room not in d), max(dirs))
             return f"{worst}: 100\nworth exploring: no 100"
         if prompt.startswith("A robot explored a home"):
-            return "unknown; 100\ngrey; 1\nred; 1"
+            return "unknown" if _bare(prompt) else "unknown; 100\ngrey; 1\nred; 1"
         return "no"
 
     return StubChatModel(reply, name="averse-stub")

@@ -21,7 +21,7 @@ from efficienteqa.models.stub import StubChatModel
 from efficienteqa.perception.image import CIRCLE_FILL
 from efficienteqa.relevancy.text import WordOverlapScorer
 from efficienteqa.scenes import Scene, synthetic_questions
-from efficienteqa.stack import Stack, build_agent, parse_vlm
+from efficienteqa.stack import Stack, answer_name, build_agent, parse_vlm
 from efficienteqa.stop import StopConfig
 from test_relevancy import blip2, torch  # noqa: F401 - fixtures: a tiny random BLIP-2 ITM
 
@@ -63,6 +63,7 @@ def test_a_model_that_points_at_the_evidence_stops_early_and_answers_right(house
     assert record["reference"]["answer"] == "black" and record["answer"] == "black"
     assert len(record["per_step"]) == r.steps and record["model"]["calls"] >= 2
     assert record["backends"]["relevancy"] == "mention-stub"
+    assert record["backends"]["answer"].startswith("direct")  # the stub gives logprobs
     assert record["backends"]["perception"] == "semantic-sensor"
     assert record["backends"]["environment"] == "synthetic (builtin)"  # the back-end, not the scene
     assert record["scene"] == "synthetic:4 (builtin)"
@@ -111,6 +112,25 @@ def test_the_white_box_baseline_needs_logprobs(house4, tmp_path):
     with pytest.raises(EfficientEQAError, match="log-probabilities"):
         ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"), model=blind,
             relevancy=MentionScorer("desk"), config=AgentConfig(confidence="token"))
+
+
+def test_the_answer_is_direct_when_the_model_gives_logprobs_and_the_papers_otherwise():
+    with_logprobs = StubChatModel(["x"])
+    without = StubChatModel(["x"], capabilities=Capabilities(logprobs=False))
+    assert answer_name(AgentConfig(), with_logprobs) == "direct"
+    assert answer_name(AgentConfig(), without) == "paper"
+    assert answer_name(AgentConfig(answer="paper"), with_logprobs) == "paper"
+    assert answer_name(AgentConfig(answer_at="best-step"), with_logprobs) == "paper"
+    with pytest.raises(EfficientEQAError, match="answers at every step"):
+        answer_name(AgentConfig(answer="direct", answer_at="best-step"), with_logprobs)
+
+
+def test_the_direct_answer_needs_logprobs(house4, tmp_path):
+    scene, q = house4
+    blind = StubChatModel(["x"], capabilities=Capabilities(logprobs=False))
+    with pytest.raises(EfficientEQAError, match="log-probabilities"):
+        ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
+            model=blind, relevancy=MentionScorer("desk"), config=AgentConfig(answer="direct"))
 
 
 def test_the_explore_calls_carry_the_question_and_the_directions(house4, tmp_path):
@@ -269,7 +289,8 @@ def test_an_image_vlm_gets_marked_frames_and_the_top_k_images(house4, tmp_path):
     scene, q = house4
     model = StubChatModel(_brightness_answer)
     done = ask(q.question, scene, tmp_path, stack=Stack(perception="rgb", grouping="rules"),
-               model=model, relevancy=BrightnessScorer(), config=AgentConfig(max_steps=6, top_k=3))
+               model=model, relevancy=BrightnessScorer(),
+               config=AgentConfig(max_steps=6, top_k=3, answer="paper"))  # M guesses
     explore = [r for r in model.requests if r.messages[-1].text.startswith("You guide")]
     assert explore, "no exploration call"
     for request in explore:
@@ -319,7 +340,8 @@ def test_the_papers_stack_rgb_frames_and_blip2_itm(house4, tmp_path, request):
     model = StubChatModel(lambda msgs: "A: 60\nB: 40\nworth exploring: yes 70"
                           if msgs[-1].text.startswith("You guide") else "brown; 40\nblack; 35\nBlack.; 25")
     done = ask(q.question, scene, tmp_path, stack=Stack(perception="rgb", grouping="rules"),
-               model=model, relevancy=itm, config=AgentConfig(max_steps=4, top_k=2))
+               model=model, relevancy=itm,
+               config=AgentConfig(max_steps=4, top_k=2, answer="paper"))
     sims = [rec.check.sim for rec in done.result.records if rec.check]
     assert len(sims) == 4 and all(0.0 <= s <= 1.0 for s in sims)
     assert done.record["backends"]["relevancy"] == itm.name

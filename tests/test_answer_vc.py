@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from efficienteqa.answer.blind import blind_answer
-from efficienteqa.answer.vc import answer_example, answer_token_probability, answer_with_confidence
+from efficienteqa.answer.vc import (
+    answer_example,
+    answer_token_probability,
+    answer_with_confidence,
+    question_hint,
+)
 from efficienteqa.models.base import TokenLogprob
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.vc.grouping import LLMGrouper, RuleGrouper
@@ -116,3 +121,34 @@ def test_blind_answer_sends_only_the_question():
 ])
 def test_the_answer_example_has_the_form_of_the_question(question, first_line):
     assert answer_example(question).splitlines()[1] == first_line
+
+
+@pytest.mark.parametrize("question, words", [
+    ("How many chairs are in the dining room?", "one number"),
+    ("What colour is the sofa?", "colour word"),
+    ("Where is the kettle?", "Not a direction"),
+    ("Is there a plant in the kitchen?", "listed in that room"),
+    ("Is the lamp in the office on?", "state written"),
+    ("What is on the nightstand in the bedroom?", "said to be on it"),
+])
+def test_the_direct_answer_hint_has_the_form_of_the_question(question, words):
+    assert words in question_hint(question)
+    assert question_hint(question) == question_hint("  " + question.upper())
+
+
+def test_a_question_of_no_known_form_gets_no_hint():
+    assert question_hint("Which room has the most windows?") == ""
+
+
+def test_the_direct_answer_sends_the_hint_and_reads_the_token_probability():
+    tokens = [TokenLogprob("in", 0.0), TokenLogprob(" the", 0.0),
+              TokenLogprob(" kitchen", math.log(0.7))]
+    stub = StubChatModel(["in the kitchen"], logprob_fn=lambda text, top: tokens)
+    result = answer_token_probability(stub, "Where is the kettle?", ["a kettle ahead, 1.0 m"],
+                                      hinted=True)
+    prompt = stub.requests[0].messages[0].text
+    assert question_hint("Where is the kettle?") in prompt and "view 1: a kettle" in prompt
+    assert (result.answer, result.confidence) == ("in the kitchen", pytest.approx(0.7))
+    plain = StubChatModel(["kitchen"], logprob_fn=lambda text, top: tokens[:1])
+    answer_token_probability(plain, "Where is the kettle?", ["a kettle"])
+    assert "Not a direction" not in plain.requests[0].messages[0].text  # the white-box prompt

@@ -142,6 +142,9 @@ def test_methods_are_configurations_of_the_agent():
     black = method_config("explore-eqa-blackbox", base)
     assert (black.confidence, black.answer_at, black.explorer) == ("verbalized", "best-step", "sfe")
     assert method_config("frontier-only", base).explorer == "frontier-only"
+    direct = AgentConfig(answer="direct")  # ExploreEQA keeps its own answer at every step
+    assert method_config("explore-eqa", direct).answer == "paper"
+    assert method_config("efficienteqa", direct).answer == "direct"
     assert set(METHODS) >= {"efficienteqa", "explore-eqa", "explore-eqa-blackbox", "blind",
                             "frontier-only", "random"}
     with pytest.raises(EfficientEQAError, match="unknown method"):

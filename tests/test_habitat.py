@@ -277,7 +277,8 @@ def test_an_episode_in_a_habitat_scene(standin, tmp_path):
     scene = open_scene(f"hm3d:{SCENE}", env="habitat", hm3d_root=write_scene(tmp_path), start=START)
     with scene.env:
         done = ask("Is there a table?", scene, tmp_path / "out", stack=Stack(grouping="rules"),
-                   model=model, relevancy=WordOverlapScorer(), config=AgentConfig(max_steps=4))
+                   model=model, relevancy=WordOverlapScorer(),
+                       config=AgentConfig(max_steps=4, answer="paper"))
     record = done.record
     assert record["backends"]["environment"] == "hm3d (habitat-sim)"
     assert record["scene"] == f"hm3d:{SCENE} (habitat-sim)"

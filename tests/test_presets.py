@@ -16,7 +16,7 @@ NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "t
                  "temperature": None, "perception": None, "relevancy": None, "grouping": None,
                  "cache": None, "dataset": None, "limit": None, "env": None, "judge": None,
                  "judge_mode": None, "refusal_retries": None, "stop_clearance_m": None,
-                 "prompts": None, "exploration": None, "distinct_views": None}
+                 "prompts": None, "exploration": None, "distinct_views": None, "answer": None}
 
 
 def test_options_left_out_take_the_dataclass_defaults():
@@ -55,6 +55,7 @@ def test_a_preset_fills_only_what_was_left_out():
     assert config.exploration == "paper"  # SPEC 3.2's explorer
     assert build_config(NOTHING_GIVEN).refusal_retries is None  # the default re-plans
     assert config.distinct_views is False and build_config(NOTHING_GIVEN).distinct_views
+    assert config.answer == "paper" and build_config(NOTHING_GIVEN).answer == "auto"  # SPEC 3.5
 
 
 def test_an_unknown_preset_is_one_clear_error():
@@ -67,3 +68,5 @@ def test_a_value_the_agent_refuses_is_one_clear_error():
         build_config({**NOTHING_GIVEN, "prompts": "bogus"})
     with pytest.raises(EfficientEQAError, match="exploration must be one of"):
         build_config({**NOTHING_GIVEN, "exploration": "bogus"})
+    with pytest.raises(EfficientEQAError, match="answer must be one of"):
+        build_config({**NOTHING_GIVEN, "answer": "bogus"})

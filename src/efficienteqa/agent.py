@@ -50,6 +50,7 @@ STOP_REASONS = ("relevancy", "budget", "explored")
 # Where the answer comes from: the top-K frames at the end (EfficientEQA's RAG), or the best
 # per-step answer by relevancy x confidence (ExploreEQA).
 ANSWER_AT = ("retrieval", "best-step")
+ANSWERS = ("auto", "direct", "paper")
 
 
 @dataclass(frozen=True)
@@ -80,8 +81,14 @@ class AgentConfig:
     # The frontier explorer's options beyond SPEC 3.2: "default" (SFEConfig's) or "paper"
     # (every one off); see explore.registry.EXPLORATIONS.
     exploration: str = "default"
+    # How the retrieved frames are answered: "direct" (one greedy answer with a hint for the
+    # question's form, confidence its token probability; needs logprobs), "paper" (SPEC 3.5's
+    # M verbalized guesses, grouped), or "auto": direct when the model gives logprobs.
+    answer: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.answer not in ANSWERS:
+            raise ValueError(f"answer must be one of {ANSWERS}, not {self.answer!r}")
         if self.exploration not in EXPLORATIONS:
             raise ValueError(f"exploration must be one of {tuple(EXPLORATIONS)}, "
                              f"not {self.exploration!r}")

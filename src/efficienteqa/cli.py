@@ -72,6 +72,10 @@ Exploration = Annotated[str | None, typer.Option(
 DistinctViews = Annotated[bool | None, typer.Option(
     "--distinct-views/--repeated-views", help="Retrieve K different views (default), or the K "
     "most relevant frames even when they repeat one view (SPEC 3.5).", show_default=False)]
+AnswerOpt = Annotated[str | None, typer.Option(
+    "--answer", help="How the retrieved frames are answered: auto (default: direct when the model "
+    "gives logprobs), direct (one answer with a hint for the question's form, confidence its token "
+    "probability) or paper (M verbalized guesses, grouped; SPEC 3.5).", show_default=False)]
 Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
 Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
@@ -129,6 +133,7 @@ def ask_command(
     stop_clearance_m: StopClearance = None,
     prompts: Prompts = None,
     distinct_views: DistinctViews = None,
+    answer: AnswerOpt = None,
     exploration: Exploration = None,
     explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
@@ -258,6 +263,7 @@ def eval_command(
     stop_clearance_m: StopClearance = None,
     prompts: Prompts = None,
     distinct_views: DistinctViews = None,
+    answer: AnswerOpt = None,
     exploration: Exploration = None,
     seed: Seed = None,
     vlm: Vlm = None,

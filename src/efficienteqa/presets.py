@@ -40,6 +40,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "prompts": "paper", "exploration": "paper",
         # SPEC 3.5's retrieval: the K most relevant frames, repeats of one view included
         "distinct_views": False,
+        # SPEC 3.5's answer: M verbalized guesses, grouped
+        "answer": "paper",
     },
 }
 

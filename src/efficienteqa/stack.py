@@ -145,6 +145,24 @@ def explore_scorer_label(name: str, model: ChatModel, config: AgentConfig) -> st
     return EXPLORE_SCORER_LABELS.get(name, name)
 
 
+ANSWER_LABELS = {"direct": "direct (one hinted answer, confidence its token probability)",
+                 "paper": "paper (M verbalized guesses, grouped; SPEC 3.5)"}
+
+
+def answer_name(config: AgentConfig, model: ChatModel) -> str:
+    """How the agent answers: ``config.answer``, or for "auto" the direct answer when the model
+    gives logprobs and the answer reads retrieved frames, else the paper's. ExploreEQA's
+    answer at every step (``answer_at="best-step"``) is always the paper's."""
+    if config.answer_at != "retrieval":
+        if config.answer == "direct":
+            raise EfficientEQAError("the direct answer reads the retrieved frames, and this "
+                                    "method answers at every step", fix="use --answer paper")
+        return "paper"
+    if config.answer == "auto":
+        return "direct" if model.capabilities.logprobs else "paper"
+    return config.answer
+
+
 def build_perception(name: str, env: Environment) -> Perception:
     return PERCEPTIONS.build(name, env=env)
 
@@ -191,18 +209,20 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     scorer_name = explore_scorer_name(stack, perception, config)
     scorer = (EXPLORE_SCORERS.build(scorer_name, model=recorder, perception=perception,
                                     config=config) if config.explorer == "sfe" else None)
-    if config.confidence == "token":
+    answer = answer_name(config, model)
+    if config.confidence == "token" or answer == "direct":
         from efficienteqa.vc.logprobs import require_logprobs
 
         require_logprobs(model)
     # Answering every step (ExploreEQA) asks for one answer per frame, not M.
     m = 1 if config.answer_at == "best-step" else M
     answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy), m=m,
-                           confidence=config.confidence)
+                           confidence=config.confidence, direct=answer == "direct")
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder)
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,
                 "vlm_backend": vlm_backend,
                 "relevancy": relevancy.name, "grouping": stack.grouping,
                 "explore_scorer": (explore_scorer_label(scorer_name, model, config)
-                                   if scorer is not None else None), "judge": None}
+                                   if scorer is not None else None),
+                "answer": ANSWER_LABELS[answer], "judge": None}
     return BuiltAgent(agent, recorder, backends)

@@ -107,13 +107,18 @@ class TopK(Generic[T]):
 
 
 class RagAnswerer:
-    """Answer from retrieved evidence: frame descriptions (text models) or RGB frames (VLMs)."""
+    """Answer from retrieved evidence: frame descriptions (text models) or RGB frames (VLMs).
+
+    ``direct`` (SPEC 8, beyond the paper): one greedy answer to a prompt with a hint for the
+    question's form, its confidence the answer's token probability, instead of SPEC 3.5's M
+    verbalized guesses; it needs a model that gives logprobs."""
 
     def __init__(self, model: ChatModel, grouper: Grouper, m: int = M,
-                 confidence: Confidence = "verbalized") -> None:
+                 confidence: Confidence = "verbalized", direct: bool = False) -> None:
         self.model, self.grouper, self.m, self.confidence = model, grouper, m, confidence
+        self.direct = direct
 
     def answer(self, question: str, evidence: Sequence[str | np.ndarray]) -> AnswerResult:
-        if self.confidence == "token":
-            return answer_token_probability(self.model, question, evidence)
+        if self.direct or self.confidence == "token":
+            return answer_token_probability(self.model, question, evidence, hinted=self.direct)
         return answer_with_confidence(self.model, question, evidence, self.grouper, m=self.m)

@@ -35,6 +35,29 @@ _EXAMPLES = (
 )
 
 
+# The direct answer's one-line hint per question form (first match wins; none for other forms).
+# Written on training houses 0-3 from the wrong answers of the other answer prompts: a small
+# model answers a "where" with a direction, counts repeated lines as one, and names the furniture
+# when asked what stands on it.
+_HINTS = (
+    (r"^how many\b", "Count the objects of that kind in that place: a number word counts that "
+                     "many, and each \"a ...\" entry is one more. Answer with one number."),
+    (r"^what colou?r\b", "Answer with the colour word written before that object."),
+    (r"^where\b", "Answer with the room the object is in: the room named after it, or else the "
+                  "room the robot is in. Not a direction."),
+    (r"^is there\b", "Answer yes only if an object of that kind is listed in that room; "
+                     "otherwise no."),
+    (r"^(is|are)\b", "Answer yes or no, from the state written in brackets or beside the object."),
+    (r"^what is on\b", "Name the object said to be on it; never the furniture itself."),
+)
+
+
+def question_hint(question: str) -> str:
+    """The direct answer's hint for the form of ``question`` ("" when no form matches)."""
+    q = question.strip().lower()
+    return next((hint for pattern, hint in _HINTS if re.search(pattern, q)), "")
+
+
 def answer_example(question: str) -> str:
     """A worked example of the reply for a question of the same form as ``question``."""
     q = question.strip().lower()
@@ -80,15 +103,17 @@ def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[s
 
 
 def answer_token_probability(model: ChatModel, question: str,
-                             evidence: Sequence[str | np.ndarray], *,
+                             evidence: Sequence[str | np.ndarray], *, hinted: bool = False,
                              max_tokens: int = 24) -> AnswerResult:
     """A short greedy answer; its confidence (0-1, as VC's after normalising) is the model's
     probability of that answer: the product of its tokens' probabilities, first line only. A
     token at -inf or with an unreadable (NaN) logprob makes it 0; positive logprobs (rounding)
-    count as probability 1."""
+    count as probability 1. ``hinted``: the direct answer (SPEC 8), whose prompt adds the hint
+    of the question's form (``question_hint``)."""
     require_logprobs(model)
     text, images = evidence_text(evidence)
-    prompt = load_prompt("answer_token", PROMPTS).format(question=question, evidence=text)
+    template = load_prompt("answer_direct" if hinted else "answer_token", PROMPTS)
+    prompt = template.format(question=question, evidence=text, hint=question_hint(question))
     resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
                       logprobs=1)
     raw = resp.text or ""

@@ -11,6 +11,8 @@ random                 random     --          z > Z_th    RAG over top-K        
 blind                  --         verbalized  --          question only         1
 =====================  =========  ==========  ==========  ====================  ===========
 
+The RAG answer is ``AgentConfig.answer``'s: by default the direct answer (one hinted answer,
+its token probability as confidence; SPEC 8), SPEC 3.5's M verbalized guesses with ``paper``.
 ``frontier-only`` and ``random`` keep EfficientEQA's stop and answer and only drop the semantic
 values: they show what SFE's steering is worth. A method may also be given as
 ``module:function`` (a user's own), called like ``run_agent_method`` but with the question as
@@ -97,8 +99,9 @@ def method_config(method: str, config: AgentConfig) -> AgentConfig:
     """``config`` with the method's explorer, confidence reading, stop and answer source."""
     explorer, confidence, early_stop, answer_at = _AGENT_METHODS[method]
     stop = config.stop if early_stop else replace(config.stop, enabled=False)
+    answer = config.answer if answer_at == "retrieval" else "paper"  # ExploreEQA's own answer
     return replace(config, explorer=explorer, confidence=confidence, stop=stop,  # type: ignore[arg-type]
-                   answer_at=answer_at)
+                   answer_at=answer_at, answer=answer)
 
 
 def _usage(exchanges: list[dict[str, Any]]) -> dict[str, Any]:
