@@ -127,9 +127,12 @@ def test_a_stack_seen_in_the_frame_is_described_as_standing_on_its_support():
     finally:
         for i in extra:
             del LABELS[i]
-    assert "; a grey box slightly left, 2.0 m; a blue cup on the grey box, slightly left, 2.0 m;" in d.text
+    assert ("; a grey box slightly left, 2.0 m, with a blue cup on it; a blue cup on the grey "
+            "box, slightly left, 2.0 m;") in d.text  # the relation both ways round
     assert {o.instance_id: o.on for o in d.objects if o.instance_id in extra} == {
         30: None, 31: "the grey box"}  # the box's bottom is at the floor
+    assert {o.instance_id: o.carries for o in d.objects if o.instance_id in extra} == {
+        30: "a blue cup", 31: None}
     assert all(o.on is None for o in alone.objects)
     assert "two blue cups slightly left to on the right, 1.2-2.0 m" in alone.text
 

@@ -40,15 +40,17 @@ _EXAMPLES = (
 # model answers a "where" with a direction, counts repeated lines as one, and names the furniture
 # when asked what stands on it.
 _HINTS = (
-    (r"^how many\b", "Count the objects of that kind in that place: a number word counts that "
-                     "many, and each \"a ...\" entry is one more. Answer with one number."),
-    (r"^what colou?r\b", "Answer with the colour word written before that object."),
+    (r"^how many\b", "A number word before that object is its count (\"three chairs\" is 3, "
+                     "\"a chair\" is 1); add up the entries in that place. Answer with one "
+                     "number."),
+    (r"^what colou?r\b", "Answer with the colour word written just before that object's name."),
     (r"^where\b", "Answer with the room the object is in: the room named after it, or else the "
                   "room the robot is in. Not a direction."),
     (r"^is there\b", "Answer yes only if an object of that kind is listed in that room; "
                      "otherwise no."),
     (r"^(is|are)\b", "Answer yes or no, from the state written in brackets or beside the object."),
-    (r"^what is on\b", "Name the object said to be on it; never the furniture itself."),
+    (r"^what is on\b", "Find \"on the\" and that furniture in what it saw, and answer with the "
+                       "object written just before those words, never the furniture itself."),
 )
 
 

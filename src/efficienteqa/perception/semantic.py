@@ -15,7 +15,9 @@ Bearings come from the pixel column of an object's centroid (degrees, positive =
 optical axis); distances are the median depth of its pixels (metres along the optical axis).
 
 The frame text lists the visible objects near to far, each with what it stands on when the frame
-shows that ("a white desk lamp (on) on the brown nightstand, slightly left, 1.2 m"), and counts
+shows that ("a white desk lamp (on) on the brown nightstand, slightly left, 1.2 m"; the support's
+own entry says it the other way round, "..., with a white desk lamp on it", which a small model
+finds next to the furniture a question names), and counts
 identical objects (same category, colour, state, support and place) as one entry ("four black
 chairs on the left to ahead, 1.4-2.2 m"), so that questions such as "What is on the nightstand?"
 or "How many chairs are in the dining room?" can be answered from the words. The support relation
@@ -99,6 +101,7 @@ class VisibleObject:
     where: str | None = None  # "in the hallway", "between the kitchen and the hallway": only
     # what the frame shows (set by describe_frame)
     on: str | None = None  # what it stands on as the frame shows it, "the brown nightstand"
+    carries: str | None = None  # what stands on it, "a beige desk lamp" (the converse of on)
 
     def phrase(self, robot_room: str | None = None) -> str:
         """E.g. "a lamp (on) on the left, 3.4 m, in the hallway" or "a white cup on the brown
@@ -204,12 +207,19 @@ def describe_frame(obs: Observation, labels: SceneLabels, min_pixels: int | None
     furnished = any(o.label.door is None and o.label.room == here for o in seen)
     room = here if here is not None and (here in in_view or furnished) else None
     camera_xy = (float(obs.cam_to_world[0, 3]), float(obs.cam_to_world[1, 3]))
-    on = {i: _support_name(b.label) for i, b in _supports(obs, points, seen).items()}
+    supports = _supports(obs, points, seen)
+    on = {i: _support_name(b.label) for i, b in supports.items()}
+    loads: dict[int, list[ObjectLabel]] = {}  # support id -> what stands on it, near to far
+    for o in seen:
+        if o.instance_id in supports:
+            loads.setdefault(supports[o.instance_id].instance_id, []).append(o.label)
     groups: dict[tuple[object, ...], list[VisibleObject]] = {}
     for o in seen:  # near to far, so groups are in order of their nearest member
-        o = replace(o, where=_where(o.label, set(in_view), room, camera_xy), on=on.get(o.instance_id))
-        groups.setdefault((o.label.category, o.label.colour, o.label.state, o.where, o.on),
-                          []).append(o)
+        carried = loads.get(o.instance_id)
+        o = replace(o, where=_where(o.label, set(in_view), room, camera_xy), on=on.get(o.instance_id),
+                    carries=_and_list(_group_phrases(carried, len(carried))) if carried else None)
+        groups.setdefault((o.label.category, o.label.colour, o.label.state, o.where, o.on,
+                           o.carries), []).append(o)
     entries = list(groups.values())[:max_objects]
     objects = tuple(o for group in entries for o in group)
     others = tuple(r for r in in_view if r != here)
@@ -394,6 +404,8 @@ def _entry_phrase(group: list[VisibleObject], robot_room: str | None) -> str:
     text += f", {near:.1f} m" if near == far else f", {near:.1f}-{far:.1f} m"
     if first.where and not (robot_room and first.where == f"in the {robot_room}"):
         text += f", {first.where}"
+    if first.carries:
+        text += f", with {first.carries} on {'it' if len(group) == 1 else 'them'}"
     return text
 
 
