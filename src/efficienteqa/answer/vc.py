@@ -48,7 +48,8 @@ _HINTS = (
                   "room the robot is in. Not a direction."),
     (r"^is there\b", "Answer yes only if an object of that kind is listed in that room; "
                      "otherwise no."),
-    (r"^(is|are)\b", "Answer yes or no, from the state written in brackets or beside the object."),
+    (r"^(is|are)\b", "Answer yes or no from the state in brackets after that object: (on) or "
+                     "(open) means yes, (off) or (closed) means no."),
     (r"^what is on\b", "Find \"on the\" and that furniture in what it saw, and answer with the "
                        "object written just before those words, never the furniture itself."),
 )
