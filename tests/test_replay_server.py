@@ -87,11 +87,14 @@ def test_requests_are_served_concurrently(server, tmp_path: Path) -> None:
     s = server(latency_s=0.3)
     _store(ResponseCache(tmp_path / "responses.sqlite"), [Message("user", "hi")], "hello")
     replies: list[str] = []
+    clients = [_client(s.base_url) for _ in range(2)]
+    for c in clients:
+        c._client()  # import the SDK and build its client before the clock starts
 
-    def ask() -> None:
-        replies.append(_client(s.base_url).chat([Message("user", "hi")]).text)
+    def ask(client: OpenAIChatClient) -> None:
+        replies.append(client.chat([Message("user", "hi")]).text)
 
-    threads = [threading.Thread(target=ask) for _ in range(2)]
+    threads = [threading.Thread(target=ask, args=(c,)) for c in clients]
     start = time.perf_counter()
     for t in threads:
         t.start()
