@@ -154,8 +154,22 @@ def test_floor_under_sigma_stops_a_flat_history_from_firing_on_a_small_bump():
     assert stops(sims[:9] + [0.7], rule="floor", sigma_floor=0.02) == [10]  # a real spike does
 
 
+def test_absolute_stops_on_evidence_in_view_from_the_start_which_is_never_an_outlier():
+    sims = [0.80, 0.78, 0.20, 0.81, 0.79, 0.25, 0.80, 0.22, 0.79, 0.80, 0.81]
+    assert stops(sims, rule="lookback+robust+floor") == []  # high from the start: no outlier
+    checks = run(sims, rule="lookback+robust+floor+absolute")
+    assert [c.step for c in checks if c.stop][:1] == [10]  # never before min_step
+    assert checks[9].tested_step == 4 and checks[9].z < 3  # the best frame, and not by z
+    assert stops(sims, rule="lookback+robust+floor+absolute", sim_abs=0.9) == []
+    low = [0.1, 0.3, 0.2, 0.35, 0.15, 0.3, 0.25, 0.4, 0.2, 0.3, 0.74]
+    never_z = {"rule": "floor+absolute", "sigma_floor": 1.0}  # z < 1: only Sim can stop
+    assert stops(low, **never_z) == []  # just under 0.75
+    assert stops(low[:-1] + [0.75], **never_z) == [11]  # at the threshold: stops
+
+
 def test_the_default_rule_is_the_benchmarked_combination():
-    assert StopConfig().rule == "lookback+robust+floor" and StopConfig().sigma_floor == 0.1
+    assert StopConfig().rule == "lookback+robust+floor+absolute"
+    assert (StopConfig().sigma_floor, StopConfig().sim_abs) == (0.1, 0.75)
     # the README demo's case: a spike before step 10 stops the robot at step 10
     stopper = RelevancyStopper()
     assert [c.step for c in (stopper.check(s, x) for s, x in enumerate(SPIKE_AT_8, 1))

@@ -17,6 +17,10 @@ Stop rules beyond the paper (SPEC 8), named by ``StopConfig.rule``; components j
 - ``lookback``: from ``min_step`` on, the best frame of the whole history ``j = argmax Sim`` is
   tested against all the other frames (leave-one-out ``mu``, ``sigma``), so a spike at step 8
   stops the robot at step 10 if it is still an outlier there.
+- ``absolute``: the tested frame also stops the robot, from ``min_step`` on, when its Sim is at
+  least ``sim_abs`` whatever the baseline: evidence in view from the first steps raises the
+  baseline with it, so it is never an outlier. ``sim_abs`` (0.75) is on MiniLM's scale, like
+  ``sigma_floor``; a scorer of another scale needs its own (or a rule without ``absolute``).
 """
 
 from __future__ import annotations
@@ -31,12 +35,13 @@ MIN_STEP = 10
 STEPS_PER_SQRT_M2 = 3
 SIGMA_FLOOR = 0.1  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
 MAD_TO_SIGMA = 1.4826  # 1 / 0.6745: MAD of a normal sample -> its standard deviation
-RULE_PARTS = ("lookback", "robust", "floor")
+SIM_ABS = 0.75  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
+RULE_PARTS = ("lookback", "robust", "floor", "absolute")
 # The default: better than "paper" on every measure of benchmarks/stop_bench.py, chosen on
 # training houses 0-20 and checked on held-out houses 2000-2009 (issue 16).
-DEFAULT_STOP_RULE = "lookback+robust+floor"
+DEFAULT_STOP_RULE = "lookback+robust+floor+absolute"
 STOP_RULES = ("paper", "lookback", "robust", "floor", "lookback+floor", "lookback+robust",
-              "robust+floor", "lookback+robust+floor")
+              "robust+floor", "lookback+robust+floor", "lookback+robust+floor+absolute")
 
 
 def rule_parts(rule: str) -> frozenset[str]:
@@ -86,7 +91,8 @@ class StopConfig:
     False runs to the budget (the ExploreEQA baselines); ``sigma_eps``: a spread at or below it
     counts as zero (the guard: no z, no stop); ``rule``: ``paper`` (SPEC 3.4; the paper preset)
     or a rule beyond it (module docstring), default ``lookback+robust+floor``; ``sigma_floor``:
-    the floor of rules with ``floor`` (0.1, fitted to MiniLM's scale on training houses)."""
+    the floor of rules with ``floor`` (0.1, fitted to MiniLM's scale on training houses);
+    ``sim_abs``: the Sim that stops under rules with ``absolute`` (0.75, the same scale)."""
 
     z_th: float = Z_TH
     min_step: int = MIN_STEP
@@ -94,6 +100,7 @@ class StopConfig:
     sigma_eps: float = 1e-9
     rule: str = DEFAULT_STOP_RULE
     sigma_floor: float = SIGMA_FLOOR
+    sim_abs: float = SIM_ABS
 
     def __post_init__(self) -> None:
         rule_parts(self.rule)  # raises on an unknown name
@@ -166,7 +173,9 @@ class RelevancyStopper:
         mu, sigma = baseline(others, robust, floor)
         z = zscore(value, mu, sigma, cfg.sigma_eps)
         threshold = mu + cfg.z_th * sigma if mu is not None and sigma is not None else None
-        stop = cfg.enabled and step >= cfg.min_step and z is not None and z > cfg.z_th
+        outlier = z is not None and z > cfg.z_th
+        high = "absolute" in self.parts and value >= cfg.sim_abs
+        stop = cfg.enabled and step >= cfg.min_step and (outlier or high)
         self._add(step, sim)
         return StopCheck(step, sim, mu, sigma, z, threshold, stop, tested)
 
