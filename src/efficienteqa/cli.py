@@ -360,15 +360,37 @@ def report_command(
     out: Path | None = typer.Option(None, help="Folder for report.md, its plots and report.html "
                                     "(default: the run folder itself for one run, else "
                                     "FIRST_FOLDER/../report)."),
+    paired_against: Path | None = typer.Option(None, "--paired-against", help="A reference run: "
+                                               "each run's accuracy and steps against it, paired "
+                                               "over the questions both answered (bootstrap 95% CI)."),
+    markdown: bool = typer.Option(False, "--markdown", help="Print only the Markdown table of the "
+                                  "runs (as the README's results blocks hold it)."),
 ) -> None:
-    """Tables and plots across evaluation runs (the paper's Tables I-III in form): Markdown and HTML."""
+    """Tables and plots across evaluation runs (the paper's Tables I-III in form): Markdown and HTML.
+    Every run folder also gets its summary.json and report.html (a published run, results/)."""
     from rich.table import Table
 
-    from efficienteqa.eval.tables import overview_rows, read_summaries, render_report
+    from efficienteqa.eval.tables import (
+        markdown_table,
+        overview_rows,
+        paired_differences,
+        publish_run,
+        read_summaries,
+        render_report,
+        run_folders,
+    )
 
     summaries = read_summaries(folders)
+    reference = None if paired_against is None else read_summaries([paired_against])[0]
+    differences = paired_differences(summaries, reference)
+    for folder, summary, difference in zip(run_folders(folders), summaries, differences):
+        publish_run(folder, summary, difference)
+    if markdown:
+        sys.stdout.write(markdown_table(summaries, differences))
+        return
+    single = out is None and len(folders) == 1
     target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
-    md, page = render_report(summaries, target)
+    md, page = render_report(summaries, target, stamp=not single)
     header, rows = overview_rows(summaries)
     table = Table()
     for i, name in enumerate(header):  # names whole, numbers right-aligned

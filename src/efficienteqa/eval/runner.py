@@ -140,13 +140,27 @@ class RunResult:
         return 3600.0 * self.ran / self.wall_s if self.wall_s > 0 else 0.0
 
 
-def manifest(spec: RunSpec, n_questions: int) -> dict[str, Any]:
+def machine() -> dict[str, Any]:
+    """Where a run ran: the platform, Python and the CPUs (``run.json``'s ``machine``)."""
+    return {"platform": platform.platform(), "python": platform.python_version(),
+            "cpus": os.cpu_count()}
+
+
+def scene_seeds(scenes: Sequence[str]) -> dict[str, Any]:
+    """The scenes of a run's questions, and for synthetic houses their seeds (``run.json``)."""
+    names = sorted(set(scenes))
+    seeds = sorted({int(s.partition(":")[2]) for s in names
+                    if s.startswith("synthetic:") and s.partition(":")[2].isdigit()})
+    return {"scenes": names, **({"seeds": seeds} if seeds else {})}
+
+
+def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = ()) -> dict[str, Any]:
     return plain({"method": spec.method, "dataset": spec.dataset, "closed_set": spec.closed_set,
                    "config": asdict(spec.config), "stack": asdict(spec.stack),
                    "judge": spec.judge, "judge_mode": spec.judge_mode, "assets": spec.assets,
                    "env": spec.env, "hm3d_root": spec.hm3d_root,
-                   "questions": n_questions,
-                   "code_version": code_version(), "created": time.time()})
+                   "questions": n_questions, **scene_seeds(scenes),
+                   "code_version": code_version(), "created": time.time(), "machine": machine()})
 
 
 def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
@@ -186,7 +200,7 @@ def run_eval(spec: RunSpec, questions: Sequence[EvalQuestion], out: Path, *, wor
     ``address``: in this process; otherwise on Ray (``address`` None starts a local Ray)."""
     if len({q.id for q in questions}) != len(questions):
         raise EfficientEQAError("the dataset has repeated episode ids", fix="fix the dataset")
-    earlier = open_run(out, manifest(spec, len(questions)))
+    earlier = open_run(out, manifest(spec, len(questions), [q.scene for q in questions]))
     todo = [q for q in questions if q.id not in earlier.done]
     if prepare and todo:
         _prepare(spec, todo)

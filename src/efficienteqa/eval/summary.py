@@ -18,6 +18,11 @@ summary backs the console, the Markdown and the HTML report. Conventions, stated
   ratio first-seen / oracle steps are over the episodes that saw the evidence, the never-seen
   share and the in-top-K share over all of them. Refused moves per step: the moves the
   environment refused over the steps taken, over the done episodes that record them.
+- Accuracy, the headline score of a published run (``summary.json``, the README's tables), is
+  the rule-judge accuracy where the run has rule grades, else LLM-Match, each with a 95%
+  bootstrap interval over the episodes (``scipy.stats.bootstrap``, fixed seed: the same run gives
+  the same interval). Paired differences (``paired``) compare two runs on the episode ids both
+  finished, with a bootstrap interval over the per-question differences.
 - Means skip missing values and are NaN when nothing is left, so an empty run never crashes.
 """
 
@@ -41,6 +46,12 @@ NEUTRAL_SETTINGS = frozenset({"cache"})
 LABEL_NAMES = {"z_th": "Z_th", "top_k": "K", "max_steps": "budget", "min_step": "min step",
                "sigma_eps": "sigma_eps", "seed": "seed"}
 UNCATEGORISED = "(none)"
+# Methods that run no agent (the Blind LLM answers the question alone): the agent's settings in
+# their run.json change nothing, so their labels leave them out.
+AGENTLESS_METHODS = frozenset({"blind"})
+CONFIDENCE = 0.95
+BOOTSTRAP_RESAMPLES = 9999
+BOOTSTRAP_SEED = 0
 
 
 @dataclass(frozen=True)
@@ -87,11 +98,24 @@ class RunSummary:
     never_seen: float = math.nan  # share (0-1) of n_evidence
     evidence_in_top_k: float = math.nan  # share (0-1) of n_evidence
     refused_per_step: float = math.nan
+    accuracy_judge: str = ""  # "rule", "llm-match", or "" when the run has no grade
+    accuracy: float = math.nan  # 0-100: rule-judge accuracy, else LLM-Match
+    accuracy_ci: tuple[float, float] = (math.nan, math.nan)
+    relevancy_stops: float = math.nan  # share (0-1) of the done episodes
+    # Per episode id (for paired differences; not part of summary.json): the accuracy value
+    # (0-100, every episode) and the steps (done episodes that explored).
+    episode_accuracy: dict[str, float] = field(default_factory=dict, repr=False, compare=False)
+    episode_steps: dict[str, float] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def tokens(self) -> float:
         """Prompt plus completion tokens per episode."""
         return self.prompt_tokens + self.completion_tokens
+
+    @property
+    def evidence_seen(self) -> float:
+        """Share (0-1) of the episodes with evidence that ever had it in view."""
+        return 1 - self.never_seen
 
 
 def mean(values: Iterable[Any]) -> float:
@@ -107,6 +131,32 @@ def median(values: Iterable[Any]) -> float:
 
 def _is_number(v: Any) -> TypeGuard[float]:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def mean_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[float, float]:
+    """The ``confidence`` bootstrap interval of the mean of ``values`` (``scipy.stats.bootstrap``,
+    BCa, a fixed seed so the same values give the same interval; the percentile interval where
+    BCa is undefined). NaN under two values; a point where every value is the same."""
+    numbers = [float(v) for v in values if _is_number(v)]
+    if len(numbers) < 2:
+        return math.nan, math.nan
+    if max(numbers) == min(numbers):
+        return numbers[0], numbers[0]
+    import warnings
+
+    import numpy as np
+    from scipy.stats import bootstrap
+
+    data = (np.asarray(numbers),)
+    for method in ("BCa", "percentile"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ci = bootstrap(data, np.mean, confidence_level=confidence, n_resamples=BOOTSTRAP_RESAMPLES,
+                           method=method, rng=np.random.default_rng(BOOTSTRAP_SEED)).confidence_interval
+        low, high = float(ci.low), float(ci.high)
+        if math.isfinite(low) and math.isfinite(high):
+            return low, high
+    return math.nan, math.nan
 
 
 def match_value(row: Mapping[str, Any], key: str = "judge") -> float:
@@ -158,7 +208,7 @@ def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (
     leaving out ``skip`` (an ablation table names its own variable)."""
     parts = [method]
     skipped = set(skip)
-    for key, default in _default_settings():
+    for key, default in () if method in AGENTLESS_METHODS else _default_settings():
         if key in flat and key not in skipped and flat[key] != default:
             if key == "early_stop":
                 parts.append("no early stop" if not flat[key] else "early stop")
@@ -209,6 +259,9 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
                    if _is_number(r.get("oracle_steps")) and r["oracle_steps"] > 0]
     refusing = [r for r in done if _is_number(r.get("refused_moves")) and _is_number(r.get("steps"))]
     taken = sum(r["steps"] for r in refusing)
+    kind, accuracy_values = (("rule", rule_values) if n_rule else ("llm-match", values) if scored
+                             else ("", []))
+    ids = [str(r.get("id")) for r in rows]
 
     return RunSummary(
         method=str(manifest.get("method", "?")), dataset=str(manifest.get("dataset", "?")),
@@ -239,7 +292,65 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
         never_seen=1 - len(seen) / len(known) if known else math.nan,
         evidence_in_top_k=mean(float(r["evidence_in_top_k"]) for r in known),
         refused_per_step=sum(r["refused_moves"] for r in refusing) / taken if taken else math.nan,
+        accuracy_judge=kind, accuracy=mean(accuracy_values), accuracy_ci=mean_interval(accuracy_values),
+        relevancy_stops=(sum(r.get("stop_reason") == "relevancy" for r in done) / len(done)
+                         if explored else math.nan),
+        episode_accuracy=dict(zip(ids, accuracy_values)),
+        episode_steps={str(r.get("id")): float(r["steps"]) for r in done
+                       if explored and _is_number(r.get("steps"))},
     )
+
+
+@dataclass(frozen=True)
+class PairedDifference:
+    """``run`` minus ``reference`` on the episodes both have: accuracy (points, over the ids both
+    runs recorded, graded by the judge both share) and steps (over the ids both finished with
+    steps), each with its paired bootstrap interval; NaN where the runs share nothing to compare."""
+
+    reference: str
+    judge: str
+    n: int
+    accuracy: float
+    accuracy_ci: tuple[float, float]
+    n_steps: int
+    steps: float
+    steps_ci: tuple[float, float]
+
+
+def paired(run: RunSummary, reference: RunSummary, reference_label: str = "") -> PairedDifference:
+    """Paired differences of ``run`` against ``reference`` over the questions both answered,
+    matched by episode id: the per-question differences, their mean and its bootstrap interval."""
+    judge = run.accuracy_judge if run.accuracy_judge == reference.accuracy_judge else ""
+    ids = [k for k in run.episode_accuracy if k in reference.episode_accuracy] if judge else []
+    accuracy = [run.episode_accuracy[k] - reference.episode_accuracy[k] for k in ids]
+    both = [k for k in run.episode_steps if k in reference.episode_steps]
+    steps = [run.episode_steps[k] - reference.episode_steps[k] for k in both]
+    return PairedDifference(reference=reference_label or reference.label, judge=judge, n=len(ids),
+                            accuracy=mean(accuracy), accuracy_ci=mean_interval(accuracy),
+                            n_steps=len(both), steps=mean(steps), steps_ci=mean_interval(steps))
+
+
+def _json_number(value: Any) -> Any:
+    if isinstance(value, float):
+        return round(value, 6) if math.isfinite(value) else None
+    if isinstance(value, (tuple, list)):
+        return [_json_number(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _json_number(v) for k, v in value.items()}
+    return value
+
+
+def summary_record(s: RunSummary, difference: PairedDifference | None = None) -> dict[str, Any]:
+    """A run's ``summary.json``: every figure of ``RunSummary`` (NaN as null, shares 0-1, scores
+    0-100), without the folder it was read from or the per-episode values, so the file depends on
+    the run's files alone; ``difference``: its paired differences against a reference run."""
+    record = {k: v for k, v in asdict(s).items()
+              if k not in ("source", "episode_accuracy", "episode_steps")}
+    record.update(tokens=s.tokens, evidence_seen=s.evidence_seen, confidence=CONFIDENCE,
+                  bootstrap={"resamples": BOOTSTRAP_RESAMPLES, "seed": BOOTSTRAP_SEED})
+    if difference is not None:
+        record["paired"] = asdict(difference)
+    return _json_number(record)
 
 
 def ablations(summaries: Sequence[RunSummary], key: str) -> list[list[RunSummary]]:

@@ -10,26 +10,40 @@ no plotting library; the HTML page inlines them, the Markdown links them as file
 Every table carries the back-ends that produced its numbers and the date of its newest episode:
 a number without them cannot be compared with anything. The report is built as a list of
 sections of tables, figures and paragraphs once, then rendered twice.
+
+Published runs (``results/``): ``publish_run`` writes a run's ``summary.json`` and its own
+``report.html`` into its folder; ``markdown_table`` is the README's table of runs (accuracy with
+its bootstrap interval, cost, optional paired differences against a reference run), deterministic
+(no dates, no absolute paths); ``regenerate_readme`` rewrites every README block
+``<!-- results: efficienteqa report FOLDER... --markdown -->`` ... ``<!-- /results -->`` from its
+folders, in-process, so a test can check the README against ``results/``.
 """
 
 from __future__ import annotations
 
 import html
+import json
 import math
 import re
+import shlex
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.records import read_run
 from efficienteqa.eval.summary import (
+    AGENTLESS_METHODS,
     BACKEND_KEYS,
+    PairedDifference,
     RunSummary,
     ablations,
     distinct_labels,
+    paired,
     settings_label,
     summarise,
+    summary_record,
 )
 
 SEMANTIC_SENSOR = "semantic-sensor"
@@ -392,7 +406,7 @@ def _md(text: str) -> str:
 
 def _numeric(table: Table) -> list[bool]:
     """Which columns hold numbers (right-aligned): every cell starts like one, or is '-'."""
-    return [i > 0 and all(re.match(r"-$|-?\d[\d.,]*%?(\s|$)", row[i]) for row in table.rows)
+    return [i > 0 and all(re.match(r"-$|[-+]?\d[\d.,]*%?(\s|$)", row[i]) for row in table.rows)
             for i in range(len(table.header))]
 
 
@@ -441,13 +455,31 @@ def to_html(sections: Sequence[Section], intro: Sequence[str]) -> str:
 # --- entry points ----------------------------------------------------------------------------------
 
 
-def read_summaries(folders: Sequence[Path]) -> list[RunSummary]:
-    """Each run folder summarised, in the order given (a folder given twice counts once). A
-    folder that is not a run raises ``read_run``'s one-line error."""
+def _shown(folder: Path, root: Path) -> str:
+    """A folder as tables name it: relative to ``root`` when inside it, else absolute."""
+    try:
+        return folder.relative_to(root.resolve()).as_posix()
+    except ValueError:
+        return str(folder)
+
+
+def run_folders(folders: Sequence[Path], root: Path | None = None) -> list[Path]:
+    """The folders resolved (relative ones against ``root``, default the working directory), in
+    the order given, a folder given twice once."""
+    base = Path.cwd() if root is None else Path(root)
+    return list(dict.fromkeys((base / f).resolve() for f in folders))
+
+
+def read_summaries(folders: Sequence[Path], root: Path | None = None) -> list[RunSummary]:
+    """Each run folder summarised, in the order given (a folder given twice counts once); a
+    run's ``source`` is its folder relative to ``root`` (default the working directory) when
+    inside it. A folder that is not a run raises ``read_run``'s one-line error."""
+    base = Path.cwd() if root is None else Path(root)
     out = []
-    for folder in dict.fromkeys(Path(f).resolve() for f in folders):
+    for folder in run_folders(folders, base):
         manifest, episodes = read_run(folder)
-        out.append(summarise(manifest, episodes.rows(), torn=episodes.torn, source=str(folder)))
+        out.append(summarise(manifest, episodes.rows(), torn=episodes.torn,
+                             source=_shown(folder, base)))
     return out
 
 
@@ -465,17 +497,24 @@ def overview_rows(summaries: Sequence[RunSummary]) -> tuple[list[str], list[list
             "Steps/oracle", "Done"], rows
 
 
-def render_report(summaries: Sequence[RunSummary], out: Path) -> tuple[Path, Path]:
-    """Write ``report.md`` (with its plots as .svg files beside it) and ``report.html`` (plots
-    inline, no other file needed) into ``out``."""
-    sections = build_sections(summaries)
+def _intro(summaries: Sequence[RunSummary], stamp: bool) -> list[str]:
+    written = f", written {_date(time.time())}" if stamp else ""
+    intro = [f"{len(summaries)} run(s){written}.", CONVENTIONS]
     torn = sum(s.torn for s in summaries)
-    intro = [f"{len(summaries)} run(s), written {_date(time.time())}.", CONVENTIONS]
     if torn:
         intro.append(f"{torn} unreadable line(s) in episodes.jsonl were skipped (a run killed "
                      "mid-write); see the Runs tables.")
     if not summaries:
         intro.append("No runs were given.")
+    return intro
+
+
+def render_report(summaries: Sequence[RunSummary], out: Path, *, stamp: bool = True) -> tuple[Path, Path]:
+    """Write ``report.md`` (with its plots as .svg files beside it) and ``report.html`` (plots
+    inline, no other file needed) into ``out``. ``stamp`` False: no date written, so the same
+    runs give the same files."""
+    sections = build_sections(summaries)
+    intro = _intro(summaries, stamp)
     out.mkdir(parents=True, exist_ok=True)
     for section in sections:
         for block in section.blocks:
@@ -490,3 +529,167 @@ def render_report(summaries: Sequence[RunSummary], out: Path) -> tuple[Path, Pat
 def write_report(folders: Sequence[Path], out: Path) -> tuple[Path, Path]:
     """Summarise the runs in ``folders`` and write ``out/report.md`` and ``out/report.html``."""
     return render_report(read_summaries(folders), out)
+
+
+# --- published runs: summary.json, the README's table ----------------------------------------------
+
+SUMMARY_FILE = "summary.json"
+REPORT_HTML = "report.html"
+README_BLOCK = re.compile(r"<!-- results: (?P<command>[^\n]*?) -->\n(?P<body>.*?)<!-- /results -->",
+                          re.DOTALL)
+MARKDOWN_BACKENDS = (("environment", "environment"), ("perception", "perception"), ("vlm", "VLM"),
+                     ("relevancy", "relevancy"), ("explore_scorer", "explore scorer"),
+                     ("answer", "answer"), ("judge", "judge"))
+
+
+def paired_differences(summaries: Sequence[RunSummary],
+                       reference: RunSummary | None) -> list[PairedDifference | None]:
+    """Each run's paired differences against ``reference`` (None for the reference itself, and
+    for every run when there is no reference)."""
+    if reference is None:
+        return [None for _ in summaries]
+    name = distinct_labels([reference])[0]
+    return [None if s.source == reference.source else paired(s, reference, name) for s in summaries]
+
+
+def publish_run(folder: Path, summary: RunSummary, difference: PairedDifference | None = None) -> Path:
+    """Write ``summary.json`` and ``report.html`` (this run alone, undated) into the run's
+    folder: with ``run.json`` and ``episodes.jsonl``, what a published run under ``results/``
+    holds. Returns the summary's path."""
+    path = Path(folder) / SUMMARY_FILE
+    path.write_text(json.dumps(summary_record(summary, difference), indent=1, sort_keys=True,
+                               ensure_ascii=False) + "\n")
+    (Path(folder) / REPORT_HTML).write_text(to_html(build_sections([summary]), _intro([summary], False)))
+    return path
+
+
+def _pct(share: float) -> str:
+    return "-" if math.isnan(share) else f"{100 * share:.0f}"
+
+
+def _interval(value: float, ci: tuple[float, float], digits: int = 1, signed: bool = False) -> str:
+    if math.isnan(value):
+        return "-"
+    sign = "+" if signed else ""
+    text = f"{value:{sign}.{digits}f}"
+    if not any(math.isnan(c) for c in ci):
+        text += f" [{ci[0]:{sign}.{digits}f}, {ci[1]:{sign}.{digits}f}]"
+    return text
+
+
+def _accuracy_cell(s: RunSummary, mixed: bool) -> str:
+    text = _interval(s.accuracy, s.accuracy_ci)
+    return f"{text} (LLM-Match)" if mixed and s.accuracy_judge == "llm-match" else text
+
+
+def markdown_backends(summaries: Sequence[RunSummary]) -> str:
+    """The line under a README table: every back-end that made its numbers, and the code."""
+    parts = []
+    for key, name in MARKDOWN_BACKENDS:
+        values = {v for s in summaries for v in s.backends.get(key, [])}
+        if key == "answer" and not values:  # the answer option, where no back-end names it
+            values = {str(s.settings["answer"]) for s in summaries
+                      if s.settings.get("answer") and s.method not in AGENTLESS_METHODS}
+        parts.append(f"{name} {', '.join(sorted(values)) or '-'}")
+    codes = sorted({s.code_version for s in summaries})
+    return f"Back-ends: {'; '.join(parts)}. Code: {', '.join(codes)}."
+
+
+def markdown_table(summaries: Sequence[RunSummary],
+                   differences: Sequence[PairedDifference | None] = ()) -> str:
+    """The README's table: one row per run, then the back-ends and code versions. Accuracy is
+    the rule judge's where a run has it, else LLM-Match, with its 95% bootstrap interval; shares
+    are %, costs per episode. With ``differences`` (``paired_differences``): accuracy and steps
+    against the reference run, paired over the same questions. No dates, no absolute paths."""
+    labels = distinct_labels(summaries)
+    kinds = {s.accuracy_judge for s in summaries if s.accuracy_judge}
+    mixed = len(kinds) > 1
+    judge = ("rule judge" if kinds == {"rule"} else "LLM-Match" if kinds == {"llm-match"}
+             else "rule judge or LLM-Match")
+    header = ["Method", f"Accuracy, {judge} (%) [95% CI]", "LLM-Match", "Steps", "Steps / oracle",
+              "Evidence seen (%)", "Relevancy stops (%)", "Median wall s", "Calls / ep",
+              "Tokens / ep", "n"]
+    paired_columns = any(d is not None for d in differences)
+    if paired_columns:
+        reference = next(d.reference for d in differences if d is not None)
+        header += [f"Δ accuracy vs {reference} [95% CI]", "Δ steps [95% CI]", "Paired n"]
+    rows = []
+    for i, (s, lab) in enumerate(zip(summaries, labels)):
+        row = [lab, _accuracy_cell(s, mixed), _num(s.llm_match, 1), _num(s.mean_steps, 1),
+               _num(s.steps_over_oracle, 2), _pct(s.evidence_seen), _pct(s.relevancy_stops),
+               _num(s.wall_s_median, 1), _num(s.calls, 1), _num(s.tokens, 0), str(s.n)]
+        if paired_columns:
+            d = differences[i] if i < len(differences) else None
+            row += (["reference", "reference", "-"] if d is None else
+                    [_interval(d.accuracy, d.accuracy_ci, signed=True),
+                     _interval(d.steps, d.steps_ci, signed=True), f"{d.n}"])
+        rows.append(row)
+    table = Table("", header, rows)
+    align = ["---:" if numeric else ":---" for numeric in _numeric(table)]
+    lines = ["| " + " | ".join(_md(h) for h in header) + " |", "|" + "|".join(align) + "|",
+             *("| " + " | ".join(_md(c) for c in row) + " |" for row in rows), "",
+             _md(markdown_backends(summaries))]
+    return "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True)
+class ReportArgs:
+    """What ``efficienteqa report`` was asked for, as a README block states it."""
+
+    folders: list[Path]
+    paired_against: Path | None = None
+    markdown: bool = False
+
+
+def parse_report_command(command: str) -> ReportArgs:
+    """``efficienteqa report FOLDER... [--paired-against REF] [--markdown]`` as written in a
+    README block; anything else raises."""
+    words = shlex.split(command)
+    if words[:2] != ["efficienteqa", "report"]:
+        raise EfficientEQAError(f"not an `efficienteqa report` command: {command!r}",
+                                fix="write <!-- results: efficienteqa report FOLDER... --markdown -->")
+    folders: list[Path] = []
+    reference = None
+    markdown = False
+    rest = iter(words[2:])
+    for word in rest:
+        if word == "--markdown":
+            markdown = True
+        elif word.startswith("--paired-against"):
+            value = word.partition("=")[2] or next(rest, "")
+            if not value:
+                raise EfficientEQAError(f"--paired-against needs a folder: {command!r}", fix="name the run")
+            reference = Path(value)
+        elif word.startswith("-"):
+            raise EfficientEQAError(f"unknown option {word} in {command!r}",
+                                    fix="use only FOLDER..., --paired-against and --markdown")
+        else:
+            folders.append(Path(word))
+    if not folders:
+        raise EfficientEQAError(f"no run folder in {command!r}", fix="name at least one folder")
+    return ReportArgs(folders, reference, markdown)
+
+
+def report_markdown(folders: Sequence[Path], paired_against: Path | None = None,
+                    root: Path | None = None) -> str:
+    """The Markdown table of the runs in ``folders`` (relative to ``root``, default the working
+    directory), with paired differences against ``paired_against`` when given."""
+    summaries = read_summaries(folders, root)
+    reference = None if paired_against is None else read_summaries([paired_against], root)[0]
+    return markdown_table(summaries, paired_differences(summaries, reference))
+
+
+def readme_blocks(text: str) -> list[tuple[str, str]]:
+    """The results blocks of a README: (command, body) for each, in order."""
+    return [(m["command"], m["body"]) for m in README_BLOCK.finditer(text)]
+
+
+def regenerate_readme(text: str, root: Path) -> str:
+    """``text`` with the body of every results block replaced by what its command generates
+    from the run folders under ``root`` (read in this process; nothing is written)."""
+    def block(m: re.Match[str]) -> str:
+        args = parse_report_command(m["command"])
+        body = report_markdown(args.folders, args.paired_against, root)
+        return f"<!-- results: {m['command']} -->\n{body}<!-- /results -->"
+
+    return README_BLOCK.sub(block, text)
