@@ -1,0 +1,135 @@
+"""Ablations replayed from one episode explored to its budget (issue 17, section 2): a replayed
+stop and retrieval equal the live ones; the replayed stop follows SPEC 3.4 for every Z_th."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from agent_stubs import MentionScorer, seeking_model
+from conftest import needs_egl
+from efficienteqa.agent import AgentConfig
+from efficienteqa.ask import ask
+from efficienteqa.envs.synthetic.env import SyntheticEnv
+from efficienteqa.envs.synthetic.generate import generate_house
+from efficienteqa.eval.replay import (
+    Frame,
+    answer_prompt_matches,
+    recorded_frames,
+    reobserve,
+    replay_episode_stop,
+    replay_stop,
+    retrieve,
+    stop_config_for,
+)
+from efficienteqa.geometry import CameraSpec
+from efficienteqa.perception.semantic import SemanticPerception
+from efficienteqa.scenes import Scene, synthetic_questions
+from efficienteqa.stack import Stack
+from efficienteqa.stop import StopConfig
+
+CAMERA = CameraSpec().scaled(320, 240)
+
+
+def _paper_stop(sims: list[float], z_th: float, min_step: int = 10) -> int | None:
+    """SPEC 3.4 written out: the first step t >= min_step whose z against the mean and sample
+    std of the frames before it exceeds z_th (steps from 1)."""
+    for t in range(min_step, len(sims) + 1):
+        history = np.array(sims[:t - 1])
+        sigma = history.std(ddof=1) if len(history) >= 2 else 0.0
+        if sigma > 0 and (sims[t - 1] - history.mean()) / sigma > z_th:
+            return t
+    return None
+
+
+# Noise, then spikes of growing height: a lower Z_th stops at an earlier spike.
+HAND_SIMS = ([0.10, 0.14, 0.12, 0.16, 0.11, 0.13, 0.15, 0.12, 0.14, 0.13]
+             + [0.16, 0.13, 0.18, 0.12, 0.14, 0.21, 0.13, 0.12, 0.30, 0.14])
+
+
+@pytest.mark.parametrize(("z_th", "expected"), [(1, 11), (2, 13), (3, 16), (4, 19)])
+def test_replayed_paper_stop_is_spec_3_4_for_each_z_th(z_th, expected):
+    sims = list(enumerate(HAND_SIMS, start=1))
+    config = StopConfig(rule="paper", z_th=z_th)
+    assert replay_stop(sims, config) == expected == _paper_stop(HAND_SIMS, z_th)
+
+
+def test_the_replayed_stop_never_fires_before_min_step_nor_when_disabled():
+    sims = [0.1, 0.12, 0.11, 0.9] + [0.1, 0.12] * 8  # a spike at step 4
+    pairs = list(enumerate(sims, start=1))
+    assert replay_stop(pairs, StopConfig(rule="paper", z_th=1)) is None
+    assert replay_stop(pairs, StopConfig(rule="paper", z_th=1, min_step=4)) == 4
+    assert replay_stop(pairs, StopConfig(rule="paper", z_th=1, min_step=4, enabled=False)) is None
+    # The look-back rule finds the step-4 spike at the minimum step.
+    assert replay_stop(pairs, StopConfig(rule="lookback", z_th=1)) == 10
+
+
+def test_invalid_steps_are_skipped_and_the_recorded_end_kept():
+    per_step = [{"step": s, "pose": [0.0, 0.0, 0.0], "valid": s != 12,
+                 "sim": None if s == 12 else v} for s, v in enumerate(HAND_SIMS, start=1)]
+    frames = recorded_frames(per_step)
+    assert [f.step for f in frames] == [s for s in range(1, 21) if s != 12]
+    # Step 13's spike is tested against 11 earlier frames, step 12 not among them.
+    paper = stop_config_for({"rule": "paper", "enabled": False}, z_th=2)
+    assert paper.enabled and paper.z_th == 2.0
+    stopped = replay_episode_stop(per_step, "budget", paper)
+    assert (stopped.step, stopped.steps, stopped.reason) == (13, 13, "relevancy")
+    never = replay_episode_stop(per_step, "explored", stop_config_for(paper, z_th=50))
+    assert (never.step, never.steps, never.reason) == (None, 20, "explored")
+    with pytest.raises(ValueError, match="no-early-stop"):
+        replay_episode_stop(per_step, "relevancy", paper)
+
+
+def test_retrieval_keeps_distinct_views_as_the_agent_does():
+    frames = [Frame(1, 0.5, (0.0, 0.0, 0.0), "a sofa"), Frame(2, 0.9, (0.0, 0.0, 0.0), "a sofa"),
+              Frame(3, 0.7, (3.0, 0.0, 0.0), "a desk"), Frame(4, 0.8, (6.0, 0.0, 0.0), "a bed")]
+    assert [r.step for r in retrieve(frames, 3)] == [2, 4, 3]
+    assert [r.step for r in retrieve(frames, 3, distinct_views=False)] == [2, 4, 3]
+    assert [r.step for r in retrieve(frames, 4, distinct_views=False)] == [2, 4, 3, 1]
+    assert [r.step for r in retrieve(frames, 4, upto=3)] == [2, 3]
+
+
+@pytest.fixture(scope="module")
+def house4(catalog):
+    env = SyntheticEnv(generate_house(4, catalog, "builtin"), catalog, CAMERA)
+    questions = synthetic_questions(env)
+    yield Scene(env, "synthetic:4 (builtin)", questions), next(q for q in questions if q.id == "syn-4-10")
+    env.close()
+
+
+def _live(scene, q, tmp_path, stop: StopConfig, top_k: int = 5):
+    desk = scene.env.house.object(q.evidence[0])
+    room = scene.env.house.room(desk.room_id).name
+    return ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
+               model=seeking_model(desk.category, room), relevancy=MentionScorer(desk.category, room),
+               config=AgentConfig(max_steps=30, seed=1, stop=stop, top_k=top_k), report=False)
+
+
+@needs_egl
+@pytest.mark.parametrize(("stop", "top_k"), [(StopConfig(), 5), (StopConfig(rule="paper", z_th=2), 3)])
+def test_a_replayed_stop_equals_the_live_one(house4, tmp_path, stop, top_k):
+    """The same episode live with early stop, and explored to its budget: replaying the
+    second's recorded Sims with the first's stop gives the first's stop step, and retrieval up
+    to it the first's K frames and answer prompt."""
+    scene, q = house4
+    live = _live(scene, q, tmp_path / "live", stop, top_k).record
+    full = _live(scene, q, tmp_path / "full", StopConfig(enabled=False), top_k).record
+    assert live["stop_reason"] == "relevancy" and full["stop_reason"] != "relevancy"
+    assert full["steps"] > live["steps"]
+    def path(record):  # the same exploration up to the stop
+        return [(s["step"], s["pose"], s["valid"], s["sim"]) for s in record["per_step"]]
+
+    assert path(full)[:live["steps"]] == path(live)
+
+    replayed = replay_episode_stop(full["per_step"], full["stop_reason"],
+                                   stop_config_for(full["config"]["stop"], z_th=stop.z_th,
+                                                   rule=stop.rule))
+    assert (replayed.step, replayed.steps, replayed.reason) == (live["steps"], live["steps"], "relevancy")
+
+    # Re-observed at the recorded poses, described by the stack's perception as the agent's.
+    perception = SemanticPerception(scene.env.scene_labels())
+    frames = reobserve(scene.env.observe, perception.frame, recorded_frames(full["per_step"]))
+    best = retrieve(frames, top_k, upto=replayed.step)
+    assert [(r.step, r.sim) for r in best] == [(d["step"], d["sim"]) for d in live["retrieved"]]
+    answer = next(e for e in live["model"]["exchanges"] if e["phase"] == "answer")
+    assert answer_prompt_matches(frames, live["retrieved"], answer["prompt"])
