@@ -133,3 +133,44 @@ def test_a_replayed_stop_equals_the_live_one(house4, tmp_path, stop, top_k):
     assert [(r.step, r.sim) for r in best] == [(d["step"], d["sim"]) for d in live["retrieved"]]
     answer = next(e for e in live["model"]["exchanges"] if e["phase"] == "answer")
     assert answer_prompt_matches(frames, live["retrieved"], answer["prompt"])
+
+
+def _fake_run(root, episodes: dict[str, list[float]]):
+    """A run folder as `efficienteqa eval --no-early-stop` writes it, without the scenes."""
+    from efficienteqa.eval.records import append_episode
+    from efficienteqa.eval.runner import episode_folder
+    from efficienteqa.records import plain, write_json
+
+    write_json(root / "run.json", {"method": "frontier-only", "dataset": "synthetic",
+                                   "stack": {"vlm": "local:none"}, "assets": "builtin"})
+    for eid, sims in episodes.items():
+        append_episode(root / "episodes.jsonl", {"id": eid, "status": "done", "scene": "synthetic:0"})
+        per_step = [{"step": s, "pose": [float(s), 0.0, 0.0], "valid": True, "sim": v}
+                    for s, v in enumerate(sims, start=1)]
+        config = AgentConfig(stop=StopConfig(rule="paper", enabled=False))
+        write_json(episode_folder(root, eid) / "episode.json",
+                   plain({"per_step": per_step, "stop_reason": "budget", "budget": len(sims),
+                          "config": config, "question": "q?", "model": {"exchanges": []},
+                          "retrieved": []}))
+
+
+def test_the_benchmark_replays_stops_without_a_model_and_resumes(tmp_path, capsys):
+    from conftest import load_benchmark
+
+    bench = load_benchmark("ablation_replay")
+    flat = [0.1] * 20  # sigma 0: the guard never stops it
+    _fake_run(tmp_path, {"d/a": HAND_SIMS, "d/b": flat})
+    argv = [str(tmp_path), "--no-answer", "--z-th", "1,2,3,4", "--k", "1,3"]
+    bench.main(argv)
+    summary = __import__("json").loads((tmp_path / "ablation_replay.json").read_text())
+    z = {r["stop"]: r for r in summary["z_th"]}
+    assert z["budget"]["mean_steps"] == 20 and z["budget"]["relevancy_stop_share"] == 0
+    # Episode a stops at 11/13/16/19 (SPEC 3.4 above); the flat episode b never stops.
+    assert z["paper@z=1"]["mean_steps"] == (11 + 20) / 2
+    assert z["paper@z=4"]["mean_steps"] == (19 + 20) / 2 and z["paper@z=4"]["relevancy_stop_share"] == 50
+    assert summary["k"] == [{"k": k, **{name: None for name in z}} for k in (1, 3, 5)]
+    lines = (tmp_path / "ablation_replay.jsonl").read_text().splitlines()
+    assert len(lines) == 2 * 5 * 3  # episodes x (budget + 4 Z_th) x K (1, 3 and the run's 5)
+    bench.main(argv)  # resumed: nothing left to do
+    assert (tmp_path / "ablation_replay.jsonl").read_text().splitlines() == lines
+    assert "paper@z=3" in capsys.readouterr().out
