@@ -289,8 +289,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     stops: list[tuple[str | None, float | None]] = [(None, None)] + [
         (rule, z) for rule in rules for z in args.z_th]
     stack = Stack(**manifest["stack"])
-    identity = {"run": str(args.run_dir), "vlm": args.vlm or stack.vlm,
-                "answered": not args.no_answer}
+    # What must be equal for a resumed replay to continue an earlier one (the run is the folder).
+    identity = {"vlm": args.vlm or stack.vlm, "answered": not args.no_answer}
     if out_json.exists() and out_jsonl.exists():
         earlier = json.loads(out_json.read_text()).get("identity")
         if earlier is not None and earlier != identity:
@@ -315,7 +315,8 @@ def main(argv: Sequence[str] | None = None) -> None:
                else manifest["stack"], "episodes": len(records), "skipped": skipped,
                "rules": rules, "z_th": args.z_th, "k": ks, "stop_k": stop_k,
                "failed": sum(ln.get("status") == "failed" for ln in lines),
-               "answer_calls_this_run": calls, "wall_s": round(time.perf_counter() - t0, 1),
+               "answer_calls_this_run": calls,  # response-cache hits included
+               "wall_s": round(time.perf_counter() - t0, 1),
                "prompt_check": check, "code_version": code_version(), **result,
                "paper": {"z_th": {str(z): {"steps": s, "llm_match": m}
                                   for z, (s, m) in PAPER_Z.items()},
