@@ -39,7 +39,8 @@ from typing import Any, TypeGuard
 from efficienteqa.eval.judge import score_value
 
 # The back-ends a table states, in the order it states them, from the rows' ``backends``.
-BACKEND_KEYS = ("environment", "perception", "vlm", "relevancy", "grouping", "explore_scorer")
+BACKEND_KEYS = ("environment", "perception", "vlm", "relevancy", "grouping", "explore_scorer",
+                "answer")
 # Settings that change no result: left out when runs are compared for ablations.
 NEUTRAL_SETTINGS = frozenset({"cache"})
 # How a setting that differs from the default is written in a label (the paper's symbols).
