@@ -13,6 +13,7 @@ from efficienteqa.answer.vc import (
     answer_example,
     answer_token_probability,
     answer_with_confidence,
+    focus_views,
     question_hint,
 )
 from efficienteqa.models.base import TokenLogprob
@@ -152,3 +153,33 @@ def test_the_direct_answer_sends_the_hint_and_reads_the_token_probability():
     plain = StubChatModel(["kitchen"], logprob_fn=lambda text, top: tokens[:1])
     answer_token_probability(plain, "Where is the kettle?", ["a kettle"])
     assert "Not a direction" not in plain.requests[0].messages[0].text  # the white-box prompt
+
+
+VIEWS = ["You are in the kitchen. Visible: a brown door (open) on the left, 0.9 m, between the "
+         "kitchen and the office; a yellow refrigerator slightly left, 1.4 m; two black chairs on "
+         "the left, 1.5-1.9 m, in the office. Through a doorway: the office.",
+         "You are in the office. Visible: a white whiteboard on the left, 0.6 m."]
+
+
+def test_focus_keeps_where_the_robot_is_and_the_entries_the_question_names():
+    focused = focus_views("What colour is the refrigerator in the kitchen?", VIEWS)
+    assert focused == ["You are in the kitchen. Seen: a yellow refrigerator slightly left, 1.4 m.",
+                       "You are in the office. Nothing the question names."]
+    chairs = focus_views("How many chairs are in the office?", VIEWS)  # plural against plural
+    assert chairs[0] == ("You are in the kitchen. Seen: two black chairs on the left, 1.5-1.9 m, "
+                         "in the office.")
+    assert "doorway" not in " ".join(chairs)  # the doorway sentence is no entry
+
+
+def test_focus_leaves_the_views_alone_when_nothing_matches_or_nothing_is_named():
+    assert focus_views("Is there a sofa in the kitchen?", VIEWS) == VIEWS  # the model decides
+    assert focus_views("Which room is this?", VIEWS) == VIEWS  # no object word
+
+
+def test_the_direct_answer_reads_the_focused_views_and_the_white_box_one_the_whole_views():
+    stub = StubChatModel(["yellow"], logprob_fn=lambda text, top: [TokenLogprob("yellow", 0.0)])
+    answer_token_probability(stub, "What colour is the refrigerator?", VIEWS, hinted=True)
+    answer_token_probability(stub, "What colour is the refrigerator?", VIEWS)
+    direct, white_box = (r.messages[0].text for r in stub.requests)
+    assert "view 1: You are in the kitchen. Seen: a yellow refrigerator" in direct
+    assert "whiteboard" not in direct and "whiteboard" in white_box

@@ -70,6 +70,52 @@ def answer_example(question: str) -> str:
     raise AssertionError("the last pattern matches every question")
 
 
+# Words of a question that name no object: what is left names what the question is about.
+_FUNCTION_WORDS = frozenset((
+    "a", "an", "the", "is", "are", "was", "were", "there", "what", "which", "who", "whose", "how",
+    "many", "much", "where", "when", "why", "do", "does", "did", "can", "could", "has", "have",
+    "of", "on", "in", "at", "to", "from", "by", "for", "with", "around", "near", "next",
+    "inside", "under", "above", "below", "this", "that", "these", "those", "it", "its", "any",
+    "some", "colour", "color", "kind", "type", "room", "rooms", "house", "home"))
+_ROOM_WORDS = frozenset(("kitchen", "bedroom", "bathroom", "hallway", "office", "dining",
+                         "living", "guest", "laundry", "garage", "study", "corridor", "hall"))
+
+
+def _stem(word: str) -> str:
+    """A crude singular: "chairs" -> "chair", "shelves" -> "shelf", "boxes" -> "box"."""
+    if word.endswith("ves") and len(word) > 4:
+        return word[:-3] + "f"
+    if word.endswith(("ches", "shes", "xes", "sses")):
+        return word[:-2]
+    if word.endswith("s") and not word.endswith("ss") and len(word) > 3:
+        return word[:-1]
+    return word
+
+
+def _words(text: str) -> set[str]:
+    return {_stem(w) for w in re.findall(r"[a-z]+", text.lower())}
+
+
+def focus_views(question: str, views: Sequence[str]) -> list[str]:
+    """Each text view cut to what the question names: its first sentence (where the robot is)
+    and the "; "-separated entries that share a word with the question's object words (the
+    question without function and room words). A small model reads a long list of objects
+    badly ("a yellow refrigerator" among twelve entries is answered "grey"). Views are returned
+    unchanged when no entry of any view matches, or the question names no object."""
+    wanted = _words(question) - {_stem(w) for w in _FUNCTION_WORDS | _ROOM_WORDS}
+    if not wanted:
+        return list(views)
+    out, hits = [], 0
+    for view in views:
+        head, _, rest = view.partition(". ")
+        listed = rest.split(". ")[0].removeprefix("Visible: ")  # not "Through a doorway: ..."
+        entries = [e for e in listed.split("; ") if wanted & _words(e)]
+        hits += len(entries)
+        out.append(head + "." + (" Seen: " + "; ".join(e.rstrip(".") for e in entries) + "."
+                                 if entries else " Nothing the question names."))
+    return out if hits else list(views)
+
+
 def evidence_text(evidence: Sequence[str | np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
     """The evidence as prompt text, and the images to attach (for VLMs)."""
     items = list(evidence)
@@ -112,8 +158,11 @@ def answer_token_probability(model: ChatModel, question: str,
     probability of that answer: the product of its tokens' probabilities, first line only. A
     token at -inf or with an unreadable (NaN) logprob makes it 0; positive logprobs (rounding)
     count as probability 1. ``hinted``: the direct answer (SPEC 8), whose prompt adds the hint
-    of the question's form (``question_hint``)."""
+    of the question's form (``question_hint``) and reads text views cut to what the question
+    names (``focus_views``)."""
     require_logprobs(model)
+    if hinted and evidence and all(isinstance(e, str) for e in evidence):
+        evidence = focus_views(question, [str(e) for e in evidence])
     text, images = evidence_text(evidence)
     template = load_prompt("answer_direct" if hinted else "answer_token", PROMPTS)
     prompt = template.format(question=question, evidence=text, hint=question_hint(question))
