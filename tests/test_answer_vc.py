@@ -177,7 +177,8 @@ def test_focus_leaves_the_views_alone_when_nothing_matches_or_nothing_is_named()
 
 
 def test_the_direct_answer_reads_the_focused_views_and_the_white_box_one_the_whole_views():
-    stub = StubChatModel(["yellow"], logprob_fn=lambda text, top: [TokenLogprob("yellow", 0.0)])
+    stub = StubChatModel(["yellow", "yellow"],
+                         logprob_fn=lambda text, top: [TokenLogprob("yellow", 0.0)])
     answer_token_probability(stub, "What colour is the refrigerator?", VIEWS, hinted=True)
     answer_token_probability(stub, "What colour is the refrigerator?", VIEWS)
     direct, white_box = (r.messages[0].text for r in stub.requests)
