@@ -169,6 +169,7 @@ def test_focus_keeps_where_the_robot_is_and_the_entries_the_question_names():
     assert chairs[0] == ("You are in the kitchen. Seen: two black chairs on the left, 1.5-1.9 m, "
                          "in the office.")
     assert "doorway" not in " ".join(chairs)  # the doorway sentence is no entry
+    assert focus_views("How many chairs are in the office?", chairs) == chairs  # idempotent
 
 
 def test_focus_leaves_the_views_alone_when_nothing_matches_or_nothing_is_named():

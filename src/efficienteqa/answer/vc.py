@@ -108,7 +108,8 @@ def focus_views(question: str, views: Sequence[str]) -> list[str]:
     out, hits = [], 0
     for view in views:
         head, _, rest = view.partition(". ")
-        listed = rest.split(". ")[0].removeprefix("Visible: ")  # not "Through a doorway: ..."
+        listed = rest.split(". ")[0]  # not "Through a doorway: ..."
+        listed = listed.removeprefix("Visible: ").removeprefix("Seen: ")  # focused already
         entries = [e for e in listed.split("; ") if wanted & _words(e)]
         hits += len(entries)
         out.append(head + "." + (" Seen: " + "; ".join(e.rstrip(".") for e in entries) + "."
