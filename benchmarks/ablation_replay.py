@@ -150,7 +150,8 @@ def replay_episode(row: dict[str, Any], record: dict[str, Any], manifest: dict[s
         prompt = next((e["prompt"] for e in record["model"]["exchanges"]
                        if e["phase"] == "answer"), None)
         if agent.perception.modality == "text" and prompt is not None and record["retrieved"]:
-            prompt_match = answer_prompt_matches(frames, record["retrieved"], prompt)
+            prompt_match = answer_prompt_matches(frames, record["retrieved"], prompt,
+                                                 record["question"])
             if not prompt_match:
                 print(f"  warning: {row['id']}: re-observed frames differ from the stored "
                       "answer prompt", file=sys.stderr)

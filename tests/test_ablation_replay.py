@@ -132,7 +132,8 @@ def test_a_replayed_stop_equals_the_live_one(house4, tmp_path, stop, top_k):
     best = retrieve(frames, top_k, upto=replayed.step)
     assert [(r.step, r.sim) for r in best] == [(d["step"], d["sim"]) for d in live["retrieved"]]
     answer = next(e for e in live["model"]["exchanges"] if e["phase"] == "answer")
-    assert answer_prompt_matches(frames, live["retrieved"], answer["prompt"])
+    assert answer_prompt_matches(frames, live["retrieved"], answer["prompt"], q.question)
+    assert not answer_prompt_matches(frames, live["retrieved"], answer["prompt"])  # focused
 
 
 def _fake_run(root, episodes: dict[str, list[float]]):

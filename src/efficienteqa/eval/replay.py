@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Generic, TypeVar
 
 from efficienteqa.answer.rag import Ranked, TopK, View
-from efficienteqa.answer.vc import evidence_text
+from efficienteqa.answer.vc import evidence_text, focus_views
 from efficienteqa.geometry import Pose2D
 from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig
 
@@ -151,12 +151,14 @@ def reobserve(observe: Callable[[Pose2D], Any], describe: Callable[[Any], T],
 
 
 def answer_prompt_matches(frames: Sequence[Frame[Any]], retrieved: Sequence[Mapping[str, Any]],
-                          prompt: str) -> bool:
+                          prompt: str, question: str | None = None) -> bool:
     """Whether the re-observed descriptions of the recorded ``retrieved`` steps (best first) are
-    the evidence in the stored answer ``prompt`` (text perception)."""
+    the evidence in the stored answer ``prompt`` (text perception): as they are, or, given the
+    ``question``, as the direct answer reads them (``focus_views``)."""
     by_step = {f.step: f.item for f in frames}
     items = [by_step.get(int(r["step"])) for r in retrieved]
     if not items or not all(isinstance(i, str) for i in items):
         return False
-    text, _ = evidence_text(items)  # type: ignore[arg-type]
-    return text in prompt
+    views = [str(i) for i in items]
+    forms = [views] + ([focus_views(question, views)] if question is not None else [])
+    return any(evidence_text(form)[0] in prompt for form in forms)
