@@ -111,6 +111,9 @@ def test_a_miss_gets_the_fallback_reply_and_is_counted(replay, server) -> None:
     assert client.chat([Message("user", "never asked")]).text == replay.DEFAULT_FALLBACK
     reply = json.loads(client.chat([Message("user", "never asked")], json_schema=SCHEMA).text)
     assert reply == {"answer": "", "confidence": 0.1}  # the smallest valid instance
+    deadline = time.monotonic() + 2.0  # the handler leaves "in flight" after its reply is sent
+    while s.stats.to_dict()["in_flight"] and time.monotonic() < deadline:
+        time.sleep(0.01)
     assert s.stats.to_dict() == {"requests": 2, "hits": 0, "misses": 2, "in_flight": 0,
                                  "max_in_flight": 1}
 
