@@ -24,7 +24,7 @@ the client reports as a rejected request. Replies to misses are never written to
 
     python benchmarks/replay_server.py --port 8799 --latency-s 1.5
     OPENAI_API_KEY=replay efficienteqa eval --method blind --no-cache \\
-        --vlm openai:qwen2.5-coder-1.5b@http://127.0.0.1:8799/v1 --out /tmp/run
+        --vlm openai:qwen2.5-coder-1.5b@http://127.0.0.1:8799/v1 --out out/replay_run
 
 The client must run with ``--no-cache`` (else it answers from the same cache without asking),
 and the model named in ``--vlm`` must be the cached one (``GET /v1/models`` lists them). The key
