@@ -109,6 +109,9 @@ Preset = Annotated[str | None, typer.Option(help=PRESET_HELP)]
 Dataset = Annotated[str | None, typer.Option(help="synthetic (the fixed split; default) | "
                                              "synthetic:SEEDS (e.g. synthetic:0-9) | hm-eqa.",
                                              show_default=False)]
+ClosedSet = Annotated[bool, typer.Option("--closed-set", help="HM-EQA's four-choice mode (all 500 "
+                                         "questions): graded by the chosen letter; the default "
+                                         "judge is then none.")]
 
 
 @app.command("ask")
@@ -280,6 +283,7 @@ def eval_command(
                                           "P(yes) for 'same answer?') | auto (default: yes-prob for "
                                           "local models).", show_default=False),
     hm_eqa_path: HmEqaPath = None,
+    closed_set: ClosedSet = False,
     env: Env = None,
     hm3d_root: Hm3dRoot = None,
     reports: bool = typer.Option(False, "--reports", help="Also write each episode's report.html."),
@@ -299,7 +303,7 @@ def eval_command(
     )
 
     from efficienteqa.datasets import load_dataset
-    from efficienteqa.eval.methods import RunSpec, default_judge, resolve
+    from efficienteqa.eval.methods import METHODS, RunSpec, default_judge, resolve
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
     from efficienteqa.presets import apply_preset, build_config, build_stack, given
@@ -310,15 +314,24 @@ def eval_command(
     stack = build_stack(o)
     parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
     dataset = o["dataset"] or "synthetic"
-    judge_spec = o["judge"] or default_judge(dataset)
+    if closed_set and dataset != "hm-eqa":
+        raise EfficientEQAError(f"--closed-set is HM-EQA's multiple-choice mode; {dataset} has no "
+                                "choices", fix="use --dataset hm-eqa, or leave out --closed-set")
+    if closed_set and method in METHODS and method != "blind":
+        raise EfficientEQAError(f"method {method!r} answers open-ended only; --closed-set is "
+                                "answered by blind (or a module:function method that sets "
+                                "extra['letter'])", fix="use --method blind")
+    judge_spec = o["judge"] or ("none" if closed_set else default_judge(dataset))
     if judge_spec == "rule" and not dataset.startswith("synthetic"):
         raise EfficientEQAError(f"the rule judge grades synthetic questions only, not {dataset}",
                                 fix="give a judge model (--judge local:MODEL or openai:MODEL)")
     judge_spec = None if judge_spec in ("none", "rule") else judge_spec
     if judge_spec:
         parse_vlm(judge_spec, images=False)
-    questions = load_dataset(dataset, path=hm_eqa_path, limit=o["limit"], assets=assets)
+    questions = load_dataset(dataset, path=hm_eqa_path, limit=o["limit"], closed_set=closed_set,
+                             assets=assets)
     spec = RunSpec(method=method, dataset=dataset, stack=stack, config=build_config(o),
+                   closed_set=closed_set,
                    judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"] or "auto", judge_spec or ""),
                    reports=reports, assets=assets,
                    hm3d_root=str(hm3d_root) if hm3d_root is not None else None,
@@ -332,13 +345,17 @@ def eval_command(
                                  info="")
         scores: list[float] = []
         rules: list[float] = []
+        letters: list[float] = []
 
         def on_episode(row: dict) -> None:
             if row.get("judge"):
                 scores.append(row["judge"]["value"])
             if row.get("rule"):
                 rules.append(row["rule"]["value"])
+            if row.get("choice"):
+                letters.append(row["choice"]["value"])
             info = "  ".join([*([f"rule {sum(rules) / len(rules):.1f}%"] if rules else []),
+                              *([f"letter {sum(letters) / len(letters):.1f}%"] if letters else []),
                               *([f"LLM-Match {sum(scores) / len(scores):.1f}"] if scores else [])])
             if row["status"] != "done":
                 console.print(f"[yellow]{row['id']} failed:[/yellow] {row.get('error')}",

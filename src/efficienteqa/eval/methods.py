@@ -9,6 +9,7 @@ explore-eqa-blackbox   SFE        verbalized  none        best step (Sim x C)   
 frontier-only          frontier   --          z > Z_th    RAG over top-K        0 per step
 random                 random     --          z > Z_th    RAG over top-K        0 per step
 blind                  --         verbalized  --          question only         1
+blind, closed-set      --         token       --          letter of max P       1
 =====================  =========  ==========  ==========  ====================  ===========
 
 The RAG answer is ``AgentConfig.answer``'s: by default the direct answer (one hinted answer,
@@ -137,27 +138,39 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
                    usage=_usage(record["model"]["exchanges"]), backends=record["backends"],
                    extra={"retrieved": record["retrieved"],
                           "answer_problems": record["answer_problems"],
-                          "timing": record["timing"]},
+                          "timing": record["timing"],
+                          # the model calls of ExploreEQA asking at every step (answer.best_step)
+                          "valid_frames": sum(s["valid"] for s in record["per_step"])},
                    evidence_first_seen_step=record["evidence_first_seen_step"],
                    evidence_in_top_k=record["evidence_in_top_k"],
                    refused_moves=record.get("refused_moves"))
 
 
 def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
-    """The Blind LLM: the question only, no scene and no steps."""
-    from efficienteqa.answer.blind import blind_answer
+    """The Blind LLM: the question only, no scene and no steps. A closed-set question (with
+    ``choices``) is answered by the letter of highest token probability; the answer recorded is
+    that choice's text, the letter and every letter's probability go to ``extra``."""
+    from efficienteqa.answer.blind import blind_answer, blind_choice
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.models.recording import RecordingChatModel
     from efficienteqa.stack import build_grouper, build_relevancy, parse_vlm
 
     model = RecordingChatModel(build_chat_model(parse_vlm(
         spec.stack.vlm, images=False, cache=spec.stack.cache, temperature=spec.stack.temperature)))
+    closed = bool(q.choices)
+    grouping = None if closed else spec.stack.grouping
+    backends = {"environment": None, "perception": None, "vlm": model.name,
+                "vlm_backend": spec.stack.vlm, "relevancy": None, "grouping": grouping,
+                "explore_scorer": None}
+    if closed:
+        choice = blind_choice(model, q.question, q.choices)
+        return Outcome(choice.answer, choice.confidence, 0,
+                       usage=_usage([e.to_dict() for e in model.exchanges]), backends=backends,
+                       extra={"letter": choice.letter, "letter_probs": choice.letter_probs,
+                              "answer_problems": choice.problems})
     embedder = build_relevancy(spec.stack.relevancy) if spec.stack.grouping == "llm" else None
     grouper = build_grouper(spec.stack.grouping, model, embedder)  # type: ignore[arg-type]
     result = blind_answer(model, q.question, grouper)
-    backends = {"environment": None, "perception": None, "vlm": model.name,
-                "vlm_backend": spec.stack.vlm, "relevancy": None, "grouping": spec.stack.grouping,
-                "explore_scorer": None}
     return Outcome(result.answer, result.confidence, 0,
                    usage=_usage([e.to_dict() for e in model.exchanges]),
                    backends=backends, extra={"answer_problems": result.problems})

@@ -2,8 +2,9 @@
 
 An episode is the unit of work and of failure. ``run_episode`` runs one and returns its line
 for ``episodes.jsonl`` — the method's answer, steps and usage, the ``rule`` judge's grade where
-the question lists its accepted answers (synthetic datasets), the LLM-Match judgement where a
-judge model is given, the wall time — or, when anything goes wrong, a ``failed`` line with the
+the question lists its accepted answers (synthetic datasets), the ``choice`` grade of a
+closed-set question (right when the chosen letter is the reference's), the LLM-Match judgement
+where a judge model is given, the wall time — or, when anything goes wrong, a ``failed`` line with the
 one-line error. Only the driver
 appends lines (``records``); a re-run in the same folder skips the episodes already done and
 retries the failed ones.
@@ -58,6 +59,17 @@ def _rule(q: EvalQuestion, answer: str) -> dict[str, Any] | None:
     return rule_judgement(q.question, q.category, q.accepted, answer).to_dict()
 
 
+def _choice(q: EvalQuestion, extra: dict[str, Any]) -> dict[str, Any] | None:
+    """Exact-letter grading of a closed-set question: the method's chosen letter
+    (``extra["letter"]``) against the reference letter (``source["letter"]``)."""
+    if not q.choices:
+        return None
+    letter, reference = extra.get("letter"), q.source.get("letter")
+    correct = isinstance(letter, str) and letter.strip().upper() == str(reference).upper()
+    return {"correct": correct, "value": 100.0 if correct else 0.0, "letter": letter,
+            "reference_letter": reference}
+
+
 def _judge(spec: RunSpec, q: EvalQuestion, answer: str) -> dict[str, Any] | None:
     if spec.judge is None:
         return None
@@ -107,6 +119,7 @@ def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
                    evidence_in_top_k=outcome.evidence_in_top_k,
                    refused_moves=outcome.refused_moves)
         row["rule"] = _rule(q, outcome.answer)
+        row["choice"] = _choice(q, outcome.extra)
         row["judge"] = _judge(spec, q, outcome.answer)
     except Exception as exc:  # noqa: BLE001 - one episode's failure must not end the run
         row.update(_failure(exc), traceback=traceback.format_exc(limit=6)[-2000:])

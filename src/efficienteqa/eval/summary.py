@@ -11,6 +11,9 @@ summary backs the console, the Markdown and the HTML report. Conventions, stated
   episode that the rule judge graded right, by the same convention: a failed or ungraded
   episode counts as wrong, and a run without rule grades has none (NaN). It is reported beside
   LLM-Match, not instead of it.
+- Letter accuracy (closed-set multiple choice, HM-EQA ``--closed-set``) is the share (%) of every
+  episode whose chosen letter is the reference's (the row's ``choice`` grade), by the same
+  convention.
 - Steps, steps/oracle, stop reasons and model usage are over the done episodes; wall time is over
   every episode that recorded one (a failure costs time too).
 - Evidence in view (``report.evidence``) is over the done episodes whose question has ground
@@ -19,7 +22,8 @@ summary backs the console, the Markdown and the HTML report. Conventions, stated
   share and the in-top-K share over all of them. Refused moves per step: the moves the
   environment refused over the steps taken, over the done episodes that record them.
 - Accuracy, the headline score of a published run (``summary.json``, the README's tables), is
-  the rule-judge accuracy where the run has rule grades, else LLM-Match, each with a 95%
+  the rule-judge accuracy where the run has rule grades, else the letter accuracy where it has
+  letter grades, else LLM-Match, each with a 95%
   bootstrap interval over the episodes (``scipy.stats.bootstrap``, fixed seed: the same run gives
   the same interval). Paired differences (``paired``) compare two runs on the episode ids both
   finished, with a bootstrap interval over the per-question differences.
@@ -99,8 +103,10 @@ class RunSummary:
     never_seen: float = math.nan  # share (0-1) of n_evidence
     evidence_in_top_k: float = math.nan  # share (0-1) of n_evidence
     refused_per_step: float = math.nan
-    accuracy_judge: str = ""  # "rule", "llm-match", or "" when the run has no grade
-    accuracy: float = math.nan  # 0-100: rule-judge accuracy, else LLM-Match
+    choice_accuracy: float = math.nan  # 0-100, closed-set letter grades
+    n_choice: int = 0
+    accuracy_judge: str = ""  # "rule", "choice", "llm-match", or "" when the run has no grade
+    accuracy: float = math.nan  # 0-100: rule-judge accuracy, else letter accuracy, else LLM-Match
     accuracy_ci: tuple[float, float] = (math.nan, math.nan)
     relevancy_stops: float = math.nan  # share (0-1) of the done episodes
     # Per episode id (for paired differences; not part of summary.json): the accuracy value
@@ -162,7 +168,7 @@ def mean_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tu
 
 def match_value(row: Mapping[str, Any], key: str = "judge") -> float:
     """One episode's LLM-Match (0-100): its grade's value; 0 when failed or not graded.
-    ``key="rule"``: the rule judge's grade (100 right, 0 wrong)."""
+    ``key="rule"``: the rule judge's grade, ``key="choice"``: the letter's (100 right, 0 wrong)."""
     judged = row.get(key) if row.get("status") == "done" else None
     if not isinstance(judged, Mapping):
         return 0.0
@@ -234,6 +240,8 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
     scored = n_judged > 0
     rule_values = [match_value(r, "rule") for r in rows]
     n_rule = sum(isinstance(r.get("rule"), Mapping) for r in done)
+    choice_values = [match_value(r, "choice") for r in rows]
+    n_choice = sum(isinstance(r.get("choice"), Mapping) for r in done)
 
     categories: dict[str, list[float]] = {}
     rule_categories: dict[str, list[float]] = {}
@@ -260,8 +268,8 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
                    if _is_number(r.get("oracle_steps")) and r["oracle_steps"] > 0]
     refusing = [r for r in done if _is_number(r.get("refused_moves")) and _is_number(r.get("steps"))]
     taken = sum(r["steps"] for r in refusing)
-    kind, accuracy_values = (("rule", rule_values) if n_rule else ("llm-match", values) if scored
-                             else ("", []))
+    kind, accuracy_values = (("rule", rule_values) if n_rule else ("choice", choice_values)
+                             if n_choice else ("llm-match", values) if scored else ("", []))
     ids = [str(r.get("id")) for r in rows]
 
     return RunSummary(
@@ -287,6 +295,7 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
                             if r.get("status") != "done").most_common()),
         rule_accuracy=mean(rule_values) if n_rule else math.nan, n_rule=n_rule,
         rule_by_category={c: mean(v) for c, v in sorted(rule_categories.items())} if n_rule else {},
+        choice_accuracy=mean(choice_values) if n_choice else math.nan, n_choice=n_choice,
         n_evidence=len(known),
         first_seen_mean=mean(r["evidence_first_seen_step"] for r in seen),
         first_seen_over_oracle=mean(seen_ratios),
