@@ -17,6 +17,9 @@ each judge ends with one line
 ``--judge`` and ``--judge-mode`` take what ``efficienteqa eval`` takes (both may be repeated:
 every judge is run in every mode). Grades come from the judge's sqlite cache when the same
 judge, prompt and item were graded before; ``--fresh`` uses a cache of its own for this run.
+``--out FILE`` also writes the figures as JSON (a published result, e.g. results/judge/):
+
+    python benchmarks/judge_agreement.py --judge-mode yes-prob --out results/judge/local-yes-prob.json
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import statistics
 import sys
 import tempfile
@@ -128,29 +132,73 @@ def _f(value: float, digits: int = 2) -> str:
     return "nan" if math.isnan(value) else f"{value:.{digits}f}"
 
 
+def _groups(items: Sequence[Item]) -> list[tuple[str, list[int]]]:
+    """All items, then the items of each ``origin``."""
+    groups = [("all", list(range(len(items))))]
+    for origin in sorted({i.origin for i in items}):
+        groups.append((origin, [k for k, i in enumerate(items) if i.origin == origin]))
+    return groups
+
+
+def _by_kind(items: Sequence[Item], grades: Sequence[int]) -> dict[str, list[tuple[int, int]]]:
+    by_kind: dict[str, list[tuple[int, int]]] = defaultdict(list)
+    for item, g in zip(items, grades, strict=True):
+        by_kind[item.kind].append((item.grade, g))
+    return dict(sorted(by_kind.items()))
+
+
+def _json_float(value: float, digits: int = 4) -> float | None:
+    return None if math.isnan(value) else round(value, digits)
+
+
+def record(items: Sequence[Item], grades: Sequence[int], judge: str, mode: str) -> dict[str, Any]:
+    """The figures of one judge and mode as JSON: all items, per origin, per kind."""
+    def figures(s: Scores) -> dict[str, Any]:
+        return {"n": s.n, "mae": _json_float(s.mae), "spearman": _json_float(s.spearman),
+                "wrong_mean": _json_float(s.wrong_mean), "n_wrong": s.n_wrong,
+                "llm_match": _json_float(s.match, 2), "hand_llm_match": _json_float(s.hand_match, 2)}
+
+    groups = {label: figures(scores([items[k].grade for k in idx], [grades[k] for k in idx]))
+              for label, idx in _groups(items)}
+    return {"judge": judge, "mode": mode, **groups.pop("all"), "by_origin": groups,
+            "by_kind": {kind: {"n": len(pairs), "hand_mean": round(statistics.fmean(h for h, _ in pairs), 4),
+                               "judge_mean": round(statistics.fmean(g for _, g in pairs), 4)}
+                        for kind, pairs in _by_kind(items, grades).items()}}
+
+
 def report(items: Sequence[Item], grades: Sequence[int], name: str) -> str:
     """The tables for one judge and mode; the last line is the machine-readable summary."""
     lines = [f"== {name}", f"{'items':<13}{'n':>4}{'mae':>7}{'spearman':>10}{'wrong_mean':>12}"
              f"{'n_wrong':>9}{'LLM-Match':>11}{'by hand':>9}"]
-    groups = [("all", list(range(len(items))))]
-    for origin in sorted({i.origin for i in items}):
-        groups.append((origin, [k for k, i in enumerate(items) if i.origin == origin]))
     overall = None
-    for label, idx in groups:
+    for label, idx in _groups(items):
         s = scores([items[k].grade for k in idx], [grades[k] for k in idx])
         overall = overall or s
         lines.append(f"{label:<13}{s.n:>4}{_f(s.mae):>7}{_f(s.spearman):>10}{_f(s.wrong_mean):>12}"
                      f"{s.n_wrong:>9}{_f(s.match, 1):>11}{_f(s.hand_match, 1):>9}")
-    by_kind: dict[str, list[tuple[int, int]]] = defaultdict(list)
-    for item, g in zip(items, grades, strict=True):
-        by_kind[item.kind].append((item.grade, g))
     lines.append("per kind (mean hand grade -> mean judge grade): " + "; ".join(
         f"{kind} {statistics.fmean(h for h, _ in pairs):.2f}->{statistics.fmean(g for _, g in pairs):.2f}"
-        f" (n={len(pairs)})" for kind, pairs in sorted(by_kind.items())))
+        f" (n={len(pairs)})" for kind, pairs in _by_kind(items, grades).items()))
     assert overall is not None
     lines.append(f"judge={name} n={overall.n} mae={_f(overall.mae, 3)} "
                  f"spearman={_f(overall.spearman, 3)} wrong_mean={_f(overall.wrong_mean, 3)}")
     return "\n".join(lines)
+
+
+def write_figures(out: Path, data: Path, items: Sequence[Item], records: Sequence[dict[str, Any]]
+                  ) -> None:
+    """``--out``: the data set (its path relative to the repository where it can be, and its
+    sha256), the code version and each judge's figures."""
+    import hashlib
+
+    from efficienteqa.records import code_version
+
+    where = Path(os.path.relpath(data.resolve(), REPO))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps({
+        "data": str(where), "data_sha256": hashlib.sha256(data.read_bytes()).hexdigest(),
+        "items": len(items), "wrong_grade": WRONG, "code_version": code_version(),
+        "judges": list(records)}, indent=2) + "\n")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -164,6 +212,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--fresh", action="store_true", help="ignore earlier cached grades")
     parser.add_argument("--dump", type=Path, default=None,
                         help="also write every judgement as JSON lines to this file")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="also write the figures of every judge and mode as JSON to this file")
     args = parser.parse_args(argv)
 
     items = load_items(args.data)[:args.limit]
@@ -172,20 +222,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     scratch = tempfile.TemporaryDirectory() if args.fresh else None
     dump: list[dict[str, Any]] = []
     finals: list[str] = []
+    records: list[dict[str, Any]] = []
     try:
         for spec in judges:
             for mode in dict.fromkeys(resolve_mode(m, spec) for m in modes):
                 cache = Path(scratch.name) / f"{len(finals)}.sqlite" if scratch else None
-                grades, records = grade_all(items, spec, mode, cache)
+                grades, judgements = grade_all(items, spec, mode, cache)
                 text = report(items, grades, f"{spec}:{mode}")
                 print(text + "\n", flush=True)
                 finals.append(text.splitlines()[-1])
-                dump += [{"judge": spec, "mode": mode, **r} for r in records]
+                records.append(record(items, grades, spec, mode))
+                dump += [{"judge": spec, "mode": mode, **r} for r in judgements]
     finally:
         if scratch is not None:
             scratch.cleanup()
     if args.dump is not None:
         args.dump.write_text("".join(json.dumps(r) + "\n" for r in dump))
+    if args.out is not None:
+        write_figures(args.out, args.data, items, records)
     if len(finals) > 1:
         print("\n".join(finals))
     return 0
