@@ -86,20 +86,30 @@ def test_a_model_that_never_points_at_it_runs_to_the_budget(house4, tmp_path):
 def test_explore_eqa_answers_at_the_step_of_highest_relevancy_times_confidence(
         house4, tmp_path, confidence, model):
     scene, q = house4
-    done = _episode(scene, q, model, tmp_path, max_steps=25, answer_at="best-step",
-                    confidence=confidence, stop=StopConfig(enabled=False), seed=1)
-    r = done.result
-    assert r.stop_reason == "budget" and r.steps == 25  # no early stop: the full budget
-    answered = [rec for rec in r.records if rec.step_answer is not None]
-    assert len(answered) == sum(rec.valid for rec in r.records)  # one answer per valid frame
+    runs = {every: _episode(scene, q, model, tmp_path / str(every), max_steps=25,
+                            answer_at="best-step", confidence=confidence,
+                            stop=StopConfig(enabled=False), seed=1, answer_every_step=every)
+            for every in (True, False)}
+    online, lazy = runs[True].result, runs[False].result
+    for r in (online, lazy):
+        assert r.stop_reason == "budget" and r.steps == 25  # no early stop: the full budget
+    answered = [rec for rec in online.records if rec.step_answer is not None]
+    assert len(answered) == sum(rec.valid for rec in online.records)  # one answer per valid frame
     best = max(answered, key=lambda rec: rec.step_answer["value"])
-    assert r.retrieved == [(best.step, best.check.sim)]
-    assert r.answer == best.step_answer["answer"] and r.confidence == best.step_answer["confidence"]
+    assert online.retrieved == [(best.step, best.check.sim)]
+    assert online.answer == best.step_answer["answer"]
+    assert online.confidence == best.step_answer["confidence"]
     for rec in answered:
         assert rec.step_answer["value"] == pytest.approx(rec.check.sim * rec.step_answer["confidence"])
+    # Asking only the frames that can still win gives the same answer from the same step.
+    assert (lazy.answer, lazy.confidence, lazy.retrieved) == (online.answer, online.confidence,
+                                                              online.retrieved)
+    lazily = [rec for rec in lazy.records if rec.step_answer is not None]
+    assert 1 <= len(lazily) < len(answered)
+    assert all(rec.step_answer == online.records[rec.step - 1].step_answer for rec in lazily)
     if confidence == "verbalized":  # this trajectory frames the desk (Sim 1) within the budget
-        assert best.check.sim == 1.0 and r.answer == "black"
-    exchanges = done.record["model"]["exchanges"]
+        assert best.check.sim == 1.0 and online.answer == "black"
+    exchanges = runs[True].record["model"]["exchanges"]
     assert not any(e["phase"] == "answer" for e in exchanges)  # no final RAG call
     if confidence == "token":  # the stub makes each word 90% likely: p("I cannot tell") = 0.9^3
         assert {round(rec.step_answer["confidence"], 3) for rec in answered} <= {0.9, 0.729}

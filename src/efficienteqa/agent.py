@@ -9,8 +9,9 @@ Then the K most relevant frames of the whole history answer the question (answer
 Frames with >= 50% invalid depth are mapped but never reach a model.
 
 The ExploreEQA baselines are configurations of the same loop (SPEC 3.6): no early stop, and
-``answer_at="best-step"``: the model answers from each frame as it comes, and the episode's
-answer is the one of the step with the highest relevancy x confidence.
+``answer_at="best-step"``: the episode's answer is the one of the frame with the highest
+relevancy x confidence. The model answers the frames after exploration, most relevant first,
+until none left can win (``answer.best_step``): the answer of asking at every step, in fewer calls.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answer
 from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK, View
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
@@ -85,6 +87,9 @@ class AgentConfig:
     # question's form, confidence its token probability; needs logprobs), "paper" (SPEC 3.5's
     # M verbalized guesses, grouped), or "auto": direct when the model gives logprobs.
     answer: str = "auto"
+    # answer_at="best-step": ask the model at every valid frame, as ExploreEQA does online,
+    # instead of only the frames that can still win (the same answer; see answer.best_step).
+    answer_every_step: bool = False
 
     def __post_init__(self) -> None:
         if self.answer not in ANSWERS:
@@ -201,7 +206,7 @@ class Agent:
         retries = REFUSAL_RETRIES if cfg.refusal_retries is None else cfg.refusal_retries
         stopper = RelevancyStopper(cfg.stop)
         top: TopK[str | np.ndarray] = TopK(cfg.top_k)
-        best_step: tuple[float, int, float, AnswerResult] | None = None  # value, step, Sim, answer
+        candidates: list[StepFrame[str | np.ndarray]] = []  # answer_at="best-step"
         records: list[StepRecord] = []
         decision: Decision | None = None
         stop_reason = "budget"
@@ -225,13 +230,7 @@ class Agent:
                 top.push(sim, step, frame, view)
                 record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
                 if cfg.answer_at == "best-step":
-                    with self._phase(f"step {step}"):
-                        said = self.answerer.answer(question, [frame])
-                    value = max(sim, 0.0) * said.confidence
-                    record.step_answer = {"answer": said.answer, "confidence": said.confidence,
-                                          "value": value}
-                    if best_step is None or value > best_step[0]:
-                        best_step = (value, step, sim, said)
+                    candidates.append(StepFrame(step, sim, frame))
                 if record.check.stop:
                     stop_reason = "relevancy"
             if stop_reason == "relevancy" or step == budget:
@@ -262,24 +261,40 @@ class Agent:
                     break
         t = time.perf_counter()
         if cfg.answer_at == "best-step":
-            if best_step is None:  # no valid frame at all: nothing was seen
+            best = self._best_step(question, candidates, records)
+            if best is None:  # no valid frame at all: nothing was seen
                 with self._phase("answer"):
                     result = self.answerer.answer(question, [])
                 retrieved = []
             else:
-                _, step, sim, result = best_step
-                retrieved = [(step, sim)]
+                result, retrieved = best.answer, [(best.step, best.sim)]
         else:
-            best = top.best()
+            top_k = top.best()
             with self._phase("answer"):
-                result = self.answerer.answer(question, [r.item for r in best])
-            retrieved = [(r.step, r.sim) for r in best]
+                result = self.answerer.answer(question, [r.item for r in top_k])
+            retrieved = [(r.step, r.sim) for r in top_k]
         answer_s = time.perf_counter() - t
         state = explore.mapper.state((obs.pose.x, obs.pose.y))
         return EpisodeResult(question, result.answer, result.confidence, len(records),
                              stop_reason, budget, records, retrieved,
                              result, time.perf_counter() - t0, answer_s, state,
                              explore.values.smoothed(), decision)
+
+    def _best_step(self, question: str, candidates: list[StepFrame[str | np.ndarray]],
+                   records: list[StepRecord]) -> StepAnswer | None:
+        """ExploreEQA's answer; each step the model answered gets its ``step_answer``."""
+        def ask(c: StepFrame[str | np.ndarray]) -> AnswerResult:
+            n = self._n_calls()
+            with self._phase(f"step {c.step}"):
+                said = self.answerer.answer(question, [c.item])
+            records[c.step - 1].calls += self._calls_since(n)
+            return said
+
+        best, asked = best_step_answer(candidates, ask, every_step=self.config.answer_every_step)
+        for a in asked:
+            records[a.step - 1].step_answer = {"answer": a.answer.answer,
+                                               "confidence": a.answer.confidence, "value": a.value}
+        return best
 
 
 def _fill(record: StepRecord, out: ExploreStep) -> None:
