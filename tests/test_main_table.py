@@ -1,0 +1,51 @@
+"""The main table's benchmark (issue 17 part 1) on 2 questions: every method runs on the same
+episodes, with the small real model, and the report pairs them against white-box ExploreEQA."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import needs_egl, needs_small_model
+
+ROOT = Path(__file__).resolve().parents[1]
+RUNS = ("default", "paper", "explore-eqa", "explore-eqa-blackbox", "frontier-only", "random", "blind")
+
+
+@needs_egl
+@needs_small_model
+@pytest.mark.slow
+def test_the_main_table_runs_every_method_on_two_questions(tmp_path, small_model_cache):
+    shim = tmp_path / "efficienteqa"  # the CLI of this interpreter, whatever the venv is called
+    shim.write_text(f"#!/bin/sh\nexec {sys.executable} -m efficienteqa.cli \"$@\"\n")
+    shim.chmod(0o755)
+    env = {**os.environ, "LIMIT": "2", "DATASET": "synthetic:4", "OUT": str(tmp_path / "runs"),
+           "EQA": str(shim), "JUDGE": "local:smollm2-135m",
+           "ARGS": "--vlm local:smollm2-135m --assets builtin --max-steps 3 --relevancy overlap "
+                   "--grouping rules"}
+    try:
+        result = subprocess.run(["bash", str(ROOT / "benchmarks" / "main_table.sh")], cwd=ROOT,
+                                env=env, capture_output=True, text=True, timeout=900)
+    finally:
+        subprocess.run([str(shim), "models", "stop", "smollm2-135m"], capture_output=True, env=env)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    table = [line for line in result.stdout.splitlines()
+             if line.startswith("| ") and not line.startswith("| Method")]
+    assert len(table) == len(RUNS)
+    questions = None
+    for name in RUNS:
+        run = tmp_path / "runs" / name
+        rows = [json.loads(line) for line in (run / "episodes.jsonl").read_text().splitlines()]
+        assert [r["status"] for r in rows] == ["done", "done"], name
+        assert all(r["rule"] is not None and r["judge"] is not None for r in rows), name
+        ids = [r["id"] for r in rows]
+        assert questions in (None, ids)  # the same questions for every method
+        questions = ids
+        assert (run / "summary.json").is_file() and (run / "report.html").is_file()
+        if name == "explore-eqa":  # the lazy best-step answer asks at most one call per frame
+            assert all(1 <= r["usage"]["calls"] <= r["extra"]["valid_frames"] for r in rows)
+    # Every row but the reference is paired with white-box ExploreEQA on both questions.
+    assert sum(cells.strip() == "2" for line in table for cells in line.split("|")[-2:-1]) == len(RUNS) - 1
