@@ -579,7 +579,8 @@ def _interval(value: float, ci: tuple[float, float], digits: int = 1, signed: bo
 
 def _accuracy_cell(s: RunSummary, mixed: bool) -> str:
     text = _interval(s.accuracy, s.accuracy_ci)
-    return f"{text} (LLM-Match)" if mixed and s.accuracy_judge == "llm-match" else text
+    marks = {"llm-match": " (LLM-Match)", "choice": " (letter)"}
+    return text + marks.get(s.accuracy_judge, "") if mixed else text
 
 
 def markdown_backends(summaries: Sequence[RunSummary]) -> str:
@@ -604,8 +605,8 @@ def markdown_table(summaries: Sequence[RunSummary],
     labels = distinct_labels(summaries)
     kinds = {s.accuracy_judge for s in summaries if s.accuracy_judge}
     mixed = len(kinds) > 1
-    judge = ("rule judge" if kinds == {"rule"} else "LLM-Match" if kinds == {"llm-match"}
-             else "rule judge or LLM-Match")
+    names = {"rule": "rule judge", "choice": "chosen letter", "llm-match": "LLM-Match"}
+    judge = " or ".join(names[k] for k in names if k in kinds) or "rule judge"
     header = ["Method", f"Accuracy, {judge} (%) [95% CI]", "LLM-Match", "Steps", "Steps / oracle",
               "Evidence seen (%)", "Relevancy stops (%)", "Median wall s", "Calls / ep",
               "Tokens / ep", "n"]
