@@ -87,9 +87,10 @@ class AgentConfig:
     # question's form, confidence its token probability; needs logprobs), "paper" (SPEC 3.5's
     # M verbalized guesses, grouped), or "auto": direct when the model gives logprobs.
     answer: str = "auto"
-    # answer_at="best-step": ask the model at every valid frame, as ExploreEQA does online,
-    # instead of only the frames that can still win (the same answer; see answer.best_step).
-    answer_every_step: bool = False
+    # answer_at="best-step": True asks the model at every valid frame, as ExploreEQA does
+    # online; None (the default), only the frames that can still win: the same answer in fewer
+    # calls (answer.best_step). None, not False, so runs recorded before it resume.
+    answer_every_step: bool | None = None
 
     def __post_init__(self) -> None:
         if self.answer not in ANSWERS:
@@ -290,7 +291,7 @@ class Agent:
             records[c.step - 1].calls += self._calls_since(n)
             return said
 
-        best, asked = best_step_answer(candidates, ask, every_step=self.config.answer_every_step)
+        best, asked = best_step_answer(candidates, ask, every_step=bool(self.config.answer_every_step))
         for a in asked:
             records[a.step - 1].step_answer = {"answer": a.answer.answer,
                                                "confidence": a.answer.confidence, "value": a.value}
