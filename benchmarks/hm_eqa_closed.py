@@ -28,10 +28,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from efficienteqa.datasets.hm_eqa import FILLER
 from efficienteqa.eval.records import read_run
 from efficienteqa.eval.summary import match_value, mean, mean_interval
-
-FILLER = "(Do not choose this option)"  # datasets.hm_eqa.FILLER, as the recorded answer text
 
 
 def majority(letters: Sequence[str]) -> tuple[str, float]:

@@ -16,7 +16,13 @@ import numpy as np
 from scipy.stats import bootstrap
 
 from efficienteqa.eval.records import read_run
-from efficienteqa.eval.summary import BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, CONFIDENCE, mean_interval
+from efficienteqa.eval.summary import (
+    BOOTSTRAP_RESAMPLES,
+    BOOTSTRAP_SEED,
+    CONFIDENCE,
+    match_value,
+    mean_interval,
+)
 
 
 def _episodes(run: Path) -> dict[str, dict]:
@@ -43,8 +49,8 @@ def main() -> None:
     if len(ids) < 2:
         raise SystemExit(f"error: {len(ids)} questions in both runs; need at least 2")
     steps = np.array([ours[k]["steps"] for k in ids], float), np.array([ref[k]["steps"] for k in ids], float)
-    right = (np.array([ours[k]["rule"]["score"] == 5 for k in ids], float),
-             np.array([ref[k]["rule"]["score"] == 5 for k in ids], float))
+    right = (np.array([match_value(ours[k], "rule") / 100 for k in ids]),
+             np.array([match_value(ref[k], "rule") / 100 for k in ids]))
     ratio = steps[0].mean() / steps[1].mean()
     r_low, r_high = _interval(lambda a, b: np.mean(a) / np.mean(b), *steps)
     # Differences as the report's paired columns compute them (BCa over per-question differences).
