@@ -13,11 +13,10 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.vc.grouping import Grouper
 from efficienteqa.vc.logprobs import TOP_LOGPROBS, letter_probs_from_logprobs, require_logprobs
+from efficienteqa.vc.parse import CHOICE_LETTERS as LETTERS
 from efficienteqa.vc.parse import AnswerResult, M
 from efficienteqa.vc.prompts import load_prompt
 from efficienteqa.vc.usage import usage_of
-
-LETTERS = "ABCDEFGH"
 
 
 def blind_answer(model: ChatModel, question: str, grouper: Grouper, *, m: int = M,

@@ -30,6 +30,7 @@ import httpx
 from efficienteqa.cache import cache_dir
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.vc.parse import CHOICE_LETTERS as LETTERS
 
 log = logging.getLogger(__name__)
 
@@ -38,7 +39,6 @@ QUESTIONS_CSV = "questions.csv"
 POSES_CSV = "scene_init_poses.csv"
 ENV_VAR = "EFFICIENTEQA_HM_EQA"
 FILLER = "(Do not choose this option)"
-LETTERS = "ABCDEFGH"
 # Stanford-ILIAD/explore-eqa, the commit the files were published at (18381da).
 COMMIT = "18381da3370c5f7729594f10ebc49b5644bbb88c"
 URL = "https://raw.githubusercontent.com/Stanford-ILIAD/explore-eqa/{commit}/data/{name}"

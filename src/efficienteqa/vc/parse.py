@@ -11,6 +11,8 @@ from typing import Any
 
 M = 3  # answers asked for per reply (the paper's M)
 DEFAULT_LETTERS = ("A", "B", "C")
+# The letters of a closed-set question's choices (HM-EQA has four; up to eight are read).
+CHOICE_LETTERS = "ABCDEFGH"
 # A candidate listed without a confidence gets the uniform share 100 / m, but never more than
 # MISSING_CONFIDENCE: with one answer asked for (M = 1, ExploreEQA's per-step answer, where the
 # value is used as it is) a reply without a number is a coin flip, not certainty.
