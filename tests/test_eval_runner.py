@@ -185,8 +185,24 @@ def test_rejudging_a_run_replaces_each_grade_once_and_names_the_judge(tmp_path, 
     again = runner.rejudge(tmp_path, "local:stub-judge", "grade")
     assert again == (n, score) and len(stub.requests) == 2  # the grades came from the cache
     assert len(read_episodes(tmp_path / EPISODES_FILE).by_id) == 3
+    assert len(lines(tmp_path)) == 3  # compacted: a regrade does not grow the file
     manifest = json.loads((tmp_path / "run.json").read_text())
     assert (manifest["judge"], manifest["judge_mode"]) == ("local:stub-judge", "grade")
+
+
+def test_compacting_keeps_the_winning_line_of_each_episode_and_drops_torn_ones(tmp_path):
+    from efficienteqa.eval.records import append_episode, compact_episodes
+
+    path = tmp_path / EPISODES_FILE
+    append_episode(path, {"id": "a", "status": "failed"})
+    append_episode(path, {"id": "b", "status": "done", "answer": "x"})
+    append_episode(path, {"id": "a", "status": "done", "answer": "y"})
+    with path.open("a") as f:
+        f.write('{"id": "c", "sta')  # a writer killed mid-line
+    assert compact_episodes(path) == 2
+    assert [(r["id"], r["status"]) for r in map(json.loads, path.read_text().splitlines())] == [
+        ("b", "done"), ("a", "done")]
+    assert read_episodes(path).torn == 0 and not (tmp_path / (EPISODES_FILE + ".tmp")).exists()
 
 
 def test_a_users_method_is_not_told_the_answer(tmp_path):

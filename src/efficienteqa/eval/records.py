@@ -76,6 +76,21 @@ def append_episode(path: Path, row: dict[str, Any]) -> None:
         os.close(fd)
 
 
+def compact_episodes(path: Path) -> int:
+    """Rewrite ``path`` with one line per episode (the line that wins when read) and without torn
+    lines: a temporary file replaces it in one ``os.replace``, so a crash leaves either file whole.
+    Returns the lines kept. Used after a regrade, which appends a line for every episode."""
+    episodes = read_episodes(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w") as f:
+        for row in episodes.rows():
+            f.write(json.dumps(row, allow_nan=False, separators=(",", ":")) + "\n")
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    return len(episodes.by_id)
+
+
 def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
     """Start a run in ``out`` or continue the one there. A folder holding a different run (another
     method, dataset, configuration or back-end) is refused rather than mixed."""

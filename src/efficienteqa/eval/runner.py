@@ -80,10 +80,11 @@ def _judge(spec: RunSpec, q: EvalQuestion, answer: str) -> dict[str, Any] | None
 def rejudge(out: Path, judge_spec: str, mode: str,
             on_episode: Progress | None = None) -> tuple[int, float]:
     """Grade every finished episode of the run in ``out`` again with another judge (or mode):
-    each regraded row is appended (a later line replaces the earlier one) and ``run.json``
-    names the new judge. Returns the episodes graded and the run's LLM-Match as the report
-    computes it (a failed episode scores 0)."""
-    from efficienteqa.eval.records import RUN_FILE, read_run
+    each regraded row is appended as it is graded (a later line replaces the earlier one, so an
+    interrupted regrade loses nothing), the file is compacted to one line per episode at the
+    end, and ``run.json`` names the new judge. Returns the episodes graded and the run's
+    LLM-Match as the report computes it (a failed episode scores 0)."""
+    from efficienteqa.eval.records import RUN_FILE, compact_episodes, read_run
     from efficienteqa.eval.summary import summarise
     from efficienteqa.records import write_json
 
@@ -100,6 +101,7 @@ def rejudge(out: Path, judge_spec: str, mode: str,
             if on_episode is not None:
                 on_episode(row)
         rows.append(row)
+    compact_episodes(out / EPISODES_FILE)
     manifest = {**manifest, "judge": judge_spec, "judge_mode": mode}
     write_json(out / RUN_FILE, manifest)
     return graded, summarise(manifest, rows).llm_match
