@@ -42,7 +42,13 @@ from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stack import Stack, build_agent, build_relevancy
-from efficienteqa.stop.relevancy import STOP_RULES, RelevancyStopper, StopConfig
+from efficienteqa.stop.relevancy import (
+    MIN_STEP,
+    SIGMA_FLOOR,
+    STOP_RULES,
+    RelevancyStopper,
+    StopConfig,
+)
 
 TOP_K = 5
 WITHIN = 3
@@ -157,7 +163,8 @@ def metrics(episodes: list[dict[str, Any]], config: StopConfig) -> dict[str, Any
 
 
 def label(m: dict[str, Any]) -> str:
-    return f" (floor {m['sigma_floor']:g})" if "floor" in m["rule"] else ""
+    floor = f", floor {m['sigma_floor']:g}" if "floor" in m["rule"] else ""
+    return f" (min step {m.get('min_step', MIN_STEP)}{floor})"
 
 
 def table(results: list[dict[str, Any]]) -> str:
@@ -181,6 +188,8 @@ def main() -> None:
     parser.add_argument("--rules", default=",".join(STOP_RULES))
     parser.add_argument("--floors", default="", help="sigma floors to try on rules with floor, "
                         "e.g. 0.05,0.1 (default: StopConfig.sigma_floor)")
+    parser.add_argument("--min-steps", default="", help="minimum stop steps to try with every "
+                        "rule, e.g. 5,7,10 (default: StopConfig.min_step)")
     parser.add_argument("--out", default="out/stop_bench")
     args = parser.parse_args()
     seeds = parse_seeds(args.seeds)
@@ -189,12 +198,13 @@ def main() -> None:
         print(f"{len(episodes)} episodes cached under {args.out}/{args.explorer}")
         return
     configs = []
+    min_steps = [int(m) for m in args.min_steps.split(",")] if args.min_steps else [MIN_STEP]
     for rule in args.rules.split(","):
-        if "floor" in rule and args.floors:
-            configs += [StopConfig(rule=rule, sigma_floor=float(f)) for f in args.floors.split(",")]
-        else:
-            configs.append(StopConfig(rule=rule))
-    results = [metrics(episodes, c) | {"sigma_floor": c.sigma_floor} for c in configs]
+        floors = args.floors.split(",") if "floor" in rule and args.floors else [SIGMA_FLOOR]
+        configs += [StopConfig(rule=rule, sigma_floor=float(f), min_step=m)
+                    for f in floors for m in min_steps]
+    results = [metrics(episodes, c) | {"sigma_floor": c.sigma_floor, "min_step": c.min_step}
+               for c in configs]
     print(f"houses {args.seeds}, explorer {args.explorer}, {len(episodes)} episodes; "
           f"back-ends: {episodes[0]['backends']['perception']}, "
           f"{episodes[0]['backends']['relevancy']}\n")
