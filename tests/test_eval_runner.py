@@ -236,3 +236,16 @@ def test_settings_added_later_default_to_none_so_recorded_runs_resume():
     assert set_by_default(Stack) == {"vlm", "perception", "relevancy", "grouping", "cache", "explore_scorer"}
     assert set_by_default(StopConfig) == {"z_th", "min_step", "enabled", "sigma_eps", "rule",
                                           "sigma_floor", "sim_abs"}
+
+
+def test_run_json_records_what_an_agent_methods_episodes_ran_with():
+    from efficienteqa.eval.runner import manifest
+
+    white = manifest(spec("explore-eqa"), 3)
+    assert white["config"]["confidence"] == "verbalized"  # the options as given: the identity
+    assert white["method_config"]["confidence"] == "token"
+    assert white["method_config"]["stop"]["enabled"] is False
+    assert white["method_config"]["answer_at"] == "best-step"
+    assert manifest(spec("explore-eqa-blackbox"), 3)["method_config"]["confidence"] == "verbalized"
+    assert manifest(spec("blind"), 3)["method_config"] is None
+    assert manifest(spec(), 3)["method_config"] is None  # a user's module:function

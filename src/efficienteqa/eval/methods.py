@@ -105,6 +105,13 @@ def method_config(method: str, config: AgentConfig) -> AgentConfig:
                    answer_at=answer_at, answer=answer)
 
 
+def effective_config(method: str, config: AgentConfig) -> AgentConfig | None:
+    """What an agent method's episodes run with (``method_config``); None for the others (blind,
+    a user's ``module:function``). ``run.json`` records it beside the options given, so a reader
+    sees, say, white-box ExploreEQA's token confidence and its stop turned off."""
+    return method_config(method, config) if method in _AGENT_METHODS else None
+
+
 def _usage(exchanges: list[dict[str, Any]]) -> dict[str, Any]:
     return {"calls": len(exchanges), "cached_calls": sum(bool(e["cached"]) for e in exchanges),
             "prompt_tokens": sum(e["prompt_tokens"] for e in exchanges),

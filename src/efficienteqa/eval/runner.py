@@ -29,7 +29,7 @@ from typing import Any
 
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval.methods import RunSpec, resolve
+from efficienteqa.eval.methods import RunSpec, effective_config, resolve
 from efficienteqa.eval.records import EPISODES_FILE, append_episode, open_run
 from efficienteqa.records import code_version, plain
 
@@ -170,8 +170,13 @@ def scene_seeds(scenes: Sequence[str]) -> dict[str, Any]:
 
 
 def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = ()) -> dict[str, Any]:
+    """``run.json``: ``config`` holds the options as given (part of the run's identity);
+    ``method_config``, what the method's episodes ran with (``methods.effective_config``)."""
+    effective = effective_config(spec.method, spec.config)
     return plain({"method": spec.method, "dataset": spec.dataset, "closed_set": spec.closed_set,
-                   "config": asdict(spec.config), "stack": asdict(spec.stack),
+                   "config": asdict(spec.config),
+                   "method_config": asdict(effective) if effective is not None else None,
+                   "stack": asdict(spec.stack),
                    "judge": spec.judge, "judge_mode": spec.judge_mode, "assets": spec.assets,
                    "env": spec.env, "hm3d_root": spec.hm3d_root,
                    "questions": n_questions, **scene_seeds(scenes),
