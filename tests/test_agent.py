@@ -360,3 +360,12 @@ def test_the_papers_stack_rgb_frames_and_blip2_itm(house4, tmp_path, request):
         rec.step for rec in sorted((r for r in done.result.records if r.check),
                                    key=lambda r: (-r.check.sim, r.step))][:2]
     assert (done.result.answer, done.result.confidence) == ("black", pytest.approx(0.6))
+
+
+@pytest.mark.parametrize("given, read", [(None, "product"), ("per-token", "per-token")])
+def test_the_answer_probability_setting_reaches_the_answerer(house4, given, read):
+    scene, _ = house4
+    built = build_agent(scene.env, Stack(grouping="rules"),
+                        AgentConfig(confidence="token", answer_probability=given), "test",
+                        model=StubChatModel([]), relevancy=WordOverlapScorer())
+    assert built.agent.answerer.probability == read

@@ -93,6 +93,25 @@ def test_token_answer_probability_is_that_of_the_first_line():
     assert result.answer == "black sofa" and result.confidence == pytest.approx(0.8)
 
 
+def test_per_token_probability_is_the_geometric_mean_so_length_costs_nothing():
+    """White-box ExploreEQA ranks frames by Sim x p: with the product, "no" (one token at 0.6)
+    outscores "a black speaker" (three tokens at 0.8 each, 0.51); per token it does not."""
+    def answer(text: str, probs: list[float], how: str) -> float:
+        words = text.split()
+        tokens = [TokenLogprob(w if i == 0 else " " + w, math.log(p))
+                  for i, (w, p) in enumerate(zip(words, probs))]
+        stub = StubChatModel([text], logprob_fn=lambda t, top: tokens)
+        return answer_token_probability(stub, "What is on the nightstand?", ["a speaker"],
+                                        how=how).confidence
+
+    assert answer("no", [0.6], "product") > answer("a black speaker", [0.8] * 3, "product")
+    assert answer("no", [0.6], "per-token") == pytest.approx(0.6)
+    assert answer("a black speaker", [0.8] * 3, "per-token") == pytest.approx(0.8)
+    assert answer("a black speaker", [0.8, 0.8, 0.0001], "per-token") < 0.1  # still a probability
+    with pytest.raises(ValueError, match="per-token"):
+        answer("no", [0.6], "mean")
+
+
 def test_answer_with_confidence_malformed_and_images():
     stub = StubChatModel(["", "kitchen"])
     frames = [np.zeros((4, 4, 3), np.uint8)] * 2

@@ -16,7 +16,8 @@ NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "t
                  "temperature": None, "perception": None, "relevancy": None, "grouping": None,
                  "cache": None, "dataset": None, "limit": None, "env": None, "judge": None,
                  "judge_mode": None, "refusal_retries": None, "stop_clearance_m": None,
-                 "prompts": None, "exploration": None, "distinct_views": None, "answer": None}
+                 "prompts": None, "exploration": None, "distinct_views": None, "answer": None,
+                 "answer_probability": None}
 
 
 def test_options_left_out_take_the_dataclass_defaults():
@@ -27,8 +28,10 @@ def test_options_left_out_take_the_dataclass_defaults():
 def test_given_options_reach_the_dataclasses():
     o = {**NOTHING_GIVEN, "z_th": 1.5, "min_stop_step": 4, "top_k": 3, "max_steps": 12, "seed": 7,
          "explorer": "random", "relevancy": "overlap", "cache": False, "temperature": 0.5,
-         "refusal_retries": 0, "stop_clearance_m": 0.3, "prompts": "paper"}
+         "refusal_retries": 0, "stop_clearance_m": 0.3, "prompts": "paper",
+         "answer_probability": "per-token"}
     config = build_config(o)
+    assert config.answer_probability == "per-token"
     assert config.stop == StopConfig(z_th=1.5, min_step=4)
     assert (config.top_k, config.max_steps, config.seed, config.explorer) == (3, 12, 7, "random")
     assert (config.refusal_retries, config.stop_clearance_m, config.prompts) == (0, 0.3, "paper")
@@ -70,3 +73,5 @@ def test_a_value_the_agent_refuses_is_one_clear_error():
         build_config({**NOTHING_GIVEN, "exploration": "bogus"})
     with pytest.raises(EfficientEQAError, match="answer must be one of"):
         build_config({**NOTHING_GIVEN, "answer": "bogus"})
+    with pytest.raises(EfficientEQAError, match="answer_probability must be one of"):
+        build_config({**NOTHING_GIVEN, "answer_probability": "mean"})

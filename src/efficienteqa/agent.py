@@ -26,6 +26,7 @@ import numpy as np
 
 from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answer
 from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK, View
+from efficienteqa.answer.vc import ANSWER_PROBABILITIES
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
 from efficienteqa.explore.module import (
@@ -91,6 +92,10 @@ class AgentConfig:
     # online; None (the default), only the frames that can still win: the same answer in fewer
     # calls (answer.best_step). None, not False, so runs recorded before it resume.
     answer_every_step: bool | None = None
+    # A token-probability answer's confidence (white-box ExploreEQA's p, the direct answer's):
+    # None, the whole answer's probability (the product of its tokens'); "per-token", their
+    # geometric mean, so a short answer ("no") does not outscore a longer one for its length.
+    answer_probability: str | None = None
 
     def __post_init__(self) -> None:
         if self.answer not in ANSWERS:
@@ -100,6 +105,9 @@ class AgentConfig:
                              f"not {self.exploration!r}")
         if self.prompts not in PROMPT_CONFIGS:
             raise ValueError(f"prompts must be one of {tuple(PROMPT_CONFIGS)}, not {self.prompts!r}")
+        if self.answer_probability not in (None, *ANSWER_PROBABILITIES):
+            raise ValueError(f"answer_probability must be one of {ANSWER_PROBABILITIES}, "
+                             f"not {self.answer_probability!r}")
         if self.answer_at not in ANSWER_AT:
             raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
 

@@ -76,6 +76,11 @@ AnswerOpt = Annotated[str | None, typer.Option(
     "--answer", help="How the retrieved frames are answered: auto (default: direct when the model "
     "gives logprobs), direct (one answer with a hint for the question's form, confidence its token "
     "probability) or paper (M verbalized guesses, grouped; SPEC 3.5).", show_default=False)]
+AnswerProbability = Annotated[str | None, typer.Option(
+    "--answer-probability", help="How a token-probability answer's confidence (white-box "
+    "ExploreEQA's, the direct answer's) is read: product (default: the whole answer's "
+    "probability) or per-token (its tokens' geometric mean, length-normalised).",
+    show_default=False)]
 Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
 Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
@@ -137,6 +142,7 @@ def ask_command(
     prompts: Prompts = None,
     distinct_views: DistinctViews = None,
     answer: AnswerOpt = None,
+    answer_probability: AnswerProbability = None,
     exploration: Exploration = None,
     explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
@@ -267,6 +273,7 @@ def eval_command(
     prompts: Prompts = None,
     distinct_views: DistinctViews = None,
     answer: AnswerOpt = None,
+    answer_probability: AnswerProbability = None,
     exploration: Exploration = None,
     seed: Seed = None,
     vlm: Vlm = None,

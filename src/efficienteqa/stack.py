@@ -217,7 +217,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     # Answering every step (ExploreEQA) asks for one answer per frame, not M.
     m = 1 if config.answer_at == "best-step" else M
     answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy), m=m,
-                           confidence=config.confidence, direct=answer == "direct")
+                           confidence=config.confidence, direct=answer == "direct",
+                           probability=config.answer_probability or "product")
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder)
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,
                 "vlm_backend": vlm_backend,

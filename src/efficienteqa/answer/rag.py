@@ -111,14 +111,17 @@ class RagAnswerer:
 
     ``direct`` (SPEC 8, beyond the paper): one greedy answer to a prompt with a hint for the
     question's form, its confidence the answer's token probability, instead of SPEC 3.5's M
-    verbalized guesses; it needs a model that gives logprobs."""
+    verbalized guesses; it needs a model that gives logprobs. ``probability``: how a token
+    answer's confidence is read from its tokens (``answer.vc.ANSWER_PROBABILITIES``)."""
 
     def __init__(self, model: ChatModel, grouper: Grouper, m: int = M,
-                 confidence: Confidence = "verbalized", direct: bool = False) -> None:
+                 confidence: Confidence = "verbalized", direct: bool = False,
+                 probability: str = "product") -> None:
         self.model, self.grouper, self.m, self.confidence = model, grouper, m, confidence
-        self.direct = direct
+        self.direct, self.probability = direct, probability
 
     def answer(self, question: str, evidence: Sequence[str | np.ndarray]) -> AnswerResult:
         if self.direct or self.confidence == "token":
-            return answer_token_probability(self.model, question, evidence, hinted=self.direct)
+            return answer_token_probability(self.model, question, evidence, hinted=self.direct,
+                                            how=self.probability)
         return answer_with_confidence(self.model, question, evidence, self.grouper, m=self.m)

@@ -152,15 +152,24 @@ def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[s
     return vc_answer(model, prompt, images, question, grouper, m, max_tokens)
 
 
+# How an answer's token probabilities make its confidence: "product", the probability of the
+# whole answer (the default), or "per-token", their geometric mean (length-normalised: a long
+# answer is not less sure for having more tokens).
+ANSWER_PROBABILITIES = ("product", "per-token")
+
+
 def answer_token_probability(model: ChatModel, question: str,
                              evidence: Sequence[str | np.ndarray], *, hinted: bool = False,
-                             max_tokens: int = 24) -> AnswerResult:
+                             max_tokens: int = 24, how: str = "product") -> AnswerResult:
     """A short greedy answer; its confidence (0-1, as VC's after normalising) is the model's
-    probability of that answer: the product of its tokens' probabilities, first line only. A
-    token at -inf or with an unreadable (NaN) logprob makes it 0; positive logprobs (rounding)
-    count as probability 1. ``hinted``: the direct answer (SPEC 8), whose prompt adds the hint
-    of the question's form (``question_hint``) and reads text views cut to what the question
-    names (``focus_views``)."""
+    probability of that answer: the product of its tokens' probabilities, first line only
+    (``how="per-token"``: their geometric mean, ``ANSWER_PROBABILITIES``). A token at -inf or
+    with an unreadable (NaN) logprob makes it 0; positive logprobs (rounding) count as
+    probability 1. ``hinted``: the direct answer (SPEC 8), whose prompt adds the hint of the
+    question's form (``question_hint``) and reads text views cut to what the question names
+    (``focus_views``)."""
+    if how not in ANSWER_PROBABILITIES:
+        raise ValueError(f"how must be one of {ANSWER_PROBABILITIES}, not {how!r}")
     require_logprobs(model)
     if hinted and evidence and all(isinstance(e, str) for e in evidence):
         evidence = focus_views(question, [str(e) for e in evidence])
@@ -171,7 +180,7 @@ def answer_token_probability(model: ChatModel, question: str,
                       logprobs=1)
     raw = resp.text or ""
     problems: list[str] = []
-    logprob, started = 0.0, False
+    logprob, started, n_tokens = 0.0, False, 0
     for token in resp.logprobs or []:
         if not started and not token.token.strip():
             continue  # leading whitespace is not part of the answer (``raw.strip()``)
@@ -183,11 +192,14 @@ def answer_token_probability(model: ChatModel, question: str,
             problems.append(f"unreadable probability of token {token.token!r}: confidence 0")
             value = -math.inf
         logprob += min(value, 0.0)  # a probability is at most 1; -inf (probability 0) counts
+        n_tokens += 1
     if not resp.logprobs:
         problems.append("no logprobs in the reply: confidence 0")
     answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""
     if not answer:
         problems.append("empty answer")
+    if how == "per-token" and n_tokens:
+        logprob /= n_tokens
     confidence = math.exp(logprob) if resp.logprobs and answer else 0.0
     candidates = [Candidate(answer, confidence)] if answer else []
     classes = [AnswerClass(answer, candidates, confidence)] if answer else []
