@@ -362,10 +362,11 @@ def test_the_papers_stack_rgb_frames_and_blip2_itm(house4, tmp_path, request):
     assert (done.result.answer, done.result.confidence) == ("black", pytest.approx(0.6))
 
 
-@pytest.mark.parametrize("given, read", [(None, "product"), ("per-token", "per-token")])
-def test_the_answer_probability_setting_reaches_the_answerer(house4, given, read):
+@pytest.mark.parametrize("given, read", [((None, None), ("product", "short")),
+                                         (("per-token", "verbalized"), ("per-token", "verbalized"))])
+def test_the_token_answer_settings_reach_the_answerer(house4, given, read):
     scene, _ = house4
-    built = build_agent(scene.env, Stack(grouping="rules"),
-                        AgentConfig(confidence="token", answer_probability=given), "test",
+    config = AgentConfig(confidence="token", answer_probability=given[0], token_answer=given[1])
+    built = build_agent(scene.env, Stack(grouping="rules"), config, "test",
                         model=StubChatModel([]), relevancy=WordOverlapScorer())
-    assert built.agent.answerer.probability == read
+    assert (built.agent.answerer.probability, built.agent.answerer.token_prompt) == read

@@ -112,6 +112,37 @@ def test_per_token_probability_is_the_geometric_mean_so_length_costs_nothing():
         answer("no", [0.6], "mean")
 
 
+@pytest.mark.parametrize("tokens, answer, confidence", [
+    # the answer's tokens, up to the ';' that starts the written confidence
+    ([("a", 0.9), (" black", 0.5), (" speaker", 0.8), (";", 0.99), (" 80", 0.1)],
+     "a black speaker", 0.9 * 0.5 * 0.8),
+    ([("no;", 0.7), (" 60", 0.2)], "no", 0.7),  # one token holds the answer and its end
+    ([("\n", 0.1), ("kitchen", 0.6), ("\n", 0.9)], "kitchen", 0.6),  # no ';': the first line
+])
+def test_verbalized_token_probability_reads_the_answer_not_the_written_number(tokens, answer,
+                                                                               confidence):
+    """White-box ExploreEQA on the black-box prompt: the same reply, its confidence the
+    probability of the answer's tokens, whatever number the model wrote."""
+    from efficienteqa.answer.vc import verbalized_token_probability
+
+    text = "".join(t for t, _ in tokens)
+    stub = StubChatModel([text], logprob_fn=lambda t, top: [TokenLogprob(w, math.log(p))
+                                                             for w, p in tokens])
+    result = verbalized_token_probability(stub, "What is on the nightstand?", ["a speaker"])
+    assert result.answer == answer and result.confidence == pytest.approx(confidence)
+    prompt = stub.requests[0].messages[-1].text
+    assert "Give your 1 best guesses" in prompt and "answer; confidence" in prompt  # SPEC 3.5, M=1
+    assert stub.requests[0].logprobs == 1
+
+
+def test_verbalized_token_probability_of_an_empty_reply_is_zero():
+    from efficienteqa.answer.vc import verbalized_token_probability
+
+    stub = StubChatModel([""], logprob_fn=lambda t, top: [])
+    result = verbalized_token_probability(stub, "What is on the nightstand?", ["a speaker"])
+    assert (result.answer, result.confidence) == ("", 0.0) and result.problems
+
+
 def test_answer_with_confidence_malformed_and_images():
     stub = StubChatModel(["", "kitchen"])
     frames = [np.zeros((4, 4, 3), np.uint8)] * 2

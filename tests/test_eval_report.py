@@ -123,6 +123,25 @@ def test_labels_name_the_ablation_values_and_stay_distinct():
     assert distinct_labels(twins) == ["efficienteqa (a)", "efficienteqa (b)"]
 
 
+def test_the_papers_configuration_is_named_so_and_a_change_to_it_is_named_on_top():
+    from dataclasses import replace
+
+    from efficienteqa.agent import PAPER_CONFIG
+
+    def run(config: AgentConfig, scorer: str = "vlm") -> str:
+        m = manifest()
+        m["config"] = asdict(config)
+        m["stack"] = {**m["stack"], "explore_scorer": scorer}
+        return summarise(m, []).label
+
+    assert run(PAPER_CONFIG) == "efficienteqa paper configuration"
+    assert run(replace(PAPER_CONFIG, top_k=10)) == "efficienteqa paper configuration K=10"
+    # Without the VLM's semantic values it is not the paper's configuration: every setting shown.
+    assert run(PAPER_CONFIG, "direction-logit").startswith("efficienteqa refusal_retries=0")
+    assert "rule=robust" in run(replace(PAPER_CONFIG, stop=StopConfig(rule="robust")))
+    assert run(AgentConfig()) == "efficienteqa"
+
+
 def _runs(tmp_path: Path) -> list[Path]:
     rows = MIXED
     return [write_run(tmp_path / "z3", manifest(z_th=3.0), rows),

@@ -17,7 +17,7 @@ NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "t
                  "cache": None, "dataset": None, "limit": None, "env": None, "judge": None,
                  "judge_mode": None, "refusal_retries": None, "stop_clearance_m": None,
                  "prompts": None, "exploration": None, "distinct_views": None, "answer": None,
-                 "answer_probability": None}
+                 "answer_probability": None, "token_answer": None}
 
 
 def test_options_left_out_take_the_dataclass_defaults():
@@ -29,9 +29,9 @@ def test_given_options_reach_the_dataclasses():
     o = {**NOTHING_GIVEN, "z_th": 1.5, "min_stop_step": 4, "top_k": 3, "max_steps": 12, "seed": 7,
          "explorer": "random", "relevancy": "overlap", "cache": False, "temperature": 0.5,
          "refusal_retries": 0, "stop_clearance_m": 0.3, "prompts": "paper",
-         "answer_probability": "per-token"}
+         "answer_probability": "per-token", "token_answer": "verbalized"}
     config = build_config(o)
-    assert config.answer_probability == "per-token"
+    assert (config.answer_probability, config.token_answer) == ("per-token", "verbalized")
     assert config.stop == StopConfig(z_th=1.5, min_step=4)
     assert (config.top_k, config.max_steps, config.seed, config.explorer) == (3, 12, 7, "random")
     assert (config.refusal_retries, config.stop_clearance_m, config.prompts) == (0, 0.3, "paper")
@@ -59,6 +59,11 @@ def test_a_preset_fills_only_what_was_left_out():
     assert build_config(NOTHING_GIVEN).refusal_retries is None  # the default re-plans
     assert config.distinct_views is False and build_config(NOTHING_GIVEN).distinct_views
     assert config.answer == "paper" and build_config(NOTHING_GIVEN).answer == "auto"  # SPEC 3.5
+    from efficienteqa.agent import PAPER_CONFIG
+
+    every = apply_preset("paper", {**NOTHING_GIVEN, "stop_rule": None, "explore_scorer": None})
+    assert build_config(every) == PAPER_CONFIG  # what tables call "paper configuration"
+    assert build_stack(every).explore_scorer == "vlm"
 
 
 def test_an_unknown_preset_is_one_clear_error():
@@ -75,3 +80,5 @@ def test_a_value_the_agent_refuses_is_one_clear_error():
         build_config({**NOTHING_GIVEN, "answer": "bogus"})
     with pytest.raises(EfficientEQAError, match="answer_probability must be one of"):
         build_config({**NOTHING_GIVEN, "answer_probability": "mean"})
+    with pytest.raises(EfficientEQAError, match="token_answer must be one of"):
+        build_config({**NOTHING_GIVEN, "token_answer": "long"})

@@ -113,6 +113,7 @@ def test_the_accuracy_interval_is_scipys_bootstrap_and_deterministic():
     values = [100.0] * 7 + [0.0] * 5
     low, high = mean_interval(values)
     assert (low, high) == mean_interval(values)  # a fixed seed
+    assert (low, high) == mean_interval(values[::-1]) == mean_interval(values[3:] + values[:3])
     assert 20 < low < 100 * 7 / 12 < high < 90
     assert mean_interval([100.0]) == pytest.approx((math.nan, math.nan), nan_ok=True)
     assert mean_interval([0.0, 0.0, 0.0]) == (0.0, 0.0)

@@ -26,7 +26,7 @@ import numpy as np
 
 from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answer
 from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK, View
-from efficienteqa.answer.vc import ANSWER_PROBABILITIES
+from efficienteqa.answer.vc import ANSWER_PROBABILITIES, TOKEN_ANSWERS
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
 from efficienteqa.explore.module import (
@@ -96,6 +96,9 @@ class AgentConfig:
     # None, the whole answer's probability (the product of its tokens'); "per-token", their
     # geometric mean, so a short answer ("no") does not outscore a longer one for its length.
     answer_probability: str | None = None
+    # White-box ExploreEQA's per-frame prompt: None, one short line ("short"); "verbalized",
+    # SPEC 3.5's prompt with one guess, as black-box asks, read by its token probability.
+    token_answer: str | None = None
 
     def __post_init__(self) -> None:
         if self.answer not in ANSWERS:
@@ -108,8 +111,19 @@ class AgentConfig:
         if self.answer_probability not in (None, *ANSWER_PROBABILITIES):
             raise ValueError(f"answer_probability must be one of {ANSWER_PROBABILITIES}, "
                              f"not {self.answer_probability!r}")
+        if self.token_answer not in (None, *TOKEN_ANSWERS):
+            raise ValueError(f"token_answer must be one of {TOKEN_ANSWERS}, "
+                             f"not {self.token_answer!r}")
         if self.answer_at not in ANSWER_AT:
             raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
+
+
+# The paper's algorithm (SPEC 3.2-3.5) with every option beyond it off: what `--preset paper`
+# sets besides the back-ends (with the VLM as explore scorer), and what a table calls "paper
+# configuration".
+PAPER_CONFIG = AgentConfig(stop=StopConfig(rule="paper"), refusal_retries=0, stop_clearance_m=0.0,
+                           prompts="paper", distinct_views=False, exploration="paper",
+                           answer="paper")
 
 
 @dataclass

@@ -81,6 +81,10 @@ AnswerProbability = Annotated[str | None, typer.Option(
     "ExploreEQA's, the direct answer's) is read: product (default: the whole answer's "
     "probability) or per-token (its tokens' geometric mean, length-normalised).",
     show_default=False)]
+TokenAnswer = Annotated[str | None, typer.Option(
+    "--token-answer", help="White-box ExploreEQA's per-frame prompt: short (default: one line) or "
+    "verbalized (SPEC 3.5's prompt with one guess, as black-box asks, read by its token "
+    "probability).", show_default=False)]
 Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
 Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
@@ -143,6 +147,7 @@ def ask_command(
     distinct_views: DistinctViews = None,
     answer: AnswerOpt = None,
     answer_probability: AnswerProbability = None,
+    token_answer: TokenAnswer = None,
     exploration: Exploration = None,
     explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
@@ -274,6 +279,7 @@ def eval_command(
     distinct_views: DistinctViews = None,
     answer: AnswerOpt = None,
     answer_probability: AnswerProbability = None,
+    token_answer: TokenAnswer = None,
     exploration: Exploration = None,
     seed: Seed = None,
     vlm: Vlm = None,

@@ -218,7 +218,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     m = 1 if config.answer_at == "best-step" else M
     answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy), m=m,
                            confidence=config.confidence, direct=answer == "direct",
-                           probability=config.answer_probability or "product")
+                           probability=config.answer_probability or "product",
+                           token_prompt=config.token_answer or "short")
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder)
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,
                 "vlm_backend": vlm_backend,

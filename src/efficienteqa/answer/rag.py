@@ -17,7 +17,11 @@ from typing import Generic, Literal, TypeVar
 
 import numpy as np
 
-from efficienteqa.answer.vc import answer_token_probability, answer_with_confidence
+from efficienteqa.answer.vc import (
+    answer_token_probability,
+    answer_with_confidence,
+    verbalized_token_probability,
+)
 from efficienteqa.models.base import ChatModel
 from efficienteqa.vc.grouping import Grouper
 from efficienteqa.vc.parse import AnswerResult, M
@@ -112,15 +116,20 @@ class RagAnswerer:
     ``direct`` (SPEC 8, beyond the paper): one greedy answer to a prompt with a hint for the
     question's form, its confidence the answer's token probability, instead of SPEC 3.5's M
     verbalized guesses; it needs a model that gives logprobs. ``probability``: how a token
-    answer's confidence is read from its tokens (``answer.vc.ANSWER_PROBABILITIES``)."""
+    answer's confidence is read from its tokens (``answer.vc.ANSWER_PROBABILITIES``);
+    ``token_prompt``: which prompt a token-confidence answer that is not direct asks
+    (``answer.vc.TOKEN_ANSWERS``)."""
 
     def __init__(self, model: ChatModel, grouper: Grouper, m: int = M,
                  confidence: Confidence = "verbalized", direct: bool = False,
-                 probability: str = "product") -> None:
+                 probability: str = "product", token_prompt: str = "short") -> None:
         self.model, self.grouper, self.m, self.confidence = model, grouper, m, confidence
-        self.direct, self.probability = direct, probability
+        self.direct, self.probability, self.token_prompt = direct, probability, token_prompt
 
     def answer(self, question: str, evidence: Sequence[str | np.ndarray]) -> AnswerResult:
+        if not self.direct and self.confidence == "token" and self.token_prompt == "verbalized":
+            return verbalized_token_probability(self.model, question, evidence,
+                                                how=self.probability)
         if self.direct or self.confidence == "token":
             return answer_token_probability(self.model, question, evidence, hinted=self.direct,
                                             how=self.probability)

@@ -8,10 +8,11 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
-from efficienteqa.models.base import ChatModel, Message
+from efficienteqa.models.base import ChatModel, ChatResponse, Message
 from efficienteqa.vc.grouping import Grouper, argmax, group_answers, normalise
 from efficienteqa.vc.logprobs import require_logprobs
 from efficienteqa.vc.parse import AnswerClass, AnswerResult, Candidate, M, parse_candidates, to_float
@@ -156,6 +157,10 @@ def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[s
 # whole answer (the default), or "per-token", their geometric mean (length-normalised: a long
 # answer is not less sure for having more tokens).
 ANSWER_PROBABILITIES = ("product", "per-token")
+# The prompt of a token-probability answer that is not the direct one (white-box ExploreEQA's
+# per-frame answer): "short", one line (``answer_token``), or "verbalized", SPEC 3.5's prompt
+# with one guess, the black-box answer's (``verbalized_token_probability``).
+TOKEN_ANSWERS = ("short", "verbalized")
 
 
 def answer_token_probability(model: ChatModel, question: str,
@@ -179,13 +184,43 @@ def answer_token_probability(model: ChatModel, question: str,
     resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
                       logprobs=1)
     raw = resp.text or ""
+    answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""
+    return _token_answer(resp, answer, how, end="\n")
+
+
+def verbalized_token_probability(model: ChatModel, question: str,
+                                 evidence: Sequence[str | np.ndarray], *, how: str = "product",
+                                 max_tokens: int = 96) -> AnswerResult:
+    """SPEC 3.5's prompt with one guess ("answer; confidence", the black-box per-frame answer),
+    read white-box: its confidence is the token probability of the answer before the ';'
+    (``how`` as in ``answer_token_probability``), not the number the model wrote. The two
+    ExploreEQA baselines then differ only in how they read confidence."""
+    if how not in ANSWER_PROBABILITIES:
+        raise ValueError(f"how must be one of {ANSWER_PROBABILITIES}, not {how!r}")
+    require_logprobs(model)
+    text, images = evidence_text(evidence)
+    prompt = load_prompt("answer", PROMPTS).format(question=question, evidence=text, m=1,
+                                                   example=answer_example(question))
+    resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
+                      logprobs=1)
+    parsed = parse_candidates(resp.text or "", 1)
+    answer = parsed.candidates[0].text if parsed.candidates else ""
+    result = _token_answer(resp, answer, how, end="\n;")
+    return replace(result, problems=[*parsed.problems, *result.problems])
+
+
+def _token_answer(resp: ChatResponse, answer: str, how: str, end: str) -> AnswerResult:
+    """``answer`` with the probability of the reply's first tokens up to one holding a character
+    of ``end`` (leading whitespace skipped). A token at -inf or with an unreadable (NaN) logprob
+    makes it 0; positive logprobs (rounding) count as probability 1."""
     problems: list[str] = []
     logprob, started, n_tokens = 0.0, False, 0
     for token in resp.logprobs or []:
         if not started and not token.token.strip():
             continue  # leading whitespace is not part of the answer (``raw.strip()``)
-        if started and "\n" in token.token:
-            break  # the first line is the answer
+        ends = [token.token.find(c) for c in end if c in token.token]
+        if ends and (started or not token.token[:min(ends)].strip()):
+            break  # the answer ends here ("\n": its first line; ";": before the confidence)
         started = True
         value = to_float(token.logprob)
         if value is None or math.isnan(value):
@@ -193,9 +228,10 @@ def answer_token_probability(model: ChatModel, question: str,
             value = -math.inf
         logprob += min(value, 0.0)  # a probability is at most 1; -inf (probability 0) counts
         n_tokens += 1
+        if ends:
+            break  # the answer's first token also ends it ("no;")
     if not resp.logprobs:
         problems.append("no logprobs in the reply: confidence 0")
-    answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""
     if not answer:
         problems.append("empty answer")
     if how == "per-token" and n_tokens:
@@ -203,4 +239,5 @@ def answer_token_probability(model: ChatModel, question: str,
     confidence = math.exp(logprob) if resp.logprobs and answer else 0.0
     candidates = [Candidate(answer, confidence)] if answer else []
     classes = [AnswerClass(answer, candidates, confidence)] if answer else []
-    return AnswerResult(answer, confidence, classes, candidates, problems, raw, usage_of(resp))
+    return AnswerResult(answer, confidence, classes, candidates, problems, resp.text or "",
+                        usage_of(resp))

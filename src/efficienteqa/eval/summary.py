@@ -143,8 +143,10 @@ def _is_number(v: Any) -> TypeGuard[float]:
 def mean_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[float, float]:
     """The ``confidence`` bootstrap interval of the mean of ``values`` (``scipy.stats.bootstrap``,
     BCa, a fixed seed so the same values give the same interval; the percentile interval where
-    BCa is undefined). NaN under two values; a point where every value is the same."""
-    numbers = [float(v) for v in values if _is_number(v)]
+    BCa is undefined). NaN under two values; a point where every value is the same. The values
+    are sorted first, so the interval does not depend on their order (a report's row order, a
+    benchmark's sorted ids)."""
+    numbers = sorted(float(v) for v in values if _is_number(v))
     if len(numbers) < 2:
         return math.nan, math.nan
     if max(numbers) == min(numbers):
@@ -200,6 +202,21 @@ def _default_settings() -> tuple[tuple[str, Any], ...]:
     return tuple(settings({"config": asdict(AgentConfig())}).items())
 
 
+@cache
+def _paper_settings() -> tuple[tuple[str, Any], ...]:
+    """The settings in which ``agent.PAPER_CONFIG`` differs from the defaults."""
+    from efficienteqa.agent import PAPER_CONFIG
+
+    paper = settings({"config": asdict(PAPER_CONFIG)})
+    return tuple((k, paper[k]) for k, default in _default_settings() if paper[k] != default)
+
+
+def _is_paper_configuration(flat: Mapping[str, Any]) -> bool:
+    """Every setting of the paper's configuration, and the VLM's semantic values (SPEC 3.3)."""
+    return (all(k in flat and flat[k] == v for k, v in _paper_settings())
+            and flat.get("explore_scorer") == "vlm")
+
+
 def _fmt_setting(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
@@ -215,6 +232,9 @@ def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (
     leaving out ``skip`` (an ablation table names its own variable)."""
     parts = [method]
     skipped = set(skip)
+    if method not in AGENTLESS_METHODS and _is_paper_configuration(flat):
+        parts.append("paper configuration")
+        skipped |= {k for k, _ in _paper_settings()}
     for key, default in () if method in AGENTLESS_METHODS else _default_settings():
         if key in flat and key not in skipped and flat[key] != default:
             if key == "early_stop":
