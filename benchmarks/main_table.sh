@@ -29,6 +29,10 @@ run default --method efficienteqa
 # cores), so the rows differ in the stop and the answer, the paper's claim.
 run explore-eqa --method explore-eqa --explore-scorer direction-logit
 run explore-eqa-blackbox --method explore-eqa-blackbox --explore-scorer direction-logit
+# White-box variants: black-box's prompt read by its token probability (the two baselines then
+# differ only in the confidence), and the token probability per token (length-normalised).
+run explore-eqa-verbalized-prompt --method explore-eqa --explore-scorer direction-logit --token-answer verbalized
+run explore-eqa-per-token --method explore-eqa --explore-scorer direction-logit --answer-probability per-token
 run frontier-only --method frontier-only
 run random --method random
 run blind --method blind
@@ -36,6 +40,8 @@ run blind --method blind
 # 3.4's stop, SPEC 3.5's answer, and every exploration option beyond the paper off.
 run paper --method efficienteqa --explore-scorer vlm --stop-rule paper --answer paper \
   --prompts paper --exploration paper --refusal-retries 0 --stop-clearance-m 0 --repeated-views
-RUNS=("$OUT/default" "$OUT/paper" "$OUT/explore-eqa" "$OUT/explore-eqa-blackbox" "$OUT/frontier-only" "$OUT/random" "$OUT/blind")
+RUNS=("$OUT/default" "$OUT/paper" "$OUT/explore-eqa" "$OUT/explore-eqa-blackbox"
+      "$OUT/explore-eqa-verbalized-prompt" "$OUT/explore-eqa-per-token" "$OUT/frontier-only"
+      "$OUT/random" "$OUT/blind")
 "$EQA" report "${RUNS[@]}" --paired-against "$OUT/explore-eqa" --markdown || status=1
 exit $status

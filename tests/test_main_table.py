@@ -12,7 +12,8 @@ import pytest
 from conftest import needs_egl, needs_small_model
 
 ROOT = Path(__file__).resolve().parents[1]
-RUNS = ("default", "paper", "explore-eqa", "explore-eqa-blackbox", "frontier-only", "random", "blind")
+RUNS = ("default", "paper", "explore-eqa", "explore-eqa-blackbox", "explore-eqa-verbalized-prompt",
+        "explore-eqa-per-token", "frontier-only", "random", "blind")
 
 
 @needs_egl
@@ -45,7 +46,7 @@ def test_the_main_table_runs_every_method_on_two_questions(tmp_path, small_model
         assert questions in (None, ids)  # the same questions for every method
         questions = ids
         assert (run / "summary.json").is_file() and (run / "report.html").is_file()
-        if name == "explore-eqa":  # the lazy best-step answer asks at most one call per frame
+        if name.startswith("explore-eqa"):  # the lazy best-step answer: at most a call a frame
             assert all(1 <= r["usage"]["calls"] <= r["extra"]["valid_frames"] for r in rows)
     # Every row but the reference is paired with white-box ExploreEQA on both questions.
     assert sum(cells.strip() == "2" for line in table for cells in line.split("|")[-2:-1]) == len(RUNS) - 1
