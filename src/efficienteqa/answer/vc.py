@@ -147,10 +147,17 @@ def vc_answer(model: ChatModel, prompt: str, images: tuple[np.ndarray, ...], que
 def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[str | np.ndarray],
                            grouper: Grouper, *, m: int = M, max_tokens: int = 96) -> AnswerResult:
     """The RAG answer (SPEC 3.5): M guesses -> normalise -> group -> argmax."""
+    prompt, images = _verbalized_prompt(question, evidence, m)
+    return vc_answer(model, prompt, images, question, grouper, m, max_tokens)
+
+
+def _verbalized_prompt(question: str, evidence: Sequence[str | np.ndarray],
+                       m: int) -> tuple[str, tuple[np.ndarray, ...]]:
+    """SPEC 3.5's answer prompt for ``m`` guesses, with a worked example of the question's form."""
     text, images = evidence_text(evidence)
     prompt = load_prompt("answer", PROMPTS).format(question=question, evidence=text, m=m,
                                                    example=answer_example(question))
-    return vc_answer(model, prompt, images, question, grouper, m, max_tokens)
+    return prompt, images
 
 
 # How an answer's token probabilities make its confidence: "product", the probability of the
@@ -173,8 +180,7 @@ def answer_token_probability(model: ChatModel, question: str,
     probability 1. ``hinted``: the direct answer (SPEC 8), whose prompt adds the hint of the
     question's form (``question_hint``) and reads text views cut to what the question names
     (``focus_views``)."""
-    if how not in ANSWER_PROBABILITIES:
-        raise ValueError(f"how must be one of {ANSWER_PROBABILITIES}, not {how!r}")
+    _check_how(how)
     require_logprobs(model)
     if hinted and evidence and all(isinstance(e, str) for e in evidence):
         evidence = focus_views(question, [str(e) for e in evidence])
@@ -195,18 +201,21 @@ def verbalized_token_probability(model: ChatModel, question: str,
     read white-box: its confidence is the token probability of the answer before the ';'
     (``how`` as in ``answer_token_probability``), not the number the model wrote. The two
     ExploreEQA baselines then differ only in how they read confidence."""
-    if how not in ANSWER_PROBABILITIES:
-        raise ValueError(f"how must be one of {ANSWER_PROBABILITIES}, not {how!r}")
+    _check_how(how)
     require_logprobs(model)
-    text, images = evidence_text(evidence)
-    prompt = load_prompt("answer", PROMPTS).format(question=question, evidence=text, m=1,
-                                                   example=answer_example(question))
+    prompt, images = _verbalized_prompt(question, evidence, 1)
     resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
                       logprobs=1)
     parsed = parse_candidates(resp.text or "", 1)
     answer = parsed.candidates[0].text if parsed.candidates else ""
     result = _token_answer(resp, answer, how, end="\n;")
     return replace(result, problems=[*parsed.problems, *result.problems])
+
+
+def _check_how(how: str) -> None:
+    """Before any call: a reading of token probabilities that ``_token_answer`` knows."""
+    if how not in ANSWER_PROBABILITIES:
+        raise ValueError(f"how must be one of {ANSWER_PROBABILITIES}, not {how!r}")
 
 
 def _token_answer(resp: ChatResponse, answer: str, how: str, end: str) -> AnswerResult:
