@@ -67,10 +67,11 @@ def run_one(spec: RunSpec, questions: list, workers: int, server: Any) -> dict[s
 
     before = server.stats.to_dict()
     t0 = time.perf_counter()
+    # No key in runtime_env (Ray logs it in plain text): the workers of this local Ray inherit
+    # this process's OPENAI_API_KEY, set in main().
     ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
              configure_logging=False,
-             runtime_env={"env_vars": {"OPENAI_API_KEY": "replay",
-                                       "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}})
+             runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}})
     try:
         warm = ray.remote(num_cpus=1)(_warm_up)
         pids = set(ray.get([warm.remote() for _ in range(workers)]))

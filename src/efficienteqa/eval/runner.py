@@ -17,6 +17,7 @@ driver starts it first) and its response cache.
 from __future__ import annotations
 
 import functools
+import logging
 import os
 import platform
 import sys
@@ -34,6 +35,9 @@ from efficienteqa.eval.records import EPISODES_FILE, append_episode, open_run
 from efficienteqa.records import code_version, plain
 
 Progress = Callable[[dict[str, Any]], None]
+log = logging.getLogger(__name__)
+# Environment variables whose names say they hold a secret (matched case-insensitively).
+SECRET_MARKS = ("KEY", "TOKEN", "SECRET", "PASSWORD", "PASSWD", "CREDENTIAL")
 
 
 def episode_folder(out: Path, episode_id: str) -> Path:
@@ -250,15 +254,11 @@ def _on_ray(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path, workers: int
                                 fix="pip install 'efficienteqa[ray]', or run with --workers 1") from None
     started = not ray.is_initialized()
     if started:
-        # Workers must import the same code and use the same caches as this process.
-        env = {k: v for k, v in os.environ.items()
-               if k.startswith("EFFICIENTEQA_") or k in ("OPENAI_API_KEY", "XDG_CACHE_HOME")}
-        env["PYTHONPATH"] = os.pathsep.join(p for p in [os.getcwd(), *sys.path] if p)
-        options: dict[str, Any] = {"runtime_env": {"env_vars": env}, "log_to_driver": False,
-                                   "configure_logging": False}
-        if address is None:
-            options.update(num_cpus=workers, include_dashboard=False)
-        ray.init(address=address, **options)
+        if address is not None:
+            note = _cluster_key_note(spec, address)
+            if note:
+                log.warning(note)
+        ray.init(address=address, **ray_init_options(workers, address))
     try:
         task = ray.remote(num_cpus=1, max_retries=3)(run_episode)
         pending: dict[Any, EvalQuestion] = {}
@@ -277,3 +277,47 @@ def _on_ray(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path, workers: int
     finally:
         if started:
             ray.shutdown()
+
+
+def is_secret_name(name: str) -> bool:
+    """Whether an environment variable's name says it holds a secret (an API key, a token)."""
+    return any(mark in name.upper() for mark in SECRET_MARKS)
+
+
+def ray_init_options(workers: int, address: str | None) -> dict[str, Any]:
+    """``ray.init``'s options for a Ray this runner starts or joins.
+
+    Workers must import the same code and use the same caches as this process, so its
+    ``PYTHONPATH``, ``EFFICIENTEQA_*`` and ``XDG_CACHE_HOME`` go in ``runtime_env``. No secret
+    does: Ray writes the runtime_env in plain text to its session logs (world-readable), so any
+    variable whose name looks secret is left out. A local Ray's workers inherit this process's
+    environment, OPENAI_API_KEY included; a cluster's nodes must have it set by their user."""
+    env = {k: v for k, v in os.environ.items()  # never a secret-named one: Ray logs them all
+           if (k.startswith("EFFICIENTEQA_") or k == "XDG_CACHE_HOME") and not is_secret_name(k)}
+    env["PYTHONPATH"] = os.pathsep.join(p for p in [os.getcwd(), *sys.path] if p)
+    options: dict[str, Any] = {"runtime_env": {"env_vars": env}, "log_to_driver": False,
+                               "configure_logging": False}
+    if address is None:
+        options.update(num_cpus=workers, include_dashboard=False)
+    return options
+
+
+def _cluster_key_note(spec: RunSpec, address: str) -> str | None:
+    """One line for a run on a Ray at ``address`` whose models read an API key: the key is not
+    sent to the workers, they read it from their own node's environment."""
+    from efficienteqa.stack import parse_vlm
+
+    names = set()
+    for vlm in (spec.stack.vlm, spec.judge):
+        if vlm is None:
+            continue
+        try:
+            backend = parse_vlm(vlm, images=False)
+        except EfficientEQAError:
+            continue  # not a model spec (e.g. "rule"); a bad one fails in the episode
+        if backend.kind == "openai":
+            names.add(backend.api_key_env or "OPENAI_API_KEY")
+    if not names:
+        return None
+    return (f"Ray at {address}: {', '.join(sorted(names))} is not sent to the workers; "
+            "set it in the environment of every node")

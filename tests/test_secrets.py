@@ -1,0 +1,154 @@
+"""No secret reaches Ray: ``runtime_env`` (which Ray writes in plain text to its session logs),
+the other ``ray.init`` options and the objects handed to tasks hold no value of a secret-named
+environment variable. A local Ray's workers still read the key, from the environment they
+inherit; a run on a cluster says in one line that the nodes need it set."""
+
+from __future__ import annotations
+
+import logging
+import os
+import pickle
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+
+from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.eval.methods import Outcome, RunSpec
+from efficienteqa.eval.runner import is_secret_name, run_eval
+from efficienteqa.stack import Stack
+from test_eval_runner import lines, questions, spec
+
+FAKE_KEY = "sk-efficienteqa-test-7f3c91d2e0b84a6f"
+FAKE_TOKEN = "tok-efficienteqa-test-5a0e44c1"
+
+
+def key_seen(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
+    """A method for ``test_secrets:key_seen``: whether this worker reads the test's key (never
+    the key itself, which would then travel back through Ray)."""
+    seen = os.environ.get("OPENAI_API_KEY") == FAKE_KEY
+    return Outcome("seen" if seen else "missing", 1.0, steps=0, extra={"pid": os.getpid()})
+
+
+class Ref:
+    def __init__(self, value: Any) -> None:
+        self.value = value
+
+
+class FakeRay(SimpleNamespace):
+    """Stands in for the ``ray`` module: records what it is given, runs each task at once."""
+
+    def __init__(self) -> None:
+        super().__init__(inits=[], handed=[], on=False)
+
+    def is_initialized(self) -> bool:
+        return self.on
+
+    def init(self, address: str | None = None, **options: Any) -> None:
+        self.inits.append({"address": address, **options})
+        self.on = True
+
+    def remote(self, **options: Any) -> Any:
+        def wrap(fn: Any) -> Any:
+            def call(*args: Any) -> Ref:
+                self.handed.append(args)
+                return Ref(fn(*args))
+
+            return SimpleNamespace(remote=call)
+
+        return wrap
+
+    def wait(self, refs: list, num_returns: int = 1) -> tuple[list, list]:
+        return refs[:num_returns], refs[num_returns:]
+
+    def get(self, ref: Ref) -> Any:
+        return ref.value
+
+    def shutdown(self) -> None:
+        self.on = False
+
+
+@pytest.fixture
+def secrets(monkeypatch, tmp_path):
+    """Distinctive fake secrets in the environment, beside settings the workers do need."""
+    monkeypatch.setenv("OPENAI_API_KEY", FAKE_KEY)
+    monkeypatch.setenv("EFFICIENTEQA_HUB_TOKEN", FAKE_TOKEN)
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+
+
+@pytest.mark.parametrize("address", [None, "ray://head.example:10001"])
+def test_ray_is_given_no_secret_but_the_settings_workers_need(tmp_path, monkeypatch, secrets,
+                                                              address):
+    ray = FakeRay()
+    monkeypatch.setitem(sys.modules, "ray", ray)
+    result = run_eval(spec(), questions(3), tmp_path / "run", workers=2, address=address,
+                      prepare=False)
+    assert (result.ran, result.failed) == (3, 0)
+    [options] = ray.inits
+    assert options["address"] == address
+    given = repr(options) + repr(ray.handed)
+    for secret in (FAKE_KEY, FAKE_TOKEN):
+        assert secret not in given
+        assert secret.encode() not in pickle.dumps(ray.handed)  # what Ray would serialise
+    env = options["runtime_env"]["env_vars"]
+    assert not [name for name in env if is_secret_name(name)]
+    assert env["EFFICIENTEQA_CACHE"] == str(tmp_path / "cache")
+    assert env["XDG_CACHE_HOME"] == str(tmp_path / "xdg")
+    assert "PYTHONPATH" in env
+
+
+def test_secret_names():
+    assert all(map(is_secret_name, ["OPENAI_API_KEY", "HF_TOKEN", "aws_secret_access_key",
+                                    "DB_PASSWORD", "EFFICIENTEQA_HUB_TOKEN"]))
+    assert not any(map(is_secret_name, ["EFFICIENTEQA_CACHE", "EFFICIENTEQA_HM_EQA",
+                                        "XDG_CACHE_HOME", "PYTHONPATH"]))
+
+
+def test_a_cluster_run_of_a_keyed_model_says_the_nodes_need_the_key(tmp_path, monkeypatch,
+                                                                    secrets, caplog):
+    monkeypatch.setitem(sys.modules, "ray", FakeRay())
+    keyed = spec(stack=Stack(vlm="openai:gpt-4o"))
+    with caplog.at_level(logging.WARNING, logger="efficienteqa.eval.runner"):
+        run_eval(keyed, questions(1), tmp_path / "cluster", workers=2,
+                 address="ray://head.example:10001", prepare=False)
+    [record] = caplog.records
+    message = record.getMessage()
+    assert "OPENAI_API_KEY" in message and "\n" not in message and FAKE_KEY not in message
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="efficienteqa.eval.runner"):
+        run_eval(keyed, questions(1), tmp_path / "local", workers=2, prepare=False)  # inherited
+        run_eval(spec(), questions(1), tmp_path / "keyless", workers=2,  # local model, no key
+                 address="ray://head.example:10001", prepare=False)
+    assert not caplog.records
+
+
+@pytest.mark.slow
+def test_a_local_ray_run_writes_no_key_to_rays_files_and_workers_still_read_it(tmp_path,
+                                                                               monkeypatch,
+                                                                               secrets):
+    ray = pytest.importorskip("ray")
+    if ray.is_initialized():
+        pytest.skip("a Ray is already running in this process")
+    # Ray's session folder holds unix sockets, whose paths must stay under 107 bytes: tmp_path
+    # is too deep for them, so Ray's temp dir is a short folder of its own.
+    temp = Path(tempfile.mkdtemp(prefix="eqa-ray-"))
+    monkeypatch.setenv("RAY_TMPDIR", str(temp))
+    try:
+        result = run_eval(spec("test_secrets:key_seen"), questions(4), tmp_path / "run",
+                          workers=2, prepare=False)
+        rows = lines(tmp_path / "run")
+        assert result.failed == 0, [r.get("error") for r in rows]
+        assert [r["answer"] for r in rows] == ["seen"] * 4  # inherited from this process
+        assert len({r["extra"]["pid"] for r in rows} - {os.getpid()}) >= 1  # in Ray's workers
+        files = [p for p in temp.rglob("*") if p.is_file() and not p.is_symlink()]
+        assert any("runtime_env" in p.name for p in files)  # Ray did write its logs here
+        leaks = [str(p) for p in files
+                 if any(s.encode() in p.read_bytes() for s in (FAKE_KEY, FAKE_TOKEN))]
+        assert not leaks
+    finally:
+        shutil.rmtree(temp, ignore_errors=True)
