@@ -222,7 +222,9 @@ def test_a_users_method_is_not_told_the_answer(tmp_path):
 def test_settings_added_later_default_to_none_so_recorded_runs_resume():
     """A new setting with a non-None default changes every new manifest, and each run recorded
     before it (results/) is then refused as another configuration. These are the settings that
-    had non-None defaults when the published runs were recorded; add new ones as None."""
+    had non-None defaults when the published runs were recorded; add new ones as None, unless
+    the new default changes what a run does: ``gate`` and ``steering`` (issue 24) are set by
+    default on purpose, so that a run recorded without them is not resumed with them."""
     import dataclasses
 
     from efficienteqa.stop.relevancy import StopConfig
@@ -232,7 +234,8 @@ def test_settings_added_later_default_to_none_so_recorded_runs_resume():
                 if (f.default if f.default is not dataclasses.MISSING else f.default_factory()) is not None}
 
     assert set_by_default(AgentConfig) == {"explorer", "stop", "top_k", "seed", "confidence", "answer_at",
-                                           "prompts", "distinct_views", "exploration", "answer"}
+                                           "prompts", "distinct_views", "exploration", "answer",
+                                           "gate", "steering"}
     assert set_by_default(Stack) == {"vlm", "perception", "relevancy", "grouping", "cache", "explore_scorer"}
     assert set_by_default(StopConfig) == {"z_th", "min_step", "enabled", "sigma_eps", "rule",
                                           "sigma_floor", "sim_abs"}

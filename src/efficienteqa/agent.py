@@ -19,7 +19,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -34,26 +34,39 @@ from efficienteqa.explore.module import (
     ExploreModule,
     ExploreStep,
     SemanticScorer,
+    Steered,
     move,
 )
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
 from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, make_explorer
+from efficienteqa.explore.sfe import FrontierExplorer
+from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.tsdf import VolumeSpec
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
+from efficienteqa.question import Target, parse_question
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
-from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig, step_budget
+from efficienteqa.stop.gate import GATES, AnswerGate
+from efficienteqa.stop.relevancy import (
+    PAPER_MIN_STEP,
+    RelevancyStopper,
+    StopCheck,
+    StopConfig,
+    step_budget,
+)
 from efficienteqa.vc.parse import AnswerResult
 
-# Why exploration ended: a relevancy outlier (z > Z_th), the step budget, or no frontier left.
-STOP_REASONS = ("relevancy", "budget", "explored")
+# Why exploration ended: a relevancy outlier (z > Z_th, past the gate when there is one), the
+# step budget, no frontier left, or (the "target" explorer) the named room searched in vain.
+STOP_REASONS = ("relevancy", "budget", "explored", "searched")
 # Where the answer comes from: the top-K frames at the end (EfficientEQA's RAG), or the best
 # per-step answer by relevancy x confidence (ExploreEQA).
 ANSWER_AT = ("retrieval", "best-step")
 ANSWERS = ("auto", "direct", "paper")
+STEERINGS = ("none", "target")
 
 
 @dataclass(frozen=True)
@@ -99,8 +112,19 @@ class AgentConfig:
     # White-box ExploreEQA's per-frame prompt: None, one short line ("short"); "verbalized",
     # SPEC 3.5's prompt with one guess, as black-box asks, read by its token probability.
     token_answer: str | None = None
+    # Beyond the paper (SPEC 9): the answerability gate a relevancy outlier must pass to stop
+    # the robot (stop.gate.GATES: "none", "rules" on the frame's description, "model", one
+    # yes/no call to the agent's model).
+    gate: str = "none"
+    # Beyond the paper (SPEC 9): "target" wraps the frontier explorer in explore.target's
+    # steering by the question's target (go to the named room, inspect, look around); "none".
+    steering: str = "none"
 
     def __post_init__(self) -> None:
+        if self.steering not in STEERINGS:
+            raise ValueError(f"steering must be one of {STEERINGS}, not {self.steering!r}")
+        if self.gate not in GATES:
+            raise ValueError(f"gate must be one of {GATES}, not {self.gate!r}")
         if self.answer not in ANSWERS:
             raise ValueError(f"answer must be one of {ANSWERS}, not {self.answer!r}")
         if self.exploration not in EXPLORATIONS:
@@ -121,9 +145,10 @@ class AgentConfig:
 # The paper's algorithm (SPEC 3.2-3.5) with every option beyond it off: what `--preset paper`
 # sets besides the back-ends (with the VLM as explore scorer), and what a table calls "paper
 # configuration".
-PAPER_CONFIG = AgentConfig(stop=StopConfig(rule="paper"), refusal_retries=0, stop_clearance_m=0.0,
-                           prompts="paper", distinct_views=False, exploration="paper",
-                           answer="paper")
+PAPER_CONFIG = AgentConfig(stop=StopConfig(rule="paper", min_step=PAPER_MIN_STEP),
+                           refusal_retries=0, stop_clearance_m=0.0, prompts="paper",
+                           distinct_views=False, exploration="paper", answer="paper",
+                           gate="none", steering="none")
 
 
 @dataclass
@@ -147,6 +172,7 @@ class StepRecord:
     calls: list[int] = field(default_factory=list)  # indices into the model exchanges
     timings_ms: dict[str, float] = field(default_factory=dict)
     step_answer: dict[str, Any] | None = None  # answer_at="best-step": answer, confidence, value
+    gate: dict[str, Any] | None = None  # the answerability gate's verdict on a flagged frame
 
 
 @dataclass
@@ -165,6 +191,7 @@ class EpisodeResult:
     state: MapState  # the final map, for pictures
     values: np.ndarray
     last_decision: Decision | None
+    target: Target = field(default_factory=Target)  # the question's target, as parsed
 
     @property
     def trajectory(self) -> list[Pose2D]:
@@ -195,7 +222,8 @@ class Agent:
     def __init__(self, perception: Perception, scorer: SemanticScorer | None,
                  relevancy: RelevancyScorer, answerer: RagAnswerer,
                  config: AgentConfig | None = None,
-                 exchanges: RecordingChatModel | None = None) -> None:
+                 exchanges: RecordingChatModel | None = None,
+                 gate: AnswerGate | None = None) -> None:
         if relevancy.modality == "text" and perception.modality != "text":
             raise ValueError(f"relevancy scorer {relevancy.name!r} reads text, but perception "
                              f"{perception.name!r} gives images")
@@ -203,6 +231,9 @@ class Agent:
         self.answerer = answerer
         self.config = config or AgentConfig()
         self.exchanges = exchanges
+        self.gate = gate
+        if self.config.gate != "none" and gate is None:
+            raise ValueError(f"config asks for the {self.config.gate!r} gate, and none was given")
 
     def _phase(self, name: str) -> AbstractContextManager[None]:
         return self.exchanges.in_phase(name) if self.exchanges is not None else nullcontext()
@@ -224,8 +255,16 @@ class Agent:
         if cfg.stop_clearance_m is not None:
             options["stop_clearance_m"] = cfg.stop_clearance_m
         explorer = make_explorer(cfg.explorer, **options)
+        if cfg.steering == "target" and isinstance(explorer, FrontierExplorer):
+            explorer = TargetExplorer(explorer)
+        target = parse_question(question)
         explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)), explorer,
-                                self.scorer, seed=cfg.seed, prompts=PROMPT_CONFIGS[cfg.prompts])
+                                self.scorer, seed=cfg.seed, prompts=PROMPT_CONFIGS[cfg.prompts],
+                                target=target)
+        sightings = (getattr(self.perception, "sightings", None)
+                     if isinstance(explorer, Steered) else None)
+        gate = self.gate if cfg.gate != "none" else None
+        frames: dict[int, str | np.ndarray] = {}  # flagged frames the gate may still judge
         retries = REFUSAL_RETRIES if cfg.refusal_retries is None else cfg.refusal_retries
         stopper = RelevancyStopper(cfg.stop)
         top: TopK[str | np.ndarray] = TopK(cfg.top_k)
@@ -246,7 +285,12 @@ class Agent:
                         sim = self.relevancy.score(question, image=obs.rgb)
                     else:
                         sim = self.relevancy.score(question, text=self.perception.relevancy_text(obs))
-                record.check = stopper.check(step, sim)
+                eligible = True
+                if gate is not None and gate.eager:  # a cheap gate judges every frame
+                    verdict = gate.check(question, target, obs, frame)
+                    record.gate = {"ok": verdict.ok, "why": verdict.why}
+                    eligible = verdict.ok
+                record.check = stopper.check(step, sim, eligible)
                 view = (View(obs.pose.x, obs.pose.y, obs.pose.yaw,
                              frame if isinstance(frame, str) else None)
                         if cfg.distinct_views else None)
@@ -254,6 +298,11 @@ class Agent:
                 record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
                 if cfg.answer_at == "best-step":
                     candidates.append(StepFrame(step, sim, frame))
+                if gate is not None and not gate.eager:  # a model gate: flagged frames only
+                    frames[step] = frame
+                    if record.check.stop:
+                        record.check = self._gated(record.check, question, target, obs, frames,
+                                                   records)
                 if record.check.stop:
                     stop_reason = "relevancy"
             if stop_reason == "relevancy" or step == budget:
@@ -263,14 +312,15 @@ class Agent:
                 break
             t = time.perf_counter()
             with self._phase(f"step {step}"):
-                out = explore.step(obs, step, question)
+                seen = sightings(obs, target) if sightings is not None and record.valid else None
+                out = explore.step(obs, step, question, seen)
             record.timings_ms["explore"] = 1e3 * (time.perf_counter() - t)
             record.calls = self._calls_since(n_calls)
             decision = out.decision
             _fill(record, out)
             _notify(on_step, record, obs, out)
             if decision.done:
-                stop_reason = "explored"
+                stop_reason = "searched" if decision.reason == "searched" else "explored"
                 break
             t = time.perf_counter()
             moved = move(env, explore, obs.pose, decision, step, retries)
@@ -301,7 +351,19 @@ class Agent:
         return EpisodeResult(question, result.answer, result.confidence, len(records),
                              stop_reason, budget, records, retrieved,
                              result, time.perf_counter() - t0, answer_s, state,
-                             explore.values.smoothed(), decision)
+                             explore.values.smoothed(), decision, target)
+
+    def _gated(self, check: StopCheck, question: str, target: Target, obs: Observation,
+               frames: dict[int, str | np.ndarray], records: list[StepRecord]) -> StopCheck:
+        """``check`` with ``stop`` kept only when the gate passes the frame it tested (the
+        current one, or under ``lookback`` an earlier one: judged on its kept frame)."""
+        assert self.gate is not None
+        tested = check.tested_step or check.step
+        record = records[tested - 1]
+        if record.gate is None:
+            verdict = self.gate.check(question, target, obs, frames[tested])
+            record.gate = {"ok": verdict.ok, "why": verdict.why}
+        return check if record.gate["ok"] else replace(check, stop=False)
 
     def _best_step(self, question: str, candidates: list[StepFrame[str | np.ndarray]],
                    records: list[StepRecord]) -> StepAnswer | None:

@@ -69,6 +69,13 @@ Prompts = Annotated[str | None, typer.Option(
 Exploration = Annotated[str | None, typer.Option(
     help="The frontier explorer's options beyond the paper: default, or paper (SPEC 3.2's "
     "explorer, every one off).", show_default=False)]
+Gate = Annotated[str | None, typer.Option(
+    help="The answerability gate a relevancy stop must pass: none, rules (the question's target "
+    "in the frame's description; semantic perception) or model (one yes/no call to the VLM).",
+    show_default=False)]
+Steering = Annotated[str | None, typer.Option(
+    help="none, or target: go to the room the question names, inspect what it asks about, "
+    "look around on entering.", show_default=False)]
 DistinctViews = Annotated[bool | None, typer.Option(
     "--distinct-views/--repeated-views", help="Retrieve K different views (default), or the K "
     "most relevant frames even when they repeat one view (SPEC 3.5).", show_default=False)]
@@ -149,6 +156,8 @@ def ask_command(
     answer_probability: AnswerProbability = None,
     token_answer: TokenAnswer = None,
     exploration: Exploration = None,
+    gate: Gate = None,
+    steering: Steering = None,
     explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
     vlm: Vlm = None,
@@ -281,6 +290,8 @@ def eval_command(
     answer_probability: AnswerProbability = None,
     token_answer: TokenAnswer = None,
     exploration: Exploration = None,
+    gate: Gate = None,
+    steering: Steering = None,
     seed: Seed = None,
     vlm: Vlm = None,
     temperature: Temperature = None,

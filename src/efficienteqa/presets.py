@@ -30,7 +30,9 @@ PRESETS: dict[str, dict[str, Any]] = {
         "vlm": PAPER_VLM, "temperature": 1.0, "perception": "rgb", "relevancy": "blip2-itm",
         "grouping": "llm", "z_th": 3.0, "top_k": 5,
         # SPEC 3.4's z-rule: mean and sample std of the earlier frames, no stop before step 10
-        "stop_rule": "paper",
+        "stop_rule": "paper", "min_stop_step": 10,
+        # nothing beyond the paper: no answerability gate, no steering by the question's target
+        "gate": "none", "steering": "none",
         # the VLM's verbalized confidence gives the semantic values (SPEC 3.3)
         "explore_scorer": "vlm",
         "judge": PAPER_VLM, "judge_mode": "grade",

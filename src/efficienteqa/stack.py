@@ -30,6 +30,7 @@ from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
 from efficienteqa.registry import Registry
 from efficienteqa.relevancy.base import RelevancyScorer, make_scorer
+from efficienteqa.stop.gate import AnswerGate, ModelGate, RulesGate
 from efficienteqa.vc.grouping import Grouper, LLMGrouper, RuleGrouper
 from efficienteqa.vc.parse import M
 
@@ -171,6 +172,25 @@ def build_grouper(name: str, model: ChatModel, relevancy: RelevancyScorer) -> Gr
     return GROUPINGS.build(name, model=model, relevancy=relevancy)
 
 
+GATE_LABELS = {"none": "none", "rules": "rules (the question's target in the frame's description)",
+               "model": "model (one yes/no call to {model} on a flagged frame)"}
+
+
+def build_gate(name: str, perception: Perception, model: ChatModel) -> AnswerGate | None:
+    """The answerability gate ``name`` (stop.gate.GATES): None for "none"."""
+    if name == "none":
+        return None
+    if name == "rules":
+        if not hasattr(perception, "describe") or not hasattr(perception, "sightings"):
+            raise EfficientEQAError(f"the rules gate reads object descriptions, which "
+                                    f"{perception.name} perception does not give",
+                                    fix="use --gate model (one yes/no call to the VLM)")
+        return RulesGate(perception)  # type: ignore[arg-type]
+    from efficienteqa.relevancy.vlm_match import VLMMatchScorer
+
+    return ModelGate(VLMMatchScorer(model, perception.modality))
+
+
 @functools.cache
 def build_relevancy(kind: str) -> RelevancyScorer:
     """One scorer per kind and process: loading a model takes seconds, and an evaluation runs
@@ -220,11 +240,13 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                            confidence=config.confidence, direct=answer == "direct",
                            probability=config.answer_probability or "product",
                            token_prompt=config.token_answer or "short")
-    agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder)
+    gate = build_gate(config.gate, perception, recorder)
+    agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder, gate=gate)
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,
                 "vlm_backend": vlm_backend,
                 "relevancy": relevancy.name, "grouping": stack.grouping,
                 "explore_scorer": (explore_scorer_label(scorer_name, model, config)
                                    if scorer is not None else None),
-                "answer": ANSWER_LABELS[answer], "judge": None}
+                "answer": ANSWER_LABELS[answer], "judge": None,
+                "gate": GATE_LABELS[config.gate].format(model=model.name)}
     return BuiltAgent(agent, recorder, backends)

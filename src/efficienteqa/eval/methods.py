@@ -101,8 +101,12 @@ def method_config(method: str, config: AgentConfig) -> AgentConfig:
     explorer, confidence, early_stop, answer_at = _AGENT_METHODS[method]
     stop = config.stop if early_stop else replace(config.stop, enabled=False)
     answer = config.answer if answer_at == "retrieval" else "paper"  # ExploreEQA's own answer
+    # Steering by the question's target is EfficientEQA's (beyond the paper); the references
+    # explore as they always did. ExploreEQA never stops early, so it has no gate.
+    steering = config.steering if method == "efficienteqa" else "none"
+    gate = config.gate if early_stop else "none"
     return replace(config, explorer=explorer, confidence=confidence, stop=stop,  # type: ignore[arg-type]
-                   answer_at=answer_at, answer=answer)
+                   answer_at=answer_at, answer=answer, steering=steering, gate=gate)
 
 
 def effective_config(method: str, config: AgentConfig) -> AgentConfig | None:

@@ -9,7 +9,7 @@ verbalized confidence in the agent, ground truth in the benchmarks.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -17,10 +17,13 @@ from efficienteqa.envs.base import Environment
 from efficienteqa.explore.base import Decision, Explorer
 from efficienteqa.explore.prompting import PromptConfig, prompt_points
 from efficienteqa.geometry import Pose2D
+from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.values import SemanticValueMap, gsv_from_yes, lsv_from_confidences
 from efficienteqa.observation import Observation, PromptPoint
+from efficienteqa.perception.base import Sightings
+from efficienteqa.question import Target
 
 VALUE_WARMUP_STEPS = 2  # SPEC 3.2: value terms are off for the first 2 steps
 
@@ -32,6 +35,15 @@ class SemanticScore:
     letters: dict[str, float]
     p_yes: float
     info: dict = field(default_factory=dict)
+
+
+@runtime_checkable
+class Steered(Protocol):
+    """An explorer that steers by the question's target and what frames show of it."""
+
+    def set_target(self, target: Target) -> None: ...
+
+    def see(self, spec: GridSpec, seen: Sightings) -> None: ...
 
 
 class SemanticScorer(Protocol):
@@ -58,15 +70,22 @@ class ExploreModule:
 
     def __init__(self, mapper: Mapper, explorer: Explorer, scorer: SemanticScorer | None = None,
                  values: SemanticValueMap | None = None, seed: int = 0,
-                 prompts: PromptConfig | None = None) -> None:
+                 prompts: PromptConfig | None = None, target: Target | None = None) -> None:
         self.mapper, self.explorer, self.scorer = mapper, explorer, scorer
         self.prompt_config = prompts or PromptConfig()
         self.values = values if values is not None else SemanticValueMap(mapper.spec)
         self.seed = seed
         explorer.reset(seed)
+        if target is not None and isinstance(explorer, Steered):
+            explorer.set_target(target)
 
-    def step(self, obs: Observation, step: int, question: str = "") -> ExploreStep:
+    def step(self, obs: Observation, step: int, question: str = "",
+             sightings: Sightings | None = None) -> ExploreStep:
+        """``sightings``: what the frame shows of the question's target, for an explorer that
+        steers by it (``explore.target``); ignored by the others."""
         state = self.mapper.update(obs)
+        if sightings is not None and isinstance(self.explorer, Steered):
+            self.explorer.see(state.spec, sightings)
         prompts: list[PromptPoint] = []
         lsv: dict[str, float] = {}
         gsv = score = None

@@ -9,6 +9,7 @@ kept across steps until reached, its frontier vanishes, or it becomes unreachabl
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -125,6 +126,9 @@ class FrontierExplorer:
     def __init__(self, config: SFEConfig | None = None) -> None:
         self.config = config or SFEConfig()
         self.name = "sfe" if self.config.use_values else "frontier-only"
+        # Beyond SPEC 3.2: a factor per frontier multiplied into its weight, set by a wrapper
+        # that knows more than the map (explore.target: the room a frontier lies in).
+        self.prior: Callable[[list[Frontier]], np.ndarray] | None = None
         self.reset(0)
 
     def reset(self, seed: int) -> None:
@@ -252,6 +256,8 @@ class FrontierExplorer:
         cfg = self.config
         weights = frontier_weights(state, frontiers, pose, values, step, cfg.frontier,
                                    distance_m)
+        if self.prior is not None:
+            weights = weights * self.prior(frontiers)
         if cfg.small_frontier_cells:
             small = np.array([f.size for f in frontiers]) < cfg.small_frontier_cells
             weights = np.where(small, weights * cfg.small_frontier_factor, weights)

@@ -42,3 +42,29 @@ class Perception(Protocol):
         ...
 
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest: ...
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """An object of the question's target in a frame: its category, where it is (world x, y in
+    metres: the median of its back-projected pixels), its top (z, metres above the floor), its
+    pixel count, whether the frame cuts it (touches the left, right or top edge) and the room
+    the frame shows it in (None when the frame does not say)."""
+
+    category: str
+    xy: tuple[float, float]
+    top_m: float
+    pixels: int
+    cut: bool
+    room: str | None
+
+
+@dataclass(frozen=True)
+class Sightings:
+    """What a frame shows of the places and things a question points at, for the explorer:
+    ``floor`` maps each room whose floor is in view to (N, 2) world points of that floor;
+    ``things`` are the target's objects in view. A perception that cannot tell (images read by
+    a VLM) gives none, and the explorer steers by semantic values alone."""
+
+    floor: Mapping[str, np.ndarray]
+    things: tuple[Sighting, ...] = ()

@@ -44,7 +44,8 @@ import numpy as np
 
 from efficienteqa.envs.base import ObjectLabel, SceneLabels
 from efficienteqa.geometry import backproject
-from efficienteqa.perception.base import ExploreRequest, Modality
+from efficienteqa.perception.base import ExploreRequest, Modality, Sighting, Sightings
+from efficienteqa.question import Target, names
 
 if TYPE_CHECKING:
     from efficienteqa.observation import Observation, PromptPoint
@@ -65,6 +66,8 @@ SUPPORT_MARGIN_M = 0.1  # A's centre may lie this far outside B's visible horizo
 SURFACE_SHARE = 0.1  # or when this share of B's points lies at A's bottom (a shelf, a worktop)
 ON_FLOOR_M = 0.1  # an object whose bottom is this low stands on the floor
 _LOW_PCT, _HIGH_PCT = 2.0, 98.0  # robust "lowest" and "highest" of an object's visible points
+SIGHTING_STRIDE = 4  # floor and object points of a sighting: every 4th pixel each way
+GLIMPSE_PIXELS = 20  # at 640x480: an object of the target this large is a sighting
 STRIDE_WIDTH = 320  # the support test reads every (width // this)-th pixel each way: fewer
 # points on large frames (a quarter at 640x480), all of them on small ones
 
@@ -508,3 +511,41 @@ class SemanticPerception:
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest:
         return ExploreRequest(self.frame(obs),
                               describe_directions(obs, prompts, self.labels, noise=self.noise))
+
+    def sightings(self, obs: Observation, target: Target) -> Sightings:
+        """The floor of each room in view and the target's things in view (see ``sightings``)."""
+        return sightings(obs, self.labels, target, self.noise)
+
+
+def sightings(obs: Observation, labels: SceneLabels, target: Target,
+              noise: NoiseConfig | None = None) -> Sightings:
+    """What the frame shows of the rooms (floor points per room, as ``floor_view`` names them)
+    and of the target's things (objects whose category the question names, from
+    GLIMPSE_PIXELS scaled): only what the frame shows, like the text."""
+    h, w = obs.depth_m.shape
+    k = SIGHTING_STRIDE
+    points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)
+    view = floor_view(obs, labels, points)
+    index = view.room_index[::k, ::k]
+    xy = points[::k, ::k, :2]
+    floor = {room: xy[index == n] for n, room in enumerate(view.rooms) if (index == n).any()}
+    things: list[Sighting] = []
+    wanted = target.things
+    if wanted and obs.instance is not None:
+        glimpse = max(1, round(GLIMPSE_PIXELS * h * w / REFERENCE_AREA_PX))
+        rooms = set(view.in_view(scaled_min_pixels(h, w)))
+        here = labels.room_at(obs.pose.x, obs.pose.y)
+        camera_xy = (float(obs.cam_to_world[0, 3]), float(obs.cam_to_world[1, 3]))
+        for o in visible_objects(obs, labels, glimpse, noise):
+            if not any(names(t, o.label.category) for t in wanted):
+                continue
+            mask = (obs.instance == o.instance_id) & (obs.depth_m > 0)
+            rows, cols = np.nonzero(mask)
+            p = points[mask]
+            where = _where(o.label, rooms, here, camera_xy)
+            room = where[len("in the "):] if where and where.startswith("in the ") else None
+            cut = bool(cols.min() == 0 or cols.max() == w - 1 or rows.min() == 0)
+            things.append(Sighting(o.label.category, (float(np.median(p[:, 0])),
+                                                      float(np.median(p[:, 1]))),
+                                   float(np.percentile(p[:, 2], 98)), o.pixels, cut, room))
+    return Sightings(floor, tuple(things))

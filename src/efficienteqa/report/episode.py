@@ -20,7 +20,7 @@ def step_dict(r: StepRecord) -> dict[str, Any]:
         "prompts": r.prompts, "lsv": r.lsv, "gsv": r.gsv, "p_yes": r.p_yes,
         "frontier": r.frontier_xy, "target": r.target_xy, "n_frontiers": r.n_frontiers,
         "decision": r.decision, "blocked": r.blocked, "refused": r.refused, "calls": r.calls,
-        "step_answer": r.step_answer,
+        "step_answer": r.step_answer, "gate": r.gate,
         "timings_ms": {k: round(v, 2) for k, v in r.timings_ms.items()},
     })
 
@@ -35,7 +35,8 @@ def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict
     a = result.answer_result
     calls = list(exchanges)
     return plain({
-        "question": result.question, "answer": result.answer, "confidence": result.confidence,
+        "question": result.question, "target": result.target.as_dict(),
+        "answer": result.answer, "confidence": result.confidence,
         "steps": result.steps, "stop_reason": result.stop_reason, "budget": result.budget,
         "refused_moves": result.refused_moves,
         "oracle_steps": (reference or {}).get("oracle_steps"),

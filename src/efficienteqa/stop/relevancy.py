@@ -31,7 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 Z_TH = 3.0
-MIN_STEP = 10
+PAPER_MIN_STEP = 10  # SPEC 3.4: never before the 10th step
+MIN_STEP = PAPER_MIN_STEP
 STEPS_PER_SQRT_M2 = 3
 SIGMA_FLOOR = 0.1  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
 MAD_TO_SIGMA = 1.4826  # 1 / 0.6745: MAD of a normal sample -> its standard deviation
@@ -130,6 +131,7 @@ class RelevancyStopper:
         self.config = config or StopConfig()
         self.parts = rule_parts(self.config.rule)
         self.history: list[tuple[int, float]] = []
+        self.eligible: list[bool] = []  # per frame: may it stop the robot (the gate's verdict)
         self.n = 0
         self._mean = 0.0
         self._m2 = 0.0  # sum of squared deviations from the running mean
@@ -142,32 +144,39 @@ class RelevancyStopper:
     def sigma(self) -> float | None:
         return math.sqrt(self._m2 / (self.n - 1)) if self.n >= 2 else None
 
-    def check(self, step: int, sim: float) -> StopCheck:
-        """Test ``sim`` against the history, then add it to the history."""
+    def check(self, step: int, sim: float, eligible: bool = True) -> StopCheck:
+        """Test ``sim`` against the history, then add it to the history. ``eligible`` False: the
+        frame cannot answer (an answerability gate said so), so it never stops the robot, and
+        under ``lookback`` the best *eligible* frame is the one tested; its Sim still enters
+        the baseline."""
         if not math.isfinite(sim):
             raise ValueError(f"relevancy must be finite, got {sim} at step {step}")
         cfg = self.config
         if self.parts:
-            return self._check_beyond(step, sim)
+            return self._check_beyond(step, sim, eligible)
         mu, sigma = self.mu, self.sigma
         z = threshold = None
         if mu is not None and sigma is not None:
             threshold = mu + cfg.z_th * sigma
             if sigma > cfg.sigma_eps:
                 z = (sim - mu) / sigma
-        stop = cfg.enabled and step >= cfg.min_step and z is not None and z > cfg.z_th
-        self._add(step, sim)
+        stop = (cfg.enabled and eligible and step >= cfg.min_step and z is not None
+                and z > cfg.z_th)
+        self._add(step, sim, eligible)
         return StopCheck(step, sim, mu, sigma, z, threshold, stop, step)
 
-    def _check_beyond(self, step: int, sim: float) -> StopCheck:
+    def _check_beyond(self, step: int, sim: float, eligible: bool) -> StopCheck:
         cfg = self.config
         robust = "robust" in self.parts
         floor = cfg.sigma_floor if "floor" in self.parts else 0.0
         sims = [s for _, s in self.history]
         tested, value, others = step, sim, sims
+        ok = eligible
         if "lookback" in self.parts and step >= cfg.min_step and sims:
             every = sims + [sim]
-            j = int(np.argmax(every))  # the first of equal maxima
+            allowed = np.array(self.eligible + [eligible])
+            j = int(np.argmax(np.where(allowed, every, -np.inf)))  # the first of equal maxima
+            ok = bool(allowed[j])
             tested = self.history[j][0] if j < len(sims) else step
             value, others = every[j], every[:j] + every[j + 1:]
         mu, sigma = baseline(others, robust, floor)
@@ -175,12 +184,13 @@ class RelevancyStopper:
         threshold = mu + cfg.z_th * sigma if mu is not None and sigma is not None else None
         outlier = z is not None and z > cfg.z_th
         high = "absolute" in self.parts and value >= cfg.sim_abs
-        stop = cfg.enabled and step >= cfg.min_step and (outlier or high)
-        self._add(step, sim)
+        stop = cfg.enabled and ok and step >= cfg.min_step and (outlier or high)
+        self._add(step, sim, eligible)
         return StopCheck(step, sim, mu, sigma, z, threshold, stop, tested)
 
-    def _add(self, step: int, sim: float) -> None:
+    def _add(self, step: int, sim: float, eligible: bool = True) -> None:
         self.history.append((step, sim))
+        self.eligible.append(eligible)
         self.n += 1
         delta = sim - self._mean
         self._mean += delta / self.n

@@ -1,0 +1,312 @@
+"""Steering by the question's target (beyond the paper, SPEC 9): go where the question points,
+look closely, and say when the named room is searched.
+
+A frontier explorer chooses among the edges of the known map; nothing makes it enter the room a
+question names or walk up to the shelf it asks about. ``TargetExplorer`` wraps one and, while
+the perception reports what frames show of rooms and of the target's things (``Sightings``),
+takes these steps before any frontier, first that applies:
+
+1. **inspect**: a thing of the target in view (the surface of "What is on the X?", the table of a
+   count, the object otherwise) that the robot has not yet stood before: go to a pose
+   ``inspect_m`` from it (further for count groups, and for things above the tilted view) and
+   face it; once.
+2. **look around**: on entering the named room, turn twice by 120 degrees (a step each), so the
+   room is seen whole; the room is then searched.
+3. **go to the room**: the named room's floor seen (through a doorway, past a hallway) and the
+   robot not in it: head for the reachable cell of that floor nearest its middle.
+4. **search ends**: for "Is there an X in the R?", the named room searched without the X in
+   view: ``done`` with reason "searched" (the robot answers from what it saw).
+
+Otherwise, and whenever the perception gives no sightings (a VLM reading images: the semantic
+values of its verbalized confidence steer instead), the wrapped frontier explorer decides.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from efficienteqa.explore.base import Decision, Frontier
+from efficienteqa.explore.sfe import FrontierExplorer, cut_path, idle, settle
+from efficienteqa.geometry import Pose2D, wrap_angle
+from efficienteqa.mapping.grid import GridSpec
+from efficienteqa.mapping.state import MapState
+from efficienteqa.perception.base import Sighting, Sightings
+from efficienteqa.question import Target, names
+
+CAMERA_HEIGHT_M = 1.5
+CONNECTORS = frozenset({"hallway"})  # rooms that lead to others: never ruled out
+TOP_OF_VIEW_DEG = 22.0  # 30 deg down, half the 104 deg vertical field of view up
+
+
+@dataclass(frozen=True)
+class TargetConfig:
+    """``inspect_m``: the distance to stand from a thing to inspect it, by question kind
+    (a count group must fit in one frame; a small item on a surface needs to be near);
+    ``merge_m``: sightings of one category this close are one thing; ``room_tries``: steps
+    spent heading for the named room without entering it before giving up on it for
+    ``room_rest`` steps; ``inspect_tries``: steps spent on one inspection at most."""
+
+    inspect: bool = True
+    look_around: bool = True
+    go_to_room: bool = True
+    end_search: bool = True
+    inspect_m: dict[str, float] = field(default_factory=lambda: {
+        "identification": 1.3, "count": 2.4, "default": 1.8})
+    merge_m: float = 0.6
+    reached_m: float = 0.4
+    room_tries: int = 6
+    room_rest: int = 6
+    inspect_tries: int = 4
+    min_room_cells: int = 10
+    # Frontier weights by the room the frontier lies in: x in_target in the named room,
+    # x elsewhere in a room the frames named that is not it (a bathroom cannot hold the
+    # office's desk), unchanged in connecting rooms (CONNECTORS) and where no frame named one.
+    room_prior: bool = True
+    in_target: float = 100.0
+    elsewhere: float = 1e-6
+    frontier_room_m: float = 0.5  # a frontier's room: the most seen floor this close
+
+
+@dataclass
+class _Thing:
+    category: str
+    xy: np.ndarray
+    top_m: float
+    room: str | None
+    inspected: bool = False
+    tries: int = 0
+
+
+class TargetExplorer:
+    """A frontier explorer steered by the question's target (module docstring)."""
+
+    name = "target"
+
+    def __init__(self, frontier: FrontierExplorer, config: TargetConfig | None = None) -> None:
+        self.frontier = frontier
+        self.config = config or TargetConfig()
+        if self.config.room_prior:
+            frontier.prior = self._room_prior
+        self.reset(0)
+
+    def reset(self, seed: int) -> None:
+        self.frontier.reset(seed)
+        self.target = Target()
+        self._rooms: dict[str, np.ndarray] = {}  # room -> bool grid of cells whose floor was seen
+        self._spec: GridSpec | None = None
+        self._things: list[_Thing] = []
+        self._looks: list[float] = []  # yaws still to look at, in the named room
+        self._searched: set[str] = set()
+        self._room_steps = 0
+        self._room_rest_until = 0
+        self._object_seen = False
+        self._centred = False
+
+    def set_target(self, target: Target) -> None:
+        self.target = target
+
+    # ----- what the frames showed ------------------------------------------------------------
+    def see(self, spec: GridSpec, seen: Sightings) -> None:
+        """Fuse one frame's sightings: the floor of each room in view, the target's things."""
+        if self._spec is None or self._spec.shape != spec.shape:
+            self._spec, self._rooms = spec, {}
+        for room, xy in seen.floor.items():
+            if not len(xy):
+                continue
+            grid = self._rooms.setdefault(room, np.zeros(spec.shape, bool))
+            i, j = spec.world_to_cell(np.asarray(xy))
+            ok = spec.contains((i, j))
+            grid[i[ok], j[ok]] = True
+        for s in seen.things:
+            self._add_thing(s)
+
+    def _add_thing(self, s: Sighting) -> None:
+        if self.target.object and names(self.target.object, s.category):
+            self._object_seen = True
+        xy = np.asarray(s.xy, float)
+        for t in self._things:
+            if t.category == s.category and np.linalg.norm(t.xy - xy) <= self.config.merge_m:
+                t.room = t.room or s.room
+                t.top_m = max(t.top_m, s.top_m)
+                return
+        self._things.append(_Thing(s.category, xy, s.top_m, s.room))
+
+    def room_at(self, xy: tuple[float, float], within_m: float = 0.0) -> str | None:
+        """The room whose seen floor holds the point, or with ``within_m`` the room with the
+        most seen floor within that many metres (None when no frame showed any)."""
+        if self._spec is None:
+            return None
+        i, j = (int(v) for v in self._spec.world_to_cell(np.asarray(xy, float)))
+        r = int(round(within_m / self._spec.resolution_m))
+        rows, cols = self._spec.shape
+        i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, rows), max(j - r, 0), min(j + r + 1, cols)
+        if i0 >= i1 or j0 >= j1:
+            return None
+        counts = {room: int(g[i0:i1, j0:j1].sum()) for room, g in self._rooms.items()}
+        best = max(counts, key=lambda k: counts[k], default=None)
+        return best if best is not None and counts[best] > 0 else None
+
+    def _room_prior(self, frontiers: list[Frontier]) -> np.ndarray:
+        """Each frontier's weight factor by its room (``TargetConfig.room_prior``)."""
+        room, cfg = self.target.room, self.config
+        out = np.ones(len(frontiers))
+        if room is None:
+            return out
+        for k, f in enumerate(frontiers):
+            here = self.room_at(f.xy, cfg.frontier_room_m)
+            if here == room:
+                out[k] = cfg.in_target
+            elif here is not None and here not in CONNECTORS and here not in self.target.rooms:
+                out[k] = cfg.elsewhere
+        return out
+
+    @property
+    def searched(self) -> frozenset[str]:
+        return frozenset(self._searched)
+
+    # ----- deciding -----------------------------------------------------------------------------
+    def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
+               step: int) -> Decision:
+        cfg, room = self.config, self.target.room
+        here = self.room_at((pose.x, pose.y))
+        if cfg.inspect:
+            decision = self._inspect(state, pose)
+            if decision is not None:
+                return decision
+        if room is not None and here == room and room not in self._searched:
+            if not self._centred:  # one move towards the middle of the room, then look around
+                self._centred = True
+                middle = self._middle(state, room)
+                if np.linalg.norm(middle - pose.xy) > 1.0:
+                    goal = self._stand_near(state, pose, middle, 0.0, room)
+                    decision = None if goal is None else self._move(state, pose, goal, middle,
+                                                                     "into the " + room)
+                    if decision is not None:
+                        return decision
+            if cfg.look_around and not self._looks:
+                self._looks = [pose.yaw + math.radians(120), pose.yaw + math.radians(240)]
+            if self._looks:
+                yaw = float(wrap_angle(self._looks.pop(0)))
+                if not self._looks:
+                    self._searched.add(room)
+                return Decision(Pose2D(pose.x, pose.y, yaw), pose.xy[None, :].copy(),
+                                reason="look around")
+            self._searched.add(room)
+        if (cfg.end_search and room is not None and room in self._searched
+                and self.target.kind == "existence" and not self._object_seen):
+            return Decision(pose, pose.xy[None, :].copy(), reason="searched", done=True)
+        if (cfg.go_to_room and room is not None and here != room and room not in self._searched
+                and step >= self._room_rest_until):
+            decision = self._to_room(state, pose, room, step)
+            if decision is not None:
+                return decision
+        return self.frontier.decide(state, pose, values, step)
+
+    def _inspect(self, state: MapState, pose: Pose2D) -> Decision | None:
+        wanted = self._inspected_things()
+        for thing in wanted:
+            if thing.inspected:
+                continue
+            distance = self._inspect_distance(thing)
+            gap = float(np.linalg.norm(pose.xy - thing.xy))
+            facing = abs(float(wrap_angle(math.atan2(thing.xy[1] - pose.y, thing.xy[0] - pose.x)
+                                          - pose.yaw)))
+            if (abs(gap - distance) <= self.config.reached_m + 0.3 and facing < math.radians(20)
+                    ) or thing.tries >= self.config.inspect_tries:
+                thing.inspected = True
+                continue
+            goal = self._stand_near(state, pose, thing.xy, distance, thing.room)
+            if goal is None:
+                thing.inspected = True
+                continue
+            thing.tries += 1
+            decision = self._move(state, pose, goal, thing.xy, "inspect " + thing.category)
+            if decision is None or idle(decision.pose, pose, self.config.reached_m, 20.0):
+                thing.inspected = True  # this view again: nothing more to see from here
+                continue
+            return decision
+        return None
+
+    def _inspected_things(self) -> list[_Thing]:
+        """The things worth walking up to, in the named room when the frame said which room:
+        the support for identification and count questions, else the object."""
+        t = self.target
+        key = t.support if t.kind in ("identification", "count") and t.support else t.object
+        if key is None:
+            return []
+        return [x for x in self._things if names(key, x.category)
+                and (t.room is None or x.room in (None, t.room) or t.object == "door")]
+
+    def _inspect_distance(self, thing: _Thing) -> float:
+        table = self.config.inspect_m
+        distance = table.get(self.target.kind, table["default"])
+        above = thing.top_m - CAMERA_HEIGHT_M
+        if above > 0:  # a ceiling lamp: far enough back for the top of the view to reach it
+            distance = max(distance, above / math.tan(math.radians(TOP_OF_VIEW_DEG - 4)))
+        return distance
+
+    def _middle(self, state: MapState, room: str) -> np.ndarray:
+        return state.spec.cell_to_world(np.argwhere(self._rooms[room])).mean(axis=0)
+
+    def _to_room(self, state: MapState, pose: Pose2D, room: str, step: int) -> Decision | None:
+        cells = self._rooms.get(room)
+        if cells is None or cells.sum() < self.config.min_room_cells:
+            return None
+        self._room_steps += 1
+        if self._room_steps > self.config.room_tries:  # the way in is not found: rest
+            self._room_steps = 0
+            self._room_rest_until = step + self.config.room_rest
+            return None
+        middle = self._middle(state, room)
+        goal = self._stand_near(state, pose, middle, 0.0, room)
+        if goal is None:
+            return None
+        return self._move(state, pose, goal, middle, "to the " + room)
+
+    def _stand_near(self, state: MapState, pose: Pose2D, xy: np.ndarray, distance_m: float,
+                    room: str | None) -> np.ndarray | None:
+        """A reachable cell about ``distance_m`` from ``xy`` (in ``room`` when the map knows it
+        and such cells exist), the nearest to the robot by path; None if nothing is reachable."""
+        fr = self.frontier.config
+        grid = state.island_grid
+        start = (pose.x, pose.y)
+        radius = fr.robot_radius_m if grid.snap(start, fr.robot_radius_m, fr.snap_m) else 0.0
+        dist = grid.distance_field(start, radius, fr.snap_m)
+        ok = grid.navigable(radius) & np.isfinite(dist)
+        if not ok.any():
+            return None
+        cells = np.argwhere(ok)
+        centres = state.spec.cell_to_world(cells)
+        off = np.abs(np.linalg.norm(centres - xy, axis=1) - distance_m)
+        if room is not None and room in self._rooms:
+            inside = self._rooms[room][cells[:, 0], cells[:, 1]]
+            if inside.any():
+                off = np.where(inside, off, off + 2.0)
+        cost = off + 0.1 * dist[cells[:, 0], cells[:, 1]]
+        return centres[int(np.argmin(cost))]
+
+    def _move(self, state: MapState, pose: Pose2D, goal: np.ndarray, look_at: np.ndarray,
+              reason: str) -> Decision | None:
+        fr = self.frontier.config
+        grid = state.island_grid
+        start = (pose.x, pose.y)
+        radius = fr.robot_radius_m if grid.snap(start, fr.robot_radius_m, fr.snap_m) else 0.0
+        path = grid.shortest_path(start, (float(goal[0]), float(goal[1])), radius, fr.snap_m)
+        if path is None:
+            return None
+        if np.linalg.norm(path[0] - pose.xy) > 1e-9:
+            path = np.vstack([pose.xy, path])
+        path = settle(grid, cut_path(path, fr.max_step_m), radius, fr.stop_clearance_m,
+                      fr.settle_m, fr.max_step_m, fr.snap_m)
+        end = path[-1]
+        arrived = np.linalg.norm(end - goal) <= self.config.reached_m
+        if arrived or np.linalg.norm(end - look_at) < 0.3:
+            yaw = math.atan2(look_at[1] - end[1], look_at[0] - end[0])
+        else:
+            d = end - path[-2] if len(path) > 1 else look_at - end
+            yaw = math.atan2(d[1], d[0])
+        return Decision(Pose2D(float(end[0]), float(end[1]), float(yaw)), path,
+                        target_xy=(float(goal[0]), float(goal[1])), reason=reason)

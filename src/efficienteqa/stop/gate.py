@@ -1,0 +1,118 @@
+"""The answerability gate (beyond the paper, SPEC 9): a relevancy outlier stops the robot only
+when the frame can answer the question.
+
+Relevancy alone stops on the container as readily as on its content: "What is on the
+bookshelf?" scores as high on a view of the bookshelf from 3 m, where the book on it has 40
+pixels, as on a view that shows the book. The gate asks whether the frame answers:
+
+- ``rules`` (text perceptions that describe objects, the offline default): the question's target
+  (``question.Target``) is in the frame's description: the support with something on it for
+  "What is on the X?", the object for state, colour, location and existence questions, the
+  object and its support with neither cut by the frame's edge for count questions; in the room
+  the question names when the frame names one. A question whose target the parse cannot read
+  passes (relevancy decides alone).
+- ``model`` (any perception, images included): one yes/no call to the chat model, "can the
+  question be answered from this view?", passing at P(yes) > 0.5; an unreadable reply does not
+  pass.
+
+The gate is asked only on frames the stop rule already flags, so the model gate costs one call
+per flagged frame, not per step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Protocol
+
+from efficienteqa.question import Target, names
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from efficienteqa.observation import Observation
+    from efficienteqa.perception.base import Sightings
+    from efficienteqa.perception.semantic import FrameDescription
+    from efficienteqa.relevancy.vlm_match import VLMMatchScorer
+
+GATES = ("none", "rules", "model")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The gate's answer for one frame and why, in a few words (recorded per step)."""
+
+    ok: bool
+    why: str
+
+
+class AnswerGate(Protocol):
+    name: str
+    eager: bool  # cheap: judge every frame (else only the frames the stop rule flags)
+
+    def check(self, question: str, target: Target, obs: Observation,
+              frame: str | np.ndarray) -> Verdict: ...
+
+
+class Describer(Protocol):
+    def describe(self, obs: Observation) -> FrameDescription: ...
+
+    def sightings(self, obs: Observation, target: Target) -> Sightings: ...
+
+
+class RulesGate:
+    """The target in the frame's description (module docstring)."""
+
+    name = "rules"
+    eager = True
+
+    def __init__(self, perception: Describer) -> None:
+        self.perception = perception
+
+    def check(self, question: str, target: Target, obs: Observation,
+              frame: str | np.ndarray) -> Verdict:
+        if target.kind == "other" or not target.things:
+            return Verdict(True, "no target parsed")
+        d = self.perception.describe(obs)
+        room = target.room if target.kind != "state" or target.object != "door" else None
+
+        def in_room(where: str | None) -> bool:
+            return room is None or where is None or where == f"in the {room}"
+
+        shown = [o for o in d.objects if in_room(o.where)]
+        if target.kind == "identification":
+            held = [o for o in shown if target.support and names(target.support, o.label.category)
+                    and o.carries]
+            return Verdict(bool(held), f"{target.support} with something on it"
+                           + ("" if held else " not in view"))
+        if target.kind == "count":
+            group = [o for o in shown if target.object and names(target.object, o.label.category)]
+            if not group:
+                return Verdict(False, f"no {target.object} in view")
+            if target.support:
+                seen = self.perception.sightings(obs, target)
+                support = [s for s in seen.things if names(target.support, s.category)]
+                if not support or any(s.cut for s in support):
+                    return Verdict(False, f"{target.support} not wholly in view")
+            return Verdict(True, f"{len(group)} {target.object} in view")
+        thing = target.object or target.support or ""
+        hits = [o for o in shown if names(thing, o.label.category)]
+        return Verdict(bool(hits), f"{thing} {'in view' if hits else 'not in view'}")
+
+
+class ModelGate:
+    """One yes/no call per flagged frame (module docstring), through a ``VLMMatchScorer`` of the
+    agent's own chat model: images for a VLM, the frame's text for a text model."""
+
+    name = "model"
+    eager = False
+
+    def __init__(self, match: VLMMatchScorer) -> None:
+        self.match = match
+
+    def check(self, question: str, target: Target, obs: Observation,
+              frame: str | np.ndarray) -> Verdict:
+        if isinstance(frame, str):
+            p_yes = self.match.score(question, text=frame)
+        else:
+            p_yes = self.match.score(question, image=frame)
+        return Verdict(p_yes > 0.5, f"P(answerable) {p_yes:.2f}")

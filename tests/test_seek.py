@@ -1,0 +1,145 @@
+"""Seeing the evidence and stopping at it: the question's target, the answerability gate, the
+eligible-frame stop and the target steering (issue 24)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from efficienteqa.envs.base import ObjectLabel
+from efficienteqa.explore.base import Frontier
+from efficienteqa.explore.sfe import FrontierExplorer
+from efficienteqa.explore.target import TargetExplorer
+from efficienteqa.mapping.grid import GridSpec
+from efficienteqa.perception.base import Sighting, Sightings
+from efficienteqa.perception.semantic import FrameDescription, VisibleObject
+from efficienteqa.question import Target, names, parse_question, singular
+from efficienteqa.stop.gate import RulesGate
+from efficienteqa.stop.relevancy import RelevancyStopper, StopConfig
+
+
+@pytest.mark.parametrize("question,kind,obj,support,rooms", [
+    ("What is on the nightstand in the bedroom?", "identification", None, "nightstand",
+     ("bedroom",)),
+    ("How many chairs are around the table in the dining room?", "count", "chair", "table",
+     ("dining room",)),
+    ("Is there a armchair in the office?", "existence", "armchair", None, ("office",)),
+    ("Is the tv in the guest bedroom on?", "state", "tv", None, ("guest bedroom",)),
+    ("Is the door between the bathroom and the hallway open?", "state", "door", None,
+     ("bathroom", "hallway")),
+    ("Where is the microwave oven?", "location", "microwave oven", None, ()),
+    ("What colour is the refrigerator in the study?", "colour", "refrigerator", None, ("office",)),
+    ("How many cushions are there on the red sofa in the living room?", "count", "cushion",
+     "red sofa", ("living room",)),
+])
+def test_questions_parse_into_their_target(question, kind, obj, support, rooms):
+    assert parse_question(question) == Target(kind, obj, support, rooms)
+
+
+def test_a_question_of_no_known_form_has_an_empty_target():
+    t = parse_question("What's the status of the lamp next to the bed?")
+    assert t.kind == "other" and t.things == () and t.room is None
+
+
+def test_names_match_plurals_and_qualified_categories():
+    assert singular("shelves") == "shelf" and singular("boxes") == "box"
+    assert names("chairs", "chair") and names("red sofa", "sofa") and names("tv", "TV")
+    assert not names("table", "table lamp") and not names("desk", "desk lamp")
+
+
+# ----- the stop: frames the gate refuses never stop the robot -------------------------------
+def test_an_outlier_the_gate_refuses_does_not_stop_and_the_best_eligible_frame_does():
+    stopper = RelevancyStopper(StopConfig(min_step=2))  # the default rule: look-back included
+    for step in range(1, 6):
+        assert not stopper.check(step, 0.2 + 0.01 * step).stop
+    refused = stopper.check(6, 0.9, eligible=False)  # the shelf without what is on it
+    assert not refused.stop
+    shown = stopper.check(7, 0.8)  # lower than the refused one, but it answers
+    assert shown.stop and shown.tested_step == 7
+
+
+def test_under_the_papers_rule_an_ineligible_outlier_does_not_stop():
+    def last(eligible: bool) -> bool:
+        stopper = RelevancyStopper(StopConfig(rule="paper", min_step=1))
+        for step, sim in enumerate([0.2, 0.21, 0.19, 0.2], 1):
+            stopper.check(step, sim)
+        return stopper.check(5, 0.9, eligible=eligible).stop
+
+    assert last(eligible=True) and not last(eligible=False)
+
+
+# ----- the rules gate ------------------------------------------------------------------------
+def _seen(category: str, where: str | None = None, carries: str | None = None,
+          iid: int = 1) -> VisibleObject:
+    return VisibleObject(iid, ObjectLabel(category, "brown", None, None), 500, (320.0, 240.0),
+                         0.0, "ahead", 2.0, where=where, carries=carries)
+
+
+class _Describer:
+    def __init__(self, objects, things=()):
+        self.d = FrameDescription("", None, tuple(objects), ())
+        self.things = tuple(things)
+
+    def describe(self, obs):
+        return self.d
+
+    def sightings(self, obs, target):
+        return Sightings({}, self.things)
+
+
+def _gate(question, objects, things=()):
+    return RulesGate(_Describer(objects, things)).check(question, parse_question(question),
+                                                       None, "")  # type: ignore[arg-type]
+
+
+def test_the_gate_wants_what_stands_on_the_surface_not_the_surface():
+    q = "What is on the nightstand in the bedroom?"
+    assert not _gate(q, [_seen("nightstand", "in the bedroom")]).ok
+    assert _gate(q, [_seen("nightstand", "in the bedroom", carries="a desk lamp")]).ok
+    assert not _gate(q, [_seen("nightstand", "in the office", carries="a desk lamp")]).ok
+
+
+def test_the_gate_wants_the_count_group_and_its_whole_support_in_the_frame():
+    q = "How many chairs are around the table in the dining room?"
+    table = Sighting("table", (0.0, 0.0), 0.8, 4000, False, "dining room")
+    chair = Sighting("chair", (1.0, 0.0), 0.9, 800, False, "dining room")
+    objects = [_seen("table", iid=1), _seen("chair", iid=2)]
+    assert _gate(q, objects, [table, chair]).ok
+    assert not _gate(q, objects, [Sighting("table", (0, 0), 0.8, 4000, True, None), chair]).ok
+    assert not _gate(q, [_seen("table")], [table]).ok
+
+
+def test_the_gate_wants_the_object_of_a_state_question():
+    q = "Is the tv in the guest bedroom on?"
+    assert _gate(q, [_seen("tv", "in the guest bedroom")]).ok
+    assert not _gate(q, [_seen("sofa", "in the guest bedroom")]).ok
+
+
+# ----- steering by the target -----------------------------------------------------------------
+def _explorer(question: str) -> tuple[TargetExplorer, GridSpec]:
+    spec = GridSpec.covering(0.0, 0.0, 10.0, 4.0, resolution_m=0.1)
+    ex = TargetExplorer(FrontierExplorer())
+    ex.set_target(parse_question(question))
+    floor = {"bathroom": np.array([[1.0 + 0.1 * i, 1.0 + 0.1 * j] for i in range(10)
+                                   for j in range(10)]),
+             "hallway": np.array([[4.0 + 0.1 * i, 3.0] for i in range(20)]),
+             "office": np.array([[8.0 + 0.1 * i, 1.0 + 0.1 * j] for i in range(10)
+                                 for j in range(10)])}
+    ex.see(spec, Sightings(floor))
+    return ex, spec
+
+
+def test_frontiers_in_rooms_the_question_rules_out_weigh_almost_nothing():
+    ex, _ = _explorer("What is on the desk in the office?")
+    frontiers = [Frontier((0, 0), xy, (1.0, 0.0), 5) for xy in
+                 [(1.5, 1.5), (5.0, 3.0), (8.5, 1.5), (9.9, 3.9)]]
+    bathroom, hallway, office, unseen = ex.frontier.prior(frontiers)  # type: ignore[misc]
+    assert office > hallway == unseen > bathroom and bathroom < 1e-3
+    ex.set_target(parse_question("Where is the piano?"))  # no room named: no preference
+    assert list(ex.frontier.prior(frontiers)) == [1.0, 1.0, 1.0, 1.0]  # type: ignore[misc]
+
+
+def test_the_rooms_frames_showed_are_remembered():
+    ex, _ = _explorer("What is on the desk in the office?")
+    assert ex.room_at((8.5, 1.5)) == "office" and ex.room_at((1.5, 1.5)) == "bathroom"
+    assert ex.room_at((6.0, 1.0)) is None
