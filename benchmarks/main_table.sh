@@ -37,9 +37,11 @@ run frontier-only --method frontier-only
 run random --method random
 run blind --method blind
 # The paper's configuration on the offline stack: the VLM's verbalized confidence steers, SPEC
-# 3.4's stop, SPEC 3.5's answer, and every exploration option beyond the paper off.
+# 3.4's stop (no gate, never before step 10), SPEC 3.5's answer, and every option beyond the
+# paper off (no steering by the question's target).
 run paper --method efficienteqa --explore-scorer vlm --stop-rule paper --answer paper \
-  --prompts paper --exploration paper --refusal-retries 0 --stop-clearance-m 0 --repeated-views
+  --prompts paper --exploration paper --refusal-retries 0 --stop-clearance-m 0 --repeated-views \
+  --gate none --steering none --min-stop-step 10
 RUNS=("$OUT/default" "$OUT/paper" "$OUT/explore-eqa" "$OUT/explore-eqa-blackbox"
       "$OUT/explore-eqa-verbalized-prompt" "$OUT/explore-eqa-per-token" "$OUT/frontier-only"
       "$OUT/random" "$OUT/blind")

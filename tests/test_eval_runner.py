@@ -238,7 +238,7 @@ def test_settings_added_later_default_to_none_so_recorded_runs_resume():
                                            "gate", "steering"}
     assert set_by_default(Stack) == {"vlm", "perception", "relevancy", "grouping", "cache", "explore_scorer"}
     assert set_by_default(StopConfig) == {"z_th", "min_step", "enabled", "sigma_eps", "rule",
-                                          "sigma_floor", "sim_abs"}
+                                          "sigma_floor", "sim_abs", "z_gated"}
 
 
 def test_run_json_records_what_an_agent_methods_episodes_ran_with():

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import needs_egl
 from efficienteqa.envs.base import ObjectLabel
 from efficienteqa.explore.base import Frontier
 from efficienteqa.explore.sfe import FrontierExplorer
@@ -143,3 +144,56 @@ def test_the_rooms_frames_showed_are_remembered():
     ex, _ = _explorer("What is on the desk in the office?")
     assert ex.room_at((8.5, 1.5)) == "office" and ex.room_at((1.5, 1.5)) == "bathroom"
     assert ex.room_at((6.0, 1.0)) is None
+
+
+# ----- end to end in a builtin house (scripted model, deterministic) ---------------------------
+@pytest.fixture(scope="module")
+def house4(catalog):
+    from efficienteqa.envs.synthetic.env import SyntheticEnv
+    from efficienteqa.envs.synthetic.generate import generate_house
+    from efficienteqa.geometry import CameraSpec
+    from efficienteqa.scenes import synthetic_questions
+
+    env = SyntheticEnv(generate_house(4, catalog, "builtin"), catalog,
+                       CameraSpec().scaled(320, 240))
+    yield env, {q.id: q for q in synthetic_questions(env)}
+    env.close()
+
+
+def _walk(env, question, steering):
+    from agent_stubs import averse_model
+    from efficienteqa.agent import AgentConfig
+    from efficienteqa.envs.synthetic.questions import evidence_visible
+    from efficienteqa.stack import Stack, build_agent
+
+    config = AgentConfig(max_steps=30, steering=steering, gate="rules")
+    built = build_agent(env, Stack(grouping="rules", explore_scorer="direction-logit"), config,
+                        "synthetic", model=averse_model("none", "none"))
+    seen: list[bool] = []
+    result = built.agent.run(env, question.question, on_step=lambda r, obs, _: seen.append(
+        evidence_visible(obs.instance, question.evidence)))
+    return result, seen
+
+
+@needs_egl
+def test_steering_walks_up_to_the_shelf_and_stops_on_what_stands_on_it(house4):
+    env, questions = house4
+    q = questions["syn-4-01"]
+    assert q.question == "What is on the bookshelf in the hallway?"
+    steered, seen = _walk(env, q, "target")
+    assert steered.stop_reason == "relevancy" and seen[-1]  # the stop frame shows the vase
+    assert any(r.decision == "inspect bookshelf" for r in steered.records)
+    plain, seen = _walk(env, q, "none")  # the same walk without steering never sees it
+    assert not any(seen) and plain.steps > steered.steps
+
+
+@needs_egl
+def test_a_no_question_ends_once_its_room_is_searched(house4):
+    env, questions = house4
+    q = questions["syn-4-04"]
+    assert (q.question, q.answer) == ("Is there a toilet in the office?", "no")
+    steered, _ = _walk(env, q, "target")
+    assert steered.stop_reason == "searched" and steered.steps < steered.budget
+    assert [r.decision for r in steered.records].count("look around") >= 2
+    plain, _ = _walk(env, q, "none")
+    assert plain.stop_reason != "searched"

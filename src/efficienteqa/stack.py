@@ -172,16 +172,21 @@ def build_grouper(name: str, model: ChatModel, relevancy: RelevancyScorer) -> Gr
     return GROUPINGS.build(name, model=model, relevancy=relevancy)
 
 
-GATE_LABELS = {"none": "none", "rules": "rules (the question's target in the frame's description)",
+GATE_LABELS = {"none": "none",
+               "rules": "rules (the question's target in the frame's description)",
                "model": "model (one yes/no call to {model} on a flagged frame)"}
 
 
 def build_gate(name: str, perception: Perception, model: ChatModel) -> AnswerGate | None:
-    """The answerability gate ``name`` (stop.gate.GATES): None for "none"."""
+    """The answerability gate ``name`` (stop.gate.GATES): None for "none"; "auto" is "rules"
+    where the perception describes objects, else "model"."""
     if name == "none":
         return None
+    describes = hasattr(perception, "describe") and hasattr(perception, "sightings")
+    if name == "auto":
+        name = "rules" if describes else "model"
     if name == "rules":
-        if not hasattr(perception, "describe") or not hasattr(perception, "sightings"):
+        if not describes:
             raise EfficientEQAError(f"the rules gate reads object descriptions, which "
                                     f"{perception.name} perception does not give",
                                     fix="use --gate model (one yes/no call to the VLM)")
@@ -248,5 +253,6 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                 "explore_scorer": (explore_scorer_label(scorer_name, model, config)
                                    if scorer is not None else None),
                 "answer": ANSWER_LABELS[answer], "judge": None,
-                "gate": GATE_LABELS[config.gate].format(model=model.name)}
+                "gate": GATE_LABELS[gate.name if gate is not None else "none"].format(
+                    model=model.name)}
     return BuiltAgent(agent, recorder, backends)

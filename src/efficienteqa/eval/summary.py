@@ -181,10 +181,25 @@ def match_value(row: Mapping[str, Any], key: str = "judge") -> float:
     return score_value(score if isinstance(score, int) else None)
 
 
+# Settings added after runs were published, and what a run that does not record them ran with:
+# no answerability gate and no steering by the question's target (issue 24).
+RECORDED_BEFORE: dict[str, Any] = {"gate": "none", "steering": "none"}
+
+
+# Settings a method sets itself whatever the options say (eval.methods.method_config): not
+# worth naming in its label. ExploreEQA never stops early, so its stop settings do nothing.
+_EXPLORE_EQA = {"steering", "gate", "min_step", "z_gated"}
+METHOD_SETS: dict[str, set[str]] = {"explore-eqa": _EXPLORE_EQA,
+                                    "explore-eqa-blackbox": _EXPLORE_EQA,
+                                    "frontier-only": {"steering"}, "random": {"steering"}}
+
+
 def settings(manifest: Mapping[str, Any]) -> dict[str, Any]:
     """The run's configuration as one flat dict (AgentConfig, its stop rule, the stack, judge):
     what ablations compare and labels name. ``stop.enabled`` becomes ``early_stop``."""
     config = dict(manifest.get("config") or {})
+    if config:  # a run recorded before a setting existed ran as that setting's "off"
+        config = {**RECORDED_BEFORE, **config}
     stop = dict(config.pop("stop", None) or {})
     if "enabled" in stop:
         stop["early_stop"] = stop.pop("enabled")
@@ -231,7 +246,7 @@ def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (
     """``method`` plus the settings in ``flat`` (``settings``) that differ from the defaults,
     leaving out ``skip`` (an ablation table names its own variable)."""
     parts = [method]
-    skipped = set(skip)
+    skipped = set(skip) | METHOD_SETS.get(method, set())
     if method not in AGENTLESS_METHODS and _is_paper_configuration(flat):
         parts.append("paper configuration")
         skipped |= {k for k, _ in _paper_settings()}

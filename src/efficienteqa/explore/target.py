@@ -68,6 +68,11 @@ class TargetConfig:
     in_target: float = 100.0
     elsewhere: float = 1e-6
     frontier_room_m: float = 0.5  # a frontier's room: the most seen floor this close
+    here_m: float = 1.0  # the robot's room: the most seen floor this close (none under it)
+    # While the named room is unseen, look around in a hallway (CONNECTORS), at points at
+    # least scan_apart_m apart: doorways along it show the rooms they lead to.
+    scan_connectors: bool = True
+    scan_apart_m: float = 4.0
 
 
 @dataclass
@@ -104,6 +109,7 @@ class TargetExplorer:
         self._room_rest_until = 0
         self._object_seen = False
         self._centred = False
+        self._scans: list[np.ndarray] = []  # where the robot looked around in a hallway
 
     def set_target(self, target: Target) -> None:
         self.target = target
@@ -124,8 +130,9 @@ class TargetExplorer:
             self._add_thing(s)
 
     def _add_thing(self, s: Sighting) -> None:
-        if self.target.object and names(self.target.object, s.category):
-            self._object_seen = True
+        if (self.target.object and names(self.target.object, s.category)
+                and (self.target.room is None or s.room == self.target.room)):
+            self._object_seen = True  # in the named room, as the frame says
         xy = np.asarray(s.xy, float)
         for t in self._things:
             if t.category == s.category and np.linalg.norm(t.xy - xy) <= self.config.merge_m:
@@ -171,7 +178,7 @@ class TargetExplorer:
     def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
                step: int) -> Decision:
         cfg, room = self.config, self.target.room
-        here = self.room_at((pose.x, pose.y))
+        here = self.room_at((pose.x, pose.y), cfg.here_m)
         if cfg.inspect:
             decision = self._inspect(state, pose)
             if decision is not None:
@@ -195,6 +202,18 @@ class TargetExplorer:
                 return Decision(Pose2D(pose.x, pose.y, yaw), pose.xy[None, :].copy(),
                                 reason="look around")
             self._searched.add(room)
+        if (cfg.scan_connectors and room is not None and here in CONNECTORS
+                and self._room_cells(room) < cfg.min_room_cells
+                and all(np.linalg.norm(pose.xy - p) > cfg.scan_apart_m for p in self._scans)):
+            self._scans.append(pose.xy.copy())  # the named room unseen: look down the hallway
+            self._looks = [pose.yaw + math.radians(120), pose.yaw + math.radians(240)]
+        if (self._looks and here != room and room is not None
+                and self._room_cells(room) >= cfg.min_room_cells):
+                self._looks = []  # the named room came into view: no need to look further
+        if self._looks and here != room:
+            yaw = float(wrap_angle(self._looks.pop(0)))
+            return Decision(Pose2D(pose.x, pose.y, yaw), pose.xy[None, :].copy(),
+                            reason="look around")
         if (cfg.end_search and room is not None and room in self._searched
                 and self.target.kind == "existence" and not self._object_seen):
             return Decision(pose, pose.xy[None, :].copy(), reason="searched", done=True)
@@ -247,6 +266,9 @@ class TargetExplorer:
         if above > 0:  # a ceiling lamp: far enough back for the top of the view to reach it
             distance = max(distance, above / math.tan(math.radians(TOP_OF_VIEW_DEG - 4)))
         return distance
+
+    def _room_cells(self, room: str) -> int:
+        return int(self._rooms[room].sum()) if room in self._rooms else 0
 
     def _middle(self, state: MapState, room: str) -> np.ndarray:
         return state.spec.cell_to_world(np.argwhere(self._rooms[room])).mean(axis=0)

@@ -7,7 +7,8 @@ pixels, as on a view that shows the book. The gate asks whether the frame answer
 
 - ``rules`` (text perceptions that describe objects, the offline default): the question's target
   (``question.Target``) is in the frame's description: the support with something on it for
-  "What is on the X?", the object for state, colour, location and existence questions, the
+  "What is on the X?" (or a smaller object at its distance and bearing, on a shelf the
+  description's support test misses), the object for state, colour, location and existence questions, the
   object and its support with neither cut by the frame's edge for count questions; in the room
   the question names when the frame names one. A question whose target the parse cannot read
   passes (relevancy decides alone).
@@ -31,10 +32,12 @@ if TYPE_CHECKING:
 
     from efficienteqa.observation import Observation
     from efficienteqa.perception.base import Sightings
-    from efficienteqa.perception.semantic import FrameDescription
+    from efficienteqa.perception.semantic import FrameDescription, VisibleObject
     from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
-GATES = ("none", "rules", "model")
+# "auto": rules where the perception describes objects (the semantic sensor), else model.
+GATES = ("auto", "none", "rules", "model")
+BESIDE_M, BESIDE_DEG = 0.5, 15.0  # an item this close to a surface in depth and bearing is on it
 
 
 @dataclass(frozen=True)
@@ -80,8 +83,9 @@ class RulesGate:
 
         shown = [o for o in d.objects if in_room(o.where)]
         if target.kind == "identification":
-            held = [o for o in shown if target.support and names(target.support, o.label.category)
-                    and o.carries]
+            surfaces = [o for o in shown
+                        if target.support and names(target.support, o.label.category)]
+            held = [b for b in surfaces if b.carries or any(_beside(o, b) for o in d.objects)]
             return Verdict(bool(held), f"{target.support} with something on it"
                            + ("" if held else " not in view"))
         if target.kind == "count":
@@ -97,6 +101,14 @@ class RulesGate:
         thing = target.object or target.support or ""
         hits = [o for o in shown if names(thing, o.label.category)]
         return Verdict(bool(hits), f"{thing} {'in view' if hits else 'not in view'}")
+
+
+def _beside(item: VisibleObject, surface: VisibleObject) -> bool:
+    """A smaller object at the surface's distance and bearing: on it, or on one of its shelves,
+    where the frame's support test cannot tell (a vase inside a bookshelf)."""
+    return (item is not surface and item.label.door is None and item.pixels < surface.pixels
+            and abs(item.distance_m - surface.distance_m) <= BESIDE_M
+            and abs(item.bearing_deg - surface.bearing_deg) <= BESIDE_DEG)
 
 
 class ModelGate:

@@ -32,11 +32,14 @@ import numpy as np
 
 Z_TH = 3.0
 PAPER_MIN_STEP = 10  # SPEC 3.4: never before the 10th step
-MIN_STEP = PAPER_MIN_STEP
+# The default's floor: the answerability gate keeps a stop off frames that cannot answer, so
+# the robot may stop from its second step (issue 24). Without a gate, use PAPER_MIN_STEP.
+MIN_STEP = 2
 STEPS_PER_SQRT_M2 = 3
 SIGMA_FLOOR = 0.1  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
 MAD_TO_SIGMA = 1.4826  # 1 / 0.6745: MAD of a normal sample -> its standard deviation
 SIM_ABS = 0.75  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
+Z_GATED = 1.0  # the threshold for a frame an answerability gate passed (issue 24)
 RULE_PARTS = ("lookback", "robust", "floor", "absolute")
 # The default: better than "paper" on every measure of benchmarks/stop_bench.py, chosen on
 # training houses 0-20 and checked on held-out houses 2000-2009 (issue 16).
@@ -93,7 +96,8 @@ class StopConfig:
     counts as zero (the guard: no z, no stop); ``rule``: ``paper`` (SPEC 3.4; the paper preset)
     or a rule beyond it (module docstring), default ``lookback+robust+floor``; ``sigma_floor``:
     the floor of rules with ``floor`` (0.1, fitted to MiniLM's scale on training houses);
-    ``sim_abs``: the Sim that stops under rules with ``absolute`` (0.75, the same scale)."""
+    ``sim_abs``: the Sim that stops under rules with ``absolute`` (0.75, the same scale);
+    ``z_gated``: the threshold for a frame an answerability gate passed (``check``)."""
 
     z_th: float = Z_TH
     min_step: int = MIN_STEP
@@ -102,6 +106,7 @@ class StopConfig:
     rule: str = DEFAULT_STOP_RULE
     sigma_floor: float = SIGMA_FLOOR
     sim_abs: float = SIM_ABS
+    z_gated: float = Z_GATED
 
     def __post_init__(self) -> None:
         rule_parts(self.rule)  # raises on an unknown name
@@ -131,7 +136,7 @@ class RelevancyStopper:
         self.config = config or StopConfig()
         self.parts = rule_parts(self.config.rule)
         self.history: list[tuple[int, float]] = []
-        self.eligible: list[bool] = []  # per frame: may it stop the robot (the gate's verdict)
+        self.eligible: list[bool | None] = []  # per frame: the gate's verdict (None: no gate)
         self.n = 0
         self._mean = 0.0
         self._m2 = 0.0  # sum of squared deviations from the running mean
@@ -144,11 +149,13 @@ class RelevancyStopper:
     def sigma(self) -> float | None:
         return math.sqrt(self._m2 / (self.n - 1)) if self.n >= 2 else None
 
-    def check(self, step: int, sim: float, eligible: bool = True) -> StopCheck:
-        """Test ``sim`` against the history, then add it to the history. ``eligible`` False: the
-        frame cannot answer (an answerability gate said so), so it never stops the robot, and
-        under ``lookback`` the best *eligible* frame is the one tested; its Sim still enters
-        the baseline."""
+    def check(self, step: int, sim: float, eligible: bool | None = None) -> StopCheck:
+        """Test ``sim`` against the history, then add it to the history. ``eligible``: an
+        answerability gate's verdict on the frame (None: no gate). False: the frame cannot
+        answer, so it never stops the robot, and under ``lookback`` the best frame the gate
+        passed is the one tested; its Sim still enters the baseline. True: the frame stops the
+        robot at the lower threshold ``z_gated`` (the gate has said it answers; relevancy only
+        has to place it above the typical frame)."""
         if not math.isfinite(sim):
             raise ValueError(f"relevancy must be finite, got {sim} at step {step}")
         cfg = self.config
@@ -160,12 +167,13 @@ class RelevancyStopper:
             threshold = mu + cfg.z_th * sigma
             if sigma > cfg.sigma_eps:
                 z = (sim - mu) / sigma
-        stop = (cfg.enabled and eligible and step >= cfg.min_step and z is not None
-                and z > cfg.z_th)
+        z_th = cfg.z_th if eligible is None else cfg.z_gated
+        stop = (cfg.enabled and eligible is not False and step >= cfg.min_step and z is not None
+                and z > z_th)
         self._add(step, sim, eligible)
         return StopCheck(step, sim, mu, sigma, z, threshold, stop, step)
 
-    def _check_beyond(self, step: int, sim: float, eligible: bool) -> StopCheck:
+    def _check_beyond(self, step: int, sim: float, eligible: bool | None) -> StopCheck:
         cfg = self.config
         robust = "robust" in self.parts
         floor = cfg.sigma_floor if "floor" in self.parts else 0.0
@@ -174,21 +182,22 @@ class RelevancyStopper:
         ok = eligible
         if "lookback" in self.parts and step >= cfg.min_step and sims:
             every = sims + [sim]
-            allowed = np.array(self.eligible + [eligible])
+            verdicts = self.eligible + [eligible]
+            allowed = np.array([v is not False for v in verdicts])
             j = int(np.argmax(np.where(allowed, every, -np.inf)))  # the first of equal maxima
-            ok = bool(allowed[j])
+            ok = verdicts[j]
             tested = self.history[j][0] if j < len(sims) else step
             value, others = every[j], every[:j] + every[j + 1:]
         mu, sigma = baseline(others, robust, floor)
         z = zscore(value, mu, sigma, cfg.sigma_eps)
         threshold = mu + cfg.z_th * sigma if mu is not None and sigma is not None else None
-        outlier = z is not None and z > cfg.z_th
+        outlier = z is not None and z > (cfg.z_th if ok is None else cfg.z_gated)
         high = "absolute" in self.parts and value >= cfg.sim_abs
-        stop = cfg.enabled and ok and step >= cfg.min_step and (outlier or high)
+        stop = cfg.enabled and ok is not False and step >= cfg.min_step and (outlier or high)
         self._add(step, sim, eligible)
         return StopCheck(step, sim, mu, sigma, z, threshold, stop, tested)
 
-    def _add(self, step: int, sim: float, eligible: bool = True) -> None:
+    def _add(self, step: int, sim: float, eligible: bool | None = None) -> None:
         self.history.append((step, sim))
         self.eligible.append(eligible)
         self.n += 1
