@@ -7,6 +7,8 @@ absent (frontier-only, random) or the ground-truth oracle (explore/oracle.py).
     python benchmarks/explore_bench.py cost      # ms per step in a 6-room house
     python benchmarks/explore_bench.py coverage  # explored floor vs step, frontier-only vs random
     python benchmarks/explore_bench.py steering  # steps to see the evidence, oracle SFE vs frontier-only
+    python benchmarks/explore_bench.py steering --methods reference:target-room,reference:room-by-room
+                                                 # the reference policies (reference_policies.py)
 
 House seeds: the development houses 0-20 (``--seeds training``) are the ones every earlier
 choice of the explorer was tuned on; the held-out houses 2000-2999 (``--seeds held-out``, the
@@ -20,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -40,6 +43,10 @@ from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, mak
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from reference_policies import POLICIES as REFERENCE_POLICIES  # noqa: E402
+from reference_policies import run_policy  # noqa: E402
 
 TRAINING_SEEDS = range(0, 21)  # development houses: tuned on
 HELD_OUT_SEEDS = range(2000, 3000)  # never used for tuning
@@ -140,6 +147,7 @@ class Episode:
     points: int = 0  # prompted points
     off_floor: int = 0  # of which not navigable on the true grid
     uninformed: int = 0  # asked steps where no point had a finite oracle distance
+    explored: int | None = None  # the step at which the explorer found no frontier left
 
 
 NEAR_M = 2.0
@@ -180,6 +188,7 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         if floor is not None:
             ep.coverage.append(out.state.explored_floor_share(floor))
         if out.decision.done:
+            ep.explored = step
             break
         moved = move(env, module, obs.pose, out.decision, step, REFUSAL_RETRIES)
         obs = moved.obs
@@ -187,6 +196,7 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         ep.refused += moved.refused
         ep.lost += moved.blocked
         if moved.decision.done:
+            ep.explored = step
             break
     if floor is not None and ep.steps > len(ep.coverage):  # the last frame, fused but not planned on
         mapper.update(obs)
@@ -251,58 +261,96 @@ def cmd_coverage(args: argparse.Namespace) -> None:
     print(f"plot: {out / 'coverage.png'}")
 
 
-def cmd_steering(args: argparse.Namespace) -> None:
-    seeds = seed_set(args.seeds)
-    rows: list[dict] = []
-    flagged: list[dict] = []  # questions whose evidence has no view reachable from the start
-    methods = tuple(dict.fromkeys(["frontier-only"] + [steering_method(m)
-                                                       for m in args.methods.split(",")]))
-    for seed in seeds:
-        if len(rows) >= args.questions:
-            break
+def steering_questions(args: argparse.Namespace):
+    """(house seed, env, budget, question) for the steering run: ``--per-house`` questions of
+    each house of ``--seeds`` (their order turned by the seed), or with ``--split N`` the
+    questions with evidence among the first N of the synthetic split (the main table's)."""
+    if args.split:
+        from efficienteqa.datasets.synthetic import load_split
+
+        by_house: dict[int, list[Question]] = {}
+        for e in load_split()[:args.split]:
+            if e.source.get("evidence"):
+                by_house.setdefault(int(e.source["house_seed"]), []).append(Question(
+                    id=e.source["question_id"], house_seed=int(e.source["house_seed"]),
+                    category=e.category, question=e.question, answer=e.answer,
+                    evidence=list(e.source["evidence"]), oracle_steps=e.oracle_steps,
+                    oracle_pose=tuple(e.source["oracle_pose"]) if e.source["oracle_pose"]
+                    else None))
+        for seed, qs in by_house.items():
+            with SyntheticEnv.from_seed(seed, args.assets) as env:
+                for q in qs:
+                    yield seed, env, step_budget(env), q
+        return
+    for seed in seed_set(args.seeds):
         with SyntheticEnv.from_seed(seed, args.assets) as env:
-            budget = step_budget(env)
             asked = [q for q in synthetic_questions(env) if q.evidence]
             # A few questions per house, their order turned by the seed: many houses, every kind.
             turn = seed % len(asked) if asked else 0
             for q in (asked[turn:] + asked[:turn])[:args.per_house]:
-                if len(rows) >= args.questions:
-                    break
-                row = _steer(env, q, budget, seed, args.repeats, args.to_budget, methods)
-                if not row["reachable"]:
-                    flagged.append(row)
-                    print(f"{q.id} FLAGGED: no view of the evidence is reachable from the start; "
-                          "left out", flush=True)
-                    continue
-                rows.append(row)
-                print(f"{q.id} {q.category:14s} oracle {row['oracle']:2d}  "
-                      + "  ".join(f"{m} {np.mean(_steps(row, m)):5.1f}" for m in methods)
-                      + f"  {q.question}", flush=True)
+                yield seed, env, step_budget(env), q
+
+
+def cmd_steering(args: argparse.Namespace) -> None:
+    rows: list[dict] = []
+    flagged: list[dict] = []  # questions whose evidence has no view reachable from the start
+    asked = [steering_method(m) for m in args.methods.split(",")]
+    # frontier-only is the explorers' baseline: it comes first unless only reference policies
+    # are asked for.
+    baseline = [] if all(is_reference(m) for m in asked) else ["frontier-only"]
+    methods = tuple(dict.fromkeys(baseline + asked))
+    for seed, env, budget, q in steering_questions(args):
+        if len(rows) >= args.questions:
+            break
+        row = _steer(env, q, budget, seed, args.repeats, args.to_budget, methods)
+        if not row["reachable"]:
+            flagged.append(row)
+            print(f"{q.id} FLAGGED: no view of the evidence is reachable from the start; "
+                  "left out", flush=True)
+            continue
+        rows.append(row)
+        print(f"{q.id} {q.category:14s} oracle {row['oracle']:2d}  "
+              + "  ".join(f"{m} {np.mean(_steps(row, m)):5.1f}" for m in methods)
+              + f"  {q.question}", flush=True)
+    source = (f"the first {args.split} questions of the synthetic split" if args.split
+              else f"seeds {args.seeds}")
     print(f"\n{len(rows)} questions in {len({r['house'] for r in rows})} houses "
-          f"(seeds {args.seeds}: {sorted({r['house'] for r in rows})}) x {args.repeats} explorer "
-          f"seeds ({args.assets}); steps until the evidence is first in view (budget + 1 when "
-          "never seen):")
+          f"({source}: {sorted({r['house'] for r in rows})}) x {args.repeats} explorer "
+          f"seeds ({args.assets}; a reference policy is deterministic: one episode); steps until "
+          "the evidence is first in view (budget + 1 when never seen):")
     if flagged:
         print(f"  left out, no reachable view of the evidence: {', '.join(r['id'] for r in flagged)}")
     oracle = np.mean([r["oracle"] for r in rows])
     print(f"  oracle steps   mean {oracle:.2f}")
     means = {}
     for m in methods:
-        steps = np.concatenate([_steps(r, m) for r in rows])
-        never = np.mean([s is None for r in rows for s in r[m]["first_seen"]])
-        cover = np.mean([c for r in rows for c in r[m]["coverage"]])
+        f = method_summary(rows, m, args.to_budget)
+        means[m] = f["steps"]
+        line = (f"  {m:13s}  mean {f['steps']:.2f} (x{f['x_oracle']:.2f} oracle; per question "
+                f"x{f['x_oracle_q']:.2f}), never seen {f['never_n']}/{f['episodes']} "
+                f"({f['never']:.1%})")
+        if is_reference(m):
+            total = {k: sum(sum(r[m][k]) for r in rows)
+                     for k in ("steps", "moves", "turns", "approaches", "refused")}
+            stops = [s for r in rows for s in r[m]["stop"]]
+            print(line + f"; {total['moves']} moves and {total['turns']} turns in "
+                  f"{total['steps']} steps, {total['approaches']} glimpse walks, "
+                  f"{total['refused']} refused moves; stops: "
+                  + ", ".join(f"{k} {stops.count(k)}" for k in ("seen", "budget", "exhausted")))
+            continue
         moves = sum(sum(r[m]["moves"]) for r in rows)
         refused = sum(sum(r[m]["refused"]) for r in rows)
         lost = sum(sum(r[m]["lost"]) for r in rows)
         taken = sum(sum(r[m]["steps"]) for r in rows)
-        means[m] = steps.mean()
-        print(f"  {m:13s}  mean {steps.mean():.2f} (x{steps.mean() / oracle:.2f} oracle), "
-              f"never seen {never:.1%}, floor explored at the "
-              f"{'budget' if args.to_budget else 'end'} {cover:.1%}, refused moves "
+        print(line + f", floor explored at the "
+              f"{'budget' if args.to_budget else 'end'} {f['coverage']:.1%}, refused moves "
               f"{refused}/{moves} ({refused / max(taken, 1):.1%} of {taken} steps; "
-              f"{lost / max(taken, 1):.1%} of steps lost)")
-    near = {m: np.mean([np.mean(r[m]["near"]) for r in rows]) for m in methods}
-    for m in methods:
+              f"{lost / max(taken, 1):.1%} of steps lost); 'explored' stops (no frontier left) "
+              f"{f['explored_n']}/{f['episodes']}"
+              + (f" (questions {', '.join(f['explored_ids'])})" if f["explored_ids"] else ""))
+    explorers = [m for m in methods if not is_reference(m)]
+    near = {m: np.mean([np.mean(r[m]["near"]) for r in rows]) for m in explorers}
+    for m in explorers:
         if m == "frontier-only":
             continue
         total = {k: sum(sum(r[m][k]) for r in rows)
@@ -322,43 +370,75 @@ def cmd_steering(args: argparse.Namespace) -> None:
     print(f"rows: {out / 'steering.json'}")
 
 
-def method_summary(rows: list[dict], method: str) -> dict[str, float]:
+def method_summary(rows: list[dict], method: str, to_budget: bool = True) -> dict:
     """One method's figures over ``rows`` of a steering run: mean steps until the evidence is
-    first in view (never seen: budget + 1), the same over the oracle's steps, the share never
-    seen, floor coverage at the episode's end, refused moves and prompted steps per step."""
+    first in view (never seen: budget + 1), the same over the oracle's mean steps
+    (``x_oracle``) and per question (``x_oracle_q``: each question's mean over its episodes of
+    steps / oracle steps, averaged over questions), never seen (share and count), floor
+    coverage at the episode's end, refused moves and prompted steps per step, and the explorer's
+    "explored" stops (no frontier left; in runs recorded before they were counted: the
+    episodes that ended before the budget without the evidence in view, or, in a ``to_budget``
+    run, before the budget at all)."""
     steps = np.concatenate([_steps(r, method) for r in rows])
     taken = max(sum(sum(r[method]["steps"]) for r in rows), 1)
+    cover = [c for r in rows for c in r[method].get("coverage", [])]
+    never = [s is None for r in rows for s in r[method]["first_seen"]]
+    explored_ids = []
+    explored_n = 0
+    for r in rows:
+        got = r[method]
+        if "explored" in got:
+            stops = [e is not None for e in got["explored"]]
+        elif "coverage" in got:  # an explorer's episode ends early only by the stop or a sight
+            stops = [n < r["budget"] and (to_budget or seen is None)
+                     for n, seen in zip(got["steps"], got["first_seen"])]
+        else:
+            stops = []
+        explored_n += sum(stops)
+        if any(stops):
+            explored_ids.append(r["id"])
     return {"steps": float(steps.mean()),
             "x_oracle": float(steps.mean() / np.mean([r["oracle"] for r in rows])),
-            "never": float(np.mean([s is None for r in rows for s in r[method]["first_seen"]])),
-            "coverage": float(np.mean([c for r in rows for c in r[method]["coverage"]])),
+            "x_oracle_q": float(np.mean([np.mean(_steps(r, method)) / r["oracle"] for r in rows])),
+            "never": float(np.mean(never)), "never_n": int(sum(never)), "episodes": len(never),
+            "coverage": float(np.mean(cover)) if cover else float("nan"),
             "refused": sum(sum(r[method]["refused"]) for r in rows) / taken,
-            "asked": sum(sum(r[method]["asked"]) for r in rows) / taken}
+            "asked": sum(sum(r[method].get("asked", [0])) for r in rows) / taken,
+            "explored_n": explored_n, "explored_ids": explored_ids}
 
 
 def cmd_table(args: argparse.Namespace) -> None:
     """A markdown table of steering runs (their steering.json files): one line per run and
     method, with the share of steps fewer than the run's frontier-only."""
     print("| run | method | steps to the evidence (x oracle) | never seen | floor explored | "
-          "fewer steps than frontier-only | steps offering directions | refused moves / step |")
-    print("|---|---|---|---|---|---|---|---|")
+          "fewer steps than frontier-only | steps offering directions | refused moves / step | "
+          "first sight / oracle, per question | 'explored' stops |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     notes: list[str] = []
     for name in args.files:
         run = json.loads(Path(name).read_text())
         rows, a = run["rows"], run["args"]
         label = Path(name).parent.name
+        methods = [m for m in rows[0] if m == "frontier-only" or m.startswith("sfe")
+                   or is_reference(m)]
+        refs = "; reference policies: one deterministic episode per question" * any(
+            is_reference(m) for m in methods)
         notes.append(f"- `{label}`: {len(rows)} questions in houses "
                      f"{', '.join(map(str, sorted({r['house'] for r in rows})))} x {a['repeats']} "
-                     f"explorer seeds; code {run.get('code_version', 'not recorded')}")
-        base = method_summary(rows, "frontier-only")["steps"]
-        methods = [m for m in rows[0] if m == "frontier-only" or m.startswith("sfe")]
+                     f"explorer seeds{refs}; code {run.get('code_version', 'not recorded')}")
+        base = (method_summary(rows, "frontier-only", a["to_budget"])["steps"]
+                if "frontier-only" in methods else None)
         for m in methods:
-            f = method_summary(rows, m)
-            fewer = "" if m == "frontier-only" else f"{1 - f['steps'] / base:.0%}"
-            asked = "" if m == "frontier-only" else f"{f['asked']:.0%}"
-            cover = f"{f['coverage']:.1%}" if a["to_budget"] else "(episodes end at first sight)"
+            f = method_summary(rows, m, a["to_budget"])
+            ref = is_reference(m)
+            fewer = "" if m == "frontier-only" or base is None else f"{1 - f['steps'] / base:.0%}"
+            asked = "" if m == "frontier-only" or ref else f"{f['asked']:.0%}"
+            cover = ("" if ref else f"{f['coverage']:.1%}" if a["to_budget"]
+                     else "(episodes end at first sight)")
+            explored = "" if ref else f"{f['explored_n']}/{f['episodes']}"
             print(f"| {label} | {m} | {f['steps']:.2f} (x{f['x_oracle']:.2f}) | {f['never']:.1%} "
-                  f"| {cover} | {fewer} | {asked} | {f['refused']:.1%} |")
+                  f"| {cover} | {fewer} | {asked} | {f['refused']:.1%} | x{f['x_oracle_q']:.2f} "
+                  f"| {explored} |")
     print("\n" + "\n".join(notes))
 
 
@@ -368,14 +448,22 @@ def _steps(row: dict, method: str) -> np.ndarray:
                     float)
 
 
+def is_reference(method: str) -> bool:
+    return method.startswith("reference:")
+
+
 def steering_method(name: str) -> str:
-    """"frontier-only" or "sfe:SCORER" ("sfe" is "sfe:oracle"); an unknown scorer is an error."""
+    """"frontier-only", "sfe:SCORER" ("sfe" is "sfe:oracle") or "reference:POLICY" (a
+    reference policy of reference_policies.py); an unknown one is an error."""
     if name == "frontier-only":
         return name
     explorer, _, scorer = name.partition(":")
+    if explorer == "reference" and scorer in REFERENCE_POLICIES:
+        return name
     if explorer != "sfe" or (scorer or "oracle") not in STEERING_SCORERS:
-        raise SystemExit(f"unknown steering method {name!r}: frontier-only or sfe:SCORER with "
-                         f"SCORER one of {', '.join(STEERING_SCORERS)}")
+        raise SystemExit(f"unknown steering method {name!r}: frontier-only, sfe:SCORER with "
+                         f"SCORER one of {', '.join(STEERING_SCORERS)}, or reference:POLICY "
+                         f"with POLICY one of {', '.join(REFERENCE_POLICIES)}")
     return f"sfe:{scorer or 'oracle'}"
 
 
@@ -412,12 +500,15 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
     row: dict = {"id": q.id, "house": seed, "category": q.category, "oracle": q.oracle_steps,
                  "budget": budget, "reachable": distance_m.reachable}
     for name in methods:
+        if is_reference(name):
+            row[name] = _reference(env, q, name.partition(":")[2], budget, distance_m)
+            continue
         scorer = (None if name == "frontier-only"
                   else STEERING_SCORERS[name.partition(":")[2]](env, q, distance_m, glimpsed))
         explorer = name.partition(":")[0]
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
                                                 "moves", "refused", "lost", "asked", "points",
-                                                "off_floor", "uninformed")}
+                                                "off_floor", "uninformed", "explored")}
         for r in range(repeats):
             ep = run(env, explorer, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
                      coverage=True, distance_m=distance_m, to_budget=to_budget,
@@ -427,10 +518,25 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
             got["near"].append(ep.first_near or ep.first_seen or budget + 1)
             got["coverage"].append(ep.coverage[-1] if ep.coverage else 0.0)
             got["steps"].append(ep.steps)
-            for k in ("moves", "refused", "lost", "asked", "points", "off_floor", "uninformed"):
+            for k in ("moves", "refused", "lost", "asked", "points", "off_floor", "uninformed",
+                      "explored"):
                 got[k].append(getattr(ep, k))
         row[name] = got
     return row
+
+
+def _reference(env: SyntheticEnv, q: Question, policy: str, budget: int,
+               distance_m: EvidenceDistance) -> dict:
+    """One episode of a reference policy (deterministic), in the row format of the explorers'
+    (lists of one) with its own counts beside."""
+    ep = run_policy(env, q, policy, budget, near=distance_m, near_m=NEAR_M)
+    return {"first_seen": [ep.first_seen],
+            "near": [ep.first_near or ep.first_seen or budget + 1],
+            "steps": [ep.steps], "moves": [ep.moves], "turns": [ep.turns],
+            "refused": [ep.refused], "lost": [0], "approaches": [ep.approaches],
+            "first_glimpse": [ep.first_glimpse], "metres": [round(ep.metres, 2)],
+            "rooms_entered": [ep.rooms_entered], "doors_seen": [ep.doors_seen],
+            "stop": [ep.stop], "trace": [ep.trace]}
 
 
 def main() -> None:
@@ -447,14 +553,20 @@ def main() -> None:
                         help="steering houses: 'held-out' (2000-2999, never tuned on; report "
                              "these), 'training' (0-20, the development houses), or seeds such "
                              "as '0-9'")
+    parser.add_argument("--split", type=int, default=0, metavar="N",
+                        help="steering: the questions with evidence among the first N of the "
+                             "synthetic split (the main table's: --split 48) instead of --seeds")
     parser.add_argument("--per-house", type=int, default=3,
                         help="steering: at most this many questions per house")
     parser.add_argument("--to-budget", action=argparse.BooleanOptionalAction, default=True,
                         help="steering: run every episode to its budget (floor coverage at the "
                              "budget), recording when the evidence was first in view")
     parser.add_argument("--methods", default="frontier-only,sfe:oracle",
-                        help="steering: comma-separated; frontier-only comes first, then "
-                             "sfe:SCORER with SCORER one of " + ", ".join(STEERING_SCORERS))
+                        help="steering: comma-separated; frontier-only comes first (unless "
+                             "only reference policies are asked for), then sfe:SCORER with "
+                             "SCORER one of " + ", ".join(STEERING_SCORERS) + ", and "
+                             "reference:POLICY with POLICY one of "
+                             + ", ".join(REFERENCE_POLICIES))
     parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                         help="override a field of the explorer's config (repeatable), e.g. "
                              "--set backoff_m=1.0")
