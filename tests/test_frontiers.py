@@ -9,6 +9,7 @@ import pytest
 
 from efficienteqa.explore.frontiers import (
     FrontierConfig,
+    boundary_groups,
     close_and_facing,
     cluster,
     extract_frontiers,
@@ -198,3 +199,45 @@ def test_penalty_applies_in_frontier_weights():
     far = Pose2D(f.xy[0], f.xy[1] - 0.6, math.pi / 2)
     w_near, w_far = frontier_weights(s, [f], near, None, 1), frontier_weights(s, [f], far, None, 1)
     assert w_near[0] / w_far[0] == pytest.approx(1e-3 * math.exp(0.2 / 10))
+
+
+def slanted_state() -> MapState:
+    """A room whose unexplored part lies above a boundary of slope 1/3 (one row up per three
+    columns), with an explored cell off the island where each stair step starts, as the edge
+    of a view wedge leaves it: only the first cell of each step has 3 unexplored neighbours."""
+    ny, nx = 20, 60
+    i, j = np.mgrid[:ny, :nx]
+    return walled_state(ny, nx, j >= 3 * i - 1, free=j >= 3 * i)
+
+
+def test_a_slanted_boundary_is_one_frontier_not_noise():
+    """Issue 24 item 5: the explorer reported "no frontier left" with rooms unexplored (houses
+    19 and 2000 of the exploration benchmark), since every frontier cell of such a boundary
+    is isolated and DBSCAN dropped them all."""
+    s = slanted_state()
+    cells = frontier_cells(s.island, s.unexplored)
+    assert sorted(map(tuple, cells)) == [(k, 3 * k) for k in range(1, 19)]  # 3 columns apart
+    assert cluster(cells) == []  # all noise for DBSCAN
+    assert extract_frontiers(s, FrontierConfig(isolated_along_boundary=False)) == []  # SPEC
+    (f,) = extract_frontiers(s)
+    assert f.size == 18
+    assert f.normal[0] < 0 < f.normal[1]  # up and to the left: the unexplored side
+
+
+def test_a_cell_alone_on_its_stretch_of_boundary_stays_noise():
+    explored = np.ones((12, 20), dtype=bool)
+    explored[10, 1:15] = False  # a strip along the top wall: 12 frontier cells below it
+    explored[1, 16:19] = False  # a 3-cell notch against the bottom wall: one frontier cell
+    s = walled_state(12, 20, explored)
+    cells = frontier_cells(s.island, s.unexplored)
+    assert (2, 17) in set(map(tuple, cells)) and len(cells) == 13
+    (f,) = extract_frontiers(s)
+    assert f.size == 12 and f.cell[0] == 9
+
+
+def test_boundary_groups_follow_the_boundary_not_the_distance():
+    s = slanted_state()
+    cells = np.array([[1, 3], [18, 54], [5, 40]])  # two far apart on the boundary, one inside
+    (group,) = boundary_groups(cells, s.island, s.unexplored)
+    assert group.tolist() == [0, 1]
+    assert boundary_groups(cells, s.island, s.unexplored, members=np.array([0, 2])) == []
