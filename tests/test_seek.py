@@ -77,8 +77,8 @@ def _seen(category: str, where: str | None = None, carries: str | None = None,
 
 
 class _Describer:
-    def __init__(self, objects, things=()):
-        self.d = FrameDescription("", None, tuple(objects), ())
+    def __init__(self, objects, things=(), room=None):
+        self.d = FrameDescription("", room, tuple(objects), ())
         self.things = tuple(things)
 
     def describe(self, obs):
@@ -88,8 +88,8 @@ class _Describer:
         return Sightings({}, self.things)
 
 
-def _gate(question, objects, things=()):
-    return RulesGate(_Describer(objects, things)).check(question, parse_question(question),
+def _gate(question, objects, things=(), room=None):
+    return RulesGate(_Describer(objects, things, room)).check(question, parse_question(question),
                                                        None, "")  # type: ignore[arg-type]
 
 
@@ -105,9 +105,11 @@ def test_the_gate_wants_the_count_group_and_its_whole_support_in_the_frame():
     table = Sighting("table", (0.0, 0.0), 0.8, 4000, False, "dining room")
     chair = Sighting("chair", (1.0, 0.0), 0.9, 800, False, "dining room")
     objects = [_seen("table", iid=1), _seen("chair", iid=2)]
-    assert _gate(q, objects, [table, chair]).ok
-    assert not _gate(q, objects, [Sighting("table", (0, 0), 0.8, 4000, True, None), chair]).ok
-    assert not _gate(q, [_seen("table")], [table]).ok
+    assert _gate(q, objects, [table, chair], room="dining room").ok
+    assert not _gate(q, objects, [table, chair], room="hallway").ok  # through a doorway
+    assert not _gate(q, objects, [Sighting("table", (0, 0), 0.8, 4000, True, None), chair],
+                     room="dining room").ok
+    assert not _gate(q, [_seen("table")], [table], room="dining room").ok
 
 
 def test_the_gate_wants_the_object_of_a_state_question():
@@ -197,3 +199,23 @@ def test_a_no_question_ends_once_its_room_is_searched(house4):
     assert [r.decision for r in steered.records].count("look around") >= 2
     plain, _ = _walk(env, q, "none")
     assert plain.stop_reason != "searched"
+
+
+def test_the_count_gate_wants_every_member_seen_around_the_support_so_far():
+    q = "How many chairs are around the table in the dining room?"
+    table = Sighting("table", (0.0, 0.0), 0.8, 4000, False, "dining room")
+    chairs = [Sighting("chair", (x, 0.9), 0.9, 800, False, "dining room") for x in (-1.0, 0.0, 1.0)]
+    far = Sighting("chair", (5.0, 5.0), 0.9, 800, False, "dining room")  # another table's
+    gate = RulesGate(_Describer([_seen("table", iid=1), _seen("chair", iid=2)],
+                                room="dining room"))
+    target = parse_question(q)
+
+    def frame(things):
+        gate.perception.things = tuple(things)  # type: ignore[attr-defined]
+        return gate.check(q, target, None, "")  # type: ignore[arg-type]
+
+    assert frame([table, *chairs, far]).ok  # all three around the table
+    assert not frame([table, *chairs[:2]]).ok  # two of the three seen so far
+    assert frame([table, *chairs]).ok
+    gate.reset()
+    assert frame([table, chairs[0]]).ok  # a new episode: one seen, one shown

@@ -266,6 +266,8 @@ class Agent:
         sightings = (getattr(self.perception, "sightings", None)
                      if isinstance(explorer, Steered) else None)
         gate = self.gate if cfg.gate != "none" else None
+        if gate is not None:
+            gate.reset()
         frames: dict[int, str | np.ndarray] = {}  # flagged frames the gate may still judge
         retries = REFUSAL_RETRIES if cfg.refusal_retries is None else cfg.refusal_retries
         stopper = RelevancyStopper(cfg.stop)

@@ -38,6 +38,9 @@ if TYPE_CHECKING:
 # "auto": rules where the perception describes objects (the semantic sensor), else model.
 GATES = ("auto", "none", "rules", "model")
 BESIDE_M, BESIDE_DEG = 0.5, 15.0  # an item this close to a surface in depth and bearing is on it
+BESIDE_SHARE = 4  # ... when its pixels are at most a quarter of the surface's (not a TV on a stand)
+GROUP_M = 1.6  # a count group's member stands this close to its support ("around the table")
+SAME_M = 0.4  # sightings of a member this close are one member
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,9 @@ class Verdict:
 class AnswerGate(Protocol):
     name: str
     eager: bool  # cheap: judge every frame (else only the frames the stop rule flags)
+
+    def reset(self) -> None:
+        """Start a new episode."""
 
     def check(self, question: str, target: Target, obs: Observation,
               frame: str | np.ndarray) -> Verdict: ...
@@ -70,6 +76,11 @@ class RulesGate:
 
     def __init__(self, perception: Describer) -> None:
         self.perception = perception
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the count groups of the last episode."""
+        self._members: list[tuple[float, float]] = []  # group members seen near the support
 
     def check(self, question: str, target: Target, obs: Observation,
               frame: str | np.ndarray) -> Verdict:
@@ -92,21 +103,45 @@ class RulesGate:
             group = [o for o in shown if target.object and names(target.object, o.label.category)]
             if not group:
                 return Verdict(False, f"no {target.object} in view")
+            if room is not None and d.room != room:  # a doorway cuts a group: count from inside
+                return Verdict(False, f"{target.object} seen from outside the {room}")
             if target.support:
                 seen = self.perception.sightings(obs, target)
                 support = [s for s in seen.things if names(target.support, s.category)]
                 if not support or any(s.cut for s in support):
                     return Verdict(False, f"{target.support} not wholly in view")
+                members = [s.xy for s in seen.things if names(target.object or "", s.category)
+                           and any(_near(s.xy, b.xy, GROUP_M) for b in support)]
+                shown_now = _merge([], members)
+                self._members = _merge(self._members, members)
+                if len(shown_now) < len(self._members):
+                    return Verdict(False, f"{len(shown_now)} of the {len(self._members)} "
+                                          f"{target.object} seen around the {target.support}")
             return Verdict(True, f"{len(group)} {target.object} in view")
         thing = target.object or target.support or ""
         hits = [o for o in shown if names(thing, o.label.category)]
         return Verdict(bool(hits), f"{thing} {'in view' if hits else 'not in view'}")
 
 
+def _near(a: tuple[float, float], b: tuple[float, float], within_m: float) -> bool:
+    return (a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2 <= within_m ** 2
+
+
+def _merge(known: list[tuple[float, float]], new: list[tuple[float, float]]
+           ) -> list[tuple[float, float]]:
+    """``known`` plus the points of ``new`` farther than SAME_M from all of them."""
+    out = list(known)
+    for p in new:
+        if not any(_near(p, q, SAME_M) for q in out):
+            out.append(p)
+    return out
+
+
 def _beside(item: VisibleObject, surface: VisibleObject) -> bool:
-    """A smaller object at the surface's distance and bearing: on it, or on one of its shelves,
-    where the frame's support test cannot tell (a vase inside a bookshelf)."""
-    return (item is not surface and item.label.door is None and item.pixels < surface.pixels
+    """A much smaller object at the surface's distance and bearing: on it, or on one of its
+    shelves, where the frame's support test cannot tell (a vase inside a bookshelf)."""
+    return (item is not surface and item.label.door is None
+            and item.pixels * BESIDE_SHARE < surface.pixels
             and abs(item.distance_m - surface.distance_m) <= BESIDE_M
             and abs(item.bearing_deg - surface.bearing_deg) <= BESIDE_DEG)
 
@@ -120,6 +155,9 @@ class ModelGate:
 
     def __init__(self, match: VLMMatchScorer) -> None:
         self.match = match
+
+    def reset(self) -> None:
+        pass
 
     def check(self, question: str, target: Target, obs: Observation,
               frame: str | np.ndarray) -> Verdict:
