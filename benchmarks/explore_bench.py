@@ -40,7 +40,11 @@ from efficienteqa.explore.module import ExploreModule, SemanticScorer, move
 from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer, evidence_distance_field
 from efficienteqa.explore.prompting import PAPER_PROMPTS, PromptConfig
 from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, make_explorer
+from efficienteqa.explore.sfe import FrontierExplorer
+from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.mapping.maps2d import Mapper
+from efficienteqa.perception.semantic import SemanticPerception
+from efficienteqa.question import parse_question
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
 
@@ -156,15 +160,21 @@ NEAR_M = 2.0
 def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
         scorer: SemanticScorer | None = None, seen: Callable[[np.ndarray], bool] | None = None,
         coverage: bool = False, distance_m: Callable[[tuple[float, float]], float] | None = None,
-        to_budget: bool = False, question: str = "") -> Episode:
+        to_budget: bool = False, question: str = "", steer: bool = False) -> Episode:
     """One episode of ``budget`` steps at most. It ends when ``seen`` first holds, unless
-    ``to_budget`` (then it goes on, for the coverage at the budget)."""
+    ``to_budget`` (then it goes on, for the coverage at the budget). ``steer``: the frontier
+    explorer steered by the question's target (explore/target.py), reading the semantic
+    perception's sightings."""
     mapper = make_mapper(env)
     extra = {**exploration_options(explorer, EXPLORATION), **EXPLORER_CONFIG}
     if STOP_CLEARANCE is not None:
         extra["stop_clearance_m"] = STOP_CLEARANCE
-    module = ExploreModule(mapper, make_explorer(explorer, **extra), scorer, seed=seed,
-                           prompts=PROMPTS)
+    chosen = make_explorer(explorer, **extra)
+    target = parse_question(question) if steer else None
+    perception = SemanticPerception(env.scene_labels()) if steer else None
+    if steer and isinstance(chosen, FrontierExplorer):
+        chosen = TargetExplorer(chosen)
+    module = ExploreModule(mapper, chosen, scorer, seed=seed, prompts=PROMPTS, target=target)
     floor = truth_floor(env, mapper) if coverage else None
     obs, _ = env.reset()
     ep = Episode()
@@ -178,7 +188,9 @@ def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
             if not to_budget:
                 break
         start = time.perf_counter()
-        out = module.step(obs, step, question)
+        sightings = (perception.sightings(obs, target)
+                     if perception is not None and target is not None else None)
+        out = module.step(obs, step, question, sightings)
         ep.step_ms.append(1e3 * (time.perf_counter() - start))
         if out.prompts:
             ep.asked += 1
@@ -419,7 +431,7 @@ def cmd_table(args: argparse.Namespace) -> None:
         run = json.loads(Path(name).read_text())
         rows, a = run["rows"], run["args"]
         label = Path(name).parent.name
-        methods = [m for m in rows[0] if m == "frontier-only" or m.startswith("sfe")
+        methods = [m for m in rows[0] if m == "frontier-only" or m.startswith(("sfe", "target"))
                    or is_reference(m)]
         refs = "; reference policies: one deterministic episode per question" * any(
             is_reference(m) for m in methods)
@@ -460,11 +472,13 @@ def steering_method(name: str) -> str:
     explorer, _, scorer = name.partition(":")
     if explorer == "reference" and scorer in REFERENCE_POLICIES:
         return name
-    if explorer != "sfe" or (scorer or "oracle") not in STEERING_SCORERS:
+    if explorer == "target" and scorer in ("", "frontier-only"):
+        return "target:frontier-only"
+    if explorer not in ("sfe", "target") or (scorer or "oracle") not in STEERING_SCORERS:
         raise SystemExit(f"unknown steering method {name!r}: frontier-only, sfe:SCORER with "
                          f"SCORER one of {', '.join(STEERING_SCORERS)}, or reference:POLICY "
                          f"with POLICY one of {', '.join(REFERENCE_POLICIES)}")
-    return f"sfe:{scorer or 'oracle'}"
+    return f"{explorer}:{scorer or 'oracle'}"
 
 
 def evidence_centre(env: SyntheticEnv, q: Question) -> np.ndarray:
@@ -503,16 +517,18 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
         if is_reference(name):
             row[name] = _reference(env, q, name.partition(":")[2], budget, distance_m)
             continue
-        scorer = (None if name == "frontier-only"
-                  else STEERING_SCORERS[name.partition(":")[2]](env, q, distance_m, glimpsed))
-        explorer = name.partition(":")[0]
+        kind, _, scorer_name = name.partition(":")
+        steer = kind == "target"  # target:SCORER steers SFE by the target; target:frontier-only
+        scorer = (None if "frontier-only" in (name, scorer_name)
+                  else STEERING_SCORERS[scorer_name](env, q, distance_m, glimpsed))
+        explorer = "frontier-only" if scorer is None else "sfe"
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
                                                 "moves", "refused", "lost", "asked", "points",
                                                 "off_floor", "uninformed", "explored")}
         for r in range(repeats):
             ep = run(env, explorer, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
                      coverage=True, distance_m=distance_m, to_budget=to_budget,
-                     question=q.question)
+                     question=q.question, steer=steer)
             got["first_seen"].append(ep.first_seen)
             # Seeing implies having got near enough.
             got["near"].append(ep.first_near or ep.first_seen or budget + 1)

@@ -170,14 +170,14 @@ class SequenceScorer:
 
 
 def test_the_agent_may_stop_at_the_minimum_step_itself(house4):
-    """An outlier at step 10 (the default minimum) stops the episode there: steps count from 1
+    """An outlier at step 10 (the paper's minimum) stops the episode there: steps count from 1
     and "never before step 10" lets step 10 stop."""
     scene, q = house4
     model = StubChatModel(lambda msgs: "A: 50\nworth exploring: no 50"
                           if msgs[-1].text.startswith("You guide") else "black; 90")
     sims = [0.1, 0.2] * 4 + [0.15, 5.0] + [0.1] * 10
     built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"),
-                        AgentConfig(max_steps=14), "test",
+                        AgentConfig(max_steps=14, gate="none", stop=StopConfig()), "test",
                         model=model, relevancy=SequenceScorer(sims))
     r = built.agent.run(scene.env, q.question)
     assert all(rec.valid for rec in r.records)

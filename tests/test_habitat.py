@@ -266,6 +266,7 @@ def test_an_episode_in_a_habitat_scene(standin, tmp_path):
     """The whole agent in the stand-in scene: semantic-sensor perception over the Habitat
     semantic sensor, the stub VLM, and a record naming the Habitat back-end."""
     from efficienteqa.agent import AgentConfig
+    from efficienteqa.stop import StopConfig
     from efficienteqa.ask import ask
     from efficienteqa.models.stub import StubChatModel
     from efficienteqa.relevancy.text import WordOverlapScorer
@@ -278,7 +279,8 @@ def test_an_episode_in_a_habitat_scene(standin, tmp_path):
     with scene.env:
         done = ask("Is there a table?", scene, tmp_path / "out", stack=Stack(grouping="rules"),
                    model=model, relevancy=WordOverlapScorer(),
-                       config=AgentConfig(max_steps=4, answer="paper"))
+                       config=AgentConfig(max_steps=4, answer="paper", gate="none",
+                                          stop=StopConfig()))
     record = done.record
     assert record["backends"]["environment"] == "hm3d (habitat-sim)"
     assert record["scene"] == f"hm3d:{SCENE} (habitat-sim)"

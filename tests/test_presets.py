@@ -10,6 +10,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.presets import PRESETS, apply_preset, build_config, build_stack
 from efficienteqa.stack import Stack
 from efficienteqa.stop import StopConfig
+from efficienteqa.stop.relevancy import GATED_MIN_STEP
 
 NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "top_k": None,
                  "max_steps": None, "seed": None, "explorer": None, "vlm": None,
@@ -17,7 +18,8 @@ NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "t
                  "cache": None, "dataset": None, "limit": None, "env": None, "judge": None,
                  "judge_mode": None, "refusal_retries": None, "stop_clearance_m": None,
                  "prompts": None, "exploration": None, "distinct_views": None, "answer": None,
-                 "answer_probability": None, "token_answer": None}
+                 "answer_probability": None, "token_answer": None, "gate": None,
+                 "steering": None}
 
 
 def test_options_left_out_take_the_dataclass_defaults():
@@ -42,7 +44,7 @@ def test_given_options_reach_the_dataclasses():
 
 def test_no_early_stop_turns_the_stop_off_and_keeps_its_other_values():
     config = build_config({**NOTHING_GIVEN, "no_early_stop": True, "z_th": 2.0})
-    assert config.stop == StopConfig(z_th=2.0, enabled=False)
+    assert config.stop == StopConfig(z_th=2.0, enabled=False, min_step=GATED_MIN_STEP)
 
 
 def test_a_preset_fills_only_what_was_left_out():

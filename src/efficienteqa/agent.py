@@ -51,6 +51,7 @@ from efficienteqa.question import Target, parse_question
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
 from efficienteqa.stop.gate import GATES, AnswerGate
 from efficienteqa.stop.relevancy import (
+    GATED_MIN_STEP,
     PAPER_MIN_STEP,
     RelevancyStopper,
     StopCheck,
@@ -76,7 +77,7 @@ class AgentConfig:
     ("verbalized", black-box) or from token probabilities ("token", white-box)."""
 
     explorer: str = "sfe"  # "sfe" | "frontier-only" | "random"
-    stop: StopConfig = field(default_factory=StopConfig)
+    stop: StopConfig = field(default_factory=lambda: StopConfig(min_step=GATED_MIN_STEP))
     top_k: int = TOP_K
     max_steps: int | None = None
     seed: int = 0

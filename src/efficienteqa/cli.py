@@ -13,7 +13,7 @@ from rich.console import Console
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
-from efficienteqa.stop.relevancy import StopConfig  # light: help texts show its defaults
+from efficienteqa.stop.relevancy import GATED_MIN_STEP, StopConfig  # light: help texts show its defaults
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="EfficientEQA: explore a house, stop early, answer a question.")
@@ -49,7 +49,8 @@ ZTh = Annotated[float | None, typer.Option("--z-th", help="Stop when a frame's r
                                            f"exceeds this (default {StopConfig.z_th:g}).",
                                            show_default=False)]
 MinStopStep = Annotated[int | None, typer.Option(help="Never stop before this step (default "
-                                                 f"{StopConfig.min_step}).", show_default=False)]
+                                                 f"{GATED_MIN_STEP}; the paper's: 10).",
+                                                 show_default=False)]
 StopRuleOpt = Annotated[str | None, typer.Option(
     "--stop-rule", help="paper (SPEC 3.4) | lookback | robust | floor, or parts joined by '+' "
     f"(e.g. lookback+floor); default {StopConfig.rule}.", show_default=False)]

@@ -78,11 +78,10 @@ def build_config(options: Mapping[str, Any]) -> AgentConfig:
     """The agent's knobs: ``AgentConfig`` and ``StopConfig`` fields from the options that are
     set; ``no_early_stop`` turns the relevancy stop off."""
     from efficienteqa.agent import AgentConfig
-    from efficienteqa.stop import StopConfig
 
-    try:
-        stop = StopConfig(**{_STOP_OPTIONS[k]: v
-                             for k, v in given(options, _STOP_OPTIONS).items()})
+    try:  # the agent's own stop defaults, with the options given
+        stop = replace(AgentConfig().stop, **{_STOP_OPTIONS[k]: v
+                                              for k, v in given(options, _STOP_OPTIONS).items()})
     except ValueError as exc:  # e.g. --stop-rule bogus
         raise EfficientEQAError(str(exc), fix="see efficienteqa ask --help") from None
     if options.get("no_early_stop"):

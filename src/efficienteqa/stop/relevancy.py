@@ -32,9 +32,10 @@ import numpy as np
 
 Z_TH = 3.0
 PAPER_MIN_STEP = 10  # SPEC 3.4: never before the 10th step
-# The default's floor: the answerability gate keeps a stop off frames that cannot answer, so
-# the robot may stop from its second step (issue 24). Without a gate, use PAPER_MIN_STEP.
-MIN_STEP = 2
+MIN_STEP = PAPER_MIN_STEP
+# The agent's default floor (agent.AgentConfig.stop): its answerability gate keeps a stop off
+# frames that cannot answer, so the robot may stop from its second step (issue 24).
+GATED_MIN_STEP = 2
 STEPS_PER_SQRT_M2 = 3
 SIGMA_FLOOR = 0.1  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
 MAD_TO_SIGMA = 1.4826  # 1 / 0.6745: MAD of a normal sample -> its standard deviation
