@@ -266,12 +266,12 @@ def test_an_episode_in_a_habitat_scene(standin, tmp_path):
     """The whole agent in the stand-in scene: semantic-sensor perception over the Habitat
     semantic sensor, the stub VLM, and a record naming the Habitat back-end."""
     from efficienteqa.agent import AgentConfig
-    from efficienteqa.stop import StopConfig
     from efficienteqa.ask import ask
     from efficienteqa.models.stub import StubChatModel
     from efficienteqa.relevancy.text import WordOverlapScorer
     from efficienteqa.scenes import open_scene
     from efficienteqa.stack import Stack
+    from efficienteqa.stop import StopConfig
 
     model = StubChatModel(lambda msgs: "A: 80\nworth exploring: yes 70"
                           if msgs[-1].text.startswith("You guide") else "yes; 90\nno; 10")
