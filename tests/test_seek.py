@@ -219,3 +219,17 @@ def test_the_count_gate_wants_every_member_seen_around_the_support_so_far():
     assert frame([table, *chairs]).ok
     gate.reset()
     assert frame([table, chairs[0]]).ok  # a new episode: one seen, one shown
+
+
+@pytest.mark.parametrize("reply,ok", [("yes 80", True), ("no 90", False), ("N/A", False)])
+def test_the_model_gate_is_one_yes_no_call_and_an_unreadable_reply_does_not_pass(reply, ok):
+    from efficienteqa.models.stub import StubChatModel
+    from efficienteqa.relevancy.vlm_match import VLMMatchScorer
+    from efficienteqa.stop.gate import ModelGate
+
+    model = StubChatModel([reply])
+    gate = ModelGate(VLMMatchScorer(model, "image"))
+    q = "What is on the nightstand in the bedroom?"
+    verdict = gate.check(q, parse_question(q), None, np.zeros((4, 4, 3), np.uint8))  # type: ignore[arg-type]
+    assert verdict.ok is ok and len(model.requests) == 1
+    assert len(model.requests[0].messages[-1].images) == 1  # the frame itself, not its text

@@ -124,12 +124,17 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
     text_perception = backends.get("perception") == "semantic-sensor"
     model = record["model"]
 
+    target = record.get("target") or {}
     outcome = [("answer confidence", f"{record['confidence']:.2f}"),
                ("steps", f"{record['steps']} of a budget of {record['budget']}"
                 + (f" (oracle: {record['oracle_steps']})" if record.get("oracle_steps") else "")),
                ("stop reason", record["stop_reason"])]
     if ref.get("answer"):
         outcome.append(("reference answer", ref["answer"]))
+    if target.get("kind") not in (None, "other"):
+        outcome.append(("the question's target", ", ".join(
+            f"{k} {', '.join(v) if isinstance(v, list) else v}" for k, v in target.items()
+            if v)))
     outcome += [("scene", record["scene"]),
                 ("wall time", f"{record['timing']['wall_s']:.1f} s "
                  f"({record['timing']['per_step_s']:.2f} s per step, answer "
@@ -165,6 +170,10 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
             caption += " · LSV " + " ".join(f"{k}={v:.2f}" for k, v in s["lsv"].items())
         if s["gsv"] is not None:
             caption += f" · GSV {s['gsv']:.2f}"
+        if s.get("decision"):
+            caption += f" · {s['decision']}"
+        if s.get("gate"):
+            caption += f" · gate: {s['gate']['why']}"
         parts.append(_figure(s["step"], frames, descriptions, caption,
                              "hit" if s["step"] in retrieved else ""))
     parts += ["</div>", f"<h2>Model exchanges ({model['calls']})</h2>"]
