@@ -8,7 +8,9 @@ them, so the figures stay readable once the heavy episode folders are gone.
 
 Measures (questions with evidence unless said otherwise; the oracle's step counts are the
 synthetic split's): first sight / oracle (never seen counted as budget + 1), evidence never seen
-before the stop, relevancy stops whose frame shows the evidence, first sight to stop (relevancy
+before the stop, relevancy stops whose tested frame shows the evidence (the stop frame, or
+under look-back the earlier frame it stopped for; runs recorded before ``tested_step`` existed
+count the stop frame), first sight to stop (relevancy
 stops that saw it), steps / oracle, and for "no" questions (nothing to see) their relevancy
 stops and mean steps. The evidence is "seen" when every evidence object has at least 250 px.
 """
@@ -28,10 +30,13 @@ def measures(run: Path) -> dict[str, Any]:
             if line.strip()]
     rows = [r for r in rows if r.get("status") == "done"]
     seen_steps: dict[str, list[int]] = {}
+    tested: dict[str, int] = {}  # the frame the stop tested (look-back: maybe an earlier one)
     for r in rows:
         path = run / "episodes" / r["id"].replace("/", "__") / "episode.json"
         if path.is_file():
-            seen_steps[r["id"]] = json.loads(path.read_text()).get("evidence_seen_steps") or []
+            ep = json.loads(path.read_text())
+            seen_steps[r["id"]] = ep.get("evidence_seen_steps") or []
+            tested[r["id"]] = ep["per_step"][-1].get("tested_step") or r["steps"]
     has = [r for r in rows if r.get("oracle_steps")]
     no = [r for r in rows if r["category"] == "existence" and not r.get("oracle_steps")]
     oracle = float(np.mean([r["oracle_steps"] for r in has]))
@@ -50,7 +55,7 @@ def measures(run: Path) -> dict[str, Any]:
         "never_seen_before_stop": sum(r["evidence_first_seen_step"] is None
                                       or r["evidence_first_seen_step"] > r["steps"] for r in has),
         "relevancy_stops": len(stops),
-        "stops_showing_evidence": (sum(r["steps"] in seen_steps[r["id"]] for r in known)
+        "stops_showing_evidence": (sum(tested[r["id"]] in seen_steps[r["id"]] for r in known)
                                    if known else None),
         "stops_with_frames_known": len(known),
         "sight_to_stop_mean": float(np.mean(waits)) if waits else None,

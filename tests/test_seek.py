@@ -3,6 +3,8 @@ eligible-frame stop and the target steering (issue 24)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -71,9 +73,13 @@ def test_under_the_papers_rule_an_ineligible_outlier_does_not_stop():
 
 # ----- the rules gate ------------------------------------------------------------------------
 def _seen(category: str, where: str | None = None, carries: str | None = None,
-          iid: int = 1) -> VisibleObject:
-    return VisibleObject(iid, ObjectLabel(category, "brown", None, None), 500, (320.0, 240.0),
-                         0.0, "ahead", 2.0, where=where, carries=carries)
+          iid: int = 1, pixels: int = 5000, on: str | None = None) -> VisibleObject:
+    return VisibleObject(iid, ObjectLabel(category, "brown", None, None), pixels, (320.0, 240.0),
+                         0.0, "ahead", 2.0, where=where, on=on, carries=carries)
+
+
+class _Frame:  # what the gate reads of an observation: its size
+    depth_m = np.zeros((480, 640), np.float32)
 
 
 class _Describer:
@@ -90,14 +96,17 @@ class _Describer:
 
 def _gate(question, objects, things=(), room=None):
     return RulesGate(_Describer(objects, things, room)).check(question, parse_question(question),
-                                                       None, "")  # type: ignore[arg-type]
+                                                             _Frame(), "")  # type: ignore[arg-type]
 
 
 def test_the_gate_wants_what_stands_on_the_surface_not_the_surface():
     q = "What is on the nightstand in the bedroom?"
+    stand = _seen("nightstand", "in the bedroom", carries="a desk lamp")
+    lamp = _seen("desk lamp", "in the bedroom", iid=2, pixels=400, on="the brown nightstand")
     assert not _gate(q, [_seen("nightstand", "in the bedroom")]).ok
-    assert _gate(q, [_seen("nightstand", "in the bedroom", carries="a desk lamp")]).ok
-    assert not _gate(q, [_seen("nightstand", "in the office", carries="a desk lamp")]).ok
+    assert _gate(q, [stand, lamp]).ok
+    assert not _gate(q, [stand, replace(lamp, pixels=100)]).ok  # too small to name: go closer
+    assert not _gate(q, [replace(stand, where="in the office"), lamp]).ok
 
 
 def test_the_gate_wants_the_count_group_and_its_whole_support_in_the_frame():
@@ -212,7 +221,7 @@ def test_the_count_gate_wants_every_member_seen_around_the_support_so_far():
 
     def frame(things):
         gate.perception.things = tuple(things)  # type: ignore[attr-defined]
-        return gate.check(q, target, None, "")  # type: ignore[arg-type]
+        return gate.check(q, target, _Frame(), "")  # type: ignore[arg-type]
 
     assert frame([table, *chairs, far]).ok  # all three around the table
     assert not frame([table, *chairs[:2]]).ok  # two of the three seen so far

@@ -6,11 +6,14 @@ bookshelf?" scores as high on a view of the bookshelf from 3 m, where the book o
 pixels, as on a view that shows the book. The gate asks whether the frame answers:
 
 - ``rules`` (text perceptions that describe objects, the offline default): the question's target
-  (``question.Target``) is in the frame's description: the support with something on it for
-  "What is on the X?" (or a smaller object at its distance and bearing, on a shelf the
-  description's support test misses), the object for state, colour, location and existence questions, the
-  object and its support with neither cut by the frame's edge for count questions; in the room
-  the question names when the frame names one. A question whose target the parse cannot read
+  (``question.Target``) is in the frame's description, in the room the question names when the
+  frame names one:
+  - "What is on the X?": something on X (or a much smaller object at X's distance and bearing,
+    on a shelf the description's support test misses), at least ITEM_PIXELS large;
+  - count questions: the object and its support, seen from inside the named room, the support
+    not cut by the frame's edge, and every member seen so far around it (in any frame of the
+    episode) in this frame;
+  - state, colour, location and existence questions: the object. A question whose target the parse cannot read
   passes (relevancy decides alone).
 - ``model`` (any perception, images included): one yes/no call to the chat model, "can the
   question be answered from this view?", passing at P(yes) > 0.5; an unreadable reply does not
@@ -39,6 +42,7 @@ if TYPE_CHECKING:
 GATES = ("auto", "none", "rules", "model")
 BESIDE_M, BESIDE_DEG = 0.5, 15.0  # an item this close to a surface in depth and bearing is on it
 BESIDE_SHARE = 4  # ... when its pixels are at most a quarter of the surface's (not a TV on a stand)
+ITEM_PIXELS = 250  # at 640x480: what stands on the surface this large (the oracle's "in view")
 GROUP_M = 1.6  # a count group's member stands this close to its support ("around the table")
 SAME_M = 0.4  # sightings of a member this close are one member
 
@@ -96,9 +100,15 @@ class RulesGate:
         if target.kind == "identification":
             surfaces = [o for o in shown
                         if target.support and names(target.support, o.label.category)]
-            held = [b for b in surfaces if b.carries or any(_beside(o, b) for o in d.objects)]
-            return Verdict(bool(held), f"{target.support} with something on it"
-                           + ("" if held else " not in view"))
+            items = [o for b in surfaces for o in d.objects
+                     if (o.on and b.label.category.lower() in o.on.lower()) or _beside(o, b)]
+            if not items:
+                return Verdict(False, f"{target.support} with something on it not in view")
+            h, w = obs.depth_m.shape
+            least = max(1, round(ITEM_PIXELS * h * w / (640 * 480)))
+            if max(o.pixels for o in items) < least:  # too small to name: go closer first
+                return Verdict(False, f"what is on the {target.support} is too small")
+            return Verdict(True, f"{target.support} with something on it")
         if target.kind == "count":
             group = [o for o in shown if target.object and names(target.object, o.label.category)]
             if not group:
