@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from html.parser import HTMLParser
 from pathlib import Path
 
@@ -30,7 +30,8 @@ BACKENDS = {"environment": "synthetic-builtin", "perception": "semantic-sensor",
 def manifest(method: str = "efficienteqa", dataset: str = "synthetic", *, z_th: float = 3.0,
              top_k: int = 5, questions: int = 5) -> dict:
     return {"method": method, "dataset": dataset, "closed_set": False,
-            "config": asdict(AgentConfig(top_k=top_k, stop=StopConfig(z_th=z_th))),
+            "config": asdict(AgentConfig(top_k=top_k,
+                                         stop=replace(AgentConfig().stop, z_th=z_th))),
             "stack": {"vlm": "local:qwen2.5-coder-1.5b", "perception": "semantic", "relevancy": "minilm",
                       "grouping": "llm", "cache": True},
             "judge": "local:qwen2.5-coder-1.5b", "assets": "builtin", "questions": questions,
@@ -124,8 +125,6 @@ def test_labels_name_the_ablation_values_and_stay_distinct():
 
 
 def test_the_papers_configuration_is_named_so_and_a_change_to_it_is_named_on_top():
-    from dataclasses import replace
-
     from efficienteqa.agent import PAPER_CONFIG
 
     def run(config: AgentConfig, scorer: str = "vlm") -> str:
@@ -137,7 +136,8 @@ def test_the_papers_configuration_is_named_so_and_a_change_to_it_is_named_on_top
     assert run(PAPER_CONFIG) == "efficienteqa paper configuration"
     assert run(replace(PAPER_CONFIG, top_k=10)) == "efficienteqa paper configuration K=10"
     # Without the VLM's semantic values it is not the paper's configuration: every setting shown.
-    assert run(PAPER_CONFIG, "direction-logit").startswith("efficienteqa refusal_retries=0")
+    assert run(PAPER_CONFIG, "direction-logit").startswith(
+        "efficienteqa gate=none steering=none refusal_retries=0")
     assert "rule=robust" in run(replace(PAPER_CONFIG, stop=StopConfig(rule="robust")))
     assert run(AgentConfig()) == "efficienteqa"
 
