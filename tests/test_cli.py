@@ -50,6 +50,24 @@ def test_ask_with_a_bad_scene_start_or_model_is_one_line():
         assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
 
 
+@pytest.mark.parametrize("command", ["ask", "eval"])
+def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
+    """Checked before any scene is built or any episode explored (issue 25 item 1, issue 26)."""
+    import os
+
+    question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
+    for args, message in ((["--top-k", "0"], "top_k must be at least 1"),
+                          (["--z-th", "nan"], "z_th must be a finite number"),
+                          (["--relevancy", "bogus"], "unknown relevancy scorer 'bogus'"),
+                          (["--perception", "rgb", "--vlm", "openai:gpt-4o"],
+                           "use --relevancy vlm-match")):
+        result = _run(command, *question, *args, "--out", str(tmp_path / "out"),
+                      env={**os.environ, "OPENAI_API_KEY": "sk-test"})
+        assert result.returncode == 1, (args, result.stdout, result.stderr)
+        assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
+        assert not (tmp_path / "out").exists()  # nothing was run
+
+
 def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
     """``--preset paper``: HM-EQA's first 100 in Habitat-Sim with GPT-4o at T = 1, BLIP-2 and
     Z_th 3; an option given on the command line wins. Without Habitat-Sim the run stops before

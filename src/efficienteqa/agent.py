@@ -124,6 +124,8 @@ class AgentConfig:
     steering: str = "target"
 
     def __post_init__(self) -> None:
+        if self.top_k < 1:
+            raise ValueError(f"top_k must be at least 1, not {self.top_k}")
         if self.steering not in STEERINGS:
             raise ValueError(f"steering must be one of {STEERINGS}, not {self.steering!r}")
         if self.gate not in GATES:

@@ -183,12 +183,13 @@ def ask_command(
     from efficienteqa.envs.habitat.scenes import HabitatStart
     from efficienteqa.presets import apply_preset, build_config, build_stack
     from efficienteqa.scenes import open_scene
-    from efficienteqa.stack import parse_vlm
+    from efficienteqa.stack import check_stack, parse_vlm
     from efficienteqa.stop import step_budget
 
     o = apply_preset(preset, ctx.params)
     config, stack = build_config(o), build_stack(o)
     # Bad input fails before the scene is built.
+    check_stack(stack)
     parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
     start_pose, habitat_start, reference = _parse_start(start), None, None
     if episode is not None:
@@ -332,11 +333,13 @@ def eval_command(
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
     from efficienteqa.presets import apply_preset, build_config, build_stack, given
-    from efficienteqa.stack import parse_vlm
+    from efficienteqa.stack import check_stack, parse_vlm
 
     o = apply_preset(preset, ctx.params)
     resolve(method)  # bad input fails before anything slow
     stack = build_stack(o)
+    check_stack(stack)
+    build_config(o)  # a value the agent refuses (--top-k 0, --z-th nan): here, not per episode
     parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
     dataset = o["dataset"] or "synthetic"
     if closed_set and dataset != "hm-eqa":

@@ -29,7 +29,7 @@ from efficienteqa.models.base import ChatModel
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
 from efficienteqa.registry import Registry
-from efficienteqa.relevancy.base import RelevancyScorer, make_scorer
+from efficienteqa.relevancy.base import SCORERS, RelevancyScorer, make_scorer
 from efficienteqa.stop.gate import AnswerGate, ModelGate, RulesGate
 from efficienteqa.vc.grouping import Grouper, LLMGrouper, RuleGrouper
 from efficienteqa.vc.parse import M
@@ -68,6 +68,28 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
                                 fix="use e.g. --temperature 1 (the paper's) or leave it out (0)")
     return ChatBackend(kind=kind, model=model, base_url=url or None, images=images, cache=cache,
                        temperature=temperature)
+
+
+# Relevancy scorers that read a frame's description, and the ones that need no weights of their
+# own: known by name, so a stack that cannot work is refused before any scene is built.
+TEXT_RELEVANCY = ("minilm", "minilm-match", "overlap")
+
+
+def check_stack(stack: Stack) -> None:
+    """One clear error for a stack that cannot run, before anything slow: an unknown perception
+    or relevancy scorer, or a text relevancy scorer with a perception that gives images."""
+    if stack.perception not in PERCEPTIONS:
+        raise EfficientEQAError(f"unknown perception {stack.perception!r}",
+                                fix=f"use one of {', '.join(PERCEPTIONS.names())}")
+    known = (*SCORERS.names(), "vlm-match")
+    if stack.relevancy not in known:
+        raise EfficientEQAError(f"unknown relevancy scorer {stack.relevancy!r}",
+                                fix=f"use one of {', '.join(known)}")
+    if stack.relevancy in TEXT_RELEVANCY and stack.perception == "rgb":
+        raise EfficientEQAError(
+            f"relevancy scorer {stack.relevancy!r} reads text, but --perception rgb gives images",
+            fix="use --relevancy vlm-match (the VLM judges each frame) or blip2-itm (BLIP-2 "
+                "weights), or --perception semantic")
 
 
 def _semantic(env: Environment, **_: Any) -> Perception:

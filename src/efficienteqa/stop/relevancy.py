@@ -111,6 +111,9 @@ class StopConfig:
 
     def __post_init__(self) -> None:
         rule_parts(self.rule)  # raises on an unknown name
+        for name in ("z_th", "z_gated", "sigma_floor", "sim_abs"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name} must be a finite number, got {getattr(self, name)}")
 
 
 @dataclass(frozen=True)
