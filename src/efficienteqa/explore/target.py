@@ -10,15 +10,19 @@ takes these steps before any frontier, first that applies:
    count, the object otherwise) that the robot has not yet stood before: go to a pose
    ``inspect_m`` from it (further for count groups, and for things above the tilted view) and
    face it; once.
-2. **look around**: on entering the named room, turn twice by 120 degrees (a step each), so the
-   room is seen whole; the room is then searched.
+2. **look around**: on entering the named room (after one move towards its middle), turn twice
+   by 120 degrees (a step each), so the room is seen whole; the room is then searched. While
+   the named room is unseen, the robot also looks around in a hallway (``CONNECTORS``), at
+   points ``scan_apart_m`` apart: doorways along it show the rooms they lead to.
 3. **go to the room**: the named room's floor seen (through a doorway, past a hallway) and the
    robot not in it: head for the reachable cell of that floor nearest its middle.
 4. **search ends**: for "Is there an X in the R?", the named room searched without the X in
    view: ``done`` with reason "searched" (the robot answers from what it saw).
 
-Otherwise, and whenever the perception gives no sightings (a VLM reading images: the semantic
-values of its verbalized confidence steer instead), the wrapped frontier explorer decides.
+Otherwise the wrapped frontier explorer decides, its frontiers weighted by their room
+(``room_prior``): x1e-6 in a room the question rules out, x100 in the named one. Whenever the
+perception gives no sightings (a VLM reading images), the semantic values of
+its verbalized confidence steer the frontier explorer alone.
 """
 
 from __future__ import annotations
@@ -209,7 +213,7 @@ class TargetExplorer:
             self._looks = [pose.yaw + math.radians(120), pose.yaw + math.radians(240)]
         if (self._looks and here != room and room is not None
                 and self._room_cells(room) >= cfg.min_room_cells):
-                self._looks = []  # the named room came into view: no need to look further
+            self._looks = []  # the named room came into view: no need to look further
         if self._looks and here != room:
             yaw = float(wrap_angle(self._looks.pop(0)))
             return Decision(Pose2D(pose.x, pose.y, yaw), pose.xy[None, :].copy(),
