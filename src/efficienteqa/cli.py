@@ -71,12 +71,13 @@ Exploration = Annotated[str | None, typer.Option(
     help="The frontier explorer's options beyond the paper: default, or paper (SPEC 3.2's "
     "explorer, every one off).", show_default=False)]
 Gate = Annotated[str | None, typer.Option(
-    help="The answerability gate a relevancy stop must pass: none, rules (the question's target "
-    "in the frame's description; semantic perception) or model (one yes/no call to the VLM).",
+    help="The answerability gate a relevancy stop must pass: auto (default: rules with the "
+    "semantic perception, else model), rules (the question's target in the frame's "
+    "description), model (one yes/no call to the VLM) or none (the paper's stop).",
     show_default=False)]
 Steering = Annotated[str | None, typer.Option(
-    help="none, or target: go to the room the question names, inspect what it asks about, "
-    "look around on entering.", show_default=False)]
+    help="target (default: go to the room the question names, inspect what it asks about, "
+    "look around on entering) or none (the paper's exploration).", show_default=False)]
 DistinctViews = Annotated[bool | None, typer.Option(
     "--distinct-views/--repeated-views", help="Retrieve K different views (default), or the K "
     "most relevant frames even when they repeat one view (SPEC 3.5).", show_default=False)]
