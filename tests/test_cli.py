@@ -102,3 +102,24 @@ def test_ask_runs_an_episode_with_the_small_real_model(tmp_path, small_model_cac
     assert "reference answer: black" in result.stdout and "report.html" in result.stdout
     record = json.loads((tmp_path / "out" / "episode.json").read_text())
     assert record["backends"]["vlm"] == "smollm2-135m" and record["backends"]["relevancy"] == "word-overlap"
+
+
+def test_eval_exits_non_zero_when_an_episode_failed_and_a_re_run_resumes_it(tmp_path):
+    import os
+    from pathlib import Path
+
+    from efficienteqa.datasets import load_dataset
+
+    first = load_dataset("synthetic", limit=2)[0].id
+    tests = str(Path(__file__).parent)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")]),
+           "EQA_STUB_FAIL": first}
+    args = ("eval", "--method", "eval_stubs:echo", "--limit", "2", "--judge", "none",
+            "--out", str(tmp_path / "run"))
+    failed = _run(*args, env=env)
+    assert failed.returncode == 1, failed.stdout + failed.stderr
+    assert "1 episode(s) failed" in failed.stdout and "Traceback" not in failed.stdout
+    del env["EQA_STUB_FAIL"]
+    resumed = _run(*args, env=env)
+    assert resumed.returncode == 0, resumed.stdout + resumed.stderr
+    assert "1 episodes run, 1 already done, 0 failed" in resumed.stdout

@@ -398,6 +398,11 @@ def eval_command(
                   highlight=False)
     console.print(f"results: {out / 'episodes.jsonl'}\nsummary: efficienteqa report {out}",
                   highlight=False, soft_wrap=True)
+    if result.failed:  # a run with failed episodes is not a success (they resume on a re-run)
+        console.print(f"[red]error:[/red] {result.failed} episode(s) failed (their errors are "
+                      "above and in episodes.jsonl); the same command resumes them",
+                      highlight=False, soft_wrap=True)
+        raise typer.Exit(1)
 
 
 @app.command("report")
