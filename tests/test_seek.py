@@ -242,3 +242,30 @@ def test_the_model_gate_is_one_yes_no_call_and_an_unreadable_reply_does_not_pass
     verdict = gate.check(q, parse_question(q), None, np.zeros((4, 4, 3), np.uint8))  # type: ignore[arg-type]
     assert verdict.ok is ok and len(model.requests) == 1
     assert len(model.requests[0].messages[-1].images) == 1  # the frame itself, not its text
+
+
+def _open_map(spec: GridSpec, xy: tuple[float, float]):
+    from efficienteqa.mapping.state import MapState
+
+    free = np.ones(spec.shape, bool)
+    explored = np.zeros(spec.shape, bool)
+    return MapState(spec, free, ~free, explored, free, xy)
+
+
+@pytest.mark.parametrize("scan", [True, False])
+def test_in_a_hallway_with_the_named_room_unseen_the_robot_looks_down_it(scan):
+    from efficienteqa.explore.target import TargetConfig
+    from efficienteqa.geometry import Pose2D
+
+    spec = GridSpec.covering(0.0, 0.0, 10.0, 4.0, resolution_m=0.1)
+    ex = TargetExplorer(FrontierExplorer(), TargetConfig(scan_connectors=scan))
+    ex.set_target(parse_question("What is on the desk in the office?"))
+    hallway = np.array([[4.0 + 0.1 * i, 3.0 + 0.1 * j] for i in range(20) for j in range(5)])
+    ex.see(spec, Sightings({"hallway": hallway}))
+    pose = Pose2D(5.0, 3.2, 0.0)
+    first = ex.decide(_open_map(spec, (pose.x, pose.y)), pose, None, 3)
+    assert (first.reason == "look around") is scan
+    if scan:  # two turns of 120 degrees, then on; never again within scan_apart_m
+        second = ex.decide(_open_map(spec, (pose.x, pose.y)), pose, None, 4)
+        assert second.reason == "look around"
+        assert ex.decide(_open_map(spec, (pose.x, pose.y)), pose, None, 5).reason != "look around"
