@@ -235,3 +235,14 @@ def test_the_direct_answer_reads_the_focused_views_and_the_white_box_one_the_who
     direct, white_box = (r.messages[0].text for r in stub.requests)
     assert "view 1: You are in the kitchen. Seen: a yellow refrigerator" in direct
     assert "whiteboard" not in direct and "whiteboard" in white_box
+
+
+def test_focus_on_what_stands_on_the_surface_not_the_surface():
+    views = ["You are in the office. Seen: an orange desk on the right, 1.1 m.",
+             "You are in the office. Seen: an orange desk slightly right, 1.6 m, with a beige "
+             "desk lamp (off) on it; a beige desk lamp (off) on the orange desk, ahead, 1.6 m."]
+    assert focus_views("What is on the desk in the office?", views) == [
+        "You are in the office. Nothing the question names.",
+        "You are in the office. Seen: a beige desk lamp (off) on the orange desk, ahead, 1.6 m."]
+    # other questions about the desk keep its own entries
+    assert "an orange desk on the right" in focus_views("What colour is the desk?", views)[0]

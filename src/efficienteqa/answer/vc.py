@@ -97,21 +97,35 @@ def _words(text: str) -> set[str]:
     return {_stem(w) for w in re.findall(r"[a-z]+", text.lower())}
 
 
+def _stands_on(entry: str, surface: str) -> bool:
+    """Whether a view entry is something standing on ``surface`` ("a lamp on the brown desk,
+    ahead, 1.2 m"), not the surface's own entry ("a brown desk, ..., with a lamp on it")."""
+    head = entry.split(",")[0]
+    return any(_words(surface) & _words(m.group(1))
+               for m in re.finditer(r"\bon the ([a-z ]+)", head.lower()))
+
+
 def focus_views(question: str, views: Sequence[str]) -> list[str]:
     """Each text view cut to what the question names: its first sentence (where the robot is)
     and the "; "-separated entries that share a word with the question's object words (the
     question without function and room words). A small model reads a long list of objects
-    badly ("a yellow refrigerator" among twelve entries is answered "grey"). Views are returned
-    unchanged when no entry of any view matches, or the question names no object."""
+    badly ("a yellow refrigerator" among twelve entries is answered "grey"). For "What is on the
+    X?" only entries of things standing on X are kept. Views are returned unchanged when no
+    entry of any view matches, or the question names no object."""
     wanted = _words(question) - {_stem(w) for w in _FUNCTION_WORDS | _ROOM_WORDS}
     if not wanted:
         return list(views)
+    surface = re.match(r"what (?:is|are) on (?:the |a |an )?(.+?)(?: in the .*)?\??$",
+                       question.strip().lower())
     out, hits = [], 0
     for view in views:
         head, _, rest = view.partition(". ")
         listed = rest.split(". ")[0]  # not "Through a doorway: ..."
         listed = listed.removeprefix("Visible: ").removeprefix("Seen: ")  # focused already
         entries = [e for e in listed.split("; ") if wanted & _words(e)]
+        if surface:  # "What is on the X?": what stands on X, not X itself (a small model
+            # names the furniture it reads first)
+            entries = [e for e in entries if _stands_on(e, surface.group(1))]
         hits += len(entries)
         out.append(head + "." + (" Seen: " + "; ".join(e.rstrip(".") for e in entries) + "."
                                  if entries else " Nothing the question names."))
