@@ -179,7 +179,8 @@ class StepRecord:
     calls: list[int] = field(default_factory=list)  # indices into the model exchanges
     timings_ms: dict[str, float] = field(default_factory=dict)
     step_answer: dict[str, Any] | None = None  # answer_at="best-step": answer, confidence, value
-    gate: dict[str, Any] | None = None  # the answerability gate's verdict on a flagged frame
+    gate: dict[str, Any] | None = None  # the answerability gate's verdict ("ok", "why"): every
+    # frame with a rules gate, the frames the stop flagged with a model gate
 
 
 @dataclass

@@ -79,8 +79,6 @@ def singular(noun: str) -> str:
     head, _, last = noun.strip().rpartition(" ")
     if last.endswith("ves") and len(last) > 4:
         last = last[:-3] + "f"
-    elif last.endswith("ies") and len(last) > 4:
-        last = last[:-3] + "y"
     elif re.search(r"(ches|shes|xes|sses)$", last):
         last = last[:-2]
     elif last.endswith("s") and not last.endswith("ss") and len(last) > 3:

@@ -13,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from efficienteqa.models.base import ChatModel, ChatResponse, Message
+from efficienteqa.question import singular
 from efficienteqa.vc.grouping import Grouper, argmax, group_answers, normalise
 from efficienteqa.vc.logprobs import require_logprobs
 from efficienteqa.vc.parse import AnswerClass, AnswerResult, Candidate, M, parse_candidates, to_float
@@ -82,19 +83,8 @@ _ROOM_WORDS = frozenset(("kitchen", "bedroom", "bathroom", "hallway", "office", 
                          "living", "guest", "laundry", "garage", "study", "corridor", "hall"))
 
 
-def _stem(word: str) -> str:
-    """A crude singular: "chairs" -> "chair", "shelves" -> "shelf", "boxes" -> "box"."""
-    if word.endswith("ves") and len(word) > 4:
-        return word[:-3] + "f"
-    if word.endswith(("ches", "shes", "xes", "sses")):
-        return word[:-2]
-    if word.endswith("s") and not word.endswith("ss") and len(word) > 3:
-        return word[:-1]
-    return word
-
-
 def _words(text: str) -> set[str]:
-    return {_stem(w) for w in re.findall(r"[a-z]+", text.lower())}
+    return {singular(w) for w in re.findall(r"[a-z]+", text.lower())}
 
 
 def _stands_on(entry: str, surface: str) -> bool:
@@ -112,7 +102,7 @@ def focus_views(question: str, views: Sequence[str]) -> list[str]:
     badly ("a yellow refrigerator" among twelve entries is answered "grey"). For "What is on the
     X?" only entries of things standing on X are kept. Views are returned unchanged when no
     entry of any view matches, or the question names no object."""
-    wanted = _words(question) - {_stem(w) for w in _FUNCTION_WORDS | _ROOM_WORDS}
+    wanted = _words(question) - {singular(w) for w in _FUNCTION_WORDS | _ROOM_WORDS}
     if not wanted:
         return list(views)
     surface = re.match(r"what (?:is|are) on (?:the |a |an )?(.+?)(?: in the .*)?\??$",

@@ -299,7 +299,7 @@ class TargetExplorer:
         fr = self.frontier.config
         grid = state.island_grid
         start = (pose.x, pose.y)
-        radius = fr.robot_radius_m if grid.snap(start, fr.robot_radius_m, fr.snap_m) else 0.0
+        radius = self._radius(state, pose)
         dist = grid.distance_field(start, radius, fr.snap_m)
         ok = grid.navigable(radius) & np.isfinite(dist)
         if not ok.any():
@@ -314,12 +314,18 @@ class TargetExplorer:
         cost = off + 0.1 * dist[cells[:, 0], cells[:, 1]]
         return centres[int(np.argmin(cost))]
 
+    def _radius(self, state: MapState, pose: Pose2D) -> float:
+        """The planning radius: the robot's, or 0 where its own cell is too tight for it."""
+        fr = self.frontier.config
+        fits = state.island_grid.snap((pose.x, pose.y), fr.robot_radius_m, fr.snap_m)
+        return fr.robot_radius_m if fits is not None else 0.0
+
     def _move(self, state: MapState, pose: Pose2D, goal: np.ndarray, look_at: np.ndarray,
               reason: str) -> Decision | None:
         fr = self.frontier.config
         grid = state.island_grid
         start = (pose.x, pose.y)
-        radius = fr.robot_radius_m if grid.snap(start, fr.robot_radius_m, fr.snap_m) else 0.0
+        radius = self._radius(state, pose)
         path = grid.shortest_path(start, (float(goal[0]), float(goal[1])), radius, fr.snap_m)
         if path is None:
             return None

@@ -492,6 +492,7 @@ class SemanticPerception:
     def __init__(self, labels: SceneLabels, noise: NoiseConfig | None = None) -> None:
         self.labels, self.noise = labels, noise
         self._last: tuple[Observation, FrameDescription] | None = None
+        self._seen: tuple[Observation, Target, Sightings] | None = None
 
     def describe(self, obs: Observation) -> FrameDescription:
         if self._last is None or self._last[0] is not obs:  # described once per observation
@@ -513,8 +514,11 @@ class SemanticPerception:
                               describe_directions(obs, prompts, self.labels, noise=self.noise))
 
     def sightings(self, obs: Observation, target: Target) -> Sightings:
-        """The floor of each room in view and the target's things in view (see ``sightings``)."""
-        return sightings(obs, self.labels, target, self.noise)
+        """The floor of each room in view and the target's things in view (see ``sightings``);
+        computed once per observation and target (the explorer and the gate both read them)."""
+        if self._seen is None or self._seen[0] is not obs or self._seen[1] != target:
+            self._seen = (obs, target, sightings(obs, self.labels, target, self.noise))
+        return self._seen[2]
 
 
 def sightings(obs: Observation, labels: SceneLabels, target: Target,
