@@ -252,3 +252,18 @@ def test_run_json_records_what_an_agent_methods_episodes_ran_with():
     assert manifest(spec("explore-eqa-blackbox"), 3)["method_config"]["confidence"] == "verbalized"
     assert manifest(spec("blind"), 3)["method_config"] is None
     assert manifest(spec(), 3)["method_config"] is None  # a user's module:function
+
+
+@pytest.mark.parametrize("relevancy", ["vlm-match", "blip2-itm"])
+def test_blind_needs_no_image_relevancy_scorer(tmp_path, monkeypatch, relevancy):
+    """Blind answers from the question alone: an image relevancy scorer (vlm-match, or BLIP-2
+    without weights here) is not built, so the episode is answered, not failed."""
+    from efficienteqa.models.stub import StubChatModel
+
+    monkeypatch.setattr("efficienteqa.models.backends.build_chat_model",
+                        lambda backend: StubChatModel(["2; 80"]))
+    run_eval(spec("blind", stack=Stack(relevancy=relevancy, perception="rgb")), questions(1),
+             tmp_path, prepare=False)
+    (row,) = lines(tmp_path)
+    assert row["status"] == "done", row.get("error")
+    assert row["answer"] == "2"

@@ -164,7 +164,7 @@ def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     from efficienteqa.answer.blind import blind_answer, blind_choice
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.models.recording import RecordingChatModel
-    from efficienteqa.stack import build_grouper, build_relevancy, parse_vlm
+    from efficienteqa.stack import MINILM_KINDS, build_grouper, build_relevancy, parse_vlm
 
     model = RecordingChatModel(build_chat_model(parse_vlm(
         spec.stack.vlm, images=False, cache=spec.stack.cache, temperature=spec.stack.temperature)))
@@ -179,7 +179,10 @@ def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
                        usage=_usage([e.to_dict() for e in model.exchanges]), backends=backends,
                        extra={"letter": choice.letter, "letter_probs": choice.letter_probs,
                               "answer_problems": choice.problems})
-    embedder = build_relevancy(spec.stack.relevancy) if spec.stack.grouping == "llm" else None
+    # Answers are grouped by text: only a text embedder of the stack helps, and an image
+    # scorer (blip2-itm, vlm-match) is neither needed nor built.
+    text = spec.stack.grouping == "llm" and spec.stack.relevancy in MINILM_KINDS
+    embedder = build_relevancy(spec.stack.relevancy) if text else None
     grouper = build_grouper(spec.stack.grouping, model, embedder)  # type: ignore[arg-type]
     result = blind_answer(model, q.question, grouper)
     return Outcome(result.answer, result.confidence, 0,
