@@ -59,8 +59,8 @@ def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
     for args, message in ((["--top-k", "0"], "top_k must be at least 1"),
                           (["--z-th", "nan"], "z_th must be a finite number"),
                           (["--relevancy", "bogus"], "unknown relevancy scorer 'bogus'"),
-                          (["--perception", "rgb", "--vlm", "openai:gpt-4o"],
-                           "use --relevancy vlm-match")):
+                          (["--perception", "rgb", "--vlm", "openai:gpt-4o", "--relevancy",
+                            "minilm"], "use --relevancy vlm-match")):
         result = _run(command, *question, *args, "--out", str(tmp_path / "out"),
                       env={**os.environ, "OPENAI_API_KEY": "sk-test"})
         assert result.returncode == 1, (args, result.stdout, result.stderr)

@@ -84,3 +84,18 @@ def test_a_value_the_agent_refuses_is_one_clear_error():
         build_config({**NOTHING_GIVEN, "answer_probability": "mean"})
     with pytest.raises(EfficientEQAError, match="token_answer must be one of"):
         build_config({**NOTHING_GIVEN, "token_answer": "long"})
+
+
+def test_images_get_an_image_relevancy_scorer_unless_one_is_named(monkeypatch):
+    """``--perception rgb`` alone must not pick MiniLM, which reads text (issue 25 defect 1):
+    BLIP-2 where its weights are on the machine, else the VLM's own yes/no (vlm-match)."""
+    from efficienteqa import stack
+    from efficienteqa.presets import build_stack
+
+    monkeypatch.setattr(stack, "_in_hf_cache", lambda model_id: False)
+    assert build_stack({"perception": "rgb"}).relevancy == "vlm-match"
+    assert build_stack({"perception": "rgb", "relevancy": "clip"}).relevancy == "clip"
+    assert build_stack({"perception": "semantic"}).relevancy == "minilm"
+    assert build_stack({}).relevancy == "minilm"
+    monkeypatch.setattr(stack, "_in_hf_cache", lambda model_id: model_id.startswith("Salesforce/"))
+    assert build_stack({"perception": "rgb"}).relevancy == "blip2-itm"

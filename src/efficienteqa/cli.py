@@ -105,8 +105,9 @@ PerceptionOpt = Annotated[str | None, typer.Option(
     "--perception", help="semantic (object labels as text; default) | rgb (pixels, needs an image "
     "VLM).", show_default=False)]
 Relevancy = Annotated[str | None, typer.Option(
-    help="minilm (default) | minilm-match (MiniLM calibrated to a match probability) | overlap | "
-    "vlm-match (the VLM answers 'does this view show it?') | blip2-itm | clip | siglip.",
+    help="minilm (default over text) | minilm-match (MiniLM calibrated to a match probability) | "
+    "overlap | vlm-match (the VLM answers 'does this view show it?'; default over images) | "
+    "blip2-itm (default over images where its weights are) | clip | siglip.",
     show_default=False)]
 ExploreScorer = Annotated[str | None, typer.Option(
     help="Where the semantic values come from: auto (default: the VLM's verbalized confidence "

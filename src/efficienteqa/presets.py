@@ -69,9 +69,12 @@ def given(options: Mapping[str, Any], names: Any) -> dict[str, Any]:
 
 def build_stack(options: Mapping[str, Any]) -> Stack:
     """The back-ends of a run: ``Stack`` fields from the options that are set."""
-    from efficienteqa.stack import Stack
+    from efficienteqa.stack import Stack, default_relevancy
 
-    return Stack(**given(options, [f.name for f in fields(Stack)]))
+    values = given(options, [f.name for f in fields(Stack)])
+    if "relevancy" not in values and values.get("perception") == "rgb":  # a scorer of images
+        values["relevancy"] = default_relevancy("rgb", values.get("relevancy_weights"))
+    return Stack(**values)
 
 
 def build_config(options: Mapping[str, Any]) -> AgentConfig:

@@ -75,6 +75,25 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
 TEXT_RELEVANCY = ("minilm", "minilm-match", "overlap")
 
 
+def default_relevancy(perception: str, weights: str | None = None) -> str:
+    """The relevancy scorer of a run that names none: MiniLM over the text descriptions, and
+    over images BLIP-2 ITM (the paper's) when its weights are on this machine (``weights``, a
+    local copy, or the Hugging Face cache), else ``vlm-match``, the VLM judging each frame."""
+    if perception != "rgb":
+        return "minilm"
+    from efficienteqa.relevancy.blip2 import DEFAULT_MODEL_ID
+
+    return "blip2-itm" if weights or _in_hf_cache(DEFAULT_MODEL_ID) else "vlm-match"
+
+
+def _in_hf_cache(model_id: str) -> bool:
+    try:
+        from huggingface_hub import try_to_load_from_cache
+    except ImportError:
+        return False
+    return isinstance(try_to_load_from_cache(model_id, "config.json"), str)
+
+
 def check_stack(stack: Stack) -> None:
     """One clear error for a stack that cannot run, before anything slow: an unknown perception
     or relevancy scorer, or a text relevancy scorer with a perception that gives images."""
