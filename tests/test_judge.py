@@ -271,3 +271,38 @@ def test_yes_prob_reads_yes_and_no_tokens_in_any_spelling(tmp_path, yes, no):
     judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob").judge(
         "What is on the desk?", "a laptop", "a notebook computer")
     assert judgement.problems == () and judgement.raw == "P(yes)=0.900" and judgement.score == 5
+
+
+@pytest.mark.parametrize("yes, no, expected", [
+    (-800.0, -801.0, 1 / (1 + math.exp(-1.0))),  # both underflow exp(): compared as logprobs
+    (-1000.0, -1000.0, 0.5),
+    (-900.0, -800.0, 1 / (1 + math.exp(100.0))),
+    (-9999.0, -2.0, 0.0),  # vLLM's -9999 marks a masked token: it holds no mass
+    (-0.1, -9999.0, 1.0),
+])
+def test_p_yes_survives_logprobs_that_underflow(yes, no, expected):
+    """Issue 26: exp() of both logprobs is 0.0 below about -745; P(yes) must not divide by it."""
+    from efficienteqa.eval.judge import p_yes
+    from efficienteqa.models.base import TokenLogprob
+
+    token = TokenLogprob("Yes", yes, (("Yes", yes), ("No", no)))
+    assert p_yes([token]) == pytest.approx(expected, abs=1e-12)
+
+
+def test_p_yes_adds_spellings_in_log_space():
+    """Two spellings of yes far below exp()'s range still add up: P(yes) = 2/3 here."""
+    from efficienteqa.eval.judge import p_yes
+    from efficienteqa.models.base import TokenLogprob
+
+    token = TokenLogprob("Yes", -900.0, (("Yes", -900.0), (" yes", -900.0), ("No", -900.0)))
+    assert p_yes([token]) == pytest.approx(2 / 3)
+
+
+def test_p_yes_is_none_when_yes_and_no_are_both_masked():
+    """Issue 26: -9999 (vLLM's mask) on both words is no answer, not a 50:50 one."""
+    from efficienteqa.eval.judge import p_yes
+    from efficienteqa.models.base import TokenLogprob
+
+    token = TokenLogprob("The", -0.01, (("The", -0.01), ("Yes", -9999.0), ("No", -9999.0)))
+    assert p_yes([token]) is None
+    assert p_yes([token, TokenLogprob("no", -0.5, (("no", -0.5),))]) == 0.0

@@ -218,21 +218,38 @@ def token_word(token: str) -> str:
     return re.sub(r"[\W_]+", "", token.replace("▁", " ").replace("Ġ", " ")).lower()
 
 
+# vLLM reports -9999 for a token its sampler masked out: such a token holds no probability.
+MASKED_LOGPROB = -9999.0
+
+
+def _log_add(a: float, b: float) -> float:
+    """log(exp(a) + exp(b)) without leaving log space (exp() is 0.0 below about -745)."""
+    if a == -math.inf:
+        return b
+    high, low = max(a, b), min(a, b)
+    return high + math.log1p(math.exp(low - high))
+
+
 def p_yes(tokens: Sequence[TokenLogprob]) -> float | None:
     """P(yes) over {yes, no} at the first generated token whose alternatives hold either (each
-    spelling adds to its word's probability); None when no token does."""
+    spelling adds to its word's probability); None when no token does. Computed from the
+    logprobs themselves (``1 / (1 + exp(log P(no) - log P(yes)))``), so words whose logprobs
+    underflow ``exp()`` are still compared (issue 26); a masked token (-9999 or below, -inf,
+    NaN) counts as absent."""
     for token in tokens:
-        mass = {"yes": 0.0, "no": 0.0}
-        seen = False
+        mass = {"yes": -math.inf, "no": -math.inf}
         alternatives = dict(token.top)
         alternatives.setdefault(token.token, token.logprob)
         for text, logprob in alternatives.items():
             word = token_word(text)
-            if word in mass and math.isfinite(logprob):
-                mass[word] += math.exp(min(logprob, 0.0))
-                seen = True
-        if seen:
-            return mass["yes"] / (mass["yes"] + mass["no"])
+            if word in mass and math.isfinite(logprob) and logprob > MASKED_LOGPROB:
+                mass[word] = _log_add(mass[word], min(logprob, 0.0))
+        if mass["yes"] == -math.inf and mass["no"] == -math.inf:
+            continue
+        if mass["no"] == -math.inf:
+            return 1.0
+        gap = mass["no"] - mass["yes"]
+        return 0.0 if gap > 700.0 else 1.0 / (1.0 + math.exp(gap))
     return None
 
 
