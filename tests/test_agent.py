@@ -370,3 +370,34 @@ def test_the_token_answer_settings_reach_the_answerer(house4, given, read):
     built = build_agent(scene.env, Stack(grouping="rules"), config, "test",
                         model=StubChatModel([]), relevancy=WordOverlapScorer())
     assert (built.agent.answerer.probability, built.agent.answerer.token_prompt) == read
+
+
+def test_an_unreadable_relevancy_reply_is_missing_and_every_problem_is_counted(house4, tmp_path):
+    """Issue 25 defects 5 and 6: the frame whose yes/no reply could not be read has no Sim, so
+    it neither stops the robot nor is retrieved; the explore, relevancy and answer problems are
+    counted in episode.json."""
+    scene, q = house4
+    said = {"match": 0}
+
+    def reply(msgs):
+        text = msgs[-1].text
+        if text.startswith("Does this view"):
+            said["match"] += 1
+            return "N/A" if said["match"] == 3 else f"no {60 + said['match']}"
+        if text.startswith("You guide"):
+            return "A: 50\nworth exploring: perhaps"  # no yes/no: an explore problem
+        return "black; 90"
+
+    done = ask(q.question, scene, tmp_path, stack=Stack(relevancy="vlm-match", grouping="rules",
+                                                        explore_scorer="vlm"),
+               model=StubChatModel(reply), config=AgentConfig(max_steps=5, gate="none"))
+    r, record = done.result, done.record
+    missing = r.records[2]
+    assert missing.valid and missing.check is None and missing.relevancy_problems
+    assert 3 not in [step for step, _ in r.retrieved]
+    assert all(rec.check is not None for rec in r.records if rec.valid and rec.step != 3)
+    assert record["problems"]["relevancy"] == 1
+    assert record["problems"]["explore"] >= 1  # the explore replies lacked their yes/no
+    assert record["explore_problems"][0].startswith("step 1: ")
+    assert record["relevancy_problems"][0].startswith("step 3: unreadable reply 'N/A'")
+    assert json.loads((tmp_path / "episode.json").read_text())["per_step"][2]["relevancy_problems"]

@@ -300,3 +300,18 @@ def test_evidence_in_view_and_refused_moves_are_summarised_and_tabled(tmp_path):
     assert "| efficienteqa | 9.00 | 2.50 | 33% | 33% | 6% | 3 |" in md
     bare = write_report([write_run(tmp_path / "old", manifest(), [episode(0)])], tmp_path / "o2")
     assert "First seen" not in bare[0].read_text()
+
+
+def test_parse_problems_are_summed_per_kind_of_call_and_tabled(tmp_path):
+    """Issue 25 defect 6: the explore, relevancy and answer calls' unread replies reach the run's
+    summary and report; runs recorded before the counts existed show no table."""
+    rows = [episode(0), episode(1), episode(2, status="failed")]
+    rows[0]["extra"] = {"problems": {"explore": 3, "relevancy": 1, "answer": 0}}
+    rows[1]["extra"] = {"problems": {"explore": 2, "relevancy": 0, "answer": 1}}
+    s = summarise(manifest(), rows)
+    assert s.problems == {"explore": 5, "relevancy": 1, "answer": 1}
+    md = write_report([write_run(tmp_path / "run", manifest(), rows)], tmp_path / "out")[0].read_text()
+    assert "| efficienteqa | 5 | 1 | 1 | 2 |" in md
+    assert summarise(manifest(), [episode(0)]).problems == {}
+    bare = write_report([write_run(tmp_path / "old", manifest(), [episode(0)])], tmp_path / "o2")
+    assert "Replies not read plainly" not in bare[0].read_text()

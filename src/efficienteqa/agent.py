@@ -16,6 +16,7 @@ until none left can win (``answer.best_step``): the answer of asking at every st
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
@@ -181,6 +182,10 @@ class StepRecord:
     step_answer: dict[str, Any] | None = None  # answer_at="best-step": answer, confidence, value
     gate: dict[str, Any] | None = None  # the answerability gate's verdict ("ok", "why"): every
     # frame with a rules gate, the frames the stop flagged with a model gate
+    # What the step's model replies did not say plainly: the explore call's, and the relevancy
+    # and gate calls' (an unreadable relevancy reply leaves ``check`` None: Sim is missing).
+    explore_problems: list[str] = field(default_factory=list)
+    relevancy_problems: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -249,6 +254,16 @@ class Agent:
     def _calls_since(self, n: int) -> list[int]:
         return list(range(n, len(self.exchanges.exchanges))) if self.exchanges is not None else []
 
+    def _problems_said(self) -> tuple[int, int]:
+        """How many problems the relevancy scorer and the gate have noted so far."""
+        return (len(getattr(self.relevancy, "problems", ())),
+                len(getattr(self.gate, "problems", ())))
+
+    def _problems_since(self, said: tuple[int, int]) -> list[str]:
+        """The relevancy scorer's and the gate's problems noted since ``_problems_said``."""
+        return [*list(getattr(self.relevancy, "problems", ()))[said[0]:],
+                *(f"gate: {p}" for p in list(getattr(self.gate, "problems", ()))[said[1]:])]
+
     def _n_calls(self) -> int:
         return len(self.exchanges.exchanges) if self.exchanges is not None else 0
 
@@ -287,6 +302,7 @@ class Agent:
                                 valid=obs.invalid_fraction < MAX_INVALID_FRACTION)
             records.append(record)
             n_calls = self._n_calls()
+            said = self._problems_said()
             if record.valid:
                 t = time.perf_counter()
                 frame = self.perception.frame(obs)
@@ -295,6 +311,9 @@ class Agent:
                         sim = self.relevancy.score(question, image=obs.rgb)
                     else:
                         sim = self.relevancy.score(question, text=self.perception.relevancy_text(obs))
+            if record.valid and math.isnan(sim):  # an unreadable reply: no Sim, never an outlier
+                record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
+            elif record.valid:
                 eligible: bool | None = None
                 if gate is not None and gate.eager:  # a cheap gate judges every frame
                     verdict = gate.check(question, target, obs, frame)
@@ -315,6 +334,7 @@ class Agent:
                                                    records)
                 if record.check.stop:
                     stop_reason = "relevancy"
+            record.relevancy_problems = self._problems_since(said)
             if stop_reason == "relevancy" or step == budget:
                 explore.mapper.update(obs)  # the last frame is on the final map too
                 record.calls = self._calls_since(n_calls)
@@ -393,6 +413,7 @@ class Agent:
 
 
 def _fill(record: StepRecord, out: ExploreStep) -> None:
+    record.explore_problems = list(out.score.info.get("problems") or []) if out.score else []
     record.prompts = [{"letter": p.letter, "xy": p.xy, "pixel": p.pixel} for p in out.prompts]
     record.lsv, record.gsv = dict(out.lsv), out.gsv
     record.p_yes = out.score.p_yes if out.score is not None else None

@@ -149,6 +149,7 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
                    usage=_usage(record["model"]["exchanges"]), backends=record["backends"],
                    extra={"retrieved": record["retrieved"],
                           "answer_problems": record["answer_problems"],
+                          "problems": record["problems"],  # per kind of model call
                           "timing": record["timing"],
                           # the model calls of ExploreEQA asking at every step (answer.best_step)
                           "valid_frames": sum(s["valid"] for s in record["per_step"])},

@@ -94,6 +94,9 @@ class RunSummary:
     code_version: str
     newest: float | None
     errors: dict[str, int] = field(default_factory=dict)
+    # Model replies not read plainly, per kind of call (explore, relevancy, answer), summed over
+    # the done episodes that record them.
+    problems: dict[str, int] = field(default_factory=dict)
     rule_accuracy: float = math.nan
     n_rule: int = 0
     rule_by_category: dict[str, float] = field(default_factory=dict)
@@ -123,6 +126,17 @@ class RunSummary:
     def evidence_seen(self) -> float:
         """Share (0-1) of the episodes with evidence that ever had it in view."""
         return 1 - self.never_seen
+
+
+def _problem_totals(done: Sequence[Mapping[str, Any]]) -> dict[str, int]:
+    """Each kind's problems summed over the rows whose ``extra`` counts them (none before the
+    counts were recorded: an empty dict, not zeros)."""
+    totals: Counter[str] = Counter()
+    for r in done:
+        counts = (r.get("extra") or {}).get("problems")
+        if isinstance(counts, Mapping):
+            totals.update({str(k): int(v) for k, v in counts.items() if _is_number(v)})
+    return dict(totals)
 
 
 def mean(values: Iterable[Any]) -> float:
@@ -328,6 +342,7 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
         newest=max(finished) if finished else None,
         errors=dict(Counter(str(r.get("error") or "unknown error") for r in rows
                             if r.get("status") != "done").most_common()),
+        problems=_problem_totals(done),
         rule_accuracy=mean(rule_values) if n_rule else math.nan, n_rule=n_rule,
         rule_by_category={c: mean(v) for c, v in sorted(rule_categories.items())} if n_rule else {},
         choice_accuracy=mean(choice_values) if n_choice else math.nan, n_choice=n_choice,

@@ -233,6 +233,18 @@ def failures_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Ta
                  provenance(summaries))
 
 
+def problems_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table | None:
+    """Model replies that were not read plainly, per kind of call; None when no run counts any."""
+    kinds = ("explore", "relevancy", "answer")
+    if not any(s.problems for s in summaries):
+        return None
+    rows = [[lab, *(str(s.problems.get(k, 0)) if s.problems else "-" for k in kinds), str(s.n_done)]
+            for s, lab in zip(summaries, labels)]
+    return Table("Replies not read plainly (parse problems, summed over the episodes)",
+                 ["Method", "Explore calls", "Relevancy and gate calls", "Answer calls", "Episodes"],
+                 rows, provenance(summaries))
+
+
 def runs_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
     """Where every row came from, and whether the run is complete and intact."""
     rows = []
@@ -308,9 +320,9 @@ def build_sections(summaries: Sequence[RunSummary]) -> list[Section]:
         evidence = evidence_table(runs, labels)
         if evidence is not None:
             section.blocks.append(evidence)
-        failures = failures_table(runs, labels)
-        if failures is not None:
-            section.blocks.append(failures)
+        for extra in (failures_table(runs, labels), problems_table(runs, labels)):
+            if extra is not None:
+                section.blocks.append(extra)
         section.blocks += ablation_blocks(runs, prefix)
         section.blocks.append(runs_table(runs, labels))
         sections.append(section)

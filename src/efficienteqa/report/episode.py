@@ -22,6 +22,7 @@ def step_dict(r: StepRecord) -> dict[str, Any]:
         "frontier": r.frontier_xy, "target": r.target_xy, "n_frontiers": r.n_frontiers,
         "decision": r.decision, "blocked": r.blocked, "refused": r.refused, "calls": r.calls,
         "step_answer": r.step_answer, "gate": r.gate,
+        "explore_problems": r.explore_problems, "relevancy_problems": r.relevancy_problems,
         "timings_ms": {k: round(v, 2) for k, v in r.timings_ms.items()},
     })
 
@@ -47,6 +48,9 @@ def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict
         "answer_classes": [{"text": c.text, "confidence": c.confidence} for c in a.classes],
         "answer_candidates": [{"text": c.text, "confidence": c.confidence} for c in a.candidates],
         "answer_problems": a.problems,
+        "explore_problems": _problems(result.records, "explore_problems"),
+        "relevancy_problems": _problems(result.records, "relevancy_problems"),
+        "problems": problem_counts(result),
         "per_step": [step_dict(r) for r in result.records],
         "model": {"calls": len(calls), "prompt_tokens": sum(e.prompt_tokens for e in calls),
                   "completion_tokens": sum(e.completion_tokens for e in calls),
@@ -56,3 +60,16 @@ def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict
                    "per_step_s": round((result.wall_s - result.answer_s) / max(result.steps, 1), 3)},
         "backends": backends, "config": config, "code_version": code_version(),
     })
+
+
+def _problems(records: Sequence[StepRecord], kind: str) -> list[str]:
+    """Every step's problems of one kind, each prefixed with its step."""
+    return [f"step {r.step}: {p}" for r in records for p in getattr(r, kind)]
+
+
+def problem_counts(result: EpisodeResult) -> dict[str, int]:
+    """How many replies of each kind of model call were not read plainly: the explore call's,
+    the relevancy and gate calls', and the answer's."""
+    return {"explore": sum(len(r.explore_problems) for r in result.records),
+            "relevancy": sum(len(r.relevancy_problems) for r in result.records),
+            "answer": len(result.answer_result.problems)}

@@ -25,6 +25,7 @@ per flagged frame, not per step.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -175,4 +176,11 @@ class ModelGate:
             p_yes = self.match.score(question, text=frame)
         else:
             p_yes = self.match.score(question, image=frame)
+        if math.isnan(p_yes):  # an unreadable reply does not pass
+            return Verdict(False, "unreadable reply")
         return Verdict(p_yes > 0.5, f"P(answerable) {p_yes:.2f}")
+
+    @property
+    def problems(self) -> list[str]:
+        """What the yes/no calls' replies did not say plainly, for the record."""
+        return self.match.problems

@@ -355,6 +355,11 @@ def parse_letters(reply: str, letters: Sequence[str] = DEFAULT_LETTERS, m: int =
     return _finish(raws, m, problems, allowed)
 
 
+# The problem that says a reply held neither a yes/no nor a confidence: nothing was read.
+NO_YES_NO = "no worth-exploring answer"
+NO_WORTH_LINE = "no 'worth exploring' line"  # a yes/no was read, from another line
+
+
 def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
     """P(yes) in [0, 1] from ``worth exploring: yes 80`` / ``Yes (0.8)`` / ``no, 90`` (-> 0.1).
 
@@ -377,7 +382,7 @@ def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
     else:
         seg = next((ln for ln in reversed(text.splitlines()) if _YES_NO.search(ln)), "")
         if seg:
-            problems.append("no 'worth exploring' line; used the last yes/no")
+            problems.append(f"{NO_WORTH_LINE}; used the last yes/no")
     words = list(_YES_NO.finditer(seg))
     hit = _find_confidence(seg)
     word = None
@@ -395,7 +400,7 @@ def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
     if word is None and negated:
         word = "no"
     if word is None and conf is None:
-        problems.append(f"no worth-exploring answer: default P(yes) = {DEFAULT_P_YES}")
+        problems.append(f"{NO_YES_NO}: default P(yes) = {DEFAULT_P_YES}")
         return DEFAULT_P_YES, problems
     if word is None:
         problems.append("worth-exploring number without yes/no: read as P(yes)")
