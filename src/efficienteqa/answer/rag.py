@@ -12,7 +12,7 @@ import heapq
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Generic, Literal, TypeVar
 
 import numpy as np
@@ -127,6 +127,14 @@ class RagAnswerer:
         self.direct, self.probability, self.token_prompt = direct, probability, token_prompt
 
     def answer(self, question: str, evidence: Sequence[str | np.ndarray]) -> AnswerResult:
+        """The answer from ``evidence``, best first. Images beyond the server's cap per request
+        (``capabilities.max_images``, probed) are cut, the least relevant first, and the answer's
+        problems say so: a capped server would refuse the whole request."""
+        evidence, cut = cut_to_cap(evidence, getattr(self.model.capabilities, "max_images", None))
+        result = self._answer(question, evidence)
+        return replace(result, problems=[cut, *result.problems]) if cut else result
+
+    def _answer(self, question: str, evidence: Sequence[str | np.ndarray]) -> AnswerResult:
         if not self.direct and self.confidence == "token" and self.token_prompt == "verbalized":
             return verbalized_token_probability(self.model, question, evidence,
                                                 how=self.probability)
@@ -134,3 +142,20 @@ class RagAnswerer:
             return answer_token_probability(self.model, question, evidence, hinted=self.direct,
                                             how=self.probability)
         return answer_with_confidence(self.model, question, evidence, self.grouper, m=self.m)
+
+
+def cut_to_cap(evidence: Sequence[str | np.ndarray], cap: int | None
+               ) -> tuple[list[str | np.ndarray], str]:
+    """``evidence`` (best first) with at most ``cap`` images, and a note when some were cut."""
+    items = list(evidence)
+    images = sum(isinstance(e, np.ndarray) for e in items)
+    if cap is None or images <= cap:
+        return items, ""
+    kept, n = [], 0
+    for e in items:
+        if isinstance(e, np.ndarray):
+            if n == cap:
+                continue
+            n += 1
+        kept.append(e)
+    return kept, f"images cut from {images} to {cap}: the server takes {cap} per request"

@@ -57,10 +57,29 @@ _HINTS = (
 )
 
 
-def question_hint(question: str) -> str:
-    """The direct answer's hint for the form of ``question`` ("" when no form matches)."""
+# The same hints for a VLM that reads the retrieved frames as images: nothing about entries,
+# brackets or words written before a name, which only the text descriptions have.
+_IMAGE_HINTS = (
+    (r"^how many\b", "Count that object in the images, each one once: the same object may "
+                     "appear in more than one image. Answer with one number."),
+    (r"^what colou?r\b", "Answer with the colour of that object as the images show it."),
+    (r"^where\b", "Answer with the room the object is in (such as the kitchen or a bedroom). "
+                  "Not a direction."),
+    (r"^is there\b", "Answer yes only if the images show an object of that kind in that room; "
+                     "otherwise no."),
+    (r"^(is|are)\b", "Answer yes or no from what the images show: a lamp or screen that is lit, "
+                     "or a door that stands open, means yes."),
+    (r"^what is on\b", "Name the object standing on that furniture in the images, never the "
+                       "furniture itself."),
+)
+
+
+def question_hint(question: str, modality: str = "text") -> str:
+    """The direct answer's hint for the form of ``question`` ("" when no form matches), written
+    for the evidence's ``modality``: "text" (frame descriptions) or "image" (RGB frames)."""
     q = question.strip().lower()
-    return next((hint for pattern, hint in _HINTS if re.search(pattern, q)), "")
+    hints = _IMAGE_HINTS if modality == "image" else _HINTS
+    return next((hint for pattern, hint in hints if re.search(pattern, q)), "")
 
 
 def answer_example(question: str) -> str:
@@ -190,7 +209,8 @@ def answer_token_probability(model: ChatModel, question: str,
         evidence = focus_views(question, [str(e) for e in evidence])
     text, images = evidence_text(evidence)
     template = load_prompt("answer_direct" if hinted else "answer_token", PROMPTS)
-    prompt = template.format(question=question, evidence=text, hint=question_hint(question))
+    prompt = template.format(question=question, evidence=text,
+                             hint=question_hint(question, "image" if images else "text"))
     resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
                       logprobs=1)
     raw = resp.text or ""
