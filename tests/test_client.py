@@ -16,7 +16,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
@@ -26,6 +26,7 @@ import pytest
 from PIL import Image
 
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.models.backends import ChatBackend, build_chat_model
 from efficienteqa.models.base import Capabilities, Message
 from efficienteqa.models.cache import ResponseCache, request_key
 from efficienteqa.models.client import ClientConfig, OpenAIChatClient, RequestRejected
@@ -472,15 +473,292 @@ def test_broken_cache_does_not_fail_the_call(serve, tmp_path, caplog):
 
 def test_probe_capabilities(serve, tmp_path):
     server = serve(Reply(body=completion(logprobs=True)))
-    client = make_client(server, tmp_path, cache=True)
+    client = make_client(server, tmp_path, cache=True, capabilities=Capabilities(logprobs=True))
     assert client.probe_capabilities().logprobs and client.capabilities.logprobs
     assert server.body()["logprobs"] is True and server.body()["max_tokens"] == 1
-    client = make_client(serve(Reply(400, "logprobs unsupported")), tmp_path,
+    client = make_client(serve(Reply(400, "logprobs unsupported"), Reply()), tmp_path,
                          capabilities=Capabilities(logprobs=True, images=True))
     caps = client.probe_capabilities()
     assert not caps.logprobs and caps.images
     client = make_client(serve(Reply(body=completion())), tmp_path, capabilities=Capabilities(logprobs=True))
     assert not client.probe_capabilities().logprobs  # answered, but without logprobs
+
+
+# ------------------------------------------------------------------ issue 25: the model layer
+
+@pytest.fixture
+def private_cache(tmp_path, monkeypatch):
+    """Probes and replies kept under tmp_path, never in the user's cache."""
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))
+    return tmp_path / "cache"
+
+
+def openai_backend(server: FakeServer, **overrides) -> ChatBackend:
+    return ChatBackend(**{"kind": "openai", "model": "fake-4o", "base_url": server.base_url,
+                          "timeout_s": 10.0, "retries": 0, **overrides})
+
+
+def test_an_openai_server_is_probed_once_and_the_probe_is_kept(serve, private_cache):
+    server = serve(Reply(body=completion(logprobs=True)))
+    client = build_chat_model(openai_backend(server))
+    caps = client.capabilities
+    assert caps.logprobs and caps.json_schema and caps.source == "probed"
+    assert caps.probed == {"logprobs": "returned", "json_schema": "accepted"}
+    first, second = server.requests
+    assert first.body["logprobs"] is True and first.body["top_logprobs"] == 10
+    assert second.body["response_format"]["type"] == "json_schema"
+    again = build_chat_model(openai_backend(server)).capabilities
+    assert len(server.requests) == 2  # the second run reads the kept probe
+    assert again.logprobs and again.source == "probe cache" and again.probed == caps.probed
+    assert list((private_cache / "probes").glob("*.json"))
+
+
+def test_a_server_that_ignores_logprobs_is_probed_as_without_them(serve, private_cache):
+    server = serve(Reply(body=completion()))
+    caps = build_chat_model(openai_backend(server)).capabilities
+    assert not caps.logprobs and caps.probed["logprobs"] == "ignored"
+
+
+def test_a_server_that_rejects_logprobs_is_probed_as_without_them(serve, private_cache):
+    server = serve(Reply(400, {"error": {"message": "logprobs is not supported"}}),
+                   Reply(body=completion()))
+    client = build_chat_model(openai_backend(server))
+    caps = client.capabilities
+    assert not caps.logprobs and caps.probed["logprobs"] == "rejected: HTTP 400"
+    assert "logprobs" not in server.requests[1].body  # the plain request passed
+    client.chat(ask(), logprobs=10)  # the agent's request then carries no logprobs
+    assert "logprobs" not in server.body()
+
+
+def test_a_server_that_rejects_every_request_fails_the_probe_in_one_line(serve, private_cache):
+    server = serve(Reply(400, {"error": {"message": "model 'fake-4o' does not exist"}}))
+    with pytest.raises(RequestRejected, match="does not exist") as raised:
+        build_chat_model(openai_backend(server))
+    assert "\n" not in str(raised.value) and len(server.requests) == 2
+
+
+def test_an_unreachable_openai_server_fails_before_the_work_with_its_own_hint(private_cache):
+    base_url = f"http://127.0.0.1:{closed_port()}/v1"
+    with pytest.raises(EfficientEQAError) as raised:
+        build_chat_model(ChatBackend(kind="openai", model="m", base_url=base_url, retries=0))
+    message = str(raised.value)
+    assert "\n" not in message and message.startswith(f"model server at {base_url}")
+    assert "unreachable after 1 tries" in message
+    assert "models serve" not in message and f"--vlm openai:m@{base_url}" in message
+
+
+def test_the_local_server_is_not_probed(serve, private_cache):
+    server = serve()
+    caps = build_chat_model(ChatBackend(kind="local", model="m", base_url=server.base_url)).capabilities
+    assert server.requests == []
+    assert (caps.logprobs, caps.images, caps.grammar, caps.source) == (True, False, True, "declared")
+
+
+def test_the_image_probe_finds_a_per_request_cap(serve, private_cache):
+    """vLLM's --limit-mm-per-prompt image=1 answers HTTP 400 to 5 images (issue 25, item 4)."""
+    limit = Reply(400, {"error": {"message": "At most 1 image(s) may be provided in one request."}})
+    server = serve(Reply(body=completion(logprobs=True)), Reply(), limit, Reply())
+    caps = build_chat_model(openai_backend(server, images=True)).capabilities
+    assert caps.images and caps.max_images == 1
+    assert caps.probed["images"] == "1 accepted, 5 rejected: HTTP 400"
+    counts = [sum(p.get("type") == "image_url" for p in r.body["messages"][0]["content"])
+              for r in server.requests[2:]]
+    assert counts == [5, 1]
+    assert build_chat_model(openai_backend(server, images=True)).capabilities.max_images == 1
+    assert len(server.requests) == 4  # kept
+
+
+def test_images_are_probed_only_when_asked_and_then_added_to_the_kept_probe(serve, private_cache):
+    server = serve(Reply(body=completion(logprobs=True)))
+    assert build_chat_model(openai_backend(server)).capabilities.max_images is None
+    assert len(server.requests) == 2  # no image request for a text run
+    caps = build_chat_model(openai_backend(server, images=True)).capabilities
+    assert len(server.requests) == 3 and caps.images and caps.max_images is None
+    assert caps.probed["images"] == "5 accepted" and caps.logprobs
+
+
+def test_a_server_without_images_is_probed_as_such(serve, private_cache):
+    no = Reply(400, {"error": {"message": "this model does not support images"}})
+    server = serve(Reply(body=completion(logprobs=True)), Reply(), no)
+    caps = build_chat_model(openai_backend(server, images=True)).capabilities
+    assert not caps.images and caps.probed["images"].startswith("rejected:")
+
+
+def test_a_rejection_after_a_kept_probe_drops_it(serve, private_cache):
+    server = serve(Reply(body=completion(logprobs=True)))
+    build_chat_model(openai_backend(server))
+    server.replies = [Reply(400, {"error": {"message": "logprobs are off now"}})]
+    client = build_chat_model(openai_backend(server, cache=False))
+    assert client.capabilities.source == "probe cache"
+    with pytest.raises(RequestRejected, match="probe, now dropped"):
+        client.chat(ask(), logprobs=10)
+    assert not list((private_cache / "probes").glob("*.json"))
+
+
+def test_a_reply_cut_at_max_tokens_says_so_and_the_cache_keeps_it(serve, tmp_path):
+    cut = completion("The answer is")
+    cut["choices"][0]["finish_reason"] = "length"
+    server = serve(Reply(body=cut))
+    client = make_client(server, tmp_path, cache=True)
+    assert client.chat(ask(), max_tokens=3).finish_reason == "length"
+    hit = client.chat(ask(), max_tokens=3)
+    assert hit.cached and hit.finish_reason == "length"
+    assert client.chat(ask("other")).finish_reason == "length"
+
+
+def test_an_old_cache_entry_without_finish_reason_still_loads():
+    from efficienteqa.models.cache import response_from_json
+
+    old = json.dumps({"text": "B", "model": "m", "prompt_tokens": 1, "completion_tokens": 1,
+                      "latency_s": 0.1, "cached": False, "logprobs": None, "raw": {}})
+    response = response_from_json(old)
+    assert response.text == "B" and response.finish_reason is None
+
+
+def test_timeout_and_retries_reach_the_client_from_the_stack():
+    from efficienteqa.stack import Stack, parse_vlm
+
+    stack = Stack(vlm="openai:m@http://127.0.0.1:9/v1", timeout_s=3.5, retries=1,
+                  image_format="png", image_max_side=256, image_detail="low", api_key_env="none")
+    backend = replace(parse_vlm(stack.vlm, images=True, **stack.server_options()), probe=False)
+    config = build_chat_model(backend).config
+    assert (config.timeout_s, config.max_retries) == (3.5, 1)
+    assert (config.image_format, config.image_max_side, config.image_detail) == ("png", 256, "low")
+    assert config.api_key_env is None
+    default = replace(parse_vlm("openai:m@http://127.0.0.1:9/v1", images=True), probe=False)
+    assert (default.timeout_s, default.retries) == (120.0, 4)
+    assert build_chat_model(default).config.image_format == "jpeg"
+    for bad, message in [({"timeout_s": 0}, "not a positive number"), ({"retries": -1}, "negative"),
+                         ({"image_format": "gif"}, "unknown image format"),
+                         ({"image_detail": "max"}, "unknown image detail"),
+                         ({"image_max_side": 4}, "too small")]:
+        with pytest.raises(EfficientEQAError, match=message):
+            parse_vlm("openai:m", images=True, **bad)
+
+
+def test_a_timeout_names_the_option(serve, tmp_path):
+    server = serve(Reply(delay_s=2.0))
+    with pytest.raises(EfficientEQAError, match="raise --timeout-s"):
+        make_client(server, tmp_path, timeout_s=0.2, max_retries=0).chat(ask())
+
+
+def test_the_cli_refuses_a_bad_server_option_in_one_line(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "ask", "Where is the sofa?",
+                             "--image-format", "gif", "--out", str(tmp_path / "out")],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1 and "unknown image format 'gif'" in result.stdout
+    assert "Traceback" not in result.stdout + result.stderr and not (tmp_path / "out").exists()
+
+
+def test_image_format_size_and_detail_reach_the_request(serve, private_cache):
+    server = serve(Reply(body=completion(logprobs=True)))
+    client = build_chat_model(openai_backend(server, images=True, image_detail="low",
+                                             image_max_side=128))
+    image = np.random.default_rng(0).integers(0, 255, (384, 512, 3), np.uint8)
+    client.chat(ask("What is here?", image))
+    part = server.body()["messages"][1]["content"][1]["image_url"]
+    assert part["detail"] == "low" and part["url"].startswith("data:image/jpeg;base64,")
+    decoded = Image.open(io.BytesIO(base64.b64decode(part["url"].split(",", 1)[1])))
+    assert decoded.size == (128, 96) and decoded.format == "JPEG"
+    plain = build_chat_model(openai_backend(server, images=True, image_format="png"))
+    plain.chat(ask("What is here?", image))
+    part = server.body()["messages"][1]["content"][1]["image_url"]
+    assert "detail" not in part and part["url"].startswith("data:image/png;base64,")
+
+
+def test_the_image_encoding_is_part_of_the_cache_key():
+    image = np.zeros((8, 8, 3), np.uint8)
+    keys = {request_key("m", ask("q", image), max_tokens=8, temperature=0.0, logprobs=None,
+                        json_schema=None, seed=None, image_encoding=ClientConfig(
+                            image_format=f, image_detail=d).image_encoding)
+            for f in ("png", "jpeg") for d in (None, "low", "high")}
+    assert len(keys) == 6
+    assert ClientConfig().image_encoding == "png@512"  # as before detail existed
+
+
+def test_the_openai_key_never_reaches_another_host(serve, private_cache, monkeypatch):
+    monkeypatch.setenv("OPENAI_API_KEY", SECRET)
+    monkeypatch.setenv("VLLM_KEY", "vllm-secret")
+    server = serve(Reply(body=completion(logprobs=True)))
+    build_chat_model(openai_backend(server, cache=False)).chat(ask())
+    build_chat_model(openai_backend(server, cache=False, api_key_env="none")).chat(ask("2"))
+    assert server.requests and all(SECRET not in r.headers.get("authorization", "")
+                                   for r in server.requests)
+    build_chat_model(openai_backend(server, cache=False, api_key_env="VLLM_KEY")).chat(ask("3"))
+    assert server.requests[-1].headers["authorization"] == "Bearer vllm-secret"
+    build_chat_model(openai_backend(server, cache=False,
+                                    api_key_env="OPENAI_API_KEY")).chat(ask("4"))
+    assert server.requests[-1].headers["authorization"] == f"Bearer {SECRET}"  # named: sent
+
+
+def test_the_openai_key_is_sent_to_the_official_host_only():
+    assert ChatBackend(kind="openai", model="gpt-4o").key_env == "OPENAI_API_KEY"
+    assert ChatBackend(kind="openai", model="gpt-4o",
+                       base_url="https://api.openai.com/v1").key_env == "OPENAI_API_KEY"
+    for url in ("http://api.openai.com/v1", "https://api.openai.com.evil.example/v1",
+                "http://127.0.0.1:8000/v1", "https://vllm.example.org/v1"):
+        assert ChatBackend(kind="openai", model="m", base_url=url).key_env is None, url
+    assert ChatBackend(kind="openai", model="m", base_url="http://h/v1",
+                       api_key_env="MY_KEY").key_env == "MY_KEY"
+    assert ChatBackend(kind="openai", model="gpt-4o", api_key_env="None").key_env is None
+    assert ChatBackend(kind="local").key_env is None
+
+
+def test_the_cache_key_holds_the_server_of_an_openai_backend(serve, private_cache):
+    server_a, server_b = serve(Reply(body=completion("A", logprobs=True))), serve(
+        Reply(body=completion("B", logprobs=True)))
+    assert build_chat_model(openai_backend(server_a, cache=True)).chat(ask()).text == "A"
+    reply = build_chat_model(openai_backend(server_b, cache=True)).chat(ask())
+    assert not reply.cached and reply.text == "B"  # another server, same model name
+    assert build_chat_model(openai_backend(server_a, cache=True)).chat(ask()).cached
+
+
+def test_an_ask_against_a_dead_openai_server_does_not_succeed_from_the_cache(serve, private_cache):
+    server = serve(Reply(body=completion(logprobs=True)))
+    build_chat_model(openai_backend(server, cache=True)).chat(ask())
+    dead = f"http://127.0.0.1:{closed_port()}/v1"
+    with pytest.raises(EfficientEQAError, match="unreachable"):
+        build_chat_model(ChatBackend(kind="openai", model="fake-4o", base_url=dead, retries=0))
+
+
+def test_the_local_models_cache_key_is_unchanged():
+    """The embedded local model is keyed as before the server URL was: its cache still hits."""
+    messages = [Message("system", "You explore houses."), Message("user", "Which door, A or B?")]
+    key = request_key("qwen2.5-coder-1.5b", messages, max_tokens=64, temperature=0.0,
+                      logprobs=10, json_schema={"type": "object"}, seed=None, image_encoding="")
+    assert key == "e497035d15646dbacd71b112bd9c857a8cec625ad0f06d0f80214893fb5f63b8"
+    assert request_key("qwen2.5-coder-1.5b", messages, max_tokens=64, temperature=0.0,
+                       logprobs=10, json_schema={"type": "object"}, seed=None,
+                       server="http://127.0.0.1:8000/v1") != key
+
+
+def test_a_local_backend_keys_its_cache_without_its_port(serve, tmp_path, private_cache):
+    first, second = serve(Reply(body=completion("A"))), serve(Reply(body=completion("B")))
+    assert build_chat_model(ChatBackend(kind="local", model="m", base_url=first.base_url)).config \
+        .cache_server is None
+    build_chat_model(ChatBackend(kind="local", model="m", base_url=first.base_url)).chat(ask())
+    again = build_chat_model(ChatBackend(kind="local", model="m", base_url=second.base_url))
+    assert again.chat(ask()).cached and second.requests == []
+
+
+def test_usage_serialises_its_cost():
+    from dataclasses import asdict
+
+    from efficienteqa.models.base import ChatResponse, Usage
+
+    usage = Usage()
+    usage.add(ChatResponse("x", "m", prompt_tokens=10, completion_tokens=2), cost_usd=0.25)
+    assert asdict(usage) == usage.to_dict() == {
+        "calls": 1, "cached_calls": 0, "prompt_tokens": 10, "completion_tokens": 2,
+        "latency_s": 0.0, "cost_usd": 0.25}
+
+
+def test_gpt4o_usage_is_priced(serve, private_cache):
+    server = serve(Reply(body=completion(prompt_tokens=1000, completion_tokens=100, logprobs=True)))
+    client = build_chat_model(openai_backend(server, model="gpt-4o", cache=False))
+    client.chat(ask())
+    assert client.usage.cost_usd == pytest.approx(0.0025 + 0.001)
+    assert client.usage.calls == 1  # the probe is not counted
 
 
 # ------------------------------------------------------------------ real llama.cpp server

@@ -99,6 +99,26 @@ Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier 
 Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
                                          "openai:MODEL[@BASE_URL] (key in OPENAI_API_KEY).",
                                          show_default=False)]
+# The model server's options (Stack fields; None: ChatBackend's defaults).
+TimeoutS = Annotated[float | None, typer.Option(
+    "--timeout-s", help="Seconds the model server has for each try of a call (default 120); a "
+    "hung server costs this times the tries.", show_default=False)]
+Retries = Annotated[int | None, typer.Option(
+    help="Retries of a model call after the first try, on timeouts, refused connections, 429 "
+    "and 5xx (default 4).", show_default=False)]
+ApiKeyEnv = Annotated[str | None, typer.Option(
+    "--api-key-env", help="The environment variable whose key is sent to the --vlm server, or "
+    "none. Default: OPENAI_API_KEY for api.openai.com only; no key for any other server.",
+    show_default=False)]
+ImageFormat = Annotated[str | None, typer.Option(
+    "--image-format", help="png | jpeg (default jpeg, quality 90, for openai: servers: about 6 "
+    "times smaller than PNG).", show_default=False)]
+ImageMaxSide = Annotated[int | None, typer.Option(
+    "--image-max-side", help="Images are shrunk to this longer side in px (default 512).",
+    show_default=False)]
+ImageDetail = Annotated[str | None, typer.Option(
+    "--image-detail", help="auto | low | high: OpenAI's image_url.detail (default: not sent, "
+    "the server's own).", show_default=False)]
 Temperature = Annotated[float | None, typer.Option(help="The VLM's sampling temperature for every "
                                                    "call (default 0).", show_default=False)]
 PerceptionOpt = Annotated[str | None, typer.Option(
@@ -165,6 +185,12 @@ def ask_command(
                                         show_default=False),
     vlm: Vlm = None,
     temperature: Temperature = None,
+    timeout_s: TimeoutS = None,
+    retries: Retries = None,
+    api_key_env: ApiKeyEnv = None,
+    image_format: ImageFormat = None,
+    image_max_side: ImageMaxSide = None,
+    image_detail: ImageDetail = None,
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
     grouping: Grouping = None,
@@ -192,7 +218,8 @@ def ask_command(
     config, stack = build_config(o), build_stack(o)
     # Bad input fails before the scene is built.
     check_stack(stack)
-    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
+    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature,
+              **stack.server_options())
     start_pose, habitat_start, reference = _parse_start(start), None, None
     if episode is not None:
         from efficienteqa.datasets import find_question, load_dataset
@@ -299,6 +326,12 @@ def eval_command(
     seed: Seed = None,
     vlm: Vlm = None,
     temperature: Temperature = None,
+    timeout_s: TimeoutS = None,
+    retries: Retries = None,
+    api_key_env: ApiKeyEnv = None,
+    image_format: ImageFormat = None,
+    image_max_side: ImageMaxSide = None,
+    image_detail: ImageDetail = None,
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
     grouping: Grouping = None,
@@ -342,7 +375,8 @@ def eval_command(
     stack = build_stack(o)
     check_stack(stack)
     build_config(o)  # a value the agent refuses (--top-k 0, --z-th nan): here, not per episode
-    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature)
+    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature,
+              **stack.server_options())
     dataset = o["dataset"] or "synthetic"
     if closed_set and dataset != "hm-eqa":
         raise EfficientEQAError(f"--closed-set is HM-EQA's multiple-choice mode; {dataset} has no "

@@ -8,6 +8,7 @@ the local llama.cpp server, MiniLM text relevancy. ``--vlm openai:gpt-4o --perce
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +27,7 @@ from efficienteqa.explore.text_scorers import (
 from efficienteqa.explore.vlm_scorer import VLMScorer
 from efficienteqa.models.backends import CHAT_BACKENDS, ChatBackend, build_chat_model
 from efficienteqa.models.base import ChatModel
+from efficienteqa.models.client import IMAGE_DETAILS, IMAGE_FORMATS
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
 from efficienteqa.registry import Registry
@@ -44,7 +46,12 @@ class Stack:
     ``temperature``: the VLM's sampling temperature for every call (None: 0, greedy);
     ``explore_scorer``: where the semantic values come from (``EXPLORE_SCORERS``; "auto": the
     VLM's verbalized confidence when it reads images or token probabilities are asked for,
-    else ``OFFLINE_EXPLORE_SCORER``)."""
+    else ``OFFLINE_EXPLORE_SCORER``).
+
+    The model server's options (None: ``ChatBackend``'s default; see its docstring):
+    ``timeout_s`` and ``retries`` of each call, ``api_key_env`` (the variable whose key is sent,
+    or "none"), ``image_format`` (png | jpeg), ``image_max_side`` (px) and ``image_detail``
+    (auto | low | high). ``server_options()`` gives them as ``parse_vlm``'s keywords."""
 
     vlm: str = "local:qwen2.5-coder-1.5b"
     perception: str = "semantic"
@@ -53,10 +60,26 @@ class Stack:
     cache: bool = True
     temperature: float | None = None
     explore_scorer: str = "auto"
+    timeout_s: float | None = None
+    retries: int | None = None
+    api_key_env: str | None = None
+    image_format: str | None = None
+    image_max_side: int | None = None
+    image_detail: str | None = None
+
+    def server_options(self) -> dict[str, Any]:
+        return {"timeout_s": self.timeout_s, "retries": self.retries,
+                "api_key_env": self.api_key_env, "image_format": self.image_format,
+                "image_max_side": self.image_max_side, "image_detail": self.image_detail}
 
 
 def parse_vlm(spec: str, images: bool, cache: bool = True,
-              temperature: float | None = None) -> ChatBackend:
+              temperature: float | None = None, *, timeout_s: float | None = None,
+              retries: int | None = None, api_key_env: str | None = None,
+              image_format: str | None = None, image_max_side: int | None = None,
+              image_detail: str | None = None) -> ChatBackend:
+    """The back-end of a VLM spec and the server options (None: ``ChatBackend``'s default);
+    a bad value fails here, in one line, before anything is built."""
     kind, _, rest = spec.partition(":")
     model, _, url = rest.partition("@")
     if kind not in CHAT_BACKENDS or not model:
@@ -66,8 +89,26 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
     if temperature is not None and not 0.0 <= temperature <= 2.0:
         raise EfficientEQAError(f"temperature {temperature} is outside 0-2",
                                 fix="use e.g. --temperature 1 (the paper's) or leave it out (0)")
+    if timeout_s is not None and not (timeout_s > 0 and math.isfinite(timeout_s)):
+        raise EfficientEQAError(f"timeout {timeout_s} s is not a positive number",
+                                fix="use e.g. --timeout-s 60")
+    if retries is not None and retries < 0:
+        raise EfficientEQAError(f"retries {retries} is negative", fix="use --retries 0 or more")
+    if image_format is not None and image_format not in IMAGE_FORMATS:
+        raise EfficientEQAError(f"unknown image format {image_format!r}",
+                                fix=f"use --image-format {' or '.join(IMAGE_FORMATS)}")
+    if image_detail is not None and image_detail not in IMAGE_DETAILS:
+        raise EfficientEQAError(f"unknown image detail {image_detail!r}",
+                                fix=f"use --image-detail {', '.join(IMAGE_DETAILS)}")
+    if image_max_side is not None and image_max_side < 16:
+        raise EfficientEQAError(f"image max side {image_max_side} px is too small",
+                                fix="use --image-max-side 16 or more (e.g. 512)")
+    options: dict[str, Any] = {"timeout_s": timeout_s, "retries": retries,
+                               "api_key_env": api_key_env, "image_format": image_format,
+                               "image_max_side": image_max_side, "image_detail": image_detail}
     return ChatBackend(kind=kind, model=model, base_url=url or None, images=images, cache=cache,
-                       temperature=temperature)
+                       temperature=temperature,
+                       **{k: v for k, v in options.items() if v is not None})
 
 
 # Relevancy scorers that read a frame's description, and the ones that need no weights of their
@@ -261,7 +302,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     vlm_backend = stack.vlm if model is None else "injected"
     if model is None:
         model = build_chat_model(parse_vlm(stack.vlm, images=perception.modality == "image",
-                                           cache=stack.cache, temperature=stack.temperature))
+                                           cache=stack.cache, temperature=stack.temperature,
+                                           **stack.server_options()))
     if perception.modality == "image" and not model.capabilities.images:
         raise EfficientEQAError(f"model {model.name!r} cannot read images",
                                 fix="use --perception semantic, or an image VLM such as "

@@ -3,23 +3,48 @@ share one client (``OpenAIChatClient``); only the URL, the model and the capabil
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from urllib.parse import urlsplit
 
 from efficienteqa.models.base import Capabilities, ChatModel
 from efficienteqa.models.client import ClientConfig, OpenAIChatClient
 from efficienteqa.registry import Registry
 
 OPENAI_URL = "https://api.openai.com/v1"
+OPENAI_HOST = "api.openai.com"
+OPENAI_KEY_ENV = "OPENAI_API_KEY"
 # USD per 1k tokens (prompt, completion); unknown models cost 0 in the accounting.
 PRICES = {"gpt-4o": (0.0025, 0.01), "gpt-4o-2024-05-13": (0.005, 0.015),
           "gpt-4o-mini": (0.00015, 0.0006)}
+# The embedded llama.cpp server's capabilities are known: no probe.
+LOCAL_CAPABILITIES = Capabilities(images=False, logprobs=True, grammar=True)
 
 
 @dataclass(frozen=True)
 class ChatBackend:
     """``kind``: "local" (llama.cpp on loopback, started on demand; text only), "openai" (any
     OpenAI-compatible server: GPT-4o, vLLM, Ollama; ``images`` for VLMs). Tests build
-    ``StubChatModel`` directly."""
+    ``StubChatModel`` directly.
+
+    For kind "openai" the server is probed once per (base URL, model) (``probe``; the result is
+    kept on disk, see ``OpenAIChatClient.probe``): logprobs, JSON schemas and, with ``images``,
+    how many images a request may carry. The local server's capabilities are declared.
+
+    ``api_key_env``: the environment variable whose key is sent; "none": no key; None (default):
+    ``OPENAI_API_KEY`` for the official host (api.openai.com) only, no key for any other server
+    (a vLLM server without auth needs none, and the user's OpenAI key must not reach another
+    host unless the user names it for that host).
+
+    ``timeout_s``/``retries``: each try's limit and the retries after the first try (a hung
+    server costs ``timeout_s * (retries + 1)`` per call).
+
+    Images (kind "openai"): ``image_format`` None is "jpeg" (quality 90): a 512x384 frame of a
+    rendered house is 80-315 kB as PNG and about 6 times smaller as JPEG q90, a difference the
+    model does not see but every request's upload and the server's decoding do.
+    ``image_max_side`` 512 px: OpenAI's low-detail tile and more than Qwen2.5-VL needs to read a
+    room. ``image_detail`` None: not sent (the server's default, "auto" for OpenAI, which gives a
+    512x384 frame one 512 px tile plus the base tokens); "low" costs GPT-4o 85 tokens an image.
+    """
 
     kind: str = "local"
     model: str = "qwen2.5-coder-1.5b"
@@ -29,28 +54,60 @@ class ChatBackend:
     logprobs: bool = True
     cache: bool = True
     timeout_s: float = 120.0
+    retries: int = 4
     temperature: float | None = None  # None: each call's own (0 for every call of the agent)
+    image_format: str | None = None  # None: "jpeg" for kind openai
+    image_max_side: int = 512
+    image_detail: str | None = None
+    probe: bool = True
+
+    @property
+    def key_env(self) -> str | None:
+        """The variable whose key is sent (see the class docstring), or None: no key."""
+        if self.api_key_env is not None:
+            return None if self.api_key_env.lower() == "none" else self.api_key_env
+        if self.kind != "openai":
+            return None
+        return OPENAI_KEY_ENV if is_official(self.base_url or OPENAI_URL) else None
+
+
+def is_official(base_url: str) -> bool:
+    """Whether ``base_url`` is OpenAI's own API (https, host api.openai.com)."""
+    parsed = urlsplit(base_url)
+    return parsed.scheme == "https" and (parsed.hostname or "").lower() == OPENAI_HOST
 
 
 def _local(backend: ChatBackend) -> ChatModel:
     from efficienteqa.models.local import ensure_server
 
     base_url = backend.base_url or ensure_server(backend.model)
-    capabilities = Capabilities(images=False, logprobs=backend.logprobs, grammar=True)
+    capabilities = replace(LOCAL_CAPABILITIES, logprobs=backend.logprobs)
     return OpenAIChatClient(ClientConfig(
         base_url=base_url, model=backend.model, capabilities=capabilities,
-        cache=backend.cache, timeout_s=backend.timeout_s, temperature=backend.temperature))
+        api_key_env=backend.key_env, cache=backend.cache, timeout_s=backend.timeout_s,
+        max_retries=backend.retries, temperature=backend.temperature,
+        image_format=backend.image_format or "png", image_max_side=backend.image_max_side,
+        image_detail=backend.image_detail))
 
 
 def _openai(backend: ChatBackend) -> ChatModel:
     prompt_price, completion_price = PRICES.get(backend.model, (0.0, 0.0))
-    return OpenAIChatClient(ClientConfig(
-        base_url=backend.base_url or OPENAI_URL, model=backend.model,
-        api_key_env=backend.api_key_env or "OPENAI_API_KEY",
+    base_url = backend.base_url or OPENAI_URL
+    model_spec = f"openai:{backend.model}" + (f"@{base_url}" if backend.base_url else "")
+    client = OpenAIChatClient(ClientConfig(
+        base_url=base_url, model=backend.model, api_key_env=backend.key_env,
         capabilities=Capabilities(images=backend.images, logprobs=backend.logprobs,
                                   json_schema=True),
         price_prompt_per_1k=prompt_price, price_completion_per_1k=completion_price,
-        cache=backend.cache, timeout_s=backend.timeout_s, temperature=backend.temperature))
+        cache=backend.cache, timeout_s=backend.timeout_s, max_retries=backend.retries,
+        temperature=backend.temperature, image_format=backend.image_format or "jpeg",
+        image_max_side=backend.image_max_side, image_detail=backend.image_detail,
+        cache_server=base_url,
+        unreachable_fix=f"check that the server of --vlm {model_spec} is running and that the "
+                        "URL is right (it usually ends in /v1)"))
+    if backend.probe:
+        client.probe(images=backend.images)
+    return client
 
 
 CHAT_BACKENDS: Registry[ChatModel] = Registry("chat back-end")

@@ -2,9 +2,12 @@
 
 The key is a sha256 over what determines a reply: model name, messages (each image replaced by
 the sha256 of its pixels, shape and dtype), ``max_tokens``, ``temperature``, ``logprobs``,
-``json_schema``, ``seed`` and the image encoding. It never includes the server address or the API
-key, so the same request against GPT-4o through two gateways is one entry, and the database holds
-no secret.
+``json_schema``, ``seed``, the image encoding (format, size, detail) and, for a server named by
+URL (kind "openai"), that server's base URL: two servers serving the same model name are two
+servers, and an ``ask`` against a dead server must not "succeed" from another's replies. The
+embedded local model (kind "local", on a loopback port that changes between sessions) is keyed
+without its URL, exactly as before the URL was added, so its existing cache still hits. The key
+never includes the API key, and the database holds no secret.
 
 Requests with ``temperature > 0`` are cached too, with the seed in the key: we prefer
 reproducible episodes over sampling diversity. To draw several samples, vary the seed.
@@ -17,7 +20,7 @@ import json
 import sqlite3
 import threading
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -40,8 +43,10 @@ def image_sha256(image: np.ndarray) -> str:
 
 def request_key(model: str, messages: list[Message], *, max_tokens: int, temperature: float,
                 logprobs: int | None, json_schema: dict[str, Any] | None, seed: int | None,
-                image_encoding: str = "") -> str:
-    """The cache key of one chat request (hex sha256); see the module docstring."""
+                image_encoding: str = "", server: str | None = None) -> str:
+    """The cache key of one chat request (hex sha256); see the module docstring. ``server``:
+    the base URL of a server named by URL; None (the embedded local model) leaves it out of
+    the key, which is then the key of the releases before it existed."""
     payload = {
         "model": model,
         "messages": [{"role": m.role, "text": m.text, "images": [image_sha256(i) for i in m.images]}
@@ -53,6 +58,8 @@ def request_key(model: str, messages: list[Message], *, max_tokens: int, tempera
         "seed": seed,
         "image_encoding": image_encoding if any(m.images for m in messages) else "",
     }
+    if server is not None:
+        payload["server"] = server.rstrip("/")
     blob = json.dumps(payload, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
     return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -62,7 +69,11 @@ def response_to_json(response: ChatResponse) -> str:
 
 
 def response_from_json(blob: str) -> ChatResponse:
+    """A stored response; fields it lacks (an entry older than them, e.g. ``finish_reason``)
+    take their defaults, and fields this version does not know are dropped."""
     data = json.loads(blob)
+    known = {f.name for f in fields(ChatResponse)}
+    data = {k: v for k, v in data.items() if k in known}
     if data.get("logprobs") is not None:
         data["logprobs"] = [TokenLogprob(token=t["token"], logprob=t["logprob"],
                                          top=tuple((a, b) for a, b in t.get("top", ())))

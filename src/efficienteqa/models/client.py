@@ -10,25 +10,34 @@ the ``Authorization`` header: it is never in configs, reprs, logs, errors or the
 
 ``openai`` is imported on the first request, so modules that only need ``encode_image`` stay
 light.
+
+``probe()`` asks the server what it can do (logprobs: returned, ignored or rejected; JSON
+schemas; how many images one request may carry) with a few one-token requests, once per
+(base URL, model): the result is kept in ``cache_dir("probes")`` and read back by later runs.
 """
 
 from __future__ import annotations
 
 import base64
+import hashlib
 import io
+import json
 import logging
 import math
 import os
+import re
 import sqlite3
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from PIL import Image
 
+from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatResponse, Message, TokenLogprob, Usage
 from efficienteqa.models.cache import ResponseCache, request_key
@@ -39,6 +48,12 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 _SERVE_FIX = "start it with `efficienteqa models serve` or check base_url"
+IMAGE_FORMATS = ("png", "jpeg")
+IMAGE_DETAILS = ("auto", "low", "high")
+# The probe: as many top alternatives as the agent asks for (vc.logprobs.TOP_LOGPROBS), and as
+# many images as one request of the agent carries at most (the answer's K = 5 frames).
+PROBE_TOP_LOGPROBS = 10
+PROBE_IMAGES = 5
 # Sent where no key is configured: the SDK insists on one, and without it would read
 # OPENAI_API_KEY from the environment and send the user's OpenAI key to a local server.
 _NO_KEY = "no-key"
@@ -51,6 +66,12 @@ class ClientConfig:
     ``api_key_env`` names the environment variable holding the key (None: send no key).
     ``max_retries``: retries after the first try, by the SDK (see the module docstring);
     ``timeout_s``: the limit of each try.
+    ``image_format``/``image_max_side``/``image_detail``: how images are sent (``encode_image``;
+    ``detail`` goes in ``image_url.detail``, None: not sent, the server's default); all three
+    are part of the cache key.
+    ``cache_server``: the base URL to key cached replies by (a server named by URL), or None
+    (the embedded local model, keyed as before server URLs were keyed; ``models/cache.py``).
+    ``unreachable_fix``: what to do when the server cannot be reached (per back-end kind).
     """
 
     base_url: str = "http://127.0.0.1:8080/v1"
@@ -60,12 +81,40 @@ class ClientConfig:
     max_retries: int = 4
     image_max_side: int = 512
     image_format: str = "png"  # "png" | "jpeg"
+    image_detail: str | None = None  # "auto" | "low" | "high"; None: not sent
     capabilities: Capabilities = field(default_factory=Capabilities)
     price_prompt_per_1k: float = 0.0
     price_completion_per_1k: float = 0.0
     cache: bool = True
     cache_path: str | None = None  # None: cache_dir("responses")/responses.sqlite
     temperature: float | None = None  # replaces every request's temperature (the paper's T = 1)
+    cache_server: str | None = None
+    unreachable_fix: str = _SERVE_FIX
+    probe_dir: str | None = None  # None: cache_dir("probes")
+
+    def __post_init__(self) -> None:
+        if self.image_format not in IMAGE_FORMATS:
+            raise EfficientEQAError(f"unknown image format {self.image_format!r}",
+                                    fix=f"use one of {', '.join(IMAGE_FORMATS)}")
+        if self.image_detail is not None and self.image_detail not in IMAGE_DETAILS:
+            raise EfficientEQAError(f"unknown image detail {self.image_detail!r}",
+                                    fix=f"use one of {', '.join(IMAGE_DETAILS)}")
+        if self.image_max_side < 16:
+            raise EfficientEQAError(f"image max side {self.image_max_side} px is too small",
+                                    fix="use at least 16 px, e.g. 512")
+        if not (self.timeout_s > 0 and math.isfinite(self.timeout_s)):
+            raise EfficientEQAError(f"timeout {self.timeout_s} s is not a positive number",
+                                    fix="use e.g. --timeout-s 60")
+        if self.max_retries < 0:
+            raise EfficientEQAError(f"retries {self.max_retries} is negative",
+                                    fix="use 0 (one try) or more")
+
+    @property
+    def image_encoding(self) -> str:
+        """The image encoding in the cache key: ``png@512`` (as before ``detail`` existed),
+        ``jpeg@512``, ``jpeg@512/low``."""
+        encoding = f"{self.image_format}@{self.image_max_side}"
+        return encoding + (f"/{self.image_detail}" if self.image_detail else "")
 
 
 def encode_image(image: np.ndarray, max_side: int = 512, fmt: str = "png") -> str:
@@ -177,7 +226,8 @@ class OpenAIChatClient:
         if cache is not None:
             key = request_key(self.name, messages, max_tokens=max_tokens, temperature=temperature,
                               logprobs=logprobs, json_schema=json_schema, seed=seed,
-                              image_encoding=f"{self.config.image_format}@{self.config.image_max_side}")
+                              image_encoding=self.config.image_encoding,
+                              server=self.config.cache_server)
             hit = self._cache_call(cache.get, key)
             if hit is not None:
                 with self._lock:
@@ -186,7 +236,10 @@ class OpenAIChatClient:
         arguments = self.request_arguments(messages, max_tokens=max_tokens, temperature=temperature,
                                            logprobs=logprobs, json_schema=json_schema, seed=seed)
         start = time.perf_counter()
-        data = self._complete(arguments)
+        try:
+            data = self._complete(arguments)
+        except RequestRejected as error:
+            raise self._stale_probe(error) from None
         response = self._parse(data, time.perf_counter() - start)
         if cache is not None and key is not None:
             self._cache_call(cache.put, key, response)
@@ -222,23 +275,145 @@ class OpenAIChatClient:
                 arguments["extra_body"] = {"response_format": {"type": "json_object", "schema": schema}}
         return arguments
 
-    def probe_capabilities(self) -> Capabilities:
-        """Ask for one token with ``top_logprobs=1``; logprobs are supported if they come back.
+    def probe_capabilities(self, images: bool = False) -> Capabilities:
+        """Ask the server what it can do, with one-token requests (not cached, not counted in
+        ``usage``), and update and return ``capabilities`` (a flag declared off stays off):
 
-        Updates and returns ``capabilities`` (other flags stay as declared). Not cached.
+        - logprobs: one request with ``logprobs`` and ``top_logprobs=10``: "returned" (they
+          come back), "ignored" (a reply without them) or "rejected" (HTTP 4xx; a plain request
+          then must pass, else the server or the model name is wrong and that error is raised);
+        - JSON schemas (where declared): a ``response_format`` of type json_schema, accepted
+          or rejected;
+        - images (only with ``images`` and where declared): 5 tiny images in one request; if
+          rejected, the count the server's message names (vLLM: "At most N image(s)"), else 1:
+          ``max_images`` is the count accepted (None when 5 pass), ``images`` False when even
+          one is rejected.
+
+        A server that cannot be reached fails here, in one line. ``capabilities.probed`` says
+        what each probe found; ``source`` becomes "probed".
         """
-        arguments = {"model": self.name, "messages": [{"role": "user", "content": "Say yes."}],
-                     "max_tokens": 1, "temperature": 0.0, "logprobs": True, "top_logprobs": 1}
-        try:
-            data = self._complete(arguments)
-            choices = data.get("choices") or [{}]
-            supported = bool(parse_logprobs(choices[0]))
-        except RequestRejected:
-            supported = False
-        self._capabilities = replace(self._capabilities, logprobs=supported)
+        found = self._probe_text()
+        if images and self._capabilities.images:
+            found.update(self._probe_images())
+        self._apply_probe(found, "probed")
         return self._capabilities
 
+    def probe(self, images: bool = False, *, use_cache: bool = True) -> Capabilities:
+        """``probe_capabilities`` once per (base URL, model): an earlier probe's result, kept in
+        ``cache_dir("probes")``, is read back (``source`` "probe cache"); the image probe runs
+        only when ``images`` is asked (and declared) and no earlier probe did it."""
+        path = self._probe_path()
+        stored = _read_json(path) if use_cache else None
+        want_images = images and self._capabilities.images
+        if stored is not None and (not want_images or "images" in stored):
+            self._apply_probe(stored, "probe cache")
+            return self._capabilities
+        found = stored if stored is not None else self._probe_text()
+        if want_images:
+            found.update(self._probe_images())
+        self._apply_probe(found, "probed")
+        record = {"base_url": self.config.base_url.rstrip("/"), "model": self.name, **found,
+                  "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_text(json.dumps(record, indent=1))
+            tmp.replace(path)
+        except OSError as error:
+            log.warning("cannot keep the probe of %s (%s)", self.url, _one_line(str(error)))
+        return self._capabilities
+
+    def forget_probe(self) -> None:
+        """Drop this server's kept probe: the next ``probe`` asks the server again."""
+        self._probe_path().unlink(missing_ok=True)
+
     # -- internals --
+
+    def _probe_path(self) -> Path:
+        ident = f"{self.config.base_url.rstrip('/')}|{self.name}"
+        folder = Path(self.config.probe_dir) if self.config.probe_dir else cache_dir("probes")
+        return folder / f"{hashlib.sha256(ident.encode()).hexdigest()[:24]}.json"
+
+    def _apply_probe(self, found: dict[str, Any], source: str) -> None:
+        """The declared capabilities, each flag the server lacks turned off (see ``probe``)."""
+        declared = self._capabilities
+        notes = {k: str(found[k + "_probe"]) for k in ("logprobs", "json_schema", "images")
+                 if k + "_probe" in found}
+        self._capabilities = replace(
+            declared, logprobs=declared.logprobs and bool(found.get("logprobs")),
+            json_schema=declared.json_schema and bool(found.get("json_schema", True)),
+            images=declared.images and bool(found.get("images", True)),
+            max_images=found.get("max_images") if declared.images else declared.max_images,
+            source=source, probed=notes)
+
+    def _probe_text(self) -> dict[str, Any]:
+        """Logprobs and JSON schemas (see ``probe_capabilities``), as the kept probe's fields."""
+        found: dict[str, Any] = {}
+        plain = {"model": self.name, "messages": [{"role": "user", "content": "Say yes."}],
+                 "max_tokens": 1, "temperature": 0.0}
+        try:
+            data = self._complete({**plain, "logprobs": True,
+                                   "top_logprobs": PROBE_TOP_LOGPROBS})
+            choices = data.get("choices") or [{}]
+            found["logprobs"] = bool(parse_logprobs(choices[0]))
+            found["logprobs_probe"] = "returned" if found["logprobs"] else "ignored"
+        except RequestRejected as error:
+            if error.status in (401, 403, 404):
+                raise
+            self._complete(plain)  # the server answers a plain request, or this raises
+            found["logprobs"] = False
+            found["logprobs_probe"] = f"rejected: HTTP {error.status}"
+        if self._capabilities.json_schema:
+            schema = {"name": "probe", "schema": {"type": "object", "properties": {
+                "ok": {"type": "boolean"}}, "required": ["ok"]}}
+            try:
+                self._complete({**plain, "max_tokens": 8, "response_format": {
+                    "type": "json_schema", "json_schema": schema}})
+                found["json_schema"], found["json_schema_probe"] = True, "accepted"
+            except RequestRejected as error:
+                found["json_schema"] = False
+                found["json_schema_probe"] = f"rejected: HTTP {error.status}"
+        return found
+
+    def _probe_images(self) -> dict[str, Any]:
+        """How many images one request may carry (see ``probe_capabilities``)."""
+        tiny = np.zeros((32, 32, 3), np.uint8)
+        tiny[8:24, 8:24] = (200, 60, 40)
+
+        def request(n: int) -> dict[str, Any]:
+            message = self._message(Message("user", "How many images are there?", (tiny,) * n))
+            return {"model": self.name, "messages": [message], "max_tokens": 1,
+                    "temperature": 0.0}
+
+        try:
+            self._complete(request(PROBE_IMAGES))
+            return {"images": True, "max_images": None,
+                    "images_probe": f"{PROBE_IMAGES} accepted"}
+        except RequestRejected as error:
+            said = re.search(r"at most (\d+) image", str(error), re.IGNORECASE)
+            fewer = int(said.group(1)) if said else 1
+            fewer = fewer if 1 <= fewer < PROBE_IMAGES else 1
+            try:
+                self._complete(request(fewer))
+            except RequestRejected as again:
+                return {"images": False, "max_images": None,
+                        "images_probe": f"rejected: {_one_line(str(again), 200)}"}
+            return {"images": True, "max_images": fewer,
+                    "images_probe": f"{fewer} accepted, {PROBE_IMAGES} rejected: HTTP {error.status}"}
+
+    def _stale_probe(self, error: RequestRejected) -> RequestRejected:
+        """A request rejected while the capabilities came from an earlier run's probe: the
+        server may have changed since, so that probe is dropped (the next run asks again)."""
+        if self._capabilities.source != "probe cache" or error.status != 400:
+            return error
+        try:
+            self.forget_probe()
+        except OSError:
+            return error
+        return RequestRejected(
+            f"{error.args[0]} (the server's capabilities came from an earlier run's probe, "
+            "now dropped)", error.status,
+            fix="run again: the server is probed afresh" + (f"; {error.fix}" if error.fix else ""))
 
     def _api_key(self) -> str:
         env = self.config.api_key_env
@@ -282,8 +457,12 @@ class OpenAIChatClient:
             raise EfficientEQAError(f"model {self.name!r} does not accept images",
                                     fix="use a vision model or set capabilities.images")
         parts: list[dict[str, Any]] = [{"type": "text", "text": message.text}]
-        parts += [{"type": "image_url", "image_url": {"url": encode_image(
-            image, self.config.image_max_side, self.config.image_format)}} for image in message.images]
+        for image in message.images:
+            url: dict[str, Any] = {"url": encode_image(image, self.config.image_max_side,
+                                                       self.config.image_format)}
+            if self.config.image_detail is not None:
+                url["detail"] = self.config.image_detail
+            parts.append({"type": "image_url", "image_url": url})
         return {"role": message.role, "content": parts}
 
     def _redact(self, text: str) -> str:
@@ -316,11 +495,13 @@ class OpenAIChatClient:
         if isinstance(error, openai.APITimeoutError):
             return EfficientEQAError(f"{where} did not answer within {self.config.timeout_s:g} s "
                                      f"({tries} tries)",
-                                     fix="raise timeout_s, or check that the server is not stuck")
+                                     fix="raise --timeout-s (each try's limit) or lower --retries, "
+                                         "or check that the server is not stuck")
         if isinstance(error, openai.APIConnectionError):
             cause = error.__cause__ or error
             detail = self._redact(_one_line(f"{type(cause).__name__}: {cause}", 200))
-            return EfficientEQAError(f"{where} unreachable after {tries} tries: {detail}", fix=_SERVE_FIX)
+            return EfficientEQAError(f"{where} unreachable after {tries} tries: {detail}",
+                                     fix=self.config.unreachable_fix)
         if isinstance(error, openai.APIStatusError):
             status = error.status_code
             detail = self._redact(_one_line(_error_text(error), 200))
@@ -352,6 +533,7 @@ class OpenAIChatClient:
                                     fix="check base_url and model")
         choice = choices[0]
         usage = data.get("usage") or {}
+        finish = choice.get("finish_reason")
         return ChatResponse(
             text=(choice.get("message") or {}).get("content") or "",
             model=data.get("model") or self.name,
@@ -360,7 +542,19 @@ class OpenAIChatClient:
             latency_s=latency_s,
             logprobs=parse_logprobs(choice),
             raw=data,
+            finish_reason=finish if isinstance(finish, str) else None,
         )
+
+
+def _read_json(path: Path) -> dict[str, Any] | None:
+    """A kept probe, or None when absent or unreadable (it is then probed again)."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict) or "logprobs" not in data:
+        return None
+    return data
 
 
 def _error_text(error: openai.APIStatusError) -> str:
