@@ -39,3 +39,14 @@ def peek(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     told = {"answer": q.answer, "alternatives": list(q.alternatives), "accepted": list(q.accepted),
             "oracle_steps": q.oracle_steps, "source": sorted(q.source)}
     return Outcome(json.dumps(told, sort_keys=True), 0.5, steps=0)
+
+
+def fails_late(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
+    """Fails after 3 steps and 4 model calls, as ``ask`` does when the answer call fails: the
+    error carries the partial episode."""
+    from efficienteqa.errors import EfficientEQAError
+
+    error = EfficientEQAError("model server at http://x/v1 rejected the request: HTTP 400")
+    call = {"cached": False, "prompt_tokens": 100, "completion_tokens": 5, "latency_s": 0.5}
+    error.partial_episode = {"steps": 3, "model": {"exchanges": [call] * 4}}  # type: ignore[attr-defined]
+    raise error

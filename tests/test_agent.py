@@ -401,3 +401,25 @@ def test_an_unreadable_relevancy_reply_is_missing_and_every_problem_is_counted(h
     assert record["explore_problems"][0].startswith("step 1: ")
     assert record["relevancy_problems"][0].startswith("step 3: unreadable reply 'N/A'")
     assert json.loads((tmp_path / "episode.json").read_text())["per_step"][2]["relevancy_problems"]
+
+
+def test_an_episode_that_fails_at_its_answer_keeps_what_it_explored(house4, tmp_path):
+    """Issue 25 defect 4: ``ask`` writes episode.json with the steps taken and every model
+    call made before the failure, and the error carries that record for eval's row."""
+    scene, q = house4
+
+    def reply(msgs):
+        if msgs[-1].text.startswith("A robot explored"):
+            raise EfficientEQAError("model server at http://x/v1 rejected the request: HTTP 400")
+        return "A: 50\nworth exploring: yes 50"
+
+    with pytest.raises(EfficientEQAError, match="HTTP 400") as failure:
+        ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
+            model=StubChatModel(reply), relevancy=WordOverlapScorer(),
+            config=AgentConfig(max_steps=3, gate="none"))
+    record = json.loads((tmp_path / "episode.json").read_text())
+    assert record["status"] == "failed" and "HTTP 400" in record["error"]
+    assert record["steps"] == 3 and len(record["per_step"]) == 3
+    assert record["model"]["calls"] >= 2  # explore calls, and the failed answer call
+    assert "<error:" in record["model"]["exchanges"][-1]["reply"]
+    assert failure.value.partial_episode == record

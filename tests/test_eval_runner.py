@@ -267,3 +267,13 @@ def test_blind_needs_no_image_relevancy_scorer(tmp_path, monkeypatch, relevancy)
     (row,) = lines(tmp_path)
     assert row["status"] == "done", row.get("error")
     assert row["answer"] == "2"
+
+
+def test_a_failed_episode_keeps_the_steps_and_the_calls_it_paid_for(tmp_path):
+    """Issue 25 defect 4: an episode that fails at its answer call has explored and called the
+    model; its row counts those calls (``usage``) beside the error."""
+    run_eval(spec("eval_stubs:fails_late"), questions(1), tmp_path, prepare=False)
+    (row,) = lines(tmp_path)
+    assert row["status"] == "failed" and "HTTP 400" in row["error"]
+    assert row["steps"] == 3
+    assert row["usage"]["calls"] == 4 and row["usage"]["prompt_tokens"] == 400

@@ -16,7 +16,7 @@ from efficienteqa.models.client import encode_image
 from efficienteqa.observation import Observation
 from efficienteqa.records import write_json
 from efficienteqa.relevancy.base import RelevancyScorer
-from efficienteqa.report.episode import episode_record
+from efficienteqa.report.episode import episode_record, failed_record
 from efficienteqa.report.evidence import EvidenceWatch
 from efficienteqa.report.frames import FrameCollector
 from efficienteqa.report.html import write_report
@@ -67,14 +67,25 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         # Ground truth for the record only: the hook notes frames, the agent never sees them.
         watch = EvidenceWatch(truth.evidence if truth is not None else None)
 
+        steps: list[StepRecord] = []
+
         def hook(record: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
+            steps.append(record)
             watch(record, obs, out_step)
             if report:
                 frames(record, obs, out_step)
             if on_step is not None:
                 on_step(record, obs, out_step)
 
-        result = built.agent.run(opened.env, question, start=start, on_step=hook)
+        try:
+            result = built.agent.run(opened.env, question, start=start, on_step=hook)
+        except Exception as error:  # keep what was explored and paid for, then fail as before
+            partial = failed_record(question, error, records=steps, config=config,
+                                    backends=built.backends, scene=opened.name,
+                                    exchanges=built.model.exchanges)
+            write_json(out / "episode.json", partial)
+            error.partial_episode = partial  # type: ignore[attr-defined]  # for eval's row
+            raise
         reference: dict[str, Any] | None = None
         if truth is not None:
             reference = {"id": truth.id, "answer": truth.answer,

@@ -116,7 +116,8 @@ def effective_config(method: str, config: AgentConfig) -> AgentConfig | None:
     return method_config(method, config) if method in _AGENT_METHODS else None
 
 
-def _usage(exchanges: list[dict[str, Any]]) -> dict[str, Any]:
+def usage_of(exchanges: list[dict[str, Any]]) -> dict[str, Any]:
+    """The usage totals of an episode's recorded exchanges (``Exchange.to_dict()``)."""
     return {"calls": len(exchanges), "cached_calls": sum(bool(e["cached"]) for e in exchanges),
             "prompt_tokens": sum(e["prompt_tokens"] for e in exchanges),
             "completion_tokens": sum(e["completion_tokens"] for e in exchanges),
@@ -146,7 +147,7 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     r = done.result
     record = done.record
     return Outcome(r.answer, r.confidence, r.steps, r.budget, r.stop_reason,
-                   usage=_usage(record["model"]["exchanges"]), backends=record["backends"],
+                   usage=usage_of(record["model"]["exchanges"]), backends=record["backends"],
                    extra={"retrieved": record["retrieved"],
                           "answer_problems": record["answer_problems"],
                           "problems": record["problems"],  # per kind of model call
@@ -177,7 +178,7 @@ def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     if closed:
         choice = blind_choice(model, q.question, q.choices)
         return Outcome(choice.answer, choice.confidence, 0,
-                       usage=_usage([e.to_dict() for e in model.exchanges]), backends=backends,
+                       usage=usage_of([e.to_dict() for e in model.exchanges]), backends=backends,
                        extra={"letter": choice.letter, "letter_probs": choice.letter_probs,
                               "answer_problems": choice.problems})
     # Answers are grouped by text: only a text embedder of the stack helps, and an image
@@ -187,7 +188,7 @@ def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     grouper = build_grouper(spec.stack.grouping, model, embedder)  # type: ignore[arg-type]
     result = blind_answer(model, q.question, grouper)
     return Outcome(result.answer, result.confidence, 0,
-                   usage=_usage([e.to_dict() for e in model.exchanges]),
+                   usage=usage_of([e.to_dict() for e in model.exchanges]),
                    backends=backends, extra={"answer_problems": result.problems})
 
 

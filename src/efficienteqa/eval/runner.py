@@ -30,7 +30,7 @@ from typing import Any
 
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval.methods import RunSpec, effective_config, resolve
+from efficienteqa.eval.methods import RunSpec, effective_config, resolve, usage_of
 from efficienteqa.eval.records import EPISODES_FILE, append_episode, open_run
 from efficienteqa.records import code_version, plain
 
@@ -129,6 +129,9 @@ def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
         row["judge"] = _judge(spec, q, outcome.answer)
     except Exception as exc:  # noqa: BLE001 - one episode's failure must not end the run
         row.update(_failure(exc), traceback=traceback.format_exc(limit=6)[-2000:])
+        partial = getattr(exc, "partial_episode", None)  # an agent episode that failed part-way
+        if isinstance(partial, dict):  # its calls were paid for: count them
+            row.update(steps=partial["steps"], usage=usage_of(partial["model"]["exchanges"]))
     row["wall_s"] = round(time.perf_counter() - t0, 3)
     row["finished"] = time.time()
     return plain(row)

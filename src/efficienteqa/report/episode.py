@@ -52,12 +52,32 @@ def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict
         "relevancy_problems": _problems(result.records, "relevancy_problems"),
         "problems": problem_counts(result),
         "per_step": [step_dict(r) for r in result.records],
-        "model": {"calls": len(calls), "prompt_tokens": sum(e.prompt_tokens for e in calls),
-                  "completion_tokens": sum(e.completion_tokens for e in calls),
-                  "latency_s": round(sum(e.latency_s for e in calls), 3),
-                  "exchanges": [e.to_dict() for e in calls]},
+        "model": model_block(calls),
         "timing": {"wall_s": round(result.wall_s, 3), "answer_s": round(result.answer_s, 3),
                    "per_step_s": round((result.wall_s - result.answer_s) / max(result.steps, 1), 3)},
+        "backends": backends, "config": config, "code_version": code_version(),
+    })
+
+
+def model_block(calls: Sequence[Exchange]) -> dict[str, Any]:
+    """The episode's model calls: their totals and each exchange."""
+    return {"calls": len(calls), "prompt_tokens": sum(e.prompt_tokens for e in calls),
+            "completion_tokens": sum(e.completion_tokens for e in calls),
+            "latency_s": round(sum(e.latency_s for e in calls), 3),
+            "exchanges": [e.to_dict() for e in calls]}
+
+
+def failed_record(question: str, error: BaseException, *, records: Sequence[StepRecord],
+                  config: AgentConfig, backends: dict[str, Any], scene: str,
+                  exchanges: Sequence[Exchange] = ()) -> dict[str, Any]:
+    """What an episode that failed part-way had done: its steps and every model call made
+    (paid for), with the error, so that neither the exploration nor the usage is lost."""
+    message = str(error).splitlines()[0] if str(error) else ""
+    return plain({
+        "question": question, "status": "failed",
+        "error": f"{type(error).__name__}: {message}".rstrip(": "),
+        "steps": len(records), "scene": scene, "per_step": [step_dict(r) for r in records],
+        "model": model_block(list(exchanges)),
         "backends": backends, "config": config, "code_version": code_version(),
     })
 
