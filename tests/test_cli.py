@@ -119,6 +119,7 @@ def test_eval_exits_non_zero_when_an_episode_failed_and_a_re_run_resumes_it(tmp_
     failed = _run(*args, env=env)
     assert failed.returncode == 1, failed.stdout + failed.stderr
     assert "1 episode(s) failed" in failed.stdout and "Traceback" not in failed.stdout
+    assert "1 x RuntimeError: scripted failure of" in failed.stdout  # why, grouped
     del env["EQA_STUB_FAIL"]
     resumed = _run(*args, env=env)
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr

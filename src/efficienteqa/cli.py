@@ -434,8 +434,14 @@ def eval_command(
     console.print(f"results: {out / 'episodes.jsonl'}\nsummary: efficienteqa report {out}",
                   highlight=False, soft_wrap=True)
     if result.failed:  # a run with failed episodes is not a success (they resume on a re-run)
-        console.print(f"[red]error:[/red] {result.failed} episode(s) failed (their errors are "
-                      "above and in episodes.jsonl); the same command resumes them",
+        from collections import Counter
+
+        why = Counter(str(r.get("error")) for r in read_episodes(out / "episodes.jsonl").rows()
+                      if r.get("status") != "done")
+        for error, count in why.most_common(3):
+            console.print(f"  {count} x {error}", highlight=False, soft_wrap=True)
+        console.print(f"[red]error:[/red] {result.failed} episode(s) failed (the commonest errors "
+                      "are above, all in episodes.jsonl); the same command resumes them",
                       highlight=False, soft_wrap=True)
         raise typer.Exit(1)
 
