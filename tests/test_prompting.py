@@ -171,3 +171,33 @@ def test_the_paper_prompts_are_spec_3_3():
     paper = PAPER_PROMPTS
     assert (paper.min_m, paper.max_m, paper.merge_m, paper.n) == (2.0, 10.0, 1.0, 3)
     assert PROMPT_CONFIGS["paper"] is PAPER_PROMPTS and PROMPT_CONFIGS["default"] == PromptConfig()
+
+
+@pytest.mark.parametrize("name", ["default", "paper"])
+def test_circles_of_points_in_one_line_of_sight_do_not_overlap(name):
+    """Issue 25 (9): a corridor straight ahead: floor points metres apart in the world project
+    to nearly the same pixel column, and the far ones to nearly the same row (6 m and 10 m
+    ahead are 17 px apart). Every pair of chosen circles must stay apart in pixels, for both
+    prompt sets; an overlapping point is not asked about."""
+    from efficienteqa.explore.prompting import MIN_CIRCLE_GAP_PX
+    from efficienteqa.perception.image import CIRCLE_RADIUS_PX
+
+    corridor = np.zeros(SPEC.shape, dtype=bool)
+    corridor[36:44, 5:118] = True  # x in [0.5, 11.8], y in [3.6, 4.4]; the robot at (1, 4)
+    state = _state(corridor)
+    config = PROMPT_CONFIGS[name]
+    assert config.min_px == MIN_CIRCLE_GAP_PX >= 2 * CIRCLE_RADIUS_PX
+    for seed in range(6):
+        points = prompt_points(state, camera_to_world(ROBOT, CAMERA), CAMERA.intrinsics,
+                               (CAMERA.width, CAMERA.height), seed, config)
+        assert len(points) >= 2
+        for i, a in enumerate(points):
+            for b in points[i + 1:]:
+                assert math.dist(a.pixel, b.pixel) >= 2 * CIRCLE_RADIUS_PX, (seed, points)
+                assert math.dist(a.xy, b.xy) >= config.merge_m
+        # the circles drawn do not touch: each letter's disk is whole
+        out = draw_prompts(np.full((480, 640, 3), 30, dtype=np.uint8), points)
+        vv, uu = np.mgrid[0:480, 0:640] + 0.5
+        for p in points:
+            r = np.hypot(uu - p.pixel[0], vv - p.pixel[1])
+            assert (out[(r >= 11) & (r <= 15)] == CIRCLE_FILL).all(axis=1).mean() > 0.9

@@ -81,3 +81,68 @@ def test_token_letters_are_read_on_the_first_line_only():
     score = explore_token_scores(stub, "Where is the cat?", VIEW, DIRECTIONS)
     assert score.letters == pytest.approx({"A": 1 / 3, "B": 1 / 3, "C": 1 / 3})
     assert score.p_yes == pytest.approx(0.1 / 0.8)
+
+
+def _image_obs():
+    from efficienteqa.geometry import Pose2D
+    from efficienteqa.observation import Observation
+
+    rgb = np.full((120, 160, 3), 90, np.uint8)
+    return Observation(rgb, np.ones((120, 160), np.float32), np.eye(4), np.eye(3),
+                       Pose2D(0.0, 0.0, 0.0))
+
+
+def _worth_or_letters(msgs):
+    if "worth exploring" in msgs[-1].text and "Directions:" not in msgs[-1].text:
+        return "worth exploring: no 80"
+    return "A: 70\nB: 30"
+
+
+@pytest.mark.parametrize("confidence", ["verbalized", "token"])
+def test_an_image_vlm_judges_worth_exploring_on_the_unmarked_frame(confidence):
+    """Issue 25 (9): SPEC 3.3 asks "is this direction worth exploring" on the plain RGB frame
+    and the lettered points on the frame with circles: two calls, the second's only image the
+    frame as captured, with no circle on it."""
+    from efficienteqa.explore.vlm_scorer import VLMScorer
+    from efficienteqa.observation import PromptPoint
+    from efficienteqa.perception.image import CIRCLE_FILL, ImagePerception
+
+    obs = _image_obs()
+    prompts = [PromptPoint("A", (1.0, 0.0), (40.5, 60.5)), PromptPoint("B", (2.0, 0.0), (120.5, 60.5))]
+    tokens = {"verbalized": None,
+              "token": lambda text, top: [_tok(text.split()[0], **{text.split()[0]: 0.9, "no": 0.05,
+                                                                     "A": 0.05})]}
+    script = (_worth_or_letters if confidence == "verbalized"
+              else lambda msgs: "yes" if "yes or no only" in msgs[-1].text else "A")
+    stub = StubChatModel(script, logprob_fn=tokens[confidence])
+    score = VLMScorer(stub, ImagePerception(), confidence=confidence).score(obs, prompts, "Where is the cat?")
+    assert len(stub.requests) == 2
+    letters_call, worth_call = (r.messages[-1] for r in stub.requests)
+    (marked,) = letters_call.images
+    assert (marked == np.array(CIRCLE_FILL)).all(axis=2).sum() > 300  # the circles are drawn
+    assert "Directions:" in letters_call.text and "yes or no" not in letters_call.text.lower()
+    (plain,) = worth_call.images
+    assert np.array_equal(plain, obs.rgb)  # the frame as captured: no circle
+    assert "Directions" not in worth_call.text and "Where is the cat?" in worth_call.text
+    if confidence == "verbalized":
+        assert score.letters == pytest.approx({"A": 0.7, "B": 0.3})
+        assert score.p_yes == pytest.approx(0.2)
+        assert score.info["worth_raw"] == "worth exploring: no 80"
+    else:
+        assert score.letters["A"] == pytest.approx(0.9 / 0.95)
+        assert score.p_yes == pytest.approx(0.9 / 0.95)
+
+
+def test_a_text_model_still_gets_one_exploration_call():
+    from efficienteqa.explore.vlm_scorer import VLMScorer
+    from efficienteqa.perception.base import ExploreRequest
+
+    class Text:
+        name, modality = "text", "text"
+
+        def explore_request(self, obs, prompts):
+            return ExploreRequest(VIEW, DIRECTIONS)
+
+    stub = StubChatModel(["B: 60\nA: 40\nworth exploring: yes 80"])
+    score = VLMScorer(stub, Text()).score(_image_obs(), [], "Is the oven on?")  # type: ignore[arg-type]
+    assert len(stub.requests) == 1 and score.p_yes == pytest.approx(0.8)

@@ -1,7 +1,10 @@
 """Visual prompting (SPEC 3.3): pick up to three floor points in view and letter them on the frame.
 
 Geometry only (``project_floor_points``, ``candidate_points``); drawing the letters on the frame is
-``perception.image.draw_prompts`` (what a vision-language model sees).
+``perception.image.draw_prompts`` (what a vision-language model sees). Points are kept apart in
+the world (``merge_m``) and in the image (``min_px``): two floor points metres apart along one
+line of sight project to nearly the same pixel, and a circle drawn there would hide the other's
+letter, so a candidate whose circle would overlap a chosen one's is never chosen.
 Pixels follow OpenCV: u right, v down, continuous, pixel (col k, row l) spans [k, k+1) x [l, l+1)
 so its centre is (k + 0.5, l + 0.5) — the convention of ``geometry.backproject``.
 """
@@ -16,8 +19,11 @@ import numpy as np
 from efficienteqa.mapping.navgrid import OccupancyGrid
 from efficienteqa.mapping.state import MapState
 from efficienteqa.observation import PromptPoint
+from efficienteqa.perception.image import CIRCLE_RADIUS_PX
 
 LETTERS = "ABC"
+# Centres of two lettered circles at least this far apart (pixels): the disks do not touch.
+MIN_CIRCLE_GAP_PX = 2.0 * CIRCLE_RADIUS_PX + 4.0
 _LOS_CHUNK = 2048  # candidates per vectorised line-of-sight batch (bounds memory)
 
 
@@ -38,6 +44,7 @@ class PromptConfig:
     merge_m: float = 0.75
     margin_px: float = 20.0
     prefer_unexplored: bool = True
+    min_px: float = MIN_CIRCLE_GAP_PX
 
 
 PAPER_PROMPTS = PromptConfig(min_m=2.0, merge_m=1.0)
@@ -83,7 +90,8 @@ def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrins
                      image_size: tuple[int, int], rng_or_seed: np.random.Generator | int | None,
                      radius_m: float = 0.2, min_m: float = 2.0, max_m: float = 10.0, n: int = 3,
                      merge_m: float = 1.0, margin_px: float = 20.0,
-                     prefer_unexplored: bool = True) -> list[PromptPoint]:
+                     prefer_unexplored: bool = True,
+                     min_px: float = MIN_CIRCLE_GAP_PX) -> list[PromptPoint]:
     """Up to ``n`` lettered floor points to prompt the VLM with; [] unless at least 2 remain.
 
     Candidates are island cell centres navigable for a disk robot of ``radius_m`` in the robot's
@@ -91,7 +99,9 @@ def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrins
     least ``margin_px`` inside the ``image_size`` = (w, h) frame, and in line of sight from the
     robot on ``state.free``. Farthest-point sampling starts from a candidate drawn uniformly with
     the seeded RNG (deterministic for a seed), then adds the candidate farthest from those chosen;
-    a point within ``merge_m`` of an earlier one is dropped. Letters A, B, C go left to right in
+    a point within ``merge_m`` of an earlier one is dropped. A candidate projecting within
+    ``min_px`` pixels of a chosen point (its lettered circle would overlap that one's) leaves the
+    pool, and the sampling goes on with the next farthest. Letters A, B, C go left to right in
     the image: "A" is the leftmost point.
 
     With ``prefer_unexplored`` the candidates are the unexplored ones whenever at least 2 of
@@ -122,7 +132,8 @@ def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrins
         fresh = ~state.explored[i, j]
         if fresh.sum() >= 2:
             xy, uv = xy[fresh], uv[fresh]
-    chosen = _farthest_points(xy, OccupancyGrid(state.spec, state.free), state.robot_xy, n, rng)
+    chosen = _farthest_points(xy, OccupancyGrid(state.spec, state.free), state.robot_xy, n, rng,
+                              uv=uv, min_px=min_px)
     kept: list[int] = []
     for k in chosen:
         if all(np.linalg.norm(xy[k] - xy[m]) >= merge_m for m in kept):
@@ -143,9 +154,11 @@ def prompt_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrinsics
 
 
 def _farthest_points(xy: np.ndarray, free: OccupancyGrid, robot_xy: Sequence[float], n: int,
-                     rng: np.random.Generator) -> list[int]:
+                     rng: np.random.Generator, uv: np.ndarray | None = None,
+                     min_px: float = 0.0) -> list[int]:
     """Indices of up to n farthest-point samples; each pick is confirmed with the exact
-    (conservative) ``line_of_sight``, and rejected picks leave the pool."""
+    (conservative) ``line_of_sight``, and rejected picks leave the pool. With pixels ``uv``
+    (N, 2), a pick within ``min_px`` of a chosen point's pixel is rejected too."""
     valid = np.ones(len(xy), dtype=bool)
     min_d = np.full(len(xy), np.inf)
     chosen: list[int] = []
@@ -155,6 +168,8 @@ def _farthest_points(xy: np.ndarray, free: OccupancyGrid, robot_xy: Sequence[flo
         else:
             k = int(rng.choice(np.flatnonzero(valid)))
         valid[k] = False
+        if uv is not None and chosen and np.linalg.norm(uv[chosen] - uv[k], axis=1).min() < min_px:
+            continue
         if not free.line_of_sight(robot_xy, xy[k]):
             continue
         chosen.append(k)

@@ -1,10 +1,26 @@
 """Semantic values from a (vision-)language model (SPEC 3.3, 3.6): the exploration call of
-verbalized confidence (M lettered directions with confidences and "worth exploring?" in one
-reply) and its white-box counterpart read from token probabilities."""
+verbalized confidence (M lettered directions with confidences and "worth exploring?") and its
+white-box counterpart read from token probabilities.
+
+Text models (semantic perception) are asked both in one call: the view and the directions are
+text, and the question of the view is the same with or without the directions listed.
+
+Image models get two calls per prompted frame, as the paper specifies (SPEC 3.3): the lettered
+directions on the frame with the circles drawn (``explore_letters``; white-box:
+``explore_choice``), and "is this direction worth exploring?" on the plain RGB frame
+(``explore_worth``; white-box: ``explore_worth_token``), so the circles, which cover the floor
+the robot would walk on, never hide what the GSV judges. The other way the issue (25, 9) left
+open, one call with both images (the unmarked one first, labelled), was not taken: no vision
+model can be run here to measure whether it answers as well, and it would make the
+exploration call the only one with two images and letters that refer to the second. The cost
+is one more call per prompted step (the GSV prompt is short: the question and one image) and no
+change for text models. Every configuration, ``--prompts paper`` included, does this.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -46,6 +62,11 @@ class VLMScorer:
 
     def score(self, obs: Observation, prompts: list[PromptPoint], question: str) -> SemanticScore:
         request = self.perception.explore_request(obs, prompts)
+        if request.images and self.perception.modality == "image":
+            plain = np.asarray(self.perception.frame(obs))
+            return explore_image_scores(self.model, question, list(request.directions),
+                                        request.images, plain, m=self.m,
+                                        token=self.confidence == "token")
         if self.confidence == "token":
             return explore_token_scores(self.model, question, request.view, request.directions,
                                         request.images or None)
@@ -122,6 +143,65 @@ def explore_token_scores(model: ChatModel, question: str, view: str,
     return SemanticScore(scores, p_yes, {"raw": resp.text or "", "problems": problems,
                                          "candidates": sorted(scores.items(), key=lambda kv: -kv[1]),
                                          "usage": usage_of(resp)})
+
+
+def explore_image_scores(model: ChatModel, question: str, letters: Sequence[str],
+                         marked: Sequence[np.ndarray], plain: np.ndarray, *, m: int = M,
+                         token: bool = False, max_tokens: int = 48) -> SemanticScore:
+    """The exploration of an image model (SPEC 3.3): the per-letter confidences from the frame
+    with the lettered circles (``marked``), then P(worth exploring) from the plain frame, in a
+    call of its own. ``token``: both read from token probabilities (the white-box baseline):
+    the letter of a one-letter reply, and yes/no. ``info`` keeps both replies and usages."""
+    letters = list(letters) or list(DEFAULT_LETTERS)
+    directions = _directions_text(letters, None)
+    if token:
+        require_logprobs(model)
+        prompt = load_prompt("explore_choice", PROMPTS).format(
+            question=question, view="the image", directions=directions)
+        resp = model.chat([Message("user", prompt, tuple(marked))], max_tokens=1,
+                          temperature=0.0, logprobs=TOP_LOGPROBS)
+        problems = [] if resp.logprobs else ["no logprobs in the letter reply: uniform"]
+        scores = letter_probs_from_logprobs(resp.logprobs, letters)
+        candidates = sorted(scores.items(), key=lambda kv: -kv[1])
+    else:
+        prompt = load_prompt("explore_letters", PROMPTS).format(
+            question=question, view="the image", directions=directions)
+        resp = model.chat([Message("user", prompt, tuple(marked))], max_tokens=max_tokens,
+                          temperature=0.0)
+        parsed = parse_letters(resp.text or "", letters, m)
+        problems = list(parsed.problems)
+        classes = group_answers(question, parsed.candidates, ExactGrouper(), problems)
+        mass = {c.text: c.confidence for c in classes}
+        total = sum(mass.get(x, 0.0) for x in letters)
+        if total <= 0:
+            problems.append("no usable letter confidences: uniform")
+        scores = {x: (mass.get(x, 0.0) / total if total > 0 else 1.0 / len(letters))
+                  for x in letters}
+        candidates = [(c.text, c.confidence) for c in parsed.candidates]
+    p_yes, worth = worth_exploring(model, question, plain, token=token)
+    return SemanticScore(scores, p_yes, {
+        "raw": resp.text or "", "worth_raw": worth["raw"],
+        "problems": problems + worth["problems"], "candidates": candidates,
+        "usage": usage_of(resp), "worth_usage": worth["usage"]})
+
+
+def worth_exploring(model: ChatModel, question: str, plain: np.ndarray, *, token: bool = False,
+                    max_tokens: int = 16) -> tuple[float, dict[str, Any]]:
+    """P(yes) for "is this view worth exploring?" asked on the unmarked frame ``plain`` (SPEC
+    3.3's GSV): verbalized (``parse_worth_exploring``), or with ``token`` read from the first
+    reply token's yes/no probabilities (``DEFAULT_P_YES`` when neither is among them)."""
+    name = "explore_worth_token" if token else "explore_worth"
+    prompt = load_prompt(name, PROMPTS).format(question=question)
+    message = [Message("user", prompt, (plain,))]
+    if token:
+        resp = model.chat(message, max_tokens=1, temperature=0.0, logprobs=TOP_LOGPROBS)
+        p_yes = yes_prob_from_logprobs(resp.logprobs)
+        problems = ([] if _softmax_yes(resp.logprobs) is not None else
+                    [f"no yes/no among the worth-exploring reply's tokens: P(yes) = {DEFAULT_P_YES}"])
+    else:
+        resp = model.chat(message, max_tokens=max_tokens, temperature=0.0)
+        p_yes, problems = parse_worth_exploring(resp.text or "")
+    return p_yes, {"raw": resp.text or "", "problems": problems, "usage": usage_of(resp)}
 
 
 # Black-box elicitations of a text model over the direction texts (issue 15 part 4), each a
