@@ -516,7 +516,10 @@ class OpenAIChatClient:
 
     def _fix_for(self, status: int) -> str:
         if status in (401, 403):
-            return f"check the API key in ${self.config.api_key_env}"
+            if self.config.api_key_env is None:
+                return "no key was sent: name the variable holding this server's key with " \
+                       "--api-key-env NAME"
+            return f"check the API key in ${self.config.api_key_env} (--api-key-env names another)"
         if status == 404:
             return "check base_url (it usually ends in /v1) and the model name"
         if status == 429:
