@@ -306,3 +306,29 @@ def test_p_yes_is_none_when_yes_and_no_are_both_masked():
     token = TokenLogprob("The", -0.01, (("The", -0.01), ("Yes", -9999.0), ("No", -9999.0)))
     assert p_yes([token]) is None
     assert p_yes([token, TokenLogprob("no", -0.5, (("no", -0.5),))]) == 0.0
+
+
+def test_rule_bounds_hold_the_model_grade_and_the_cache_keeps_the_models_own(tmp_path):
+    """A right answer in the reference's words with more besides is at least 4 whatever P(yes)
+    says; the cache stores the model's grade, the bound is applied on every read."""
+    from efficienteqa.models.base import TokenLogprob
+
+    def logprobs(text, top):  # P(yes) = 0.1: the model would say 1
+        return [TokenLogprob("no", math.log(0.9), (("yes", math.log(0.1)), ("no", math.log(0.9))))]
+
+    model = StubChatModel(["no", "no"], logprob_fn=logprobs)
+    judge = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob")
+    first = judge.judge("Where is the radio?", "on the shelf", "On the shelf above the sink")
+    assert first.score == 4 and "P(yes)=0.100" in first.raw and "held to 4-5" in first.raw
+    again = judge.judge("Where is the radio?", "on the shelf", "On the shelf above the sink")
+    assert again.cached and again.score == 4 and len(model.requests) == 1
+    # no bound: the model's grade stands
+    other = judge.judge("Where is the radio?", "on the shelf", "In the garage")
+    assert other.score == 1 and "held" not in other.raw
+
+
+def test_an_opposite_yes_no_with_more_words_is_wrong_without_a_model_call(tmp_path):
+    model = StubChatModel([])
+    judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob").judge(
+        "Is there a box in the hall?", "No", "Yes, a cardboard box by the door")
+    assert judgement.score == 1 and "by rule" in judgement.raw and not model.requests

@@ -83,3 +83,39 @@ def test_clear_cases(question, reference, response, expected):
 def test_every_ruled_grade_says_which_rule_decided():
     ruled = rule_score("How many cups?", "2", "three")
     assert ruled is not None and ruled.score == 2 and "count" in ruled.rule
+
+
+def bounds(question: str, reference: str, response: str) -> tuple[int, int] | None:
+    from efficienteqa.eval.judge_rules import rule_bounds
+
+    held = rule_bounds(question, reference, response)
+    return None if held is None else (held.low, held.high)
+
+
+@pytest.mark.parametrize("question, reference, response, expected", [
+    # opposite yes/no with more to it than a bare word: wrong, whatever the model thinks
+    ("Is there a box in the hall?", "No", "Yes, a cardboard box by the door", (1, 1)),
+    ("Is the heater on?", "Yes, it is on", "It is switched off, the dial is at zero", (1, 1)),
+    ("Is the lid open or closed?", "closed", "It's open, you can see inside", (1, 1)),
+    # the same yes/no, said at length: at least 4
+    ("Are the curtains drawn?", "No", "No, they're pulled back to the sides.", (4, 5)),
+    ("Is the tap running?", "No", "No, it is off and dry.", (4, 5)),
+    ("Is there a lamp?", "yes, in the kitchen", "Yes", (3, 5)),  # right, less specific
+    ("Is there a lamp?", "yes, in the kitchen", "yes, in the bedroom", None),
+    ("Is the tap running?", "No", "Maybe no, hard to tell", None),  # a hedge commits to nothing
+    # the reference's words in the response
+    ("What colour is the kettle?", "grey", "It's gray.", (5, 5)),
+    ("What is on the sofa?", "a couch cushion", "A sofa cushion", (5, 5)),
+    ("Which mat is at the door?", "The green one", "Dark green, with a pattern", (4, 5)),
+    ("Where is the radio?", "on the shelf", "On the shelf above the sink", (4, 5)),
+    ("How many mugs are on the tray?", "three", "There are 3 mugs on the tray, all white", (4, 5)),
+    ("How many mugs are on the tray?", "three", "3 mugs, and 2 more on the shelf", None),
+    ("Where is the radio?", "on the shelf", "Under the shelf", None),  # another place word
+    ("Where is the radio?", "on the shelf", "Not on the shelf", None),  # negated
+    ("What colour is the kettle?", "grey", "grey or black", None),  # alternatives
+    ("What is the radio on?", "the radio shelf", "radio", None),  # only the question's words
+    ("What colour is the kettle?", "grey", "Black", None),  # nothing to hold the model to
+])
+def test_rule_bounds_hold_the_model_to_what_the_words_make_certain(question, reference, response,
+                                                                    expected):
+    assert bounds(question, reference, response) == expected

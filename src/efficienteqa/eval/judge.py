@@ -27,13 +27,13 @@ import math
 import re
 import sqlite3
 from collections.abc import Iterator, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval.judge_rules import MAX_SCORE, MIN_SCORE, rule_score
+from efficienteqa.eval.judge_rules import MAX_SCORE, MIN_SCORE, rule_bounds, rule_score
 from efficienteqa.models.base import ChatModel, Message, TokenLogprob
 from efficienteqa.vc.prompts import load_prompt
 
@@ -292,17 +292,26 @@ class LLMMatchJudge:
         if ruled is not None:
             return Judgement(ruled.score, score_value(ruled.score), self.name,
                              f"(by rule, no model call: {ruled.rule}: {ruled.score})")
+        bounds = rule_bounds(question, reference, response, extra)
+        if bounds is not None and bounds.low == bounds.high:
+            return Judgement(bounds.low, score_value(bounds.low), self.name,
+                             f"(by rule, no model call: {bounds.rule}: {bounds.low})")
         key = self._key(question, reference, extra, response)
-        hit = self._lookup(key)
-        if hit is not None:
-            return hit
-        if self.mode == "yes-prob":
-            judgement = self._yes_prob(render_prompt(question, reference, response, extra,
-                                                     template="judge_same"))
-        else:
-            judgement = self._grade(render_prompt(question, reference, response, extra))
-        self._store(key, judgement)
-        return judgement
+        judgement = self._lookup(key)
+        if judgement is None:
+            if self.mode == "yes-prob":
+                judgement = self._yes_prob(render_prompt(question, reference, response, extra,
+                                                         template="judge_same"))
+            else:
+                judgement = self._grade(render_prompt(question, reference, response, extra))
+            self._store(key, judgement)
+        if bounds is None or judgement.score is None \
+                or bounds.low <= judgement.score <= bounds.high:
+            return judgement
+        score = min(max(judgement.score, bounds.low), bounds.high)
+        return replace(judgement, score=score, value=score_value(score),
+                       raw=f"{judgement.raw} (held to {bounds.low}-{bounds.high} by rule: "
+                           f"{bounds.rule}: {score})")
 
     def _yes_prob(self, prompt: str) -> Judgement:
         reply = self.model.chat([Message("user", prompt)], max_tokens=1, temperature=0.0,

@@ -335,3 +335,81 @@ def rule_score(question: str, reference: str, response: str, extra: Sequence[str
             and not (yes_no_question(question) and _restates(tokens)):
         return Ruled(MIN_SCORE, "only repeats words of the question")
     return None
+
+
+# --- bounds on the model's grade -------------------------------------------------------------------
+
+# Spellings of one word that the rubric counts as the same answer (its own examples: grey/gray,
+# fridge/refrigerator; couch/sofa and TV/television from the judge prompt), and digits for the
+# number words: compared as one word when a response is checked for the reference's words.
+SAME_WORDS = {"grey": "gray", "fridge": "refrigerator", "couch": "sofa", "tv": "television",
+              **{str(n): w for n, w in enumerate(NUMBER_WORDS)}}
+# Place words that are stop words elsewhere but change a place ("on" the shelf is not "under" it).
+_PLACE_WORDS = SPATIAL & STOPWORDS
+
+
+def _signature(text: str) -> set[str]:
+    """The words of ``text`` that carry its answer: content words (singular, one spelling of
+    each synonym above) and place words."""
+    return {SAME_WORDS.get(s, s) for s in (stem(w) for w in words(text)
+                                           if w not in STOPWORDS or w in _PLACE_WORDS)}
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """The range the model's grade is held to (``low`` <= grade <= ``high``) and why."""
+
+    low: int
+    high: int
+    rule: str
+
+
+def rule_bounds(question: str, reference: str, response: str, extra: Sequence[str] = ()
+                ) -> Bounds | None:
+    """Limits that the rubric puts on a grade the model gives (``rule_score`` said nothing), or
+    None. A small judge under-grades right answers in other words and lifts wrong yes/no
+    answers; these rules hold it to what the words alone make certain:
+
+    1. **opposite yes/no**: reference and response state opposite polarities or states (with
+       more words than a bare yes/no: "Yes, some dishes" for "No"): at most 1.
+    2. **same yes/no**: both state the same polarity or state, the response not hedging: at
+       least 4 when the reference is a bare yes/no ("Yes, by the window" for "Yes": the
+       rubric's "right plus an unsupported claim"), at least 3 when the response is bare and
+       the reference says more ("Yes" for "Yes, a plate of cookies": right, less specific).
+       Neither when both say more ("yes, in the bedroom" for "yes, in the kitchen").
+    3. **the reference's words**: every word that carries the reference (its content words that
+       the question does not hold already, and its place words: "under" is not "on") is in
+       the response, which neither negates, hedges nor offers alternatives, and, for "how
+       many", states no other number: at least 4 ("Navy blue" for "Blue one"); at least 5 when
+       the response adds no word of its own ("It's grey." for "gray").
+    """
+    tokens = words(response)
+    if not tokens:
+        return None
+    got = stance(response, question)
+    for ref_text in (reference, *extra):
+        ref = stance(ref_text, question)
+        if ref.value and got.value and _opposite(ref.value, got.value):
+            return Bounds(MIN_SCORE, MIN_SCORE, f"says {got.value} against {ref.value}")
+    if hedges(response) or "or" in tokens or any(t in NEGATORS for t in tokens):
+        return None
+    for ref_text in (reference, *extra):
+        ref = stance(ref_text, question)
+        if ref.value and got.value == ref.value and ref.bare:
+            return Bounds(MAX_SCORE - 1, MAX_SCORE, f"says {got.value}, as the bare reference")
+        if ref.value and got.value == ref.value and got.bare:
+            return Bounds(MAX_SCORE - 2, MAX_SCORE, f"a bare {got.value}, as the reference")
+    asked = content(question)
+    said = _signature(response)
+    counting = "how many" in " ".join(words(question))
+    for ref_text in (reference, *extra):
+        needed = _signature(ref_text) - {SAME_WORDS.get(w, w) for w in asked}
+        if not needed - _PLACE_WORDS or not needed <= said:
+            continue
+        if counting and _numbers(response, question)[0] != _numbers(ref_text, question)[0]:
+            continue
+        own = said - needed - {SAME_WORDS.get(w, w) for w in asked} - _PLACE_WORDS
+        if own:
+            return Bounds(MAX_SCORE - 1, MAX_SCORE, "holds the reference's words, and more")
+        return Bounds(MAX_SCORE, MAX_SCORE, "the reference's words, nothing more")
+    return None
