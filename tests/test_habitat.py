@@ -8,6 +8,7 @@ import json
 import math
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ import pytest
 from efficienteqa.envs.base import Environment
 from efficienteqa.envs.checks import check_env
 from efficienteqa.envs.habitat import frames
+from efficienteqa.envs.habitat.checks import check_habitat_env
 from efficienteqa.envs.habitat.scenes import HabitatStart, file_stem, find_scene
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D, backproject, camera_to_world
@@ -47,17 +49,21 @@ def standin(monkeypatch):
 
 
 def write_scene(root: Path, *, faces=("floor", "ceiling", "walls"), annotated: bool = True,
-                split: str = "val") -> Path:
+                split: str = "val", room=ROOM, navmesh=(NAV,), dataset_config: str | None = "{}"
+                ) -> Path:
+    """An HM3D scene folder for the stand-in; ``dataset_config`` None leaves the annotated
+    scene's dataset config out."""
     folder = root / split / SCENE
     folder.mkdir(parents=True)
     stem = file_stem(SCENE)
-    scene = {"room": ROOM, "faces": list(faces), "objects": [TABLE]}
+    scene = {"room": room, "faces": list(faces), "objects": [TABLE]}
     (folder / f"{stem}.basis.glb").write_text(json.dumps(scene))
-    (folder / f"{stem}.basis.navmesh").write_text(json.dumps({"rects": [NAV]}))
+    (folder / f"{stem}.basis.navmesh").write_text(json.dumps({"rects": list(navmesh)}))
     if annotated:
         (folder / f"{stem}.semantic.glb").write_text("{}")
         (folder / f"{stem}.semantic.txt").write_text("")
-        (root / "hm3d_annotated_basis.scene_dataset_config.json").write_text("{}")
+        if dataset_config is not None:
+            (root / "hm3d_annotated_basis.scene_dataset_config.json").write_text(dataset_config)
     return root
 
 
@@ -67,6 +73,24 @@ def env(standin, tmp_path, small_camera):
 
     with open_habitat_scene(write_scene(tmp_path), SCENE, START, small_camera) as env:
         yield env
+
+
+@pytest.fixture
+def open_env(standin, tmp_path, small_camera):
+    """Opens the stand-in scene written with ``write_scene``'s options, the adapter's options."""
+    from efficienteqa.envs.habitat.env import open_habitat_scene
+
+    opened = []
+
+    def _open(scene_options: dict | None = None, start=START, **options):
+        root = write_scene(tmp_path / str(len(opened)), **(scene_options or {}))
+        env = open_habitat_scene(root, SCENE, start, small_camera, **options)
+        opened.append(env)
+        return env
+
+    yield _open
+    for env in opened:
+        env.close()
 
 
 # -- frames -------------------------------------------------------------------------------
@@ -169,9 +193,17 @@ def test_missing_habitat_sim_is_a_one_line_error(monkeypatch, tmp_path):
     assert "conda install" in err.value.fix and "\n" not in str(err.value)
 
 
-def test_contract(env):
+MOVES = [Pose2D(1.0, 1.0, 0.3), Pose2D(3.5, 2.5, -1.0), Pose2D(0.5, -1.0, 2.0)]
+
+
+@pytest.mark.parametrize("mount", ["body-tilt", "sensor-pitch"])
+@pytest.mark.parametrize("moves", ["unchecked", "checked"])
+def test_contract(open_env, mount, moves):
+    env = open_env(camera_mount=mount, moves=moves)
     assert isinstance(env, Environment)
-    check_env(env, [Pose2D(1.0, 1.0, 0.3), Pose2D(3.5, 2.5, -1.0), Pose2D(0.5, -1.0, 2.0)])
+    check_habitat_env(env, MOVES)
+    if mount == "sensor-pitch":  # the camera above the robot: the synthetic houses' contract too
+        check_env(env, MOVES)
 
 
 def test_start_floor_and_area(env):
@@ -182,9 +214,11 @@ def test_start_floor_and_area(env):
     assert np.allclose(lo, [-1.5, -2.5, 0.0]) and np.allclose(hi, [5.5, 4.5, 3.0])
 
 
-def test_every_pixel_lands_on_a_surface_of_the_room(env):
+@pytest.mark.parametrize("mount", ["body-tilt", "sensor-pitch"])
+def test_every_pixel_lands_on_a_surface_of_the_room(open_env, mount):
     """Depth, intrinsics and cam_to_world together: back-projected points lie on the room's
     walls, floor and ceiling or on the table, all given in Habitat coordinates."""
+    env = open_env(camera_mount=mount)
     lo, hi = frames.to_canonical(np.array([ROOM["min"], ROOM["max"]]), FLOOR_Y)
     lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
     tlo, thi = frames.to_canonical(np.array([TABLE["min"], TABLE["max"]]), FLOOR_Y)
@@ -196,10 +230,12 @@ def test_every_pixel_lands_on_a_surface_of_the_room(env):
         on_room = np.min(np.minimum(np.abs(pts - lo), np.abs(pts - hi)), axis=1) < 0.02
         in_table = np.all((pts > tlo - 0.02) & (pts < thi + 0.02), axis=1)
         assert np.all(on_room | in_table)
-        assert np.allclose(obs.cam_to_world[2, 3], CameraSpec().height_m)
+        height = 1.5 if mount == "sensor-pitch" else 1.5 * math.cos(math.radians(30))
+        assert np.allclose(obs.cam_to_world[2, 3], height)
 
 
-def test_blocked_steps_leave_the_robot_in_place(env):
+def test_blocked_steps_leave_the_robot_in_place(open_env):
+    env = open_env(moves="checked")
     obs, _, _, _, info = env.step(Pose2D(4.8, 0.0, 0.0))  # inside the room, off the navmesh
     assert info["blocked"] and obs.pose == env.start
     assert not env.is_navigable(4.8, 0.0) and env.is_navigable(4.0, 0.0)
@@ -287,6 +323,157 @@ def test_an_episode_in_a_habitat_scene(standin, tmp_path):
     assert done.result.steps == 4 and done.result.answer == "yes"
     assert any("table" in r.messages[-1].text for r in model.requests)
     assert done.report_html is not None and done.report_html.is_file()
+
+
+# -- fidelity to ExploreEQA (docs/habitat.md) ------------------------------------------------
+UPSTAIRS = {"x": [-0.5, 8.5], "z": [-3.5, 1.5], "y": FLOOR_Y + 3.0}  # a second floor, 45 m^2
+
+
+@pytest.mark.parametrize("budget_area, area, budget", [("navmesh-bbox", 45.0, 20),
+                                                       ("floor", 25.0, 15)])
+def test_the_step_budget_reads_the_navmesh_box_of_every_floor(open_env, budget_area, area, budget):
+    """ExploreEQA's budget: int(sqrt(scene_size) * 3), scene_size the x-z box of the whole
+    navmesh (PathFinder.get_bounds, both floors: 9 m x 5 m), not the start floor's 25 m^2."""
+    from efficienteqa.stop.relevancy import env_step_budget
+
+    env = open_env({"navmesh": (NAV, UPSTAIRS)}, budget_area=budget_area)
+    assert env.floor_area_m2 == pytest.approx(25.0)
+    assert env.navmesh_bbox_area_m2 == pytest.approx(45.0)
+    assert env.budget_area_m2 == pytest.approx(area) and env_step_budget(env) == budget
+
+
+def test_the_synthetic_houses_keep_their_floor_area_budget(env_seed3):
+    from efficienteqa.stop.relevancy import env_step_budget, step_budget
+
+    assert env_step_budget(env_seed3) == step_budget(env_seed3.floor_area_m2)
+
+
+def test_an_episode_in_habitat_spends_the_navmesh_box_budget(standin, tmp_path):
+    """The agent's budget goes through env_step_budget: 20 steps (45 m^2), not 15 (25 m^2)."""
+    from efficienteqa.agent import AgentConfig
+    from efficienteqa.ask import ask
+    from efficienteqa.models.stub import StubChatModel
+    from efficienteqa.relevancy.text import WordOverlapScorer
+    from efficienteqa.scenes import open_scene
+    from efficienteqa.stack import Stack
+    from efficienteqa.stop import StopConfig
+
+    root = write_scene(tmp_path, navmesh=(NAV, UPSTAIRS))
+    model = StubChatModel(lambda msgs: "A: 80\nworth exploring: yes 70"
+                          if msgs[-1].text.startswith("You guide") else "yes; 90\nno; 10")
+    scene = open_scene(f"hm3d:{SCENE}", env="habitat", hm3d_root=root, start=START)
+    with scene.env:
+        done = ask("Is there a table?", scene, tmp_path / "out", stack=Stack(grouping="rules"),
+                   model=model, relevancy=WordOverlapScorer(), report=False,
+                   config=AgentConfig(answer="paper", gate="none", explorer="random",
+                                      stop=StopConfig(enabled=False)))
+    assert done.result.budget == 20
+
+
+def test_body_tilt_puts_the_camera_where_explore_eqa_has_it(open_env):
+    """ExploreEQA tilts the agent's body by -30 degrees and mounts the sensor 1.5 m up the
+    tilted body: the camera is 1.5 cos 30 = 1.30 m high and 1.5 sin 30 = 0.75 m ahead,
+    looking 30 degrees down. Habitat yaw 0 looks along canonical +y."""
+    env = open_env()
+    obs = env.observe()
+    assert env.camera_mount == "body-tilt"
+    assert np.allclose(obs.cam_to_world[:3, 3], [0.0, 0.75, 1.5 * math.cos(math.radians(30))])
+    forward = obs.cam_to_world[:3, 2]  # OpenCV z: the optical axis
+    assert np.allclose(forward, [0.0, math.cos(math.radians(30)), -0.5])
+    up = open_env(camera_mount="sensor-pitch").observe()
+    assert np.allclose(up.cam_to_world[:3, 3], [0.0, 0.0, 1.5])
+    assert np.allclose(up.cam_to_world[:3, :3], obs.cam_to_world[:3, :3])  # the same view axis
+
+
+def test_the_camera_pose_is_read_back_from_the_simulator(open_env):
+    """Maps and back-projection get the pose Habitat-Sim rendered from (sensor_states), not
+    one the adapter composes: move the depth sensor on its mount, and cam_to_world follows
+    it, and the back-projected floor stays at z = 0."""
+    env = open_env({"faces": ("floor",)})
+    for spec in env.agent.config.sensor_specifications:
+        spec.position = [0.0, 1.2, 0.0]
+    obs, *_ = env.step(Pose2D(2.0, 0.0, math.pi / 2))
+    state = env.agent.get_state().sensor_states["depth"]
+    assert np.allclose(obs.cam_to_world, frames.sensor_to_world(state.position, state.rotation,
+                                                                FLOOR_Y))
+    assert np.isclose(obs.cam_to_world[2, 3], 1.2 * math.cos(math.radians(30)))
+    pts = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[obs.depth_m > 0]
+    on_table = (pts[:, 0] > 1.98) & (pts[:, 0] < 3.02) & (pts[:, 1] > 1.98) & (pts[:, 1] < 3.02)
+    assert on_table.mean() < 0.5 and np.allclose(pts[~on_table, 2], 0.0, atol=1e-4)
+
+
+def test_unchecked_moves_arrive_as_in_explore_eqa(open_env):
+    """ExploreEQA sets the planned pose with no navmesh check: a pose off the navmesh is
+    taken, on the start's floor, and never refused (so no step is spent on a refusal)."""
+    env = open_env()
+    assert env.moves == "unchecked" and not env.is_navigable(4.8, 0.0)
+    obs, _, _, _, info = env.step(Pose2D(4.8, 0.0, 0.0))
+    assert not info["blocked"] and obs.pose == Pose2D(4.8, 0.0, 0.0) and info["step"] == 1
+    position = env.agent.get_state().position
+    assert np.allclose(position, [4.8, FLOOR_Y, 0.0])
+
+
+def test_observe_before_reset_sees_the_start(open_env):
+    """Habitat-Sim's initialize_agent puts the agent at a random navigable pose; the first
+    observation, before any reset, is still the one from the start pose."""
+    env = open_env()
+    first = env.observe()
+    again, _ = env.reset()
+    assert first.pose == again.pose == env.start
+    assert np.allclose(first.cam_to_world, again.cam_to_world)
+    assert np.array_equal(first.depth_m, again.depth_m)
+
+
+def test_annotations_without_their_dataset_config_are_one_line_errors(open_env):
+    """Without hm3d_annotated_basis.scene_dataset_config.json Habitat-Sim only warns and reads
+    every object id as 0: semantic perception is refused, saying so, and asking for the
+    semantic sensor fails at once."""
+    from efficienteqa.stack import build_perception
+
+    env = open_env({"dataset_config": None})
+    assert env.observe().instance is None  # --perception rgb still runs
+    with pytest.raises(EfficientEQAError, match="scene_dataset_config.json was found") as err:
+        build_perception("semantic", env)
+    assert "\n" not in str(err.value) and "hm3d_annotated_basis" in err.value.fix
+    with pytest.raises(EfficientEQAError, match="every object id as 0"):
+        open_env({"dataset_config": None}, semantic=True)
+
+
+def test_a_dataset_config_without_the_scene_is_refused(open_env):
+    with pytest.raises(EfficientEQAError, match="without its semantic annotations") as err:
+        open_env({"dataset_config": json.dumps({"scenes": ["SomeOtherScene"]})})
+    assert "\n" not in str(err.value)
+
+
+def test_unknown_options_are_one_line_errors(open_env):
+    with pytest.raises(EfficientEQAError, match="camera_mount 'tilted'"):
+        open_env(camera_mount="tilted")
+
+
+TALL = {"min": [-1.0, FLOOR_Y, -4.0], "max": [14.0, 5.5, 2.0]}  # 5.4 m high, 9.5 m past the navmesh
+
+
+def test_the_habitat_check_takes_views_of_real_houses(open_env):
+    """A double-height room that runs on beyond the navmesh (a view through an open door):
+    points above one storey and past the floor's box are what HM3D views show. The synthetic
+    houses' check refuses them; the Habitat check takes them and still catches a wrong pose."""
+    east = [Pose2D(3.0, 0.5, 0.0)]  # looking along +x, at the far wall 11 m away
+    upright = open_env({"room": TALL}, camera_mount="sensor-pitch")
+    with pytest.raises(AssertionError, match="points outside bounds"):
+        check_env(upright, east)  # the camera above the robot: it fails on the points alone
+    check_habitat_env(upright, east)
+    env = open_env({"room": TALL})
+    check_habitat_env(env, east)
+    obs, *_ = env.step(east[0])
+    pts = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[obs.depth_m > 0]
+    lo, hi = env.bounds
+    assert np.any(pts[:, 2] > hi[2] + 0.3) and np.any(pts[:, 0] > hi[0] + 0.3)
+    from efficienteqa.envs.habitat.checks import check_habitat_observation
+
+    flipped = obs.cam_to_world.copy()
+    flipped[:3, 1:3] *= -1  # a camera looking up: the y-down/z-forward mix-up
+    with pytest.raises(AssertionError):
+        check_habitat_observation(replace(obs, cam_to_world=flipped), env)
 
 
 def test_habitat_scenes_need_the_habitat_env(tmp_path):

@@ -57,7 +57,7 @@ from efficienteqa.stop.relevancy import (
     RelevancyStopper,
     StopCheck,
     StopConfig,
-    step_budget,
+    env_step_budget,
 )
 from efficienteqa.vc.parse import AnswerResult
 
@@ -273,7 +273,7 @@ class Agent:
         cfg = self.config
         t0 = time.perf_counter()
         obs, _ = env.reset(options={"start": start} if start is not None else None)
-        budget = cfg.max_steps or step_budget(env.floor_area_m2)
+        budget = cfg.max_steps or env_step_budget(env)
         options = exploration_options(cfg.explorer, cfg.exploration)
         if cfg.stop_clearance_m is not None:
             options["stop_clearance_m"] = cfg.stop_clearance_m

@@ -212,7 +212,7 @@ def ask_command(
     from efficienteqa.presets import apply_preset, build_config, build_stack
     from efficienteqa.scenes import open_scene
     from efficienteqa.stack import check_stack, parse_vlm
-    from efficienteqa.stop import step_budget
+    from efficienteqa.stop.relevancy import env_step_budget
 
     o = apply_preset(preset, ctx.params)
     config, stack = build_config(o), build_stack(o)
@@ -235,7 +235,7 @@ def ask_command(
         opened = open_scene(scene, assets, env=o["env"] or "synthetic", hm3d_root=hm3d_root,
                             start=habitat_start)
     try:
-        budget = max_steps or step_budget(opened.env.floor_area_m2)
+        budget = max_steps or env_step_budget(opened.env)
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
         with Progress(*columns, console=console) as progress:

@@ -27,8 +27,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from efficienteqa.envs.base import Environment
 
 Z_TH = 3.0
 PAPER_MIN_STEP = 10  # SPEC 3.4: never before the 10th step
@@ -88,6 +92,15 @@ def step_budget(floor_area_m2: float, per_sqrt_m2: float = STEPS_PER_SQRT_M2) ->
     if not math.isfinite(floor_area_m2) or floor_area_m2 <= 0:
         raise ValueError(f"floor area must be a positive number of m^2, got {floor_area_m2}")
     return max(1, int(math.sqrt(floor_area_m2) * per_sqrt_m2))
+
+
+def env_step_budget(env: Environment) -> int:
+    """The step budget of an episode in ``env``, the one place it is computed: ``step_budget``
+    of the environment's ``budget_area_m2`` where it names one (Habitat: by its
+    ``budget_area`` option, ExploreEQA's x-z bounding box of the whole navmesh unless asked
+    for the floor), else of its ``floor_area_m2`` (the synthetic houses)."""
+    area = getattr(env, "budget_area_m2", None)
+    return step_budget(env.floor_area_m2 if area is None else float(area))
 
 
 @dataclass(frozen=True)

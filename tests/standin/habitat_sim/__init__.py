@@ -11,8 +11,12 @@ its own, written as JSON into the files where Habitat expects the GLB and the na
 - ``*.basis.navmesh``: ``{"rects": [{"x": [x0, x1], "z": [z0, z1], "y": height}]}``
   (navigable rectangles; a path exists within a rectangle only).
 
-Semantic ids are reported only when the simulator is given a ``scene_dataset_config_file``, as
-in Habitat-Sim, where HM3D's annotations come through that file.
+Semantic ids are reported only when the simulator is given a ``scene_dataset_config_file``
+naming the scene (a JSON ``{"scenes": [stems]}``; any other config names every scene), as in
+Habitat-Sim, where HM3D's annotations come through that file and a scene the file does not
+name reads 0 everywhere. As in Habitat-Sim, ``initialize_agent`` puts the agent at a random
+navigable point with a random yaw once a navmesh is loaded, ``get_state().sensor_states``
+holds each sensor's world pose, and ``PathFinder.get_bounds`` is the box of the whole navmesh.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from habitat_sim import agent as agent  # noqa: F401 - habitat_sim.agent.AgentConfiguration
-from habitat_sim.agent import Agent, AgentState
+from habitat_sim.agent import Agent, AgentState, matrix, sensor_pose
 
 __all__ = ["AgentState", "CameraSensorSpec", "Configuration", "SensorType", "ShortestPath",
            "Simulator", "SimulatorConfiguration", "agent"]
@@ -164,15 +168,26 @@ class Simulator:
         self.config = config
         self.scene = json.loads(Path(config.sim_cfg.scene_id).read_text())
         self.pathfinder = PathFinder()
-        self._annotated = config.sim_cfg.scene_dataset_config_file not in ("", "default")
+        self._annotated = _names_scene(config.sim_cfg.scene_dataset_config_file,
+                                       config.sim_cfg.scene_id)
         objects = [_SemanticObject(o["id"], o["category"]) for o in self.scene.get("objects", [])]
         self.semantic_scene = _SemanticScene([None, *objects] if self._annotated else [])
         self._agents: list[Agent] = []
+        self._random = np.random.default_rng(1)
         self.closed = False
 
-    def initialize_agent(self, agent_id: int) -> Agent:
+    def initialize_agent(self, agent_id: int, initial_state: AgentState | None = None) -> Agent:
+        """As Habitat-Sim's: without ``initial_state``, the agent is put at a random navigable
+        point with a random yaw once a navmesh is loaded."""
         while len(self._agents) <= agent_id:
             self._agents.append(Agent(self.config.agents[len(self._agents)]))
+        if initial_state is None:
+            initial_state = AgentState()
+            if self.pathfinder.is_loaded:
+                initial_state.position = self.pathfinder.get_random_navigable_point()
+                yaw = float(self._random.uniform(0.0, 2 * math.pi))
+                initial_state.rotation = [0.0, math.sin(yaw / 2), 0.0, math.cos(yaw / 2)]
+        self._agents[agent_id].set_state(initial_state, is_initial=True)
         return self._agents[agent_id]
 
     def get_agent(self, agent_id: int) -> Agent:
@@ -190,12 +205,8 @@ class Simulator:
         f = (w / 2) / math.tan(math.radians(spec.hfov) / 2)
         u, v = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
         dirs = np.stack([(u - w / 2) / f, -(v - h / 2) / f, -np.ones_like(u)], axis=-1)  # GL camera
-        pitch, yaw, roll = spec.orientation
-        assert yaw == 0 and roll == 0, "the stand-in pitches sensors only"
-        q_agent = _quat(state.rotation)
-        rot = _quat_matrix(q_agent) @ _axis_matrix([1.0, 0.0, 0.0], pitch)
-        origin = np.asarray(state.position, float) + _quat_matrix(q_agent) @ np.asarray(spec.position, float)
-        t, ids, faces = self._cast(origin, dirs @ rot.T)
+        origin, q = sensor_pose(state, spec)
+        t, ids, faces = self._cast(origin, dirs @ matrix(q).T)
         if spec.sensor_type is SensorType.DEPTH:
             return np.where(np.isfinite(t), t, 0.0).astype(np.float32)
         if spec.sensor_type is SensorType.SEMANTIC:
@@ -235,23 +246,11 @@ class Simulator:
         return t, ids, face
 
 
-def _quat(rotation) -> np.ndarray:
-    """[x, y, z, w] from a coefficient list or an object with x, y, z, w."""
-    if hasattr(rotation, "w"):
-        return np.array([rotation.x, rotation.y, rotation.z, rotation.w], float)
-    q = np.asarray(rotation, float)
-    assert q.shape == (4,), "rotations are [x, y, z, w] coefficients"
-    return q / np.linalg.norm(q)
 
-
-def _quat_matrix(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def _axis_matrix(axis, angle: float) -> np.ndarray:
-    a = np.asarray(axis, float)
-    return _quat_matrix(np.array([*(a * math.sin(angle / 2)), math.cos(angle / 2)]))
+def _names_scene(dataset_config: str, scene_id: str) -> bool:
+    """Whether the dataset config gives the scene its annotations: any config does, unless it
+    lists ``"scenes"`` (file stems) without this one. Habitat-Sim only warns when none does."""
+    if dataset_config in ("", "default"):
+        return False
+    names = json.loads(Path(dataset_config).read_text() or "{}").get("scenes")
+    return names is None or Path(scene_id).name.split(".")[0] in names

@@ -5,10 +5,24 @@ with conda (it has no usable pip wheel on Linux) and most users never need it. T
 only Habitat-Sim's documented Python API: ``Simulator``, ``CameraSensorSpec``, ``AgentState``
 and the ``PathFinder`` of the scene's navmesh.
 
-Stepping teleports: the agent's target pose is snapped to the navmesh and taken only when the
-navmesh has a path to it from where the robot stands; otherwise the robot stays and
-``info["blocked"]`` is True. The floor of the start pose is the episode's floor: its height is
-canonical z = 0, and its navmesh area is the floor area behind the step budget.
+Three options choose between ExploreEQA's set-up (Stanford-ILIAD/explore-eqa, the defaults:
+what ``--preset paper`` runs) and the project's earlier one (docs/habitat.md, "Fidelity to
+ExploreEQA"):
+
+- ``camera_mount``: "body-tilt" (ExploreEQA: the agent's body is tilted by the camera's pitch
+  and the sensor sits ``height_m`` up the tilted body, so the camera is about 1.30 m high and
+  0.75 m ahead of the agent) or "sensor-pitch" (the body upright, the camera ``height_m``
+  straight above the agent and pitched). Either way an observation's ``cam_to_world`` is the
+  sensor pose Habitat-Sim reports (``AgentState.sensor_states``), the pose it rendered from.
+- ``moves``: "unchecked" (ExploreEQA: the agent is set at the planned pose, at the start's
+  floor height, with no navmesh check) or "checked" (the target is snapped to the navmesh and
+  taken only when the navmesh has a path to it; otherwise the robot stays and
+  ``info["blocked"]`` is True).
+- ``budget_area``: the area behind the step budget ``int(sqrt(area) * 3)``: "navmesh-bbox"
+  (ExploreEQA: the x-z bounding box of the whole navmesh, every floor) or "floor" (the
+  navigable area of the start's floor).
+
+The floor of the start pose is the episode's floor: its height is canonical z = 0.
 """
 
 from __future__ import annotations
@@ -22,7 +36,7 @@ import numpy as np
 
 from efficienteqa.envs.habitat import frames
 from efficienteqa.envs.habitat.labels import HabitatLabels
-from efficienteqa.envs.habitat.scenes import HabitatStart, SceneFiles
+from efficienteqa.envs.habitat.scenes import DATASET_CONFIG, HabitatStart, SceneFiles
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D
 from efficienteqa.observation import Observation
@@ -35,6 +49,9 @@ FLOOR_BAND_M = 0.5  # navmesh triangles within this height of the start are on i
 STOREY_M = 3.0  # canonical z extent of one floor: the map ignores the storeys above
 WALL_MARGIN_M = 1.0  # walls stand beyond the navmesh edge by about the robot radius
 MAX_STEP_DELTA_Y_M = 0.5  # a target may be this far above or below the floor (thresholds, ramps)
+CAMERA_MOUNTS = ("body-tilt", "sensor-pitch")
+MOVES = ("unchecked", "checked")
+BUDGET_AREAS = ("navmesh-bbox", "floor")
 
 
 def import_habitat_sim() -> ModuleType:
@@ -51,16 +68,32 @@ class HabitatEnv:
 
     ``start``: the episode's start pose in Habitat's frame (HM-EQA's ``scene_init_poses.csv``);
     None takes a navigable point drawn with ``seed``. ``semantic``: attach the semantic sensor
-    (None: where the scene has annotations), which lets semantic-sensor perception run here.
+    (None: where the scene has annotations and their dataset config), which lets
+    semantic-sensor perception run here. ``camera_mount``, ``moves``, ``budget_area``: see the
+    module's docstring.
     """
 
     def __init__(self, files: SceneFiles, start: HabitatStart | None = None,
                  camera: CameraSpec | None = None, *, semantic: bool | None = None,
-                 gpu_device_id: int = 0, seed: int = 0) -> None:
+                 camera_mount: str = "body-tilt", moves: str = "unchecked",
+                 budget_area: str = "navmesh-bbox", gpu_device_id: int = 0, seed: int = 0) -> None:
+        for name, value, allowed in (("camera_mount", camera_mount, CAMERA_MOUNTS),
+                                     ("moves", moves, MOVES), ("budget_area", budget_area, BUDGET_AREAS)):
+            if value not in allowed:
+                raise EfficientEQAError(f"unknown Habitat {name} {value!r}",
+                                        fix=f"use one of {', '.join(allowed)}")
         hs = import_habitat_sim()
         self.files = files
         self.camera = camera or CameraSpec()
-        self.semantic = files.semantic is not None if semantic is None else semantic
+        self.camera_mount, self.moves, self.budget_area = camera_mount, moves, budget_area
+        self._unlabelled = _unloadable_annotations(files)
+        if semantic is None:
+            semantic = files.semantic is not None and self._unlabelled is None
+            if self._unlabelled is not None:
+                log.warning("%s; the semantic sensor is left off", self._unlabelled.args[0])
+        self.semantic = semantic
+        if self.semantic and self._unlabelled is not None:
+            raise self._unlabelled
         if self.semantic and files.semantic is None:
             raise EfficientEQAError(f"scene {files.scene} has no semantic annotations",
                                     fix="use --perception rgb, or an HM3D-Semantics scene")
@@ -70,25 +103,29 @@ class HabitatEnv:
             if not self.pathfinder.load_nav_mesh(str(files.navmesh)) or not self.pathfinder.is_loaded:
                 raise EfficientEQAError(f"Habitat-Sim cannot load the navmesh {files.navmesh}",
                                         fix="download the scene's .basis.navmesh again")
+            if self.semantic:
+                self._check_annotations_loaded()
             if start is None:
                 self.pathfinder.seed(seed)
                 point = self.pathfinder.get_random_navigable_point()
                 start = HabitatStart(tuple(float(v) for v in point), 0.0)  # type: ignore[arg-type]
             self.floor_y = start.position[1]
-            self.agent = self.sim.initialize_agent(0)
+            self.agent = self.sim.initialize_agent(0)  # at a random pose: _teleport below
             self._hs = hs
             floor = self._floor_triangles()
             self._floor_area_m2 = frames.triangle_area_m2(floor)
             self._floor_xy = frames.to_canonical(floor, self.floor_y)[:, :2]
+            lo, hi = (np.asarray(list(b), dtype=float) for b in self.pathfinder.get_bounds())
+            self._navmesh_bbox_area_m2 = float(abs((hi[0] - lo[0]) * (hi[2] - lo[2])))
             self.start = frames.pose_to_canonical(np.array(start.position), start.yaw_rad, self.floor_y)
-            if not self.is_navigable(self.start.x, self.start.y):
+            at = self._reachable(self.start, require_path=False)
+            if at is None:
                 raise EfficientEQAError(f"the start pose {start} is not on the navmesh of {files.scene}",
                                         fix="check the scene and scene_init_poses.csv belong together")
+            self._teleport(self.start, at)  # observe() before reset() sees the start
         except BaseException:
             self.sim.close()
             raise
-        self.pose = self.start
-        self._position_h = np.array(start.position, dtype=float)
         self.steps = 0
         self._labels: HabitatLabels | None = None
 
@@ -104,18 +141,30 @@ class HabitatEnv:
         kinds = [(COLOR, hs.SensorType.COLOR), (DEPTH, hs.SensorType.DEPTH)]
         if self.semantic:
             kinds.append((SEMANTIC, hs.SensorType.SEMANTIC))
+        pitch = 0.0 if self.camera_mount == "body-tilt" else float(np.radians(cam.pitch_deg))
         for uuid, kind in kinds:
             spec = hs.CameraSensorSpec()
             spec.uuid = uuid
             spec.sensor_type = kind
             spec.resolution = [cam.height, cam.width]
             spec.hfov = cam.hfov_deg
-            spec.position = [0.0, cam.height_m, 0.0]
-            spec.orientation = [float(np.radians(cam.pitch_deg)), 0.0, 0.0]
+            spec.position = [0.0, cam.height_m, 0.0]  # in the body frame (tilted with body-tilt)
+            spec.orientation = [pitch, 0.0, 0.0]
             sensors.append(spec)
         agent_cfg = hs.agent.AgentConfiguration()
         agent_cfg.sensor_specifications = sensors
         return hs.Configuration(sim_cfg, [agent_cfg])
+
+    def _check_annotations_loaded(self) -> None:
+        """Habitat-Sim only warns when it finds no annotations for the scene in its dataset
+        config, and its semantic sensor then reads 0 everywhere: refuse that here."""
+        objects = getattr(self.sim.semantic_scene, "objects", None) or []
+        if not any(obj is not None for obj in objects):
+            raise EfficientEQAError(
+                f"Habitat-Sim loaded {self.files.scene} without its semantic annotations "
+                f"({self.files.dataset_config} names none for it)",
+                fix=f"use the {DATASET_CONFIG} of the same HM3D-Semantics download as the "
+                    "scene, or --perception rgb")
 
     def _floor_triangles(self) -> np.ndarray:
         """Navmesh triangles (3N, 3) lying on the start's floor (Habitat frame)."""
@@ -144,7 +193,11 @@ class HabitatEnv:
         return self.observe(), self._info(blocked=False)
 
     def step(self, action: Pose2D) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
-        target = self._reachable(action, require_path=True)
+        if self.moves == "unchecked":  # ExploreEQA: set the planned pose, on the start's floor
+            target: np.ndarray | None = frames.to_habitat(np.array([action.x, action.y, 0.0]),
+                                                          self.floor_y)
+        else:
+            target = self._reachable(action, require_path=True)
         if target is not None:
             self._teleport(action, target)
         self.steps += 1
@@ -159,11 +212,15 @@ class HabitatEnv:
         if self.semantic:
             instance = self.scene_labels().instance_buffer(np.asarray(raw[SEMANTIC]))
             instance[depth <= 0] = -1
-        theta = frames.yaw_to_habitat(self.pose.yaw)
-        return Observation(rgb=rgb, depth_m=depth,
-                           cam_to_world=frames.camera_to_world(self._position_h, theta,
-                                                               self.floor_y, self.camera),
+        return Observation(rgb=rgb, depth_m=depth, cam_to_world=self.camera_pose(),
                            intrinsics=self.camera.intrinsics, pose=self.pose, instance=instance)
+
+    def camera_pose(self) -> np.ndarray:
+        """The canonical cam_to_world of the depth sensor as Habitat-Sim reports it (the pose
+        it renders from, so maps and back-projection use what the simulator did)."""
+        sensor = self.agent.get_state().sensor_states[DEPTH]
+        return frames.sensor_to_world(np.asarray(sensor.position, dtype=float), sensor.rotation,
+                                      self.floor_y)
 
     def is_navigable(self, x: float, y: float) -> bool:
         point = frames.to_habitat(np.array([x, y, 0.0]), self.floor_y)
@@ -176,6 +233,17 @@ class HabitatEnv:
         return self._floor_area_m2
 
     @property
+    def navmesh_bbox_area_m2(self) -> float:
+        """The area of the x-z bounding box of the whole navmesh, every floor (ExploreEQA's
+        ``scene_size``, from ``PathFinder.get_bounds``)."""
+        return self._navmesh_bbox_area_m2
+
+    @property
+    def budget_area_m2(self) -> float:
+        """The area behind the step budget (``stop.env_step_budget``), as ``budget_area`` says."""
+        return self.navmesh_bbox_area_m2 if self.budget_area == "navmesh-bbox" else self.floor_area_m2
+
+    @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The start floor's navmesh extent plus a wall margin; z from the floor to one storey."""
         lo = self._floor_xy.min(axis=0) - WALL_MARGIN_M
@@ -184,6 +252,8 @@ class HabitatEnv:
 
     def scene_labels(self) -> HabitatLabels:
         """The semantic sensor's labels (for semantic-sensor perception)."""
+        if not self.semantic and self._unlabelled is not None:
+            raise self._unlabelled
         if not self.semantic:
             raise EfficientEQAError(f"scene {self.files.scene} is loaded without its semantic sensor",
                                     fix="use --perception rgb with an image VLM, or an "
@@ -221,15 +291,28 @@ class HabitatEnv:
         return target
 
     def _teleport(self, pose: Pose2D, position_h: np.ndarray) -> None:
+        tilt = float(np.radians(self.camera.pitch_deg)) if self.camera_mount == "body-tilt" else 0.0
         state = self._hs.AgentState()
         state.position = position_h
-        state.rotation = frames.yaw_quaternion(frames.yaw_to_habitat(pose.yaw))
+        state.rotation = frames.body_quaternion(frames.yaw_to_habitat(pose.yaw), tilt)
         self.agent.set_state(state)
         self.pose, self._position_h = pose, position_h
 
     def _info(self, blocked: bool) -> dict[str, Any]:
         return {"step": self.steps, "pose": self.pose, "blocked": blocked,
-                "floor_area_m2": self.floor_area_m2}
+                "floor_area_m2": self.floor_area_m2, "budget_area_m2": self.budget_area_m2}
+
+
+def _unloadable_annotations(files: SceneFiles) -> EfficientEQAError | None:
+    """Why Habitat-Sim would load the scene's semantic annotations as all zeros (it only
+    warns): the ``.semantic.*`` files are there but no dataset config names them."""
+    if files.semantic is None or files.dataset_config is not None:
+        return None
+    return EfficientEQAError(
+        f"scene {files.scene} has HM3D-Semantics files but no {DATASET_CONFIG} was found, so "
+        "Habitat-Sim would read every object id as 0",
+        fix=f"put {DATASET_CONFIG} (from the HM3D semantics download) in "
+            f"{files.semantic.parent.parent}, or use --perception rgb")
 
 
 def open_habitat_scene(root: Path, scene: str, start: HabitatStart | None = None,

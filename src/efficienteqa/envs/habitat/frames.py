@@ -54,6 +54,44 @@ def yaw_quaternion(theta_rad: float) -> list[float]:
     return [0.0, math.sin(theta_rad / 2), 0.0, math.cos(theta_rad / 2)]
 
 
+def body_quaternion(theta_rad: float, tilt_rad: float = 0.0) -> list[float]:
+    """An agent body turned by ``theta_rad`` about +y, then tilted by ``tilt_rad`` about its own
+    x axis (negative looks down), as Habitat's coefficient list [x, y, z, w]: the product
+    yaw * tilt. ExploreEQA tilts the body this way and mounts its camera unpitched."""
+    sy, cy = math.sin(theta_rad / 2), math.cos(theta_rad / 2)
+    sx, cx = math.sin(tilt_rad / 2), math.cos(tilt_rad / 2)
+    return [cy * sx, sy * cx, -sy * sx, cy * cx]
+
+
+def quaternion_xyzw(rotation: object) -> np.ndarray:
+    """[x, y, z, w] of a rotation as Habitat-Sim returns it (a numpy-quaternion, with ``w, x,
+    y, z`` attributes) or as a coefficient list [x, y, z, w]."""
+    if all(hasattr(rotation, k) for k in "wxyz"):
+        q = np.array([getattr(rotation, k) for k in "xyzw"], dtype=float)
+    else:
+        q = np.asarray(rotation, dtype=float).reshape(4)
+    return q / np.linalg.norm(q)
+
+
+def rotation_matrix(q_xyzw: np.ndarray) -> np.ndarray:
+    """The 3x3 rotation of a unit quaternion [x, y, z, w]."""
+    x, y, z, w = (float(v) for v in q_xyzw)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def sensor_to_world(position_h: np.ndarray, rotation: object, floor_y: float) -> np.ndarray:
+    """Canonical 4x4 cam_to_world (OpenCV axes) of a sensor whose world pose Habitat reports
+    (``AgentState.sensor_states[uuid]``: a position and a rotation, the camera looking along
+    its local -z): the pose the renderer used, however the sensor is mounted."""
+    out = np.eye(4)
+    out[:3, :3] = HABITAT_TO_CANONICAL @ rotation_matrix(quaternion_xyzw(rotation)) @ _GL_TO_CV
+    out[:3, 3] = to_canonical(np.asarray(position_h, dtype=float), floor_y)
+    return out
+
+
 def pose_to_canonical(position_h: np.ndarray, theta_rad: float, floor_y: float) -> Pose2D:
     x, y, _ = to_canonical(np.asarray(position_h, dtype=float), floor_y)
     return Pose2D(float(x), float(y), yaw_to_canonical(theta_rad))

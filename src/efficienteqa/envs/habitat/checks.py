@@ -1,0 +1,68 @@
+"""``check_habitat_env``: the environment contract as a real HM3D scene can meet it.
+
+``envs.checks.check_env`` holds the synthetic houses to two things a Habitat scene does not
+give: the camera straight above the robot (ExploreEQA's body-tilt mount puts it about 0.75 m
+ahead) and every back-projected point inside the floor's box (a stairwell shows the floor
+below, a double-height room its ceiling, an open door or a window what lies beyond the
+navmesh). Here the camera must be the pose Habitat-Sim rendered from and within its mount's
+reach of the robot, and most of a frame (``MIN_POINTS_IN_BOUNDS``) must lie in the box: a wrong
+pitch sign, axis or floor height still puts most points outside it.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from efficienteqa.geometry import Pose2D, backproject
+from efficienteqa.observation import Observation
+
+if TYPE_CHECKING:
+    from efficienteqa.envs.habitat.env import HabitatEnv
+
+MIN_POINTS_IN_BOUNDS = 0.5
+SLACK_M = 0.3  # walls are thick; surfaces lie on the bounding box
+
+
+def check_habitat_observation(obs: Observation, env: HabitatEnv) -> None:
+    cam = env.camera
+    h, w = cam.height, cam.width
+    assert obs.rgb.shape == (h, w, 3) and obs.rgb.dtype == np.uint8, "rgb must be (H, W, 3) uint8"
+    assert obs.depth_m.shape == (h, w) and obs.depth_m.dtype == np.float32, "depth_m (H, W) f32"
+    assert np.all(np.isfinite(obs.depth_m)) and np.all(obs.depth_m >= 0), "depth finite, >= 0"
+    if obs.instance is not None:
+        assert obs.instance.shape == (h, w) and obs.instance.dtype == np.int32, "instance (H, W) i32"
+    assert np.allclose(obs.intrinsics, cam.intrinsics), "intrinsics must match the camera"
+    rot = obs.cam_to_world[:3, :3]
+    assert np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) and np.isclose(np.linalg.det(rot), 1.0)
+    assert np.allclose(obs.cam_to_world, env.camera_pose(), atol=1e-6), \
+        "cam_to_world must be the sensor pose Habitat-Sim reports"
+    offset = np.hypot(obs.cam_to_world[0, 3] - obs.pose.x, obs.cam_to_world[1, 3] - obs.pose.y)
+    assert offset <= cam.height_m + 1e-6, "the camera must be within its mount's reach of the robot"
+    lo, hi = env.bounds
+    assert lo[2] < obs.cam_to_world[2, 3] < hi[2], "the camera must be above the floor, below a storey"
+    valid = obs.depth_m > 0
+    if valid.any():
+        pts = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[valid]
+        inside = np.all((pts >= lo - SLACK_M) & (pts <= hi + SLACK_M), axis=1)
+        assert inside.mean() >= MIN_POINTS_IN_BOUNDS, \
+            f"only {inside.mean():.0%} of the points lie in the floor's bounds"
+
+
+def check_habitat_env(env: HabitatEnv, moves: list[Pose2D]) -> None:
+    """Reset, observe, and step through ``moves`` (navigable poses), checking every frame."""
+    obs, info = env.reset(seed=0)
+    check_habitat_observation(obs, env)
+    assert isinstance(info, dict)
+    start = obs.pose
+    assert env.is_navigable(start.x, start.y), "the start pose must be navigable"
+    assert env.floor_area_m2 > 0 and env.budget_area_m2 > 0
+    for pose in moves:
+        obs, reward, terminated, truncated, info = env.step(pose)
+        check_habitat_observation(obs, env)
+        assert isinstance(reward, float) and isinstance(terminated, bool)
+        assert isinstance(truncated, bool) and isinstance(info, dict)
+        assert (obs.pose.x, obs.pose.y) == (pose.x, pose.y), "a navigable move must arrive"
+    again, _ = env.reset(seed=0)
+    assert again.pose == start, "reset must return to the start"
