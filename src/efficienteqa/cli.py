@@ -129,6 +129,17 @@ Relevancy = Annotated[str | None, typer.Option(
     "overlap | vlm-match (the VLM answers 'does this view show it?'; default over images) | "
     "blip2-itm (default over images where its weights are) | clip | siglip.",
     show_default=False)]
+Device = Annotated[str | None, typer.Option(
+    "--device", help="Where an image relevancy model (blip2-itm, clip, siglip) runs: auto "
+    "(default: the GPU torch sees, in float16, else the CPU) | cpu | cuda | cuda:N.",
+    show_default=False)]
+RelevancyWeights = Annotated[str | None, typer.Option(
+    "--relevancy-weights", metavar="DIR", help="A local folder with the relevancy model's "
+    "weights, e.g. from `hf download Salesforce/blip2-itm-vit-g --local-dir DIR` (default: the "
+    "model's Hugging Face cache).", show_default=False)]
+AllowDownload = Annotated[bool | None, typer.Option(
+    "--allow-download/--no-download", help="Let missing relevancy weights download from the "
+    "Hugging Face Hub (default: no; the error names the model).", show_default=False)]
 ExploreScorer = Annotated[str | None, typer.Option(
     help="Where the semantic values come from: auto (default: the VLM's verbalized confidence "
     "when it reads images or with token confidence, else direction-logit) | vlm | "
@@ -193,6 +204,9 @@ def ask_command(
     image_detail: ImageDetail = None,
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
+    device: Device = None,
+    relevancy_weights: RelevancyWeights = None,
+    allow_download: AllowDownload = None,
     grouping: Grouping = None,
     explore_scorer: ExploreScorer = None,
     seed: Seed = None,
@@ -334,6 +348,9 @@ def eval_command(
     image_detail: ImageDetail = None,
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
+    device: Device = None,
+    relevancy_weights: RelevancyWeights = None,
+    allow_download: AllowDownload = None,
     grouping: Grouping = None,
     explore_scorer: ExploreScorer = None,
     judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec), or 'rule'/'none' "

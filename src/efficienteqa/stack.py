@@ -51,7 +51,11 @@ class Stack:
     The model server's options (None: ``ChatBackend``'s default; see its docstring):
     ``timeout_s`` and ``retries`` of each call, ``api_key_env`` (the variable whose key is sent,
     or "none"), ``image_format`` (png | jpeg), ``image_max_side`` (px) and ``image_detail``
-    (auto | low | high). ``server_options()`` gives them as ``parse_vlm``'s keywords."""
+    (auto | low | high). ``server_options()`` gives them as ``parse_vlm``'s keywords.
+
+    The relevancy model's (``build_relevancy``): ``device`` (auto | cpu | cuda | cuda:N; auto:
+    the GPU torch sees, in float16, else the CPU), ``relevancy_weights`` (a local folder with
+    its weights) and ``allow_download`` (fetch them from the Hugging Face Hub when missing)."""
 
     vlm: str = "local:qwen2.5-coder-1.5b"
     perception: str = "semantic"
@@ -66,6 +70,9 @@ class Stack:
     image_format: str | None = None
     image_max_side: int | None = None
     image_detail: str | None = None
+    device: str = "auto"
+    relevancy_weights: str | None = None
+    allow_download: bool = False
 
     def server_options(self) -> dict[str, Any]:
         return {"timeout_s": self.timeout_s, "retries": self.retries,
@@ -278,12 +285,29 @@ def build_gate(name: str, perception: Perception, model: ChatModel) -> AnswerGat
     return ModelGate(VLMMatchScorer(model, perception.modality))
 
 
+IMAGE_RELEVANCY = ("blip2-itm", "clip", "siglip")
+
+
 @functools.cache
-def build_relevancy(kind: str) -> RelevancyScorer:
-    """One scorer per kind and process: loading a model takes seconds, and an evaluation runs
-    many episodes in each worker."""
-    # One torch thread is the fastest for a few short texts on a small busy CPU (relevancy.text).
-    return make_scorer(kind, num_threads=1) if kind in MINILM_KINDS else make_scorer(kind)
+def build_relevancy(kind: str, device: str = "auto", weights: str | None = None,
+                    allow_download: bool = False) -> RelevancyScorer:
+    """One scorer per kind (and options) and process: loading a model takes seconds, and an
+    evaluation runs many episodes in each worker. The image scorers load ``weights`` (a local
+    folder; None: the default model from the Hugging Face cache, or downloaded when
+    ``allow_download``) onto ``device`` (``relevancy.base.resolve_device``); MiniLM reads
+    ``weights`` as its sentence-transformers folder and stays on the CPU unless a device is named."""
+    if kind in IMAGE_RELEVANCY:
+        return make_scorer(kind, model_id_or_path=weights, device=device,
+                           allow_download=allow_download)
+    if kind in MINILM_KINDS:
+        # One torch thread is the fastest for a few short texts on a small busy CPU (relevancy.text).
+        options: dict[str, Any] = {"path": weights} if weights else {}
+        if device != "auto":
+            from efficienteqa.relevancy.base import resolve_device
+
+            options["device"] = resolve_device(device)[0]
+        return make_scorer(kind, num_threads=1, **options)
+    return make_scorer(kind)
 
 
 @dataclass
@@ -313,7 +337,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
         from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
         relevancy = VLMMatchScorer(recorder, perception.modality)
-    relevancy = relevancy or build_relevancy(stack.relevancy)
+    relevancy = relevancy or build_relevancy(stack.relevancy, stack.device,
+                                             stack.relevancy_weights, stack.allow_download)
     scorer_name = explore_scorer_name(stack, perception, config)
     scorer = (EXPLORE_SCORERS.build(scorer_name, model=recorder, perception=perception,
                                     config=config) if config.explorer == "sfe" else None)

@@ -4,11 +4,17 @@ A scorer compares a question with one observation: an RGB frame (image scorers: 
 SigLIP) or the frame's text description (text scorers: MiniLM, MiniLM calibrated to a match
 probability, word overlap). Higher means more relevant; each back-end documents its range.
 Back-ends are imported only when built, so importing this module costs nothing.
+
+The image scorers load Hugging Face weights: from the cache, from a local folder
+(``--relevancy-weights DIR``) or, only when allowed (``--allow-download``), from the Hub; they
+run on ``--device`` (``resolve_device``: "auto" is the GPU torch sees, else the CPU, and half
+precision on a GPU).
 """
 
 from __future__ import annotations
 
 import importlib
+import re
 from collections.abc import Sequence
 from typing import Any, Literal, Protocol, runtime_checkable
 
@@ -61,12 +67,40 @@ def require(module: str, extra: str) -> Any:
 
 
 def weights_missing(model_id: str, exc: BaseException) -> EfficientEQAError:
-    """One line saying the weights of ``model_id`` are not on this machine and how to get them."""
+    """One line saying the weights of ``model_id`` are not on this machine and how to get them:
+    the command-line options that give them."""
     del exc  # the library's own message spans many lines; the cause stays chained
     return EfficientEQAError(
         f"weights of {model_id!r} are not in the Hugging Face cache or at that path",
-        fix=f"run `hf download {model_id}` on a machine with internet, pass a local "
-            "folder, or allow downloads (allow_download=True)")
+        fix=f"run `hf download {model_id} --local-dir DIR` on a machine with internet and pass "
+            "--relevancy-weights DIR, or let it download with --allow-download")
+
+
+DEVICES = "auto, cpu, cuda or cuda:N"
+_DEVICE = re.compile(r"auto|cpu|cuda(?::[0-9]+)?")
+
+
+def resolve_device(device: str = "auto", dtype: str | None = None) -> tuple[str, str | None]:
+    """The torch device and dtype an image scorer runs with. ``device``: "auto" (the GPU when
+    torch sees one, else the CPU), "cpu", "cuda" or "cuda:N". ``dtype`` None: "float16" on a
+    GPU (BLIP-2 ViT-g in float32 needs twice the memory and time), the checkpoint's own on the
+    CPU (half precision there is slow or unsupported). A GPU asked for and not seen is a clear
+    error, not a silent CPU run."""
+    name = (device or "auto").strip().lower()
+    if not _DEVICE.fullmatch(name):
+        raise EfficientEQAError(f"unknown device {device!r}", fix=f"use --device {DEVICES}")
+    torch = require("torch", "vision")
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    elif name.startswith("cuda"):
+        index = int(name.partition(":")[2] or 0)
+        if not torch.cuda.is_available() or index >= torch.cuda.device_count():
+            raise EfficientEQAError(f"torch sees no GPU {name!r} on this machine",
+                                    fix="use --device cpu (or auto), or install a CUDA build "
+                                        "of torch")
+    if dtype is None and name.startswith("cuda"):
+        dtype = "float16"
+    return name, dtype
 
 
 SCORERS: Registry[RelevancyScorer] = Registry("relevancy scorer")
@@ -87,5 +121,6 @@ def make_scorer(kind: str = DEFAULT_KIND, **kwargs: Any) -> RelevancyScorer:
     """Build a scorer by name: "minilm" (offline default), "minilm-match" (MiniLM calibrated to a
     match probability), "overlap" (deterministic, no model),
     "blip2-itm" (the paper's), "clip", "siglip". ``kwargs`` go to the back-end's factory
-    (e.g. ``model_id_or_path=``, ``device=``, ``allow_download=``)."""
+    (e.g. ``model_id_or_path=`` a local folder, ``device=`` as ``resolve_device`` reads it,
+    ``allow_download=``)."""
     return SCORERS.build(kind, **kwargs)

@@ -17,6 +17,7 @@ from efficienteqa.relevancy.base import (
     RelevancyScorer,
     check_question,
     require,
+    resolve_device,
     weights_missing,
 )
 
@@ -45,13 +46,16 @@ class Blip2ItmScorer(RelevancyScorer):
         return cls(model, processor, name=name, **kwargs)
 
     @classmethod
-    def from_pretrained(cls, model_id_or_path: str = DEFAULT_MODEL_ID, device: str = "cpu",
+    def from_pretrained(cls, model_id_or_path: str | None = None, device: str = "auto",
                         allow_download: bool = False, dtype: str | None = None,
                         **kwargs: Any) -> Blip2ItmScorer:
-        """Load from the Hugging Face cache or a local folder; downloads only when allowed.
-        ``dtype``: e.g. "float16" on a GPU (the Q-Former stays float32, as transformers keeps it)."""
+        """Load from the Hugging Face cache or a local folder (None: ``DEFAULT_MODEL_ID``);
+        downloads only when allowed. ``device`` and ``dtype`` as ``resolve_device`` reads them:
+        "auto" is float16 on a GPU (the Q-Former stays float32, as transformers keeps it)."""
         torch = require("torch", EXTRA)
         transformers = require("transformers", EXTRA)
+        model_id_or_path = model_id_or_path or DEFAULT_MODEL_ID
+        device, dtype = resolve_device(device, dtype)
         local_only = not allow_download
         try:
             processor = transformers.Blip2Processor.from_pretrained(

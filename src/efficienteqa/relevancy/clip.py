@@ -17,6 +17,7 @@ from efficienteqa.relevancy.base import (
     RelevancyScorer,
     check_question,
     require,
+    resolve_device,
     weights_missing,
 )
 
@@ -52,17 +53,20 @@ class ClipScorer(RelevancyScorer):
 
     @classmethod
     def from_pretrained(cls, model_id_or_path: str | None = None, family: Family = "clip",
-                        device: str = "cpu", allow_download: bool = False,
-                        **kwargs: Any) -> ClipScorer:
-        """Load from the Hugging Face cache or a local folder; downloads only when allowed."""
+                        device: str = "auto", allow_download: bool = False,
+                        dtype: str | None = None, **kwargs: Any) -> ClipScorer:
+        """Load from the Hugging Face cache or a local folder; downloads only when allowed.
+        ``device`` and ``dtype`` as ``resolve_device`` reads them (float16 on a GPU)."""
         transformers = require("transformers", EXTRA)
-        require("torch", EXTRA)
+        torch = require("torch", EXTRA)
         model_id = model_id_or_path or DEFAULT_MODEL_IDS[family]
+        device, dtype = resolve_device(device, dtype)
         try:
             processor = transformers.AutoProcessor.from_pretrained(
                 model_id, local_files_only=not allow_download)
             model = transformers.AutoModel.from_pretrained(
-                model_id, local_files_only=not allow_download)
+                model_id, local_files_only=not allow_download,
+                dtype=getattr(torch, dtype) if dtype else None)
         except OSError as exc:
             raise weights_missing(model_id, exc) from exc
         return cls(model.to(device), processor, family, model_id, **kwargs)
@@ -72,7 +76,8 @@ class ClipScorer(RelevancyScorer):
         images = [np.asarray(im) for im in items]
         if not images:
             return np.zeros(0)
-        device = next(self.model.parameters()).device
+        weight = next(self.model.parameters())
+        device, dtype = weight.device, weight.dtype
         padding = "max_length" if self.family == "siglip" else True
         text = self.processor.tokenizer([check_question(question)], padding=padding,
                                         truncation=True, return_tensors="pt")
@@ -84,7 +89,7 @@ class ClipScorer(RelevancyScorer):
             for s in range(0, len(images), self.batch_size):
                 pixels = self.processor.image_processor(images[s:s + self.batch_size],
                                                         return_tensors="pt")["pixel_values"]
-                result = self.model(pixel_values=pixels.to(device), **text)
+                result = self.model(pixel_values=pixels.to(device, dtype), **text)
                 logits = result.logits_per_image[:, 0].float()  # (n,) one text
                 if self.family == "siglip":
                     scores = torch.sigmoid(logits)
