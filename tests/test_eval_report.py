@@ -108,7 +108,8 @@ def test_empty_run_and_blind_run_have_no_steps_rather_than_zero(tmp_path):
     empty = summarise(manifest(), [])
     assert empty.n == 0 and math.isnan(empty.llm_match) and math.isnan(empty.mean_steps)
     assert empty.newest is None and empty.stop_reasons == {}
-    blind = [episode(0, 5, steps=0, stop=None, oracle=None), episode(1, 1, steps=0, stop=None, oracle=None)]
+    blind = [{**episode(i, score, steps=0, stop=None, oracle=None), "method": "blind"}
+             for i, score in ((0, 5), (1, 1))]
     s = summarise(manifest("blind"), blind)
     assert math.isnan(s.mean_steps) and s.llm_match == 50 and s.stop_reasons == {"none": 2}
     md, page = write_report([write_run(tmp_path / "blind", manifest("blind"), blind),
@@ -222,7 +223,7 @@ def test_a_torn_last_line_is_skipped_and_reported(tmp_path):
     (s,) = read_summaries([folder])
     assert isinstance(s, RunSummary) and s.torn == 1 and s.n == 2
     md = write_report([folder], folder)[0].read_text()
-    assert "1 unreadable line(s) in episodes.jsonl were skipped" in md and "| 1 skipped |" in md
+    assert "1 line(s) in episodes.jsonl were skipped: unreadable" in md and "| 1 skipped |" in md
 
 
 def test_cli_report_prints_table_one_and_the_paths(tmp_path):

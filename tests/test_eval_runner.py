@@ -277,3 +277,74 @@ def test_a_failed_episode_keeps_the_steps_and_the_calls_it_paid_for(tmp_path):
     assert row["status"] == "failed" and "HTTP 400" in row["error"]
     assert row["steps"] == 3
     assert row["usage"]["calls"] == 4 and row["usage"]["prompt_tokens"] == 400
+
+
+def test_a_folder_with_episodes_but_no_run_json_is_refused(tmp_path):
+    """Issue 26: deleting run.json must not let another configuration adopt the episodes."""
+    run_eval(spec(), questions(2), tmp_path, prepare=False)
+    (tmp_path / "run.json").unlink()
+    with pytest.raises(EfficientEQAError, match="holds episodes but no run.json"):
+        run_eval(spec("eval_stubs:peek"), questions(2), tmp_path, prepare=False)
+
+
+def test_resuming_with_other_houses_or_simulator_is_refused(tmp_path):
+    run_eval(spec(assets="builtin"), questions(1), tmp_path, prepare=False)
+    with pytest.raises(EfficientEQAError, match="another assets"):
+        run_eval(spec(assets="sh3d"), questions(2), tmp_path, prepare=False)
+    with pytest.raises(EfficientEQAError, match="another env"):
+        run_eval(spec(assets="builtin", env="habitat"), questions(2), tmp_path, prepare=False)
+    old = json.loads((tmp_path / "run.json").read_text())  # a run recorded before the keys
+    for key in ("assets", "env", "hm3d_root"):
+        old.pop(key)
+    (tmp_path / "run.json").write_text(json.dumps(old))
+    assert run_eval(spec(assets="sh3d"), questions(2), tmp_path, prepare=False).ran == 1
+
+
+@pytest.mark.parametrize("text", ["[1, 2]", "\"run\"", "null"])
+def test_a_run_json_that_is_not_an_object_is_one_line(tmp_path, text):
+    (tmp_path / "run.json").write_text(text)
+    with pytest.raises(EfficientEQAError, match="is not a run's JSON object"):
+        run_eval(spec(), questions(1), tmp_path, prepare=False)
+
+
+def test_lines_that_are_not_an_episode_are_skipped_and_foreign_ones_left_out(tmp_path):
+    from efficienteqa.eval.records import read_run
+
+    run_eval(spec(), questions(2), tmp_path, prepare=False)
+    with (tmp_path / EPISODES_FILE).open("a") as f:
+        f.write('{"id": ["a", "list"], "status": "done"}\n[1]\n')
+        f.write(json.dumps({"id": "x", "method": "blind", "status": "done"}) + "\n")
+    assert read_episodes(tmp_path / EPISODES_FILE).torn == 2
+    _, episodes = read_run(tmp_path)
+    assert sorted(episodes.by_id) == ["toy/000", "toy/001"] and episodes.foreign == 1
+
+
+def test_a_second_run_into_the_same_folder_fails_at_once(tmp_path):
+    from efficienteqa.eval.records import run_lock
+
+    with run_lock(tmp_path), pytest.raises(EfficientEQAError, match="another run is writing"):
+        run_eval(spec(), questions(1), tmp_path, prepare=False)
+    assert run_eval(spec(), questions(1), tmp_path, prepare=False).ran == 1  # released
+
+
+def test_a_full_disk_is_one_line_and_a_short_write_is_finished(tmp_path, monkeypatch):
+    import errno
+
+    from efficienteqa.eval import records
+
+    real, calls = os.write, []
+
+    def short(fd, data):  # the first write takes 5 bytes only
+        calls.append(len(data))
+        return real(fd, data[:5] if len(calls) == 1 else data)
+
+    monkeypatch.setattr(records.os, "write", short)
+    append_episode(tmp_path / "e.jsonl", {"id": "a", "status": "done"})
+    assert json.loads((tmp_path / "e.jsonl").read_text()) == {"id": "a", "status": "done"}
+
+    def full(fd, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(records.os, "write", full)
+    with pytest.raises(EfficientEQAError, match="No space left on device"):
+        append_episode(tmp_path / "e.jsonl", {"id": "b", "status": "done"})

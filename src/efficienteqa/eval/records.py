@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +25,10 @@ RUN_FILE = "run.json"
 EPISODES_FILE = "episodes.jsonl"
 # What must be equal for a resumed run to continue an earlier one.
 RUN_IDENTITY = ("method", "dataset", "closed_set", "config", "stack", "judge", "judge_mode")
+# Also compared where the earlier run recorded them: which houses and simulator the scenes are
+# (runs recorded before these keys existed resume as before).
+SCENE_IDENTITY = ("assets", "env", "hm3d_root")
+LOCK_FILE = ".lock"
 
 
 @dataclass
@@ -30,7 +36,8 @@ class Episodes:
     """The episodes of a run as read back: the last line of each id, in file order."""
 
     by_id: dict[str, dict[str, Any]] = field(default_factory=dict)
-    torn: int = 0  # unreadable lines (a run killed mid-write)
+    torn: int = 0  # unreadable lines (a run killed mid-write, or not an episode's line)
+    foreign: int = 0  # lines of another method (``read_run``), left out
 
     @property
     def done(self) -> set[str]:
@@ -48,8 +55,10 @@ def read_episodes(path: Path) -> Episodes:
         for raw in f:
             try:
                 row = json.loads(raw)
-                key = row["id"]
-            except (ValueError, KeyError, TypeError):
+            except ValueError:
+                row = None
+            key = row.get("id") if isinstance(row, dict) else None
+            if not isinstance(key, str):  # torn, or not one episode's line
                 out.torn += 1
                 continue
             out.by_id.pop(key, None)  # the later line wins and moves to the end
@@ -70,8 +79,13 @@ def append_episode(path: Path, row: dict[str, Any]) -> None:
                 f.seek(size - 1)
                 if f.read(1) != b"\n":
                     data = b"\n" + data
-        os.write(fd, data)
+        while data:  # a short write (a full disk) must not leave a short line unsaid
+            data = data[os.write(fd, data):]
         os.fsync(fd)
+    except OSError as error:
+        raise EfficientEQAError(f"cannot write {path}: {error.strerror or error}",
+                                fix="free disk space or use another --out folder; the same "
+                                    "command resumes the run") from None
     finally:
         os.close(fd)
 
@@ -96,19 +110,49 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
     method, dataset, configuration or back-end) is refused rather than mixed."""
     run_file = out / RUN_FILE
     if run_file.exists():
-        try:
-            earlier = json.loads(run_file.read_text())
-        except ValueError:
-            raise EfficientEQAError(f"{run_file} is not valid JSON",
-                                    fix="delete it, or use another --out folder") from None
+        earlier = _read_manifest(run_file)
         differs = [k for k in RUN_IDENTITY if _set(earlier.get(k)) != _set(manifest.get(k))]
+        differs += [k for k in SCENE_IDENTITY if k in earlier and earlier[k] != manifest.get(k)]
         if differs:
             raise EfficientEQAError(
                 f"{out} holds a run with another {', '.join(differs)}",
                 fix="use a new --out folder for a new configuration")
+    elif read_episodes(out / EPISODES_FILE).by_id:
+        raise EfficientEQAError(f"{out} holds episodes but no {RUN_FILE}, so what ran them is "
+                                "unknown", fix="use a new --out folder")
     else:
         write_json(run_file, manifest)
     return read_episodes(out / EPISODES_FILE)
+
+
+@contextmanager
+def run_lock(out: Path) -> Iterator[None]:
+    """Hold ``out``'s lock while a run writes there: a second run into the same folder fails
+    at once instead of running every episode again beside the first."""
+    import fcntl
+
+    out.mkdir(parents=True, exist_ok=True)
+    fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise EfficientEQAError(f"another run is writing to {out}",
+                                    fix="wait for it to end, or use another --out folder") from None
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _read_manifest(run_file: Path) -> dict[str, Any]:
+    try:
+        manifest = json.loads(run_file.read_text())
+    except (ValueError, UnicodeDecodeError):
+        manifest = None
+    if not isinstance(manifest, dict):
+        raise EfficientEQAError(f"{run_file} is not a run's JSON object",
+                                fix="restore it, or use another --out folder") from None
+    return manifest
 
 
 def _set(value: Any) -> Any:
@@ -125,8 +169,10 @@ def read_run(out: Path) -> tuple[dict[str, Any], Episodes]:
     if not run_file.exists():
         raise EfficientEQAError(f"{out} is not an evaluation run (no {RUN_FILE})",
                                 fix="pass folders written by `efficienteqa eval --out`")
-    try:
-        manifest = json.loads(run_file.read_text())
-    except ValueError:
-        raise EfficientEQAError(f"{run_file} is not valid JSON", fix="re-run the evaluation") from None
-    return manifest, read_episodes(out / EPISODES_FILE)
+    manifest = _read_manifest(run_file)
+    episodes = read_episodes(out / EPISODES_FILE)
+    for key, row in list(episodes.by_id.items()):  # lines another method's run appended
+        if row.get("method") not in (None, manifest.get("method")):
+            del episodes.by_id[key]
+            episodes.foreign += 1
+    return manifest, episodes

@@ -31,7 +31,7 @@ from typing import Any
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.methods import RunSpec, effective_config, resolve, usage_of
-from efficienteqa.eval.records import EPISODES_FILE, append_episode, open_run
+from efficienteqa.eval.records import EPISODES_FILE, append_episode, open_run, run_lock
 from efficienteqa.records import code_version, plain
 
 Progress = Callable[[dict[str, Any]], None]
@@ -227,19 +227,20 @@ def run_eval(spec: RunSpec, questions: Sequence[EvalQuestion], out: Path, *, wor
     ``address``: in this process; otherwise on Ray (``address`` None starts a local Ray)."""
     if len({q.id for q in questions}) != len(questions):
         raise EfficientEQAError("the dataset has repeated episode ids", fix="fix the dataset")
-    earlier = open_run(out, manifest(spec, len(questions), [q.scene for q in questions]))
-    todo = [q for q in questions if q.id not in earlier.done]
-    if prepare and todo:
-        _prepare(spec, todo)
-    t0 = time.perf_counter()
-    failed = 0
-    lines = (_sequential(spec, todo, out) if workers <= 1 and address is None
-             else _on_ray(spec, todo, out, workers, address))
-    for row in lines:
-        append_episode(out / EPISODES_FILE, row)
-        failed += row["status"] != "done"
-        if on_episode is not None:
-            on_episode(row)
+    with run_lock(out):
+        earlier = open_run(out, manifest(spec, len(questions), [q.scene for q in questions]))
+        todo = [q for q in questions if q.id not in earlier.done]
+        if prepare and todo:
+            _prepare(spec, todo)
+        t0 = time.perf_counter()
+        failed = 0
+        lines = (_sequential(spec, todo, out) if workers <= 1 and address is None
+                 else _on_ray(spec, todo, out, workers, address))
+        for row in lines:
+            append_episode(out / EPISODES_FILE, row)
+            failed += row["status"] != "done"
+            if on_episode is not None:
+                on_episode(row)
     return RunResult(out, len(todo), len(questions) - len(todo), failed, time.perf_counter() - t0)
 
 

@@ -490,7 +490,7 @@ def read_summaries(folders: Sequence[Path], root: Path | None = None) -> list[Ru
     out = []
     for folder in run_folders(folders, base):
         manifest, episodes = read_run(folder)
-        out.append(summarise(manifest, episodes.rows(), torn=episodes.torn,
+        out.append(summarise(manifest, episodes.rows(), torn=episodes.torn + episodes.foreign,
                              source=_shown(folder, base)))
     return out
 
@@ -514,8 +514,8 @@ def _intro(summaries: Sequence[RunSummary], stamp: bool) -> list[str]:
     intro = [f"{len(summaries)} run(s){written}.", CONVENTIONS]
     torn = sum(s.torn for s in summaries)
     if torn:
-        intro.append(f"{torn} unreadable line(s) in episodes.jsonl were skipped (a run killed "
-                     "mid-write); see the Runs tables.")
+        intro.append(f"{torn} line(s) in episodes.jsonl were skipped: unreadable (a run killed "
+                     "mid-write) or another method's; see the Runs tables.")
     if not summaries:
         intro.append("No runs were given.")
     return intro
