@@ -246,3 +246,42 @@ def test_focus_on_what_stands_on_the_surface_not_the_surface():
         "You are in the office. Seen: a beige desk lamp (off) on the orange desk, ahead, 1.6 m."]
     # other questions about the desk keep its own entries
     assert "an orange desk on the right" in focus_views("What colour is the desk?", views)[0]
+
+
+def test_image_answers_get_hints_written_for_images():
+    """Issue 25 defect 2: a VLM reading frames is not told about entries, brackets or words
+    written before a name; the text hints stay as they were (the offline cache still hits)."""
+    from efficienteqa.answer.vc import answer_token_probability
+
+    frames = [np.zeros((8, 8, 3), np.uint8)] * 2
+    for question in ("How many chairs are in the kitchen?", "Is the lamp in the office on?",
+                     "What is on the desk in the office?", "What colour is the sofa?",
+                     "Is there a bathtub in the bathroom?", "Where is the kettle?"):
+        stub = StubChatModel(["two"])
+        answer_token_probability(stub, question, frames, hinted=True)
+        prompt = stub.requests[0].messages[0].text
+        assert question_hint(question, "image") in prompt and question_hint(question, "image")
+        for text_only in ("entries", "in brackets", "written just before", "listed", "\"on the\""):
+            assert text_only not in prompt, (question, text_only)
+        assert len(stub.requests[0].messages[0].images) == 2
+    assert "(on) or (open) means yes" in question_hint("Is the lamp on?")  # text: unchanged
+
+
+def test_images_beyond_the_servers_cap_are_cut_least_relevant_first():
+    """Issue 25 defect 4: a server that takes one image per request gets the best frame only,
+    and the answer's problems say so."""
+    from dataclasses import replace as _replace
+
+    from efficienteqa.answer.rag import RagAnswerer
+    from efficienteqa.vc.grouping import RuleGrouper
+
+    stub = StubChatModel(["a lamp"])
+    stub.capabilities = _replace(stub.capabilities, max_images=1)
+    frames = [np.full((8, 8, 3), i, np.uint8) for i in range(5)]
+    result = RagAnswerer(stub, RuleGrouper(), direct=True).answer("What is on the desk?", frames)
+    (sent,) = stub.requests[0].messages[0].images
+    assert sent[0, 0, 0] == 0  # the best frame
+    assert result.problems[0] == "images cut from 5 to 1: the server takes 1 per request"
+    uncapped = StubChatModel(["a lamp"])
+    RagAnswerer(uncapped, RuleGrouper(), direct=True).answer("What is on the desk?", frames)
+    assert len(uncapped.requests[0].messages[0].images) == 5

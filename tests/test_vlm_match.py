@@ -1,5 +1,7 @@
 """The model-as-matcher relevancy: P(yes) from a verbalized yes/no confidence."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -18,9 +20,24 @@ def test_yes_no_confidence_is_the_match_probability(reply, p_yes):
     assert prompt.index("Question: Where is the sofa?") < prompt.index("View: You are in the hallway.")
 
 
-def test_unreadable_reply_is_neutral_and_recorded():
-    scorer = VLMMatchScorer(StubChatModel(["maybe"]))
-    assert scorer.score("Where is the sofa?", text="x") == DEFAULT_P_YES and scorer.problems
+@pytest.mark.parametrize("reply", ["maybe", "N/A", "I'm sorry, I can't help with that.",
+                                   "The image shows a living room with a grey",  # cut prose
+                                   ""])
+def test_an_unreadable_reply_is_missing_and_recorded(reply):
+    """Not 0.5 (``DEFAULT_P_YES``), which stands far above a confident "no" (0.1) and became the
+    outlier that stopped the robot (issue 25 defect 5)."""
+    scorer = VLMMatchScorer(StubChatModel([reply]))
+    assert math.isnan(scorer.score("Where is the sofa?", text="x"))
+    assert scorer.problems and "relevancy missing" in scorer.problems[0]
+    assert DEFAULT_P_YES == 0.5  # what it used to score
+
+
+def test_a_reply_cut_at_max_tokens_is_read_as_far_as_it_goes_and_noted():
+    model = StubChatModel(["Sure! My answer: yes 80"], finish_reason="length")
+    scorer = VLMMatchScorer(model)
+    assert scorer.score("Where is the sofa?", text="x") == pytest.approx(0.8)
+    assert any("cut at" in p for p in scorer.problems)
+    assert model.requests[0].max_tokens >= 16  # room for a short preamble
 
 
 def test_image_modality_sends_the_frame():

@@ -50,8 +50,10 @@ class StubChatModel:
 
     def __init__(self, script: Script, *, name: str = "stub",
                  capabilities: Capabilities | None = None,
-                 logprob_fn: LogprobFn | None = None) -> None:
+                 logprob_fn: LogprobFn | None = None, finish_reason: str = "stop") -> None:
+        """``finish_reason``: what every reply says of its end ("length": cut at max_tokens)."""
         self.name = name
+        self.finish_reason = finish_reason
         self.capabilities = capabilities or Capabilities(images=True, logprobs=True, json_schema=True)
         self.usage = Usage()
         self.requests: list[StubRequest] = []
@@ -77,6 +79,7 @@ class StubChatModel:
             completion_tokens=len(text.split()),
             logprobs=(self._logprob_fn(text, logprobs)
                       if logprobs is not None and self.capabilities.logprobs else None),
+            finish_reason=self.finish_reason,
         )
         self.usage.add(response)
         return response
