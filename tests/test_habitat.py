@@ -510,8 +510,14 @@ def test_real_habitat_contract_on_an_hm_eqa_scene(hm_eqa_dir, small_camera):
                             HabitatStart.from_source(q.source), small_camera) as env:
         obs, _ = env.reset()
         assert obs.invalid_fraction < 0.5 and env.floor_area_m2 > 5
-        check_env(env, [])
-        # Looking 30 degrees down from 1.5 m, most of the bottom row sees the floor (z = 0):
+        assert env.navmesh_bbox_area_m2 >= env.floor_area_m2  # the box of every floor
+        check_habitat_env(env, [])
+        # ExploreEQA's body tilt, as Habitat-Sim reports the sensor: 1.30 m high, 0.75 m ahead.
+        ahead = obs.cam_to_world[:2, 3] - [obs.pose.x, obs.pose.y]
+        assert np.isclose(obs.cam_to_world[2, 3], 1.5 * math.cos(math.radians(30)), atol=1e-3)
+        assert np.allclose(ahead, 0.75 * np.array([math.cos(obs.pose.yaw), math.sin(obs.pose.yaw)]),
+                           atol=1e-3)
+        # Looking 30 degrees down from 1.30 m, most of the bottom row sees the floor (z = 0):
         # the pitch sign, the y-up conversion and the floor height together.
         pts = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[-1]
         seen = obs.depth_m[-1] > 0

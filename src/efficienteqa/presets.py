@@ -7,7 +7,11 @@ still None takes the default of the dataclass it belongs to (``Stack``, ``AgentC
 ``paper``: the set-up of the paper's experiments (its Sec. IV): HM-EQA's first 100 questions
 in Habitat-Sim, GPT-4o (gpt-4o-2024-05-13, temperature 1) reading the RGB frames, BLIP-2 ITM
 (Salesforce/blip2-itm-vit-g) for relevancy, Z_th = 3 and K = 5. The paper does not name its
-LLM-Match judge; the preset uses the same GPT-4o, grading 1-5.
+LLM-Match judge; the preset uses the same GPT-4o, grading 1-5. In Habitat-Sim the preset runs
+ExploreEQA's set-up, the defaults of ``envs.habitat.env.HabitatEnv``: the camera on a body
+tilted 30 degrees down (``camera_mount="body-tilt"``), moves set without a navmesh check
+(``moves="unchecked"``, so no refused move spends a step) and the step budget from the x-z box
+of the whole navmesh (``budget_area="navmesh-bbox"``); docs/habitat.md, "Fidelity to ExploreEQA".
 """
 
 from __future__ import annotations
