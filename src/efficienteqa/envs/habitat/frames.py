@@ -101,7 +101,9 @@ def camera_to_world(position_h: np.ndarray, theta_rad: float, floor_y: float,
                     camera: CameraSpec) -> np.ndarray:
     """Canonical 4x4 cam_to_world (OpenCV axes) of a Habitat agent at ``position_h`` with yaw
     ``theta_rad`` carrying ``camera`` (mounted ``height_m`` above the agent, pitched
-    ``pitch_deg``), composed the way Habitat composes it: agent yaw, sensor offset and pitch."""
+    ``pitch_deg``: the "sensor-pitch" mount), composed the way Habitat composes it: agent yaw,
+    sensor offset and pitch. Observations do not compose their pose: they read it back from the
+    simulator (``sensor_to_world``); this is the reference the tests hold that to."""
     c, s = math.cos(theta_rad), math.sin(theta_rad)
     agent_rot = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # about +y
     p = math.radians(camera.pitch_deg)
