@@ -53,7 +53,7 @@ def test_a_model_that_points_at_the_evidence_stops_early_and_answers_right(house
     # (seeds 0-3: 2 of 4 episodes stop at the desk, for the default and the paper prompts alike).
     done = _episode(scene, q, seeking_model, tmp_path, max_steps=30, seed=1)
     r = done.result
-    assert r.stop_reason == "relevancy" and 10 <= r.steps < 30
+    assert r.stop_reason == "relevancy" and AgentConfig().stop.min_step <= r.steps < 30
     assert r.answer == "black"
     stop = r.records[-1].check
     assert stop.stop and stop.z > 3 and stop.sim == 1.0
@@ -423,3 +423,20 @@ def test_an_episode_that_fails_at_its_answer_keeps_what_it_explored(house4, tmp_
     assert record["model"]["calls"] >= 2  # explore calls, and the failed answer call
     assert "<error:" in record["model"]["exchanges"][-1]["reply"]
     assert failure.value.partial_episode == record
+
+
+def test_the_records_back_ends_say_the_servers_capabilities_and_the_answers_fallback(house4):
+    """Issue 25 defect 3: a server without token probabilities gets the paper's verbalized
+    answer, and every record says so, with the capabilities it was run with."""
+    scene, _ = house4
+    without = StubChatModel(["x"], capabilities=Capabilities(images=True, logprobs=False,
+                                                             source="probed"))
+    built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"), AgentConfig(),
+                        "test", model=without, relevancy=MentionScorer("desk"))
+    assert built.backends["answer"].startswith("paper") and "fallback" in built.backends["answer"]
+    caps = built.backends["capabilities"]
+    assert caps["logprobs"] is False and caps["source"] == "probed"
+    chosen = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"),
+                         AgentConfig(answer="paper"), "test", model=without,
+                         relevancy=MentionScorer("desk"))
+    assert "fallback" not in chosen.backends["answer"]  # asked for, not fallen back to

@@ -70,9 +70,9 @@ class Stack:
     image_format: str | None = None
     image_max_side: int | None = None
     image_detail: str | None = None
-    device: str = "auto"
+    device: str | None = None  # None: "auto"
     relevancy_weights: str | None = None
-    allow_download: bool = False
+    allow_download: bool | None = None  # None: False
 
     def server_options(self) -> dict[str, Any]:
         return {"timeout_s": self.timeout_s, "retries": self.retries,
@@ -253,6 +253,16 @@ def answer_name(config: AgentConfig, model: ChatModel) -> str:
     return config.answer
 
 
+def answer_label(answer: str, config: AgentConfig, model: ChatModel) -> str:
+    """The record's name of the answer, saying when the paper's answer stands in for the direct
+    one because the server gives no token probabilities (a probed capability)."""
+    label = ANSWER_LABELS[answer]
+    if answer == "paper" and config.answer == "auto" and config.answer_at == "retrieval" \
+            and not model.capabilities.logprobs:
+        label += f"; fallback: {model.name} gives no token probabilities"
+    return label
+
+
 def build_perception(name: str, env: Environment) -> Perception:
     return PERCEPTIONS.build(name, env=env)
 
@@ -337,8 +347,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
         from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
         relevancy = VLMMatchScorer(recorder, perception.modality)
-    relevancy = relevancy or build_relevancy(stack.relevancy, stack.device,
-                                             stack.relevancy_weights, stack.allow_download)
+    relevancy = relevancy or build_relevancy(stack.relevancy, stack.device or "auto",
+                                             stack.relevancy_weights, bool(stack.allow_download))
     scorer_name = explore_scorer_name(stack, perception, config)
     scorer = (EXPLORE_SCORERS.build(scorer_name, model=recorder, perception=perception,
                                     config=config) if config.explorer == "sfe" else None)
@@ -360,7 +370,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                 "relevancy": relevancy.name, "grouping": stack.grouping,
                 "explore_scorer": (explore_scorer_label(scorer_name, model, config)
                                    if scorer is not None else None),
-                "answer": ANSWER_LABELS[answer], "judge": None,
+                "answer": answer_label(answer, config, model), "judge": None,
+                "capabilities": model.capabilities.to_dict(),
                 "gate": GATE_LABELS[gate.name if gate is not None else "none"].format(
                     model=model.name)}
     return BuiltAgent(agent, recorder, backends)
