@@ -90,3 +90,123 @@ def test_chromium_shows_the_map_and_the_relevancy_curve(report, tmp_path):
     assert map_px > 2000, "the map's explored floor is not on screen"
     assert curve_px > 150 and red_px > 50, "the relevancy curve or its threshold is not on screen"
     assert np.median(curve_rows) > np.median(map_rows)  # the curve comes after the map
+
+
+# Issue 25 (12): each model call's images as sent, the retrieved frames as captured, and the
+# answer without markdown.
+
+def test_the_recording_keeps_references_to_the_images_sent():
+    from efficienteqa.models.base import Message
+    from efficienteqa.models.recording import RecordingChatModel, image_digest
+    from efficienteqa.models.stub import StubChatModel
+
+    a, b = np.zeros((8, 8, 3), np.uint8), np.full((8, 8, 3), 7, np.uint8)
+    recorder = RecordingChatModel(StubChatModel(["ok", "ok"]))
+    with recorder.in_phase("step 3"):
+        recorder.chat([Message("user", "two images", (b, a))])
+    recorder.chat([Message("user", "no image")])
+    first, second = recorder.exchanges
+    assert first.image_refs == (image_digest(b), image_digest(a)) and first.images == 2
+    assert first.phase == "step 3" and len(first.image_refs[0]) == 12
+    assert image_digest(a.copy()) == image_digest(a) != image_digest(a[:4])  # pixels, not identity
+    assert second.image_refs == () and first.to_dict()["image_refs"] == first.image_refs
+
+
+def _frame_and_prompts():
+    from efficienteqa.geometry import Pose2D
+    from efficienteqa.observation import Observation, PromptPoint
+
+    rgb = np.full((120, 160, 3), 60, np.uint8)
+    obs = Observation(rgb, np.ones((120, 160), np.float32), np.eye(4), np.eye(3),
+                      Pose2D(0.0, 0.0, 0.0))
+    return obs, [PromptPoint("A", (1.0, 0.0), (40.5, 60.5)), PromptPoint("B", (2.0, 0.0), (110.5, 60.5))]
+
+
+def test_frames_are_kept_as_captured_and_as_lettered_by_reference():
+    from types import SimpleNamespace
+
+    from efficienteqa.models.recording import image_digest
+    from efficienteqa.perception.image import draw_prompts
+    from efficienteqa.report.frames import FrameCollector
+    from efficienteqa.report.html import _sent_images
+
+    obs, prompts = _frame_and_prompts()
+    collector = FrameCollector()
+    collector(SimpleNamespace(step=3, valid=True), obs, SimpleNamespace(prompts=prompts))
+    collector(SimpleNamespace(step=4, valid=True), obs, None)
+    frames = collector.frames
+    assert set(frames) == {3, 4} and set(frames.marked) == {3}
+    assert frames[3] != frames.marked[3]
+    plain, marked = image_digest(obs.rgb), image_digest(draw_prompts(obs.rgb, prompts))
+    assert frames.sent[marked].marked and not frames.sent[plain].marked
+    shown = _sent_images({"image_refs": [marked, plain, "0123456789ab"]}, frames.sent)
+    assert shown.index("step 3, with the lettered circles") < shown.index("as captured")
+    assert "[image 0123456789ab: not a kept frame]" in shown
+
+
+class _Brightness:
+    """An image relevancy stand-in: Sim is the frame's mean brightness."""
+
+    name, modality = "brightness-stub", "image"
+
+    def score(self, question, *, image=None, text=None):  # noqa: ANN001
+        return float(self.score_many(question, [image])[0])
+
+    def score_many(self, question, items):  # noqa: ANN001
+        return np.array([np.asarray(im, float).mean() / 255 for im in items])
+
+
+@pytest.fixture(scope="module")
+def rgb_report(catalog, tmp_path_factory):
+    """An image VLM's episode whose answer comes back in markdown."""
+    from efficienteqa.models.stub import StubChatModel
+
+    def reply(msgs):
+        text = msgs[-1].text
+        if text.startswith("You guide"):
+            return "A: 60\nB: 40"
+        if "worth exploring" in text:
+            return "worth exploring: yes 70"
+        return 'The answer is **"black"**.'
+
+    env = SyntheticEnv(generate_house(4, catalog, "builtin"), catalog, CameraSpec().scaled(320, 240))
+    questions = synthetic_questions(env)
+    q = next(x for x in questions if x.id == "syn-4-10")
+    try:
+        done = ask(q.question, Scene(env, "synthetic:4 (builtin)", questions),
+                   tmp_path_factory.mktemp("rgb-report"),
+                   stack=Stack(perception="rgb", grouping="rules"), model=StubChatModel(reply),
+                   relevancy=_Brightness(), config=AgentConfig(max_steps=5, top_k=2))
+    finally:
+        env.close()
+    return done
+
+
+@needs_egl
+def test_report_shows_each_calls_images_as_sent_and_the_clean_answer(rgb_report):
+    record, html = rgb_report.record, rgb_report.report_html.read_text()
+    assert rgb_report.result.answer.startswith("The answer is")  # what the model said
+    assert record["answer"] == "black"  # what is recorded and shown
+    assert '<p class="answer" id="answer">black</p>' in html
+    exchanges = record["model"]["exchanges"]
+    assert all(len(e["image_refs"]) == e["images"] for e in exchanges)
+    assert "not a kept frame" not in html  # every image sent is a frame the report shows
+    explore = [e for e in exchanges if e["prompt"].startswith("You guide")]
+    worth = [e for e in exchanges if e["prompt"].startswith("Is this view worth exploring")]
+    assert explore and len(worth) == len(explore)
+    answer = exchanges[-1]
+    assert answer["phase"] == "answer" and len(answer["image_refs"]) == len(record["retrieved"])
+    for e in exchanges:
+        summary = html.split(f"#{e['index']} · ", 1)[1].split("</summary>", 1)[0]
+        labels = [part.split('"', 1)[0] for part in summary.split('alt="sent: ')[1:]]
+        assert len(labels) == e["images"]
+        if e in explore:
+            assert labels[0].endswith("with the lettered circles")
+        else:  # the worth-exploring question and the answer: frames as captured
+            assert all(label.endswith("as captured") for label in labels)
+    # the answer's images are the retrieved frames, in order
+    expected = [f"step {r['step']}, as captured" for r in record["retrieved"]]
+    summary = html.split(f"#{answer['index']} · ", 1)[1].split("</summary>", 1)[0]
+    assert [p.split('"', 1)[0] for p in summary.split('alt="sent: ')[1:]] == expected
+    # episode.json holds references, not pixels
+    assert "data:image" not in rgb_report.episode_json.read_text()

@@ -446,3 +446,27 @@ def test_answer_and_confidence_on_separate_labelled_lines():
     assert [(c.text, c.confidence) for c in r.candidates] == [
         ("brown chair", 80.0), ("dining room", 75.0), ("yes", 90.0)]
     assert r.problems == []
+
+
+@pytest.mark.parametrize("raw, clean", [
+    ("**a lamp**", "a lamp"), ("The answer is a lamp.", "a lamp"), ('"a lamp"', "a lamp"),
+    ("The answer is **a lamp**.", "a lamp"), ("*a lamp*", "a lamp"), ("__a lamp__", "a lamp"),
+    ("the answer: “blue”.", "blue"), ('"*The answer is a lamp.*"', "a lamp"),
+    ("Answer is black", "black"), ("a lamp", "a lamp"), ("3.5.", "3.5"),
+    # only wrappers go: words, inner punctuation, abbreviations and non-answers stay
+    ("St. Louis", "St. Louis"), ("at 5 p.m.", "at 5 p.m."), ("U.S.", "U.S."),
+    ("Answer isn't known", "Answer isn't known"), ("answering machine", "answering machine"),
+    ("it's on the table", "it's on the table"), ("**", "**"), ("", ""),
+])
+def test_clean_answer_strips_markup_only(raw, clean):
+    """Issue 25 (12): the answer shown and recorded, without markdown emphasis, a leading "The
+    answer is", surrounding quotes and a final period."""
+    from efficienteqa.vc.parse import clean_answer
+
+    assert clean_answer(raw) == clean
+    assert clean_answer(clean_answer(raw)) == clean_answer(raw)  # idempotent
+
+
+def test_parsed_answers_come_without_markup():
+    parsed = parse_candidates('The answer is **a lamp**.; 80\n"*a rug*" - 20', m=3)
+    assert [c.text for c in parsed.candidates] == ["a lamp", "a rug"]

@@ -9,6 +9,7 @@ from efficienteqa.agent import AgentConfig, EpisodeResult, StepRecord
 from efficienteqa.models.recording import Exchange
 from efficienteqa.records import code_version, plain
 from efficienteqa.report.evidence import FIELDS
+from efficienteqa.vc.parse import clean_answer
 
 
 def step_dict(r: StepRecord) -> dict[str, Any]:
@@ -33,12 +34,15 @@ def episode_record(result: EpisodeResult, *, config: AgentConfig, backends: dict
                    evidence: dict[str, Any] | None = None) -> dict[str, Any]:
     """The whole episode. ``backends``: which environment, perception, VLM, relevancy scorer
     (and judge) produced it; ``reference``: ground truth where known (answer, oracle_steps);
-    ``evidence``: when the evidence was in view (``report.evidence``; None where unknown)."""
+    ``evidence``: when the evidence was in view (``report.evidence``; None where unknown).
+    The answer is recorded as ``vc.parse.clean_answer`` reads it (no markdown, no "The answer
+    is"); each exchange keeps the references of the images it sent (``image_refs``)."""
     a = result.answer_result
     calls = list(exchanges)
     return plain({
         "question": result.question, "target": result.target.as_dict(),
-        "answer": result.answer, "confidence": result.confidence,
+        "answer": clean_answer(result.answer) if result.answer else result.answer,
+        "confidence": result.confidence,
         "steps": result.steps, "stop_reason": result.stop_reason, "budget": result.budget,
         "refused_moves": result.refused_moves,
         "oracle_steps": (reference or {}).get("oracle_steps"),

@@ -2,7 +2,10 @@
 
 Sections: the outcome and the back-ends that produced it; the top-down map with trajectory,
 frontiers and semantic values; the relevancy curve with its ``mu + Z_th * sigma`` threshold (the
-paper's Fig. 4); the retrieved top-K frames; every frame with its Sim; every model exchange.
+paper's Fig. 4); the retrieved top-K frames as captured (what the answer model was given);
+every frame with its Sim (with its lettered directions where the step had them); every model
+exchange with its phase and the images it was sent, as sent. The answer is shown as
+``vc.parse.clean_answer`` reads it (no markdown, no "The answer is").
 """
 
 from __future__ import annotations
@@ -12,6 +15,8 @@ import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from efficienteqa.vc.parse import clean_answer
 
 CURVE_W, CURVE_H, PAD = 760, 260, 44
 
@@ -28,6 +33,7 @@ figcaption{color:#444} .desc{color:#666;font-size:.92em}
 details{margin:4px 0} summary{cursor:pointer}
 pre{white-space:pre-wrap;background:#f6f6f6;padding:6px;font-size:.85em}
 .note{color:#666;font-size:.9em}
+summary img.sent{height:60px;vertical-align:middle;margin-left:6px;border:1px solid #ccc}
 """
 
 
@@ -112,8 +118,13 @@ def _fmt(v: float | None, digits: int = 3) -> str:
 def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, str],
                   descriptions: Mapping[int, str] | None = None) -> str:
     """The page for ``record`` (an ``episode.json`` dict). ``map_url`` and ``frames`` (step ->
-    frame) are ``data:`` URLs (``models.client.encode_image``), so the page needs no files."""
+    frame as captured) are ``data:`` URLs (``models.client.encode_image``), so the page needs no
+    files. ``frames`` from ``report.frames.FrameCollector`` (a ``StepFrames``) also holds the
+    lettered frames (``marked``) and the thumbnails of the images model calls were sent, by
+    reference (``sent``); a plain mapping shows neither."""
     descriptions = descriptions or {}
+    marked: Mapping[int, str] = getattr(frames, "marked", {})
+    sent: Mapping[str, Any] = getattr(frames, "sent", {})
     per_step = record["per_step"]
     cfg = record["config"]
     stop_cfg = cfg.get("stop", {})
@@ -144,7 +155,8 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>EfficientEQA episode"
              f"</title><style>{CSS}</style></head><body>",
              f"<h1>{html.escape(record['question'])}</h1>",
-             f'<p class="answer" id="answer">{html.escape(record["answer"] or "(no answer)")}</p>',
+             f'<p class="answer" id="answer">'
+             f'{html.escape(clean_answer(record["answer"] or "") or "(no answer)")}</p>',
              _kv(outcome), "<h2>Back-ends</h2>", _kv(sorted(backends.items()))]
     if text_perception:
         parts.append('<p class="note">Semantic-sensor perception: the language model read the '
@@ -158,11 +170,16 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
               "<h2>Relevancy</h2>",
               relevancy_svg(per_step, stop_cfg.get("z_th", 3.0), stop_cfg.get("min_step", 10),
                             stop_step, retrieved),
-              f"<h2>Retrieved top-{len(retrieved)} frames</h2>", '<div class="grid">']
+              f"<h2>Retrieved top-{len(retrieved)} frames</h2>",
+              '<p class="note">As captured, without lettered circles: ' + (
+                  "the answer model read the descriptions under them." if text_perception else
+                  "the images the answer model was sent.") + "</p>",
+              '<div class="grid">']
     for r in record["retrieved"]:
         parts.append(_figure(r["step"], frames, descriptions,
                              f"step {r['step']}, Sim {r['sim']:.3f}", "top"))
     parts += ["</div>", "<h2>Every frame</h2>", '<div class="grid">']
+    shown = {**frames, **marked}  # a step's lettered frame where it had prompts
     for s in per_step:
         caption = (f"step {s['step']}: Sim {_fmt(s['sim'])}, z {_fmt(s['z'], 2)}"
                    if s["valid"] else f"step {s['step']}: invalid frame")
@@ -174,7 +191,9 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
             caption += f" · {s['decision']}"
         if s.get("gate"):
             caption += f" · gate: {s['gate']['why']}"
-        parts.append(_figure(s["step"], frames, descriptions, caption,
+        if s["step"] in marked:
+            caption += " · lettered directions drawn"
+        parts.append(_figure(s["step"], shown, descriptions, caption,
                              "hit" if s["step"] in retrieved else ""))
     parts += ["</div>", f"<h2>Model exchanges ({model['calls']})</h2>"]
     for e in model["exchanges"]:
@@ -182,13 +201,27 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
                 f"{e['completion_tokens']} tokens · {e['latency_s']:.2f} s"
                 + (" · cached" if e["cached"] else "") + (f" · {e['images']} image(s)"
                                                            if e["images"] else ""))
-        parts.append(f"<details><summary>{html.escape(head)}</summary>"
+        parts.append(f"<details><summary>{html.escape(head)}{_sent_images(e, sent)}</summary>"
                      f"<pre>{html.escape(e['prompt'])}</pre><b>reply</b>"
                      f"<pre>{html.escape(e['reply'])}</pre></details>")
     parts += ["<h2>Configuration</h2>",
               f"<pre>{html.escape(json.dumps(cfg, indent=1))}</pre>",
               f'<p class="note">code {html.escape(record["code_version"])}</p></body></html>']
     return "\n".join(parts)
+
+
+def _sent_images(exchange: Mapping[str, Any], sent: Mapping[str, Any]) -> str:
+    """The images of one call, in the order sent: each a thumbnail of the frame it was (as
+    captured or with the lettered circles), or a note where the report kept no such frame."""
+    out = []
+    for ref in exchange.get("image_refs") or ():
+        image = sent.get(ref)
+        if image is None:
+            out.append(f' <span class="note">[image {html.escape(ref)}: not a kept frame]</span>')
+        else:
+            out.append(f' <img class="sent" src="{image.url}" alt="sent: {html.escape(image.label)}"'
+                       f' title="{html.escape(image.label)}">')
+    return "".join(out)
 
 
 def _figure(step: int, frames: Mapping[int, str], descriptions: Mapping[int, str],

@@ -143,7 +143,33 @@ def _split_confidence(line: str) -> _Raw:
 def _clean_text(s: str) -> str:
     s = s.replace("**", "").replace("`", "").strip()
     s = _LABEL.sub("", _ENUMERATOR.sub("", s))
-    return s.strip(" \t\"'“”‘’:;,|=-–—([{").rstrip(" .!?").strip()
+    return clean_answer(s.strip(" \t\"'“”‘’:;,|=-–—([{").rstrip(" .!?").strip())
+
+
+_ANSWER_IS = re.compile(r"^(?:the\s+)?(?:final\s+|short\s+)?answer\s*(?:is\b\s*:?|:)\s*", re.I)
+_ABBREVIATION = re.compile(r"(?:^|\s)(?:[A-Za-z]\.){2,}$")  # "a.m.", "U.S.": the dot is the word's
+_QUOTES = (('"', '"'), ("'", "'"), ("“", "”"), ("‘", "’"), ("`", "`"))
+_EMPHASIS = ("**", "__", "*", "_")
+
+
+def clean_answer(text: str) -> str:
+    """An answer as it is shown and recorded: without markdown emphasis (``**a lamp**``,
+    ``*a lamp*``, ``__a lamp__``), a leading "The answer is", surrounding quotes and a final
+    period. "The answer is **a lamp**." -> "a lamp". Only wrappers are removed: words, inner
+    punctuation and an abbreviation's inner dots stay; an answer that is nothing but markup
+    stays as it was. Pure and idempotent."""
+    s = text.strip().replace("**", "").replace("__", "")
+    for _ in range(4):  # wrappers can nest: '"*The answer is a lamp.*"'
+        before = s
+        s = _ANSWER_IS.sub("", s).strip()
+        for left, right in _QUOTES + tuple((e, e) for e in _EMPHASIS):
+            if len(s) > len(left) + len(right) and s.startswith(left) and s.endswith(right):
+                s = s[len(left):-len(right)].strip()
+        if s.endswith(".") and not s.endswith("..") and not _ABBREVIATION.search(s):
+            s = s[:-1].rstrip()
+        if s == before:
+            break
+    return s or text.strip()
 
 
 def _from_json(text: str, problems: list[str]) -> list[_Raw] | None:
