@@ -44,6 +44,9 @@ def test_ask_with_a_bad_scene_start_or_model_is_one_line():
                           (["--episode", "x", "--dataset", "synthetic"], "no question 'x'"),
                           (["--scene", "synthetic:x"], "needs an integer seed"),
                           (["--start", "1,2"], "cannot read the start pose"),
+                          (["--start", "nan,0,0"], "is not finite"),
+                          (["--scene", "synthetic:-1"], "integer seed of 0 or more"),
+                          (["--start", "100,100,0", "--assets", "builtin"], "is not on the floor"),
                           (["--vlm", "gpt-4o", "--assets", "builtin"], "cannot read the VLM")):
         result = _run("ask", "Where is the sofa?", *args)
         assert result.returncode == 1, (args, result.stdout, result.stderr)
@@ -58,6 +61,9 @@ def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
     question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
     for args, message in ((["--top-k", "0"], "top_k must be at least 1"),
                           (["--z-th", "nan"], "z_th must be a finite number"),
+                          (["--max-steps", "0"], "max_steps must be at least 1"),
+                          (["--max-steps", "-5"], "max_steps must be at least 1"),
+                          (["--seed", "-1"], "seed must be 0 or more"),
                           (["--relevancy", "bogus"], "unknown relevancy scorer 'bogus'"),
                           (["--perception", "rgb", "--vlm", "openai:gpt-4o", "--relevancy",
                             "minilm"], "use --relevancy vlm-match")):

@@ -129,6 +129,11 @@ class AgentConfig:
     def __post_init__(self) -> None:
         if self.top_k < 1:
             raise ValueError(f"top_k must be at least 1, not {self.top_k}")
+        if self.max_steps is not None and self.max_steps < 1:
+            raise ValueError(f"max_steps must be at least 1 (or left out for the default "
+                             f"budget), not {self.max_steps}")
+        if self.seed is not None and self.seed < 0:
+            raise ValueError(f"seed must be 0 or more, not {self.seed}")
         if self.steering not in STEERINGS:
             raise ValueError(f"steering must be one of {STEERINGS}, not {self.steering!r}")
         if self.gate not in GATES:

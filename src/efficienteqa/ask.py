@@ -8,6 +8,7 @@ from typing import Any
 
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
 from efficienteqa.envs.synthetic.questions import Question
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.module import ExploreStep
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.visualize import map_image
@@ -58,6 +59,11 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
     stack, config = stack or Stack(), config or AgentConfig()
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
     try:
+        if start is not None and not opened.env.is_navigable(start.x, start.y):
+            raise EfficientEQAError(f"the start ({start.x:g}, {start.y:g}) is not on the floor "
+                                    f"of {opened.name}",
+                                    fix="pick a point on the floor (see the house's map: "
+                                        "efficienteqa scenes generate), or leave out --start")
         built = build_agent(opened.env, stack, config, opened.backend, model=model,
                             relevancy=relevancy)
         perception = built.agent.perception

@@ -29,11 +29,13 @@ def _parse_start(text: str | None) -> Pose2D | None:
     if text is None:
         return None
 
+    fix = "give it as X,Y,YAW_DEG in metres and degrees, e.g. 2.5,3,90"
     try:
         x, y, yaw_deg = (float(v) for v in text.split(","))
     except ValueError:
-        raise EfficientEQAError(f"cannot read the start pose {text!r}",
-                                fix="give it as X,Y,YAW_DEG in metres and degrees, e.g. 2.5,3,90") from None
+        raise EfficientEQAError(f"cannot read the start pose {text!r}", fix=fix) from None
+    if not all(math.isfinite(v) for v in (x, y, yaw_deg)):
+        raise EfficientEQAError(f"the start pose {text!r} is not finite", fix=fix)
     return Pose2D(x, y, math.radians(yaw_deg))
 
 

@@ -108,8 +108,10 @@ def open_scene(spec: str, assets: str = "sh3d", *, env: str = "synthetic",
     try:
         seed = int(arg)
     except ValueError:
-        raise EfficientEQAError(f"scene {spec!r} needs an integer seed",
-                                fix="e.g. --scene synthetic:0") from None
+        seed = -1
+    if seed < 0:
+        raise EfficientEQAError(f"scene {spec!r} needs an integer seed of 0 or more",
+                                fix="e.g. --scene synthetic:0")
     synthetic = SyntheticEnv.from_seed(seed, assets)
     return Scene(synthetic, f"synthetic:{seed} ({assets})",
                  synthetic_questions(synthetic, oracle=oracle))
