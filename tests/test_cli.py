@@ -130,3 +130,15 @@ def test_eval_exits_non_zero_when_an_episode_failed_and_a_re_run_resumes_it(tmp_
     resumed = _run(*args, env=env)
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
     assert "1 episodes run, 1 already done, 0 failed" in resumed.stdout
+
+
+@pytest.mark.parametrize("command", ["ask", "eval"])
+def test_an_unwritable_out_folder_fails_before_the_work(command, tmp_path):
+    """Issue 26: the episode used to be explored, then lost to a traceback."""
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
+    result = _run(command, *question, "--out", str(blocker / "out"))
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "cannot write to" in result.stdout and "Traceback" not in result.stdout + result.stderr
+    assert "exploring" not in result.stdout

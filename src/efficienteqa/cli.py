@@ -226,6 +226,7 @@ def ask_command(
     from efficienteqa.ask import ask
     from efficienteqa.envs.habitat.scenes import HabitatStart
     from efficienteqa.presets import apply_preset, build_config, build_stack
+    from efficienteqa.records import check_writable
     from efficienteqa.scenes import open_scene
     from efficienteqa.stack import check_stack, parse_vlm
     from efficienteqa.stop.relevancy import env_step_budget
@@ -237,6 +238,7 @@ def ask_command(
     parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature,
               **stack.server_options())
     start_pose, habitat_start, reference = _parse_start(start), None, None
+    check_writable(out)  # before the episode, not after it
     if episode is not None:
         from efficienteqa.datasets import find_question, load_dataset
 
@@ -387,6 +389,7 @@ def eval_command(
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
     from efficienteqa.presets import apply_preset, build_config, build_stack, given
+    from efficienteqa.records import check_writable
     from efficienteqa.stack import check_stack, parse_vlm
 
     o = apply_preset(preset, ctx.params)
@@ -411,6 +414,7 @@ def eval_command(
     judge_spec = None if judge_spec in ("none", "rule") else judge_spec
     if judge_spec:
         parse_vlm(judge_spec, images=False)
+    check_writable(out)
     questions = load_dataset(dataset, path=hm_eqa_path, limit=o["limit"], closed_set=closed_set,
                              assets=assets)
     spec = RunSpec(method=method, dataset=dataset, stack=stack, config=build_config(o),

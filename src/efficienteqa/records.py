@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 import efficienteqa
+from efficienteqa.errors import EfficientEQAError
 
 
 def code_version() -> str:
@@ -46,6 +47,18 @@ def plain(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+def check_writable(folder: Path) -> None:
+    """Fail in one line, before any work, when ``folder`` cannot be created or written to."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".write-check")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as error:
+        raise EfficientEQAError(f"cannot write to {folder}: {error.strerror or error}",
+                                fix="choose another --out folder") from None
 
 
 def write_json(path: Path, data: dict[str, Any]) -> Path:

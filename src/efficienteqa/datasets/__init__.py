@@ -54,7 +54,12 @@ def load_dataset(name: str, *, path: Path | None = None, limit: int | None = Non
 
         try:
             seeds = synthetic.parse_seeds(arg)
-        except ValueError:
+        except ValueError as error:
+            if "houses" in str(error):
+                raise EfficientEQAError(
+                    f"dataset {name!r} names {error}: every house is generated before the "
+                    "questions are picked", fix=f"name at most {synthetic.MAX_SEEDS} seeds, "
+                    "e.g. synthetic:2000-2099 --limit 50") from None
             raise EfficientEQAError(f"dataset {name!r}: {arg!r} is not a list of seeds",
                                     fix=_FIX) from None
         questions = synthetic.load_seeds(seeds, assets)

@@ -120,11 +120,19 @@ def _rows(path: Path, columns: tuple[str, ...]) -> list[tuple[str, int, dict[str
     """(where, row index, row): ``where`` names file, row and line for error messages."""
     with open(path, newline="", encoding="utf-8-sig") as f:
         reader = csv.DictReader(f)
-        absent = [c for c in columns if c not in (reader.fieldnames or [])]
-        if absent:
-            raise EfficientEQAError(f"{path}: missing column(s) {', '.join(absent)}",
-                                    fix=f"the header must name {', '.join(columns)}")
-        return [(f"{path}: row {i} (line {reader.line_num})", i, row) for i, row in enumerate(reader)]
+        try:
+            absent = [c for c in columns if c not in (reader.fieldnames or [])]
+            if absent:
+                raise EfficientEQAError(f"{path}: missing column(s) {', '.join(absent)}",
+                                        fix=f"the header must name {', '.join(columns)}")
+            return [(f"{path}: row {i} (line {reader.line_num})", i, row)
+                    for i, row in enumerate(reader)]
+        except UnicodeDecodeError as error:
+            raise EfficientEQAError(f"{path}: not UTF-8 text (byte {error.start})",
+                                    fix=FIX_MALFORMED) from None
+        except csv.Error as error:  # e.g. a field over csv's size limit, a stray NUL
+            raise EfficientEQAError(f"{path}: line {reader.line_num}: {error}",
+                                    fix=FIX_MALFORMED) from None
 
 
 def _bad(where: str, what: str) -> EfficientEQAError:

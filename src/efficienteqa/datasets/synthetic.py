@@ -202,8 +202,14 @@ def check_question(scene: Scene, question: EvalQuestion) -> None:
 
 
 # -- live generation for arbitrary seeds --------------------------------------------------------
+# Houses a dataset may name at once: each is generated (about a second) before any question is
+# picked, since the questions of all of them are interleaved.
+MAX_SEEDS = 5000
+
+
 def parse_seeds(spec: str) -> list[int]:
-    """"3", "0-9", "1,4,7" (and mixes such as "0-3,8") -> sorted unique seeds."""
+    """"3", "0-9", "1,4,7" (and mixes such as "0-3,8") -> sorted unique seeds. ValueError for a
+    spec that is not one, or names more than ``MAX_SEEDS`` houses (checked before listing them)."""
     seeds: set[int] = set()
     for part in spec.split(","):
         lo, dash, hi = part.strip().partition("-")
@@ -212,6 +218,8 @@ def parse_seeds(spec: str) -> list[int]:
         first, last = int(lo), int(hi) if dash else int(lo)
         if last < first:
             raise ValueError(part)
+        if last - first + 1 + len(seeds) > MAX_SEEDS:
+            raise ValueError(f"more than {MAX_SEEDS} houses")
         seeds.update(range(first, last + 1))
     return sorted(seeds)
 
