@@ -210,3 +210,33 @@ def test_report_shows_each_calls_images_as_sent_and_the_clean_answer(rgb_report)
     assert [p.split('"', 1)[0] for p in summary.split('alt="sent: ')[1:]] == expected
     # episode.json holds references, not pixels
     assert "data:image" not in rgb_report.episode_json.read_text()
+
+
+def test_each_calls_dollar_cost_is_recorded_and_summed():
+    """Issue 25 defect 15: a priced back-end's cost reaches every exchange, the episode's
+    model block and eval's usage; a cache hit costs nothing."""
+    from efficienteqa.eval.methods import usage_of
+    from efficienteqa.models.backends import PRICES
+    from efficienteqa.models.base import ChatResponse, Message, Usage
+    from efficienteqa.models.recording import RecordingChatModel
+    from efficienteqa.report.episode import model_block
+
+    prompt_price, completion_price = PRICES["gpt-4o"]
+
+    class Priced:  # what OpenAIChatClient does with a priced model
+        name, capabilities, usage = "gpt-4o", None, Usage()
+
+        def chat(self, messages, **kwargs):  # noqa: ANN001, ANN003, ANN201
+            cached = "again" in messages[0].text
+            response = ChatResponse("yes", "gpt-4o", prompt_tokens=1000, completion_tokens=100,
+                                    cached=cached)
+            self.usage.add(response, 0.0 if cached else prompt_price + completion_price / 10)
+            return response
+
+    recorder = RecordingChatModel(Priced())
+    recorder.chat([Message("user", "first")])
+    recorder.chat([Message("user", "again")])
+    costs = [e.cost_usd for e in recorder.exchanges]
+    assert costs == [pytest.approx(prompt_price + completion_price / 10), 0.0]
+    assert model_block(recorder.exchanges)["cost_usd"] == pytest.approx(sum(costs))
+    assert usage_of([e.to_dict() for e in recorder.exchanges])["cost_usd"] == pytest.approx(sum(costs))

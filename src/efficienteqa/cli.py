@@ -278,8 +278,13 @@ def ask_command(
     reference = rec["reference"]["answer"] if rec.get("reference") else reference
     if reference:
         console.print(f"reference answer: {reference}", highlight=False)
-    console.print(f"back-ends: {', '.join(f'{k}={v}' for k, v in rec['backends'].items() if v)}",
+    shown = {k: v for k, v in rec["backends"].items() if v and k != "capabilities"}
+    console.print(f"back-ends: {', '.join(f'{k}={v}' for k, v in shown.items())}",
                   highlight=False, soft_wrap=True)
+    model = rec["model"]
+    console.print(f"model calls: {model['calls']}" + (f"   cost: ${model['cost_usd']:.4f}"
+                                                      if model.get("cost_usd") else ""),
+                  highlight=False)
     console.print(f"episode: {done.episode_json}\nreport:  {done.report_html}", highlight=False,
                   soft_wrap=True)
 

@@ -121,7 +121,8 @@ def usage_of(exchanges: list[dict[str, Any]]) -> dict[str, Any]:
     return {"calls": len(exchanges), "cached_calls": sum(bool(e["cached"]) for e in exchanges),
             "prompt_tokens": sum(e["prompt_tokens"] for e in exchanges),
             "completion_tokens": sum(e["completion_tokens"] for e in exchanges),
-            "latency_s": round(sum(e["latency_s"] for e in exchanges), 3)}
+            "latency_s": round(sum(e["latency_s"] for e in exchanges), 3),
+            "cost_usd": round(sum(e.get("cost_usd") or 0.0 for e in exchanges), 6)}
 
 
 def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:

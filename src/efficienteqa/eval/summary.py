@@ -97,6 +97,7 @@ class RunSummary:
     # Model replies not read plainly, per kind of call (explore, relevancy, answer), summed over
     # the done episodes that record them.
     problems: dict[str, int] = field(default_factory=dict)
+    cost_usd: float = 0.0  # dollars of every episode's model calls, failed ones included
     rule_accuracy: float = math.nan
     n_rule: int = 0
     rule_by_category: dict[str, float] = field(default_factory=dict)
@@ -343,6 +344,7 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
         errors=dict(Counter(str(r.get("error") or "unknown error") for r in rows
                             if r.get("status") != "done").most_common()),
         problems=_problem_totals(done),
+        cost_usd=round(sum(float((r.get("usage") or {}).get("cost_usd") or 0.0) for r in rows), 6),
         rule_accuracy=mean(rule_values) if n_rule else math.nan, n_rule=n_rule,
         rule_by_category={c: mean(v) for c, v in sorted(rule_categories.items())} if n_rule else {},
         choice_accuracy=mean(choice_values) if n_choice else math.nan, n_choice=n_choice,

@@ -37,6 +37,7 @@ class Exchange:
     latency_s: float
     cached: bool
     image_refs: tuple[str, ...] = ()
+    cost_usd: float = 0.0  # at the back-end's prices (0 for local and unknown models, and hits)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -89,17 +90,19 @@ class RecordingChatModel:
         prompt = "\n\n".join(m.text for m in messages)
         refs = image_refs(messages)
         start = time.perf_counter()
+        spent = self.inner.usage.cost_usd
         try:
             response = self.inner.chat(messages, **kwargs)
         except Exception as exc:
             self._add(prompt, refs, f"<error: {exc}>", 0, 0, time.perf_counter() - start, False)
             raise
         self._add(prompt, refs, response.text or "", response.prompt_tokens,
-                  response.completion_tokens, response.latency_s, response.cached)
+                  response.completion_tokens, response.latency_s, response.cached,
+                  self.inner.usage.cost_usd - spent)
         return response
 
     def _add(self, prompt: str, refs: tuple[str, ...], reply: str, prompt_tokens: int,
-             completion_tokens: int, latency_s: float, cached: bool) -> None:
+             completion_tokens: int, latency_s: float, cached: bool, cost_usd: float = 0.0) -> None:
         self.exchanges.append(Exchange(len(self.exchanges), self.phase, self.name, prompt,
                                        len(refs), reply, prompt_tokens, completion_tokens,
-                                       latency_s, cached, refs))
+                                       latency_s, cached, refs, round(cost_usd, 8)))

@@ -68,6 +68,7 @@ def model_block(calls: Sequence[Exchange]) -> dict[str, Any]:
     return {"calls": len(calls), "prompt_tokens": sum(e.prompt_tokens for e in calls),
             "completion_tokens": sum(e.completion_tokens for e in calls),
             "latency_s": round(sum(e.latency_s for e in calls), 3),
+            "cost_usd": round(sum(e.cost_usd for e in calls), 6),
             "exchanges": [e.to_dict() for e in calls]}
 
 
