@@ -142,14 +142,16 @@ def classify(text: str, images: int = 0) -> str:
         return "answer-short"  # answer_direct.txt, answer_token.txt
     if "Reply with the score only" in t:
         return "judge"
-    if "Does the given answer say the same thing" in t:
-        return "judge-same"
+    if "Does the given answer say the same thing" in t or t.rstrip().endswith("Correct?"):
+        return "judge-same"  # eval/prompts/judge_same.txt (two versions)
     return "other"
 
 
 def _field(text: str, name: str) -> str:
-    found = re.search(rf"^{name}:[ \t]*(.*)$", text, re.MULTILINE)
-    return found.group(1).strip() if found else ""
+    """The last ``name: value`` line (a few-shot prompt's own question comes after its
+    examples)."""
+    found = re.findall(rf"^{name}:[ \t]*(.*)$", text, re.MULTILINE)
+    return found[-1].strip() if found else ""
 
 
 def _letters(text: str) -> list[str]:
@@ -463,7 +465,7 @@ class VLMServer:
         model = str(body.get("model", ""))
         if o.models is not None and model not in o.models:
             return self._error(404, f"The model `{model}` does not exist.")
-        texts, images = [], []
+        texts, images, urls = [], [], []
         for message in body.get("messages") or []:
             content = message.get("content")
             if isinstance(content, str):
@@ -475,6 +477,7 @@ class VLMServer:
                 elif part.get("type") == "image_url":
                     try:
                         images.append(check_image(part, o.max_side))
+                        urls.append(part["image_url"]["url"])
                     except ImageError as exc:
                         self.image_errors.append(str(exc))
                         return self._error(400, f"invalid image: {exc}")
@@ -492,8 +495,9 @@ class VLMServer:
         if top > 20:
             return self._error(400, "top_logprobs must be at most 20")
         fmt = body.get("response_format")
+        # seeded by the request: the same prompt on another frame may get another reply
         seed = int.from_bytes(hashlib.sha256(json.dumps(
-            [model, text, len(images)], sort_keys=True).encode()).digest()[:4], "big")
+            [model, text, urls], sort_keys=True).encode()).digest()[:4], "big")
         if isinstance(fmt, dict) and fmt.get("type") == "json_schema":
             if o.json_schema == "reject":
                 return self._error(400, "response_format json_schema is not supported")

@@ -1,0 +1,117 @@
+"""Every agent method end to end against an OpenAI-compatible server (tests/vlm_server.py) in the
+configurations real servers have (issue 25 part 2): logprobs returned (GPT-4o, vLLM), ignored or
+rejected (servers without logprobs), one image per request (vLLM's --limit-mm-per-prompt
+image=1). RGB perception, the VLM as relevancy scorer (vlm-match), a synthetic house with the
+built-in furniture, 4 steps. Each run either finishes with its episode written, or fails in one
+line before exploring (white-box ExploreEQA refuses a server without logprobs)."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+
+import pytest
+
+from conftest import needs_egl
+from efficienteqa.datasets import load_dataset
+from efficienteqa.eval.methods import RunSpec
+from efficienteqa.eval.runner import run_eval
+from efficienteqa.presets import build_config, build_stack
+from vlm_server import Options, servers
+
+pytestmark = needs_egl
+
+# benchmarks/main_table.sh's paper row: the paper's configuration by flags, no preset.
+PAPER = {"explore_scorer": "vlm", "stop_rule": "paper", "answer": "paper", "prompts": "paper",
+         "exploration": "paper", "refusal_retries": 0, "stop_clearance_m": 0.0,
+         "distinct_views": False, "gate": "none", "steering": "none", "min_stop_step": 10}
+SERVERS = {"logprobs": Options(), "no-logprobs": Options(logprobs="ignore"),
+           "rejects-logprobs": Options(logprobs="reject"), "one-image": Options(max_images=1)}
+EXPLORING = {"explore", "explore-letters", "explore-token", "explore-choice", "worth",
+             "worth-token", "match"}
+
+
+@pytest.fixture(scope="module")
+def question():
+    return load_dataset("synthetic:0", limit=1, assets="builtin")
+
+
+@pytest.fixture
+def vlm(tmp_path, monkeypatch):
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))
+    monkeypatch.delenv("OPENAI_API_KEY", raising=False)
+    with servers() as start:
+        yield start
+
+
+def run(vlm, tmp_path, question, method: str, server: str | Options,
+        flags: dict | None = None):
+    """One ``efficienteqa eval --dataset synthetic:0 --limit 1`` as the CLI builds it."""
+    s = vlm(SERVERS[server] if isinstance(server, str) else server)
+    options = {"vlm": f"openai:test-vlm@{s.base_url}", "perception": "rgb",
+               "relevancy": "vlm-match", "max_steps": 4, "cache": False, **(flags or {})}
+    spec = RunSpec(method=method, dataset="synthetic:0", stack=build_stack(options),
+                   config=build_config(options), judge=None, assets="builtin")
+    out = tmp_path / "run"
+    result = run_eval(spec, question, out)
+    rows = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    return s, result, rows, out
+
+
+CASES = [("efficienteqa", "logprobs", None), ("efficienteqa", "no-logprobs", None),
+         ("efficienteqa", "rejects-logprobs", None), ("efficienteqa", "one-image", None),
+         ("efficienteqa", "logprobs", PAPER), ("explore-eqa", "logprobs", None),
+         ("explore-eqa-blackbox", "one-image", None), ("blind", "rejects-logprobs", None)]
+
+
+@pytest.mark.parametrize(("method", "server", "flags"), CASES,
+                         ids=[f"{m}-{s}" + ("-paper" if f else "") for m, s, f in CASES])
+def test_a_method_runs_to_its_episode(vlm, tmp_path, question, method, server, flags):
+    s, result, rows, out = run(vlm, tmp_path, question, method, server, flags)
+    [row] = rows
+    assert row["status"] == "done", row.get("error")
+    assert result.failed == 0 and row["answer"] and row["confidence"] > 0
+    if method != "blind":
+        assert row["steps"] >= 1
+        assert (out / "episodes" / row["id"].replace("/", "__") / "episode.json").is_file()
+    assert not s.image_errors
+    kinds = Counter(s.kinds())
+    assert kinds["probe"] >= 2 and sum(kinds.values()) > kinds["probe"]
+    cap = SERVERS[server].max_images
+    refused = [(r.kind, r.images) for r in s.requests if r.status != 200]
+    # only the probe meets the server's limits: every request of the episode is accepted
+    assert all(kind.startswith("probe") for kind, _ in refused), refused
+    if cap is not None:
+        assert max(r.images for r in s.requests if not r.kind.startswith("probe")) <= cap
+    if SERVERS[server].logprobs != "return":  # never asked for what the server lacks
+        assert not any(r.body.get("logprobs") for r in s.requests
+                       if not r.kind.startswith("probe"))
+
+
+@pytest.mark.parametrize("server", ["no-logprobs", "rejects-logprobs"])
+def test_white_box_explore_eqa_refuses_a_server_without_logprobs(vlm, tmp_path, question, server):
+    s, result, rows, _ = run(vlm, tmp_path, question, "explore-eqa", server)
+    [row] = rows
+    assert row["status"] != "done" and result.failed == 1
+    assert "does not return token log-probabilities" in row["error"]
+    assert "\n" not in row["error"]
+    assert not EXPLORING & set(s.kinds())  # refused before exploring
+
+
+# What the server's answers can be (vlm_server.plausible_answer): a clean answer is one of them.
+ANSWERS = {"1", "2", "3", "white", "brown", "blue", "yes", "no", "in the kitchen",
+           "in the living room", "in the bedroom", "the kitchen", "the living room",
+           "the bedroom", "a lamp", "a book", "a plant"}
+
+
+@pytest.mark.xfail(reason="the direct answer (answer/vc.py answer_token_probability) takes the "
+                   "reply's first line as it is: markdown, a preamble, a code fence or a "
+                   "reasoning sentence becomes the answer (issue 25; outside this change)",
+                   strict=False)
+@pytest.mark.parametrize("style", ["markdown", "preamble", "json", "reasoning"])
+def test_a_chatty_server_still_gives_a_clean_answer(vlm, tmp_path, question, style):
+    s, _, rows, _ = run(vlm, tmp_path, question, "efficienteqa", Options(style=style, cut=True))
+    [row] = rows
+    assert row["status"] == "done", row.get("error")
+    assert not s.image_errors
+    assert row["answer"] in ANSWERS, (style, row["answer"], row["extra"]["answer_problems"])
