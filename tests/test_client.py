@@ -547,6 +547,18 @@ def test_an_unreachable_openai_server_fails_before_the_work_with_its_own_hint(pr
     assert "models serve" not in message and f"--vlm openai:m@{base_url}" in message
 
 
+def test_the_probe_retries_once_whatever_the_retries(serve, private_cache):
+    """A dead or hung server fails the start in two tries, not the calls' five (issue 26)."""
+    base_url = f"http://127.0.0.1:{closed_port()}/v1"
+    with pytest.raises(EfficientEQAError, match="unreachable after 2 tries"):
+        build_chat_model(ChatBackend(kind="openai", model="m", base_url=base_url, retries=4))
+    server = serve(Reply(delay_s=2.0))
+    start = time.monotonic()
+    with pytest.raises(EfficientEQAError, match=r"within 0.3 s \(2 tries\)"):
+        build_chat_model(openai_backend(server, timeout_s=0.3, retries=4))
+    assert time.monotonic() - start < 1.8 and len(server.requests) == 2
+
+
 def test_the_local_server_is_not_probed(serve, private_cache):
     server = serve()
     caps = build_chat_model(ChatBackend(kind="local", model="m", base_url=server.base_url)).capabilities

@@ -253,10 +253,15 @@ def test_a_reply_cut_at_max_tokens_is_flagged(vlm):
 # ---------------------------------------------------------------- (8) timeouts and retries
 
 def test_429_with_retry_after_then_success(vlm):
-    server = vlm(fail=2, fail_status=429, retry_after=0.05)
-    client = build_chat_model(backend(server, retries=2))  # the probe meets the 429s
+    server = vlm(fail=1, fail_status=429, retry_after=0.05)
+    client = build_chat_model(backend(server, retries=2))  # the probe retries once
     assert client.capabilities.logprobs
-    assert [r.status for r in server.requests][:3] == [429, 429, 200]
+    assert [r.status for r in server.requests][:2] == [429, 200]
+    server.options.fail = len(server.requests) + 2  # the next two requests
+    start = time.monotonic()
+    client.chat([Message("user", prompts()["match"])])
+    assert [r.status for r in server.requests][-3:] == [429, 429, 200]
+    assert time.monotonic() - start < 2.0  # Retry-After: 0.05 s, not the SDK's backoff
 
 
 def test_500s_exhaust_the_retries_in_one_line(vlm):

@@ -54,6 +54,7 @@ IMAGE_DETAILS = ("auto", "low", "high")
 # many images as one request of the agent carries at most (the answer's K = 5 frames).
 PROBE_TOP_LOGPROBS = 10
 PROBE_IMAGES = 5
+PROBE_RETRIES = 1
 # Sent where no key is configured: the SDK insists on one, and without it would read
 # OPENAI_API_KEY from the environment and send the user's OpenAI key to a local server.
 _NO_KEY = "no-key"
@@ -353,14 +354,14 @@ class OpenAIChatClient:
                  "max_tokens": 1, "temperature": 0.0}
         try:
             data = self._complete({**plain, "logprobs": True,
-                                   "top_logprobs": PROBE_TOP_LOGPROBS})
+                                   "top_logprobs": PROBE_TOP_LOGPROBS}, probe=True)
             choices = data.get("choices") or [{}]
             found["logprobs"] = bool(parse_logprobs(choices[0]))
             found["logprobs_probe"] = "returned" if found["logprobs"] else "ignored"
         except RequestRejected as error:
             if error.status in (401, 403, 404):
                 raise
-            self._complete(plain)  # the server answers a plain request, or this raises
+            self._complete(plain, probe=True)  # the server answers a plain request, or this raises
             found["logprobs"] = False
             found["logprobs_probe"] = f"rejected: HTTP {error.status}"
         if self._capabilities.json_schema:
@@ -368,7 +369,7 @@ class OpenAIChatClient:
                 "ok": {"type": "boolean"}}, "required": ["ok"]}}
             try:
                 self._complete({**plain, "max_tokens": 8, "response_format": {
-                    "type": "json_schema", "json_schema": schema}})
+                    "type": "json_schema", "json_schema": schema}}, probe=True)
                 found["json_schema"], found["json_schema_probe"] = True, "accepted"
             except RequestRejected as error:
                 found["json_schema"] = False
@@ -386,7 +387,7 @@ class OpenAIChatClient:
                     "temperature": 0.0}
 
         try:
-            self._complete(request(PROBE_IMAGES))
+            self._complete(request(PROBE_IMAGES), probe=True)
             return {"images": True, "max_images": None,
                     "images_probe": f"{PROBE_IMAGES} accepted"}
         except RequestRejected as error:
@@ -394,7 +395,7 @@ class OpenAIChatClient:
             fewer = int(said.group(1)) if said else 1
             fewer = fewer if 1 <= fewer < PROBE_IMAGES else 1
             try:
-                self._complete(request(fewer))
+                self._complete(request(fewer), probe=True)
             except RequestRejected as again:
                 return {"images": False, "max_images": None,
                         "images_probe": f"rejected: {_one_line(str(again), 200)}"}
@@ -469,12 +470,16 @@ class OpenAIChatClient:
         key = os.environ.get(self.config.api_key_env or "") if self.config.api_key_env else None
         return text.replace(key, "***") if key else text
 
-    def _complete(self, arguments: dict[str, Any]) -> dict[str, Any]:
-        """One ``chat.completions.create`` (the SDK retries) as the reply's JSON dict."""
+    def _complete(self, arguments: dict[str, Any], *, probe: bool = False) -> dict[str, Any]:
+        """One ``chat.completions.create`` (the SDK retries) as the reply's JSON dict. A probe
+        retries at most once (``PROBE_RETRIES``): a dead or hung server fails the run's start
+        in one try's time or two, not ``max_retries + 1``."""
         import openai
         from openai.types.chat import ChatCompletion
 
         client = self._client()
+        if probe and self.config.max_retries > PROBE_RETRIES:
+            client = client.with_options(max_retries=PROBE_RETRIES)
         try:
             reply = client.chat.completions.create(**arguments)
         except openai.OpenAIError as error:
