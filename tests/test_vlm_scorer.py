@@ -110,8 +110,8 @@ def test_an_image_vlm_judges_worth_exploring_on_the_unmarked_frame(confidence):
     obs = _image_obs()
     prompts = [PromptPoint("A", (1.0, 0.0), (40.5, 60.5)), PromptPoint("B", (2.0, 0.0), (120.5, 60.5))]
     tokens = {"verbalized": None,
-              "token": lambda text, top: [_tok(text.split()[0], **{text.split()[0]: 0.9, "no": 0.05,
-                                                                     "A": 0.05})]}
+              "token": lambda text, top: [_tok(text, **({"A": 0.9, "B": 0.1} if text == "A"
+                                                        else {"yes": 0.8, "no": 0.2}))]}
     script = (_worth_or_letters if confidence == "verbalized"
               else lambda msgs: "yes" if "yes or no only" in msgs[-1].text else "A")
     stub = StubChatModel(script, logprob_fn=tokens[confidence])
@@ -129,8 +129,9 @@ def test_an_image_vlm_judges_worth_exploring_on_the_unmarked_frame(confidence):
         assert score.p_yes == pytest.approx(0.2)
         assert score.info["worth_raw"] == "worth exploring: no 80"
     else:
-        assert score.letters["A"] == pytest.approx(0.9 / 0.95)
-        assert score.p_yes == pytest.approx(0.9 / 0.95)
+        assert score.letters == pytest.approx({"A": 0.9, "B": 0.1})
+        assert score.p_yes == pytest.approx(0.8)
+        assert worth_call.text.rstrip().endswith("Where is the cat?")
 
 
 def test_a_text_model_still_gets_one_exploration_call():
