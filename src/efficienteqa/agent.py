@@ -286,9 +286,11 @@ class Agent:
         if cfg.steering == "target" and isinstance(explorer, FrontierExplorer):
             explorer = TargetExplorer(explorer)
         target = parse_question(question)
+        prompts = PROMPT_CONFIGS[cfg.prompts]
+        if self.perception.modality == "text":  # no circles are drawn: none can overlap
+            prompts = replace(prompts, min_px=0.0)
         explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)), explorer,
-                                self.scorer, seed=cfg.seed, prompts=PROMPT_CONFIGS[cfg.prompts],
-                                target=target)
+                                self.scorer, seed=cfg.seed, prompts=prompts, target=target)
         sightings = (getattr(self.perception, "sightings", None)
                      if isinstance(explorer, Steered) else None)
         gate = self.gate if cfg.gate != "none" else None
