@@ -175,3 +175,17 @@ def test_the_benchmark_replays_stops_without_a_model_and_resumes(tmp_path, capsy
     bench.main(argv)  # resumed: nothing left to do
     assert (tmp_path / "ablation_replay.jsonl").read_text().splitlines() == lines
     assert "paper@z=3" in capsys.readouterr().out
+
+
+def test_a_rules_gates_recorded_verdicts_are_replayed_with_the_sims():
+    """A gated stop (the default) is replayed as live: a frame the gate refused never stops the
+    robot, one it passed stops at the lower ``z_gated``."""
+    sims = [0.1, 0.2, 0.15, 0.2, 0.1, 0.9, 0.3, 0.7]  # step 8: z 1.49
+    ok = [False, False, False, False, False, False, False, True]
+    per_step = [{"step": s, "pose": [0.0, 0.0, 0.0], "valid": True, "sim": v,
+                 "gate": {"ok": g, "why": ""}} for s, (v, g) in enumerate(zip(sims, ok), start=1)]
+    config = StopConfig(rule="paper", z_th=3, min_step=2)
+    stopped = replay_episode_stop(per_step, "budget", config)
+    assert (stopped.step, stopped.reason) == (8, "relevancy")  # not at the refused spike (6)
+    ungated = [{k: v for k, v in s.items() if k != "gate"} for s in per_step]
+    assert replay_episode_stop(ungated, "budget", config).step == 6

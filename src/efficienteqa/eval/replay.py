@@ -46,6 +46,7 @@ class RecordedFrame:
     step: int
     sim: float
     pose: tuple[float, float, float]
+    eligible: bool | None = None  # the rules gate's recorded verdict (None: no gate recorded)
 
 
 def recorded_frames(per_step: Iterable[Mapping[str, Any]]) -> list[RecordedFrame]:
@@ -55,24 +56,29 @@ def recorded_frames(per_step: Iterable[Mapping[str, Any]]) -> list[RecordedFrame
     for s in per_step:
         if s.get("valid") and s.get("sim") is not None:
             x, y, yaw = s["pose"]
-            out.append(RecordedFrame(int(s["step"]), float(s["sim"]), (x, y, yaw)))
+            gate = s.get("gate")
+            eligible = bool(gate["ok"]) if isinstance(gate, Mapping) and "ok" in gate else None
+            out.append(RecordedFrame(int(s["step"]), float(s["sim"]), (x, y, yaw), eligible))
     return out
 
 
-def replay_checks(sims: Sequence[tuple[int, float]], config: StopConfig) -> list[StopCheck]:
-    """The stop module's check of each ``(step, Sim)``, in order, up to and including the first
-    that stops (all of them when none does)."""
+def replay_checks(sims: Sequence[tuple[int, float] | tuple[int, float, bool | None]],
+                  config: StopConfig) -> list[StopCheck]:
+    """The stop module's check of each ``(step, Sim)`` or ``(step, Sim, eligible)`` (a rules
+    gate's verdict, as the agent passes it), in order, up to and including the first that stops
+    (all of them when none does)."""
     stopper = RelevancyStopper(config)
     checks = []
-    for step, sim in sims:
-        check = stopper.check(step, sim)
+    for step, sim, *verdict in sims:
+        check = stopper.check(step, sim, verdict[0] if verdict else None)
         checks.append(check)
         if check.stop:
             break
     return checks
 
 
-def replay_stop(sims: Sequence[tuple[int, float]], config: StopConfig) -> int | None:
+def replay_stop(sims: Sequence[tuple[int, float] | tuple[int, float, bool | None]],
+                config: StopConfig) -> int | None:
     """The step at which ``config``'s rule stops the robot, given the ``(step, Sim)`` of the valid
     frames in order; None where it never stops within them (the episode then ends as recorded:
     at its budget, or where nothing was left to explore). ``config.enabled`` False never stops,
@@ -106,12 +112,14 @@ class Stopped:
 def replay_episode_stop(per_step: Sequence[Mapping[str, Any]], recorded_reason: str,
                         config: StopConfig) -> Stopped:
     """The replayed stop of one recorded episode (explored without early stop): the relevancy
-    stop step, or the recorded end (``len(per_step)`` steps, for the recorded reason)."""
+    stop step, or the recorded end (``len(per_step)`` steps, for the recorded reason). A rules
+    gate's verdicts, recorded for every frame, are replayed with the Sims; a model gate's, asked
+    only of flagged frames, cannot be."""
     if recorded_reason == "relevancy":
         raise ValueError("this episode stopped early: its frames after the stop were never "
                          "seen, so other stops cannot be replayed (run with --no-early-stop)")
     frames = recorded_frames(per_step)
-    step = replay_stop([(f.step, f.sim) for f in frames], config)
+    step = replay_stop([(f.step, f.sim, f.eligible) for f in frames], config)
     if step is None:
         return Stopped(None, len(per_step), recorded_reason)
     return Stopped(step, step, "relevancy")
