@@ -158,9 +158,12 @@ def record(items: Sequence[Item], grades: Sequence[int], judge: str, mode: str) 
                 "wrong_mean": _json_float(s.wrong_mean), "n_wrong": s.n_wrong,
                 "llm_match": _json_float(s.match, 2), "hand_llm_match": _json_float(s.hand_match, 2)}
 
+    from efficienteqa.eval.judge import prompt_version
+
     groups = {label: figures(scores([items[k].grade for k in idx], [grades[k] for k in idx]))
               for label, idx in _groups(items)}
-    return {"judge": judge, "mode": mode, **groups.pop("all"), "by_origin": groups,
+    return {"judge": judge, "mode": mode, "prompt_version": prompt_version(mode),
+            **groups.pop("all"), "by_origin": groups,
             "by_kind": {kind: {"n": len(pairs), "hand_mean": round(statistics.fmean(h for h, _ in pairs), 4),
                                "judge_mean": round(statistics.fmean(g for _, g in pairs), 4)}
                         for kind, pairs in _by_kind(items, grades).items()}}

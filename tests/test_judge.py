@@ -111,7 +111,7 @@ def test_an_unreadable_reply_is_retried_with_a_reminder(tmp_path):
 
 def test_unreadable_twice_falls_back_to_the_default_and_says_so(tmp_path):
     model = StubChatModel(["Hmm.", "Score: 9"], capabilities=PLAIN)
-    judgement = LLMMatchJudge(model, tmp_path / "j.sqlite").judge("Q?", "red", "blue")
+    judgement = LLMMatchJudge(model, tmp_path / "j.sqlite").judge("Q?", "a mug", "a plate")
     assert (judgement.score, judgement.value) == (DEFAULT_SCORE, score_value(DEFAULT_SCORE))
     assert judgement.problems[0] == "retried after: no score in reply"
     assert "out of range" in judgement.problems[1] and "unreadable" in judgement.problems[-1]
@@ -220,7 +220,7 @@ def test_yes_prob_mode_grades_from_the_probability_of_yes(tmp_path):
     assert judgement.score == 4 and judgement.raw == "P(yes)=0.800"
     assert judgement.judge == "stub (yes-prob)"
     request = model.requests[0]
-    assert request.max_tokens == 1 and request.logprobs and "say the same thing" in request.messages[0].text
+    assert request.max_tokens == 1 and request.logprobs and request.messages[0].text.endswith("Correct?\n")
     # no yes/no at all among the alternatives: the documented default, with the problem
     silent = StubChatModel(["maybe"])
     low = LLMMatchJudge(silent, cache_path=tmp_path / "k.sqlite", mode="yes-prob").judge(
@@ -270,7 +270,7 @@ def test_yes_prob_reads_yes_and_no_tokens_in_any_spelling(tmp_path, yes, no):
     model = StubChatModel(["Yes"], logprob_fn=logprobs)
     judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob").judge(
         "What is on the desk?", "a laptop", "a notebook computer")
-    assert judgement.problems == () and judgement.raw == "P(yes)=0.900" and judgement.score == 5
+    assert judgement.problems == () and judgement.raw == "P(yes)=0.900" and judgement.score == 4
 
 
 @pytest.mark.parametrize("yes, no, expected", [
@@ -332,3 +332,29 @@ def test_an_opposite_yes_no_with_more_words_is_wrong_without_a_model_call(tmp_pa
     judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob").judge(
         "Is there a box in the hall?", "No", "Yes, a cardboard box by the door")
     assert judgement.score == 1 and "by rule" in judgement.raw and not model.requests
+
+
+@pytest.mark.parametrize("p, score", [(0.6, 2), (0.75, 3), (0.8, 4), (0.95, 5), (0.3, 1)])
+def test_yes_prob_grades_p_yes_squared(tmp_path, p, score):
+    """The yes-prob prompt leans towards yes: the grade is 1 + round(4 * P(yes) ** 2), so
+    P(yes) = 0.6 (where wrong answers sit) is 2, not 3."""
+    from efficienteqa.eval.judge import YES_POWER
+    from efficienteqa.models.base import TokenLogprob
+
+    def logprobs(text, top):
+        return [TokenLogprob("yes", math.log(p), (("yes", math.log(p)), ("no", math.log(1 - p))))]
+
+    model = StubChatModel(["yes"], logprob_fn=logprobs)
+    judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob").judge(
+        "What is on the desk?", "a laptop", "a notebook computer")
+    assert YES_POWER == 2.0 and judgement.score == score
+
+
+def test_the_yes_prob_version_holds_the_mapping(monkeypatch):
+    """A changed P(yes) -> grade mapping must not reuse grades cached under the old one."""
+    from efficienteqa.eval import judge
+
+    before = judge.prompt_version("yes-prob")
+    monkeypatch.setattr(judge, "YES_POWER", 1.0)
+    assert judge.prompt_version("yes-prob") != before
+    assert judge.prompt_version("grade") == judge.prompt_version("grade")

@@ -114,7 +114,16 @@ def bounds(question: str, reference: str, response: str) -> tuple[int, int] | No
     ("Where is the radio?", "on the shelf", "Not on the shelf", None),  # negated
     ("What colour is the kettle?", "grey", "grey or black", None),  # alternatives
     ("What is the radio on?", "the radio shelf", "radio", None),  # only the question's words
-    ("What colour is the kettle?", "grey", "Black", None),  # nothing to hold the model to
+    # another colour where the colour is the answer; a close shade is the model's to judge
+    ("What colour is the kettle?", "grey", "Black", (1, 1)),
+    ("Which cushion is on the chair?", "The yellow one", "The purple one", (1, 1)),
+    ("Which room has the desk?", "the room with the red rug", "The room with the green rug", (1, 2)),
+    ("Which room has the desk?", "the room with the red rug", "the room with the green plant",
+     None),  # something else differs too: the model judges
+    ("What colour is the kettle?", "blue", "Navy", None),
+    ("Which cushion is on the chair?", "The red one", "A burgundy one", None),
+    ("What colour is the kettle?", "grey", "A metal kettle", None),  # no colour word of its own
+    ("Where is the lamp?", "on the green table", "on the table next to the red vase", None),
 ])
 def test_rule_bounds_hold_the_model_to_what_the_words_make_certain(question, reference, response,
                                                                     expected):

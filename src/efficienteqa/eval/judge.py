@@ -9,9 +9,14 @@ by ``rule_judge`` instead, with LLM-Match beside it when a judge model is given.
 
 ``mode="yes-prob"`` is for judges too small to grade 1-5 (the embedded 1.5B model's grades were
 nearly uniform over 1-5, whatever the answers): the judge is asked only whether the response
-says the same as the reference, and the grade is ``1 + round(4 * P(yes))`` from the token
+gives the correct answer (prompts/judge_same.txt: the rubric's yes and no cases with six worked
+examples), and the grade is ``1 + round(4 * P(yes) ** YES_POWER)`` from the token
 probabilities of its one-token reply (tokens read as words: "▁Yes", "Yes." and " yes" are
-yes). ``mode="grade"`` (the OpenEQA form) is the default for capable judges such as GPT-4o.
+yes). The prompt leans the 1.5B model towards yes (P(yes) of wrong answers 0.5-0.75), and
+``YES_POWER`` = 2 undoes that lean: fitted on the shared hand-graded set (HM-EQA), the one with
+the lowest mean absolute error there. ``judge_rules.rule_bounds`` then holds the grade to what
+the words alone make certain (an opposite yes/no, another colour, the reference's words).
+``mode="grade"`` (the OpenEQA form) is the default for capable judges such as GPT-4o.
 
 Bad judge output never raises: replies are parsed leniently, retried once, and otherwise scored
 with a documented default and a recorded problem. Grades are cached in sqlite, keyed on the judge,
@@ -196,10 +201,15 @@ def render_prompt(question: str, reference: str, response: str, extra: Sequence[
 JUDGE_MODES = ("grade", "yes-prob")
 
 
+# yes-prob: the grade is 1 + round(4 * P(yes) ** YES_POWER) (see the module docstring).
+YES_POWER = 2.0
+
+
 def prompt_version(mode: str = "grade") -> str:
-    """A hash of everything the judge is told, so a changed prompt does not reuse old grades."""
+    """A hash of everything the judge is told and of how its reply becomes a grade, so a changed
+    prompt or mapping does not reuse old grades."""
     text = (load_prompt("judge", PROMPTS) + "\n" + REMINDER if mode == "grade"
-            else load_prompt("judge_same", PROMPTS))
+            else load_prompt("judge_same", PROMPTS) + f"\nP(yes) ** {YES_POWER:g}")
     return hashlib.sha256(f"{mode}\n{text}".encode()).hexdigest()[:16]
 
 
@@ -320,7 +330,7 @@ class LLMMatchJudge:
         if p is None:
             return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name, reply.text,
                              (f"no yes/no among the reply's tokens, scored {DEFAULT_SCORE}",))
-        score = MIN_SCORE + round((MAX_SCORE - MIN_SCORE) * p)
+        score = MIN_SCORE + round((MAX_SCORE - MIN_SCORE) * p ** YES_POWER)
         return Judgement(score, score_value(score), self.name, f"P(yes)={p:.3f}")
 
     def _grade(self, prompt: str) -> Judgement:

@@ -355,6 +355,47 @@ def _signature(text: str) -> set[str]:
                                            if w not in STOPWORDS or w in _PLACE_WORDS)}
 
 
+# Colour words by family: a colour of the same family is a close shade (the rubric's "navy" for
+# "blue", "burgundy" for "red"), a colour of no shared family is another colour. Some shades
+# sit in two families.
+COLOUR_FAMILIES: tuple[frozenset[str], ...] = tuple(frozenset(f.split()) for f in (
+    "red burgundy maroon crimson scarlet wine cherry rust ruby",
+    "pink rose magenta fuchsia salmon coral blush",
+    "orange peach coral apricot rust amber tangerine",
+    "yellow gold golden mustard lemon amber cream",
+    "green olive lime emerald mint sage teal khaki forest",
+    "blue navy teal turquoise azure cobalt indigo cyan aqua sky denim",
+    "purple violet lavender lilac mauve plum indigo magenta",
+    "brown tan beige wheat khaki chocolate bronze caramel coffee walnut mahogany chestnut taupe",
+    "white ivory cream offwhite eggshell pearl beige",
+    "gray silver charcoal slate ash taupe steel",
+    "black charcoal ebony jet",
+))
+_COLOURS = frozenset().union(*COLOUR_FAMILIES)
+
+
+def _colours(text: str) -> set[str]:
+    return {SAME_WORDS.get(w, w) for w in words(text)} & _COLOURS
+
+
+def _other_colour(question: str, reference: str, response: str) -> int | None:
+    """The most a response may score that names only colours of other families than the
+    reference's, where the colour is the answer: 1 when the question asks for a colour or the
+    answer is only a colour ("the white one" for "green one"); 2 when the colours are all that
+    differ from a longer answer ("the black cabinet" for "the blue cabinet": the right thing,
+    the wrong colour); None otherwise."""
+    ref, got = _colours(reference), _colours(response)
+    if not ref or not got or any(r in f and g in f for r in ref for g in got for f in COLOUR_FAMILIES):
+        return None
+    if {"colour", "color", "colours", "colors"} & set(words(question)):
+        return MIN_SCORE
+    asked = content(question) | _PLACE_WORDS
+    rest = _signature(reference) - ref - asked
+    if rest != _signature(response) - got - asked:
+        return None
+    return NEAR_SCORE if rest else MIN_SCORE
+
+
 @dataclass(frozen=True)
 class Bounds:
     """The range the model's grade is held to (``low`` <= grade <= ``high``) and why."""
@@ -377,7 +418,11 @@ def rule_bounds(question: str, reference: str, response: str, extra: Sequence[st
        rubric's "right plus an unsupported claim"), at least 3 when the response is bare and
        the reference says more ("Yes" for "Yes, a plate of cookies": right, less specific).
        Neither when both say more ("yes, in the bedroom" for "yes, in the kitchen").
-    3. **the reference's words**: every word that carries the reference (its content words that
+    3. **another colour**: the response names colours, none of the reference's family of shades
+       (or of an accepted answer's), where the colour is the answer: 1 when the question asks
+       for a colour or the answer is a bare colour ("the white one" for "green one"), at most
+       2 when only the colour differs ("the black cabinet" for "the blue cabinet").
+    4. **the reference's words**: every word that carries the reference (its content words that
        the question does not hold already, and its place words: "under" is not "on") is in
        the response, which neither negates, hedges nor offers alternatives, and, for "how
        many", states no other number: at least 4 ("Navy blue" for "Blue one"); at least 5 when
@@ -393,6 +438,11 @@ def rule_bounds(question: str, reference: str, response: str, extra: Sequence[st
             return Bounds(MIN_SCORE, MIN_SCORE, f"says {got.value} against {ref.value}")
     if hedges(response) or "or" in tokens or any(t in NEGATORS for t in tokens):
         return None
+    caps = [_other_colour(question, ref_text, response) for ref_text in (reference, *extra)]
+    if all(cap is not None for cap in caps):
+        cap = max(c for c in caps if c is not None)
+        return Bounds(MIN_SCORE, cap, "another colour" if cap == MIN_SCORE
+                      else "another colour of the same thing")
     for ref_text in (reference, *extra):
         ref = stance(ref_text, question)
         if ref.value and got.value == ref.value and ref.bare:
