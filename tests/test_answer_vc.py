@@ -285,3 +285,36 @@ def test_images_beyond_the_servers_cap_are_cut_least_relevant_first():
     uncapped = StubChatModel(["a lamp"])
     RagAnswerer(uncapped, RuleGrouper(), direct=True).answer("What is on the desk?", frames)
     assert len(uncapped.requests[0].messages[0].images) == 5
+
+
+@pytest.mark.parametrize(("raw", "answer", "line"), [
+    ("a beige desk lamp", "a beige desk lamp", 0),
+    ("brown\nIt stands by the window.", "brown", 0),
+    ("The lamp on the desk is beige.\nIt is next to a book.", "The lamp on the desk is beige", 0),
+    ("**a plant**", "a plant", 0),
+    ("Sure! Here is my answer.\na lamp", "a lamp", 1),
+    ("The views show a desk. Let me answer in the requested format.\n\nthe bedroom",
+     "the bedroom", 2),
+    ("```json\n{\"answer\": \"a book\"}\n```", "a book", 1),
+    ("I looked at every view.\nAnswer: two", "two", 1),
+    ("", "", 0),
+])
+def test_the_answer_line_of_a_chatty_reply(raw, answer, line):
+    """Issue 25: a VLM server's preamble, code fence or markdown is not the answer."""
+    from efficienteqa.answer.vc import reply_answer
+
+    assert reply_answer(raw) == (answer, line)
+
+
+def test_a_preambles_tokens_do_not_count_in_the_answers_probability():
+    from efficienteqa.answer.vc import answer_token_probability
+
+    def tokens(text, top):  # noqa: ANN001, ANN202 - "Sure!" unlikely, the answer likely
+        return [TokenLogprob("Sure!", math.log(0.01)), TokenLogprob(" Here is my answer.\n", 0.0),
+                TokenLogprob("a", math.log(0.9)), TokenLogprob(" lamp", math.log(0.8))]
+
+    stub = StubChatModel(["Sure! Here is my answer.\na lamp"], logprob_fn=tokens)
+    frames = [np.zeros((8, 8, 3), np.uint8)]
+    result = answer_token_probability(stub, "What is on the desk?", frames, hinted=True)
+    assert result.answer == "a lamp" and result.confidence == pytest.approx(0.72)
+    assert stub.requests[0].max_tokens >= 96  # room for the preamble over images

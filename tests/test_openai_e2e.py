@@ -104,10 +104,6 @@ ANSWERS = {"1", "2", "3", "white", "brown", "blue", "yes", "no", "in the kitchen
            "the bedroom", "a lamp", "a book", "a plant"}
 
 
-@pytest.mark.xfail(reason="the direct answer (answer/vc.py answer_token_probability) takes the "
-                   "reply's first line as it is: markdown, a preamble, a code fence or a "
-                   "reasoning sentence becomes the answer (issue 25; outside this change)",
-                   strict=False)
 @pytest.mark.parametrize("style", ["markdown", "preamble", "json", "reasoning"])
 def test_a_chatty_server_still_gives_a_clean_answer(vlm, tmp_path, question, style):
     s, _, rows, _ = run(vlm, tmp_path, question, "efficienteqa", Options(style=style, cut=True))

@@ -5,6 +5,7 @@ or the top-K RGB frames."""
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from collections.abc import Sequence
@@ -16,7 +17,15 @@ from efficienteqa.models.base import ChatModel, ChatResponse, Message
 from efficienteqa.question import singular
 from efficienteqa.vc.grouping import Grouper, argmax, group_answers, normalise
 from efficienteqa.vc.logprobs import require_logprobs
-from efficienteqa.vc.parse import AnswerClass, AnswerResult, Candidate, M, parse_candidates, to_float
+from efficienteqa.vc.parse import (
+    AnswerClass,
+    AnswerResult,
+    Candidate,
+    M,
+    clean_answer,
+    parse_candidates,
+    to_float,
+)
 from efficienteqa.vc.prompts import load_prompt
 from efficienteqa.vc.usage import usage_of
 
@@ -211,11 +220,52 @@ def answer_token_probability(model: ChatModel, question: str,
     template = load_prompt("answer_direct" if hinted else "answer_token", PROMPTS)
     prompt = template.format(question=question, evidence=text,
                              hint=question_hint(question, "image" if images else "text"))
+    if images:  # a VLM server may write a sentence or a code fence before the answer
+        max_tokens = max(max_tokens, IMAGE_ANSWER_TOKENS)
     resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
                       logprobs=1)
-    raw = resp.text or ""
-    answer = raw.strip().splitlines()[0].strip() if raw.strip() else ""
-    return _token_answer(resp, answer, how, end="\n")
+    answer, line = reply_answer(resp.text or "")
+    return _token_answer(resp, answer, how, end="\n", skip_lines=line)
+
+
+# Room for a chatty VLM's preamble or code fence before a one-line answer over images.
+IMAGE_ANSWER_TOKENS = 96
+# A line that introduces the answer rather than giving it ("Sure! Here is my answer.").
+_PREAMBLE = re.compile(r"^(?:sure|okay|ok|certainly|of course|here\b|based on|looking at|let me|"
+                       r"from (?:the|what)|i (?:can|see|think|looked|will))", re.IGNORECASE)
+_INTRODUCES = re.compile(r"\b(?:(?:let me|i will|i'll) answer|here is (?:my|the) answer|"
+                         r"requested format)\b", re.IGNORECASE)
+_ANSWER_LINE = re.compile(r"^(?:final )?answer\s*[:\-]\s*(.+)$", re.IGNORECASE)
+
+
+def reply_answer(raw: str) -> tuple[str, int]:
+    """The answer of a reply to a one-line answer prompt, cleaned of markup
+    (``vc.parse.clean_answer``), and the index of the reply's line that holds it: an "answer"
+    field of a JSON object, an "Answer: ..." line, else the first line that does not introduce
+    the answer ("Sure! Here is my answer.", "... Let me answer in the requested format.") when
+    more lines follow. A one-line reply is its own answer."""
+    lines = raw.split("\n")
+    body = [(i, line.strip()) for i, line in enumerate(lines)
+            if line.strip() and not line.strip().startswith("```")]
+    if not body:
+        return "", 0
+    if "{" in raw:
+        try:
+            data = json.loads(raw[raw.index("{"):raw.rindex("}") + 1])
+        except ValueError:
+            data = None
+        if isinstance(data, dict) and isinstance(data.get("answer"), str):
+            line = next((i for i, text in body if '"answer"' in text), body[0][0])
+            return clean_answer(data["answer"]), line
+    for i, text in body:
+        said = _ANSWER_LINE.match(text)
+        if said:
+            return clean_answer(said.group(1)), i
+    for n, (i, text) in enumerate(body):
+        if n == len(body) - 1 or not (_PREAMBLE.match(text) or _INTRODUCES.search(text)
+                                      or text.endswith(":")):
+            return clean_answer(text), i
+    raise AssertionError("the last line is always taken")
 
 
 def verbalized_token_probability(model: ChatModel, question: str,
@@ -242,13 +292,18 @@ def _check_how(how: str) -> None:
         raise ValueError(f"how must be one of {ANSWER_PROBABILITIES}, not {how!r}")
 
 
-def _token_answer(resp: ChatResponse, answer: str, how: str, end: str) -> AnswerResult:
+def _token_answer(resp: ChatResponse, answer: str, how: str, end: str,
+                  skip_lines: int = 0) -> AnswerResult:
     """``answer`` with the probability of the reply's first tokens up to one holding a character
-    of ``end`` (leading whitespace skipped). A token at -inf or with an unreadable (NaN) logprob
-    makes it 0; positive logprobs (rounding) count as probability 1."""
+    of ``end`` (leading whitespace skipped), after the tokens of the first ``skip_lines`` lines
+    (a preamble). A token at -inf or with an unreadable (NaN) logprob makes it 0; positive
+    logprobs (rounding) count as probability 1."""
     problems: list[str] = []
-    logprob, started, n_tokens = 0.0, False, 0
+    logprob, started, n_tokens, newlines = 0.0, False, 0, 0
     for token in resp.logprobs or []:
+        if newlines < skip_lines:
+            newlines += token.token.count("\n")
+            continue
         if not started and not token.token.strip():
             continue  # leading whitespace is not part of the answer (``raw.strip()``)
         ends = [token.token.find(c) for c in end if c in token.token]
