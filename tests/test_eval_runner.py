@@ -348,3 +348,25 @@ def test_a_full_disk_is_one_line_and_a_short_write_is_finished(tmp_path, monkeyp
     monkeypatch.setattr(records.os, "write", full)
     with pytest.raises(EfficientEQAError, match="No space left on device"):
         append_episode(tmp_path / "e.jsonl", {"id": "b", "status": "done"})
+
+
+def test_a_run_resumes_with_another_timeout_or_retries_but_not_another_server(tmp_path):
+    run_eval(spec(), questions(1), tmp_path, prepare=False)
+    assert run_eval(spec(stack=Stack(timeout_s=5.0, retries=0)), questions(2), tmp_path,
+                    prepare=False).ran == 1
+    with pytest.raises(EfficientEQAError, match="another stack"):
+        run_eval(spec(stack=Stack(image_format="png")), questions(3), tmp_path, prepare=False)
+
+
+def test_white_box_explore_eqa_is_refused_before_the_first_episode(tmp_path, monkeypatch):
+    """Issue 25 defect 3: refused once, in one line, not failed per episode."""
+    from efficienteqa.models.base import Capabilities
+    from efficienteqa.models.stub import StubChatModel
+
+    monkeypatch.setattr("efficienteqa.models.backends.build_chat_model",
+                        lambda backend: StubChatModel(["x"], capabilities=Capabilities(
+                            images=True, logprobs=False)))
+    with pytest.raises(EfficientEQAError, match="does not return token log-probabilities"):
+        run_eval(spec("explore-eqa", stack=Stack(perception="rgb", relevancy="vlm-match")),
+                 questions(2), tmp_path)
+    assert not read_episodes(tmp_path / EPISODES_FILE).by_id  # no episode was run

@@ -14,6 +14,7 @@ import pytest
 
 from conftest import needs_egl
 from efficienteqa.datasets import load_dataset
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.methods import RunSpec
 from efficienteqa.eval.runner import run_eval
 from efficienteqa.presets import build_config, build_stack
@@ -90,12 +91,18 @@ def test_a_method_runs_to_its_episode(vlm, tmp_path, question, method, server, f
 
 @pytest.mark.parametrize("server", ["no-logprobs", "rejects-logprobs"])
 def test_white_box_explore_eqa_refuses_a_server_without_logprobs(vlm, tmp_path, question, server):
-    s, result, rows, _ = run(vlm, tmp_path, question, "explore-eqa", server)
-    [row] = rows
-    assert row["status"] != "done" and result.failed == 1
-    assert "does not return token log-probabilities" in row["error"]
-    assert "\n" not in row["error"]
-    assert not EXPLORING & set(s.kinds())  # refused before exploring
+    """Refused once, in one line, before the first episode (not failed per episode)."""
+    started = []
+
+    def keep(options):  # noqa: ANN001, ANN202 - the server, to read its requests afterwards
+        started.append(vlm(options))
+        return started[-1]
+
+    with pytest.raises(EfficientEQAError, match="does not return token log-probabilities") as err:
+        run(keep, tmp_path, question, "explore-eqa", server)
+    assert "\n" not in str(err.value)
+    assert not (tmp_path / "run" / "episodes.jsonl").exists()  # no episode was run
+    assert not EXPLORING & set(started[0].kinds())  # refused before exploring
 
 
 # What the server's answers can be (vlm_server.plausible_answer): a clean answer is one of them.

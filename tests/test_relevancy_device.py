@@ -147,6 +147,8 @@ def test_the_options_reach_the_stack(command, monkeypatch, tmp_path):
         seen.append(spec.stack)
         raise Stop
 
+    monkeypatch.setattr("efficienteqa.relevancy.base.resolve_device",  # no GPU needed here
+                        lambda device="auto", dtype=None: (device, dtype))
     monkeypatch.setattr(efficienteqa.ask, "ask", fake_ask)
     monkeypatch.setattr(efficienteqa.eval.runner, "run_eval", fake_run_eval)
     monkeypatch.setattr(efficienteqa.scenes, "open_scene", lambda *a, **k: SimpleNamespace(
@@ -163,3 +165,15 @@ def test_the_options_reach_the_stack(command, monkeypatch, tmp_path):
         stack = seen.pop()  # left out, a setting is None: build_agent reads it as the default
         assert (stack.device or "auto", stack.relevancy_weights,
                 bool(stack.allow_download)) == expected
+
+
+def test_a_gpu_that_is_not_here_is_refused_before_the_work():
+    """Checked with the stack, not when the scorer is built in each episode."""
+    from efficienteqa.stack import Stack, check_stack
+
+    torch = pytest.importorskip("torch")
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a GPU")
+    with pytest.raises(EfficientEQAError, match="torch sees no GPU"):
+        check_stack(Stack(perception="rgb", relevancy="blip2-itm", device="cuda:0"))
+    check_stack(Stack(perception="rgb", relevancy="vlm-match", device="cuda:0"))  # no model

@@ -121,6 +121,7 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
 # Relevancy scorers that read a frame's description, and the ones that need no weights of their
 # own: known by name, so a stack that cannot work is refused before any scene is built.
 TEXT_RELEVANCY = ("minilm", "minilm-match", "overlap")
+IMAGE_RELEVANCY = ("blip2-itm", "clip", "siglip")
 
 
 def default_relevancy(perception: str, weights: str | None = None) -> str:
@@ -152,6 +153,10 @@ def check_stack(stack: Stack) -> None:
     if stack.relevancy not in known:
         raise EfficientEQAError(f"unknown relevancy scorer {stack.relevancy!r}",
                                 fix=f"use one of {', '.join(known)}")
+    if stack.relevancy in IMAGE_RELEVANCY:  # a GPU that is not here: now, not per episode
+        from efficienteqa.relevancy.base import resolve_device
+
+        resolve_device(stack.device or "auto")
     if stack.relevancy in TEXT_RELEVANCY and stack.perception == "rgb":
         raise EfficientEQAError(
             f"relevancy scorer {stack.relevancy!r} reads text, but --perception rgb gives images",
@@ -293,9 +298,6 @@ def build_gate(name: str, perception: Perception, model: ChatModel) -> AnswerGat
     from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
     return ModelGate(VLMMatchScorer(model, perception.modality))
-
-
-IMAGE_RELEVANCY = ("blip2-itm", "clip", "siglip")
 
 
 @functools.cache

@@ -170,7 +170,8 @@ def run_blind(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     from efficienteqa.stack import MINILM_KINDS, build_grouper, build_relevancy, parse_vlm
 
     model = RecordingChatModel(build_chat_model(parse_vlm(
-        spec.stack.vlm, images=False, cache=spec.stack.cache, temperature=spec.stack.temperature)))
+        spec.stack.vlm, images=False, cache=spec.stack.cache, temperature=spec.stack.temperature,
+        **spec.stack.server_options())))
     closed = bool(q.choices)
     grouping = None if closed else spec.stack.grouping
     backends = {"environment": None, "perception": None, "vlm": model.name,

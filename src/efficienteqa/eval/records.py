@@ -29,6 +29,7 @@ RUN_IDENTITY = ("method", "dataset", "closed_set", "config", "stack", "judge", "
 # (runs recorded before these keys existed resume as before).
 SCENE_IDENTITY = ("assets", "env", "hm3d_root")
 LOCK_FILE = ".lock"
+TRANSPORT = ("timeout_s", "retries")  # stack settings that are not part of a run's identity
 
 
 @dataclass
@@ -111,7 +112,7 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
     run_file = out / RUN_FILE
     if run_file.exists():
         earlier = _read_manifest(run_file)
-        differs = [k for k in RUN_IDENTITY if _set(earlier.get(k)) != _set(manifest.get(k))]
+        differs = [k for k in RUN_IDENTITY if _identity(k, earlier) != _identity(k, manifest)]
         differs += [k for k in SCENE_IDENTITY if k in earlier and earlier[k] != manifest.get(k)]
         if differs:
             raise EfficientEQAError(
@@ -153,6 +154,15 @@ def _read_manifest(run_file: Path) -> dict[str, Any]:
         raise EfficientEQAError(f"{run_file} is not a run's JSON object",
                                 fix="restore it, or use another --out folder") from None
     return manifest
+
+
+def _identity(key: str, manifest: dict[str, Any]) -> Any:
+    """What of ``manifest[key]`` identifies the run: a model server's timeout and retries change
+    how long a call may take, not what it answers, so a run resumes with others."""
+    value = _set(manifest.get(key))
+    if key == "stack" and isinstance(value, dict):
+        value = {k: v for k, v in value.items() if k not in TRANSPORT}
+    return value
 
 
 def _set(value: Any) -> Any:

@@ -213,11 +213,20 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
         if unknown:
             raise EfficientEQAError(f"no environment back-end opens {', '.join(unknown)} scenes",
                                     fix="use --dataset synthetic or hm-eqa")
+    from efficienteqa.eval.methods import method_config
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.stack import parse_vlm
+    from efficienteqa.vc.logprobs import require_logprobs
 
-    for vlm in {spec.stack.vlm, spec.judge} - {None}:
-        build_chat_model(parse_vlm(vlm, images=False, cache=spec.stack.cache))  # type: ignore[arg-type]
+    # The servers: started (local) or probed (openai:) once here, not per episode.
+    model = build_chat_model(parse_vlm(spec.stack.vlm, images=spec.stack.perception == "rgb",
+                                       cache=spec.stack.cache, **spec.stack.server_options()))
+    if spec.judge is not None and spec.judge != spec.stack.vlm:
+        build_chat_model(parse_vlm(spec.judge, images=False, cache=spec.stack.cache))
+    if resolve(spec.method) is run_agent_method:
+        config = method_config(spec.method, spec.config)
+        if config.confidence == "token" or config.answer == "direct":
+            require_logprobs(model)  # white-box ExploreEQA: refused once, not per episode
 
 
 def run_eval(spec: RunSpec, questions: Sequence[EvalQuestion], out: Path, *, workers: int = 1,
@@ -312,15 +321,15 @@ def _cluster_key_note(spec: RunSpec, address: str) -> str | None:
     from efficienteqa.stack import parse_vlm
 
     names = set()
-    for vlm in (spec.stack.vlm, spec.judge):
+    for vlm, options in ((spec.stack.vlm, spec.stack.server_options()), (spec.judge, {})):
         if vlm is None:
             continue
         try:
-            backend = parse_vlm(vlm, images=False)
+            backend = parse_vlm(vlm, images=False, **options)
         except EfficientEQAError:
             continue  # not a model spec (e.g. "rule"); a bad one fails in the episode
-        if backend.kind == "openai":
-            names.add(backend.api_key_env or "OPENAI_API_KEY")
+        if backend.key_env is not None:
+            names.add(backend.key_env)
     if not names:
         return None
     return (f"Ray at {address}: {', '.join(sorted(names))} is not sent to the workers; "
