@@ -171,8 +171,7 @@ def test_a_gpu_that_is_not_here_is_refused_before_the_work():
     """Checked with the stack, not when the scorer is built in each episode."""
     from efficienteqa.stack import Stack, check_stack
 
-    torch = pytest.importorskip("torch")
-    if torch.cuda.is_available():
+    if pytest.importorskip("torch").cuda.is_available():
         pytest.skip("this machine has a GPU")
     with pytest.raises(EfficientEQAError, match="torch sees no GPU"):
         check_stack(Stack(perception="rgb", relevancy="blip2-itm", device="cuda:0"))
