@@ -19,7 +19,8 @@ A miss (a request the cache does not hold) is counted and answered, after the sa
 a fixed valid reply so that episodes run on: the text ``--fallback-text`` (default
 ``"I don't know."``), or, when the request asks for a JSON schema, the smallest JSON instance of
 that schema (required properties only; strings "", numbers the minimum or 0, arrays
-``minItems`` copies, enums their first value). ``--miss error`` answers HTTP 404 instead, which
+``minItems`` copies, enums their first value), with each word's logprob 0 when logprobs are
+asked (the client's capability probe is such a miss). ``--miss error`` answers HTTP 404 instead, which
 the client reports as a rejected request. Replies to misses are never written to the cache.
 
     python benchmarks/replay_server.py --port 8799 --latency-s 1.5
@@ -50,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.models.base import ChatResponse, Message
+from efficienteqa.models.base import ChatResponse, Message, TokenLogprob
 from efficienteqa.models.cache import ResponseCache, request_key
 
 DEFAULT_FALLBACK = "I don't know."
@@ -277,7 +278,12 @@ class _Handler(BaseHTTPRequestHandler):
                 schema = fmt.get("json_schema") or fmt.get("schema")
                 text = (json.dumps(minimal_instance(schema)) if isinstance(schema, dict)
                         else self.server.fallback_text)
-                self._send(200, completion(text, model))
+                # Logprobs where asked (each word certain), as the replayed server gives them:
+                # the client's capability probe is a miss, and must find them.
+                tokens = ([TokenLogprob(w, 0.0, ((w, 0.0),)) for w in text.split()]
+                          if body.get("logprobs") else None)
+                self._send(200, completion(text, model, ChatResponse(text, model, logprobs=tokens)
+                                           if tokens else None))
         finally:
             with stats.lock:
                 stats.in_flight -= 1

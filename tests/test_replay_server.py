@@ -124,3 +124,17 @@ def test_a_miss_is_an_error_with_miss_error(server) -> None:
         _client(s.base_url).chat([Message("user", "never asked")])
     assert error.value.status == 404
     assert s.stats.to_dict()["misses"] == 1
+
+
+def test_a_miss_that_asks_for_logprobs_gets_them(server, monkeypatch, tmp_path) -> None:
+    """The client's capability probe is a miss: it must find the logprobs the replayed server
+    (llama.cpp) gives, or every replayed run would fall back to the verbalized answer."""
+    from efficienteqa.models.backends import ChatBackend, build_chat_model
+
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))  # the probe is kept there
+    s = server(latency_s=0.0)
+    reply = _client(s.base_url).chat([Message("user", "never asked")], logprobs=1)
+    assert reply.logprobs and all(t.logprob == 0.0 for t in reply.logprobs)
+    model = build_chat_model(ChatBackend(kind="openai", model=MODEL, base_url=s.base_url,
+                                         cache=False))
+    assert model.capabilities.logprobs and model.capabilities.source == "probed"
