@@ -19,8 +19,9 @@ if TYPE_CHECKING:
 
 class ImagePerception:
     """The paper's setting: the VLM reads the frames themselves. The exploration call gets the
-    frame with the candidate points drawn as lettered circles (SPEC 3.3); the VLM answers the
-    "worth exploring" part from the same image."""
+    frame with the candidate points drawn as lettered circles (SPEC 3.3), kept apart in pixels;
+    "worth exploring" is asked in a call of its own on the unmarked frame
+    (``explore/vlm_scorer.py``)."""
 
     name = "rgb"
     modality: Modality = "image"
