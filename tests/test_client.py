@@ -56,7 +56,7 @@ class Reply:
     """What the fake server answers: a JSON body (dict) or raw text, after ``delay_s``."""
 
     status: int = 200
-    body: dict | str = field(default_factory=completion)
+    body: dict | str | bytes = field(default_factory=completion)
     headers: dict[str, str] = field(default_factory=dict)
     delay_s: float = 0.0
 
@@ -90,8 +90,9 @@ class FakeServer:
                                               body, time.monotonic()))
                     reply = fake.replies[min(len(fake.requests), len(fake.replies)) - 1]
                 time.sleep(reply.delay_s)
-                is_json = isinstance(reply.body, dict)
-                data = (json.dumps(reply.body) if is_json else str(reply.body)).encode()
+                is_json = isinstance(reply.body, (dict, bytes))
+                data = (reply.body if isinstance(reply.body, bytes) else
+                        (json.dumps(reply.body) if is_json else str(reply.body)).encode())
                 try:
                     self.send_response(reply.status)
                     self.send_header("content-type", "application/json" if is_json else "text/html")
@@ -469,6 +470,31 @@ def test_broken_cache_does_not_fail_the_call(serve, tmp_path, caplog):
     client = make_client(server, tmp_path, cache=True)
     assert client.chat(ask()).text == "B" and len(server.requests) == 1
     assert "response cache unavailable" in caplog.text
+
+
+@pytest.mark.parametrize("entry", ["{not json", '{"text": "B", "model": 7, "logprobs": [1]}',
+                                   '[1, 2]', '{"bogus": 1}'])
+def test_a_bad_cache_entry_is_a_miss_and_is_dropped(serve, tmp_path, caplog, entry):
+    """Issue 26: another version of the code may write into the shared cache; an entry this one
+    cannot read costs one model call, once, not every episode that hits it."""
+    server = serve()
+    client = make_client(server, tmp_path, cache=True)
+    client.chat(ask())  # stores the reply
+    cache = ResponseCache(tmp_path / "responses.sqlite")
+    cache._connection().execute("UPDATE responses SET response = ?", (entry,))
+    fresh = make_client(server, tmp_path, cache=True)
+    assert fresh.chat(ask()).text == "B" and len(server.requests) == 2  # a miss, called again
+    assert "dropped an unreadable response-cache entry" in caplog.text
+    assert make_client(server, tmp_path, cache=True).chat(ask()).cached  # the new reply is kept
+
+
+def test_a_reply_that_is_not_utf8_is_one_line(serve, tmp_path):
+    """Issue 26: bytes that are not UTF-8 from a server are a clear error, not a traceback."""
+    bad = b'{"choices": [{"index": 0, "message": {"role": "assistant", "content": "\xff\xfe"}}]}'
+    client = make_client(serve(Reply(body=bad)), tmp_path)
+    with pytest.raises(EfficientEQAError, match="not UTF-8|not JSON") as err:
+        client.chat(ask())
+    assert "\n" not in str(err.value)
 
 
 def test_probe_capabilities(serve, tmp_path):

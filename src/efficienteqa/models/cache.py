@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import sqlite3
 import threading
 import time
@@ -28,6 +29,8 @@ import numpy as np
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.models.base import ChatResponse, Message, TokenLogprob
+
+log = logging.getLogger(__name__)
 
 _SCHEMA = """CREATE TABLE IF NOT EXISTS responses (
     key TEXT PRIMARY KEY, model TEXT NOT NULL, created REAL NOT NULL, response TEXT NOT NULL)"""
@@ -118,12 +121,19 @@ class ResponseCache:
         start = time.perf_counter()
         row = self._connection().execute("SELECT response FROM responses WHERE key = ?",
                                          (key,)).fetchone()
+        try:
+            response = response_from_json(row[0]) if row is not None else None
+        except (ValueError, TypeError, KeyError, AttributeError) as error:  # a bad entry, e.g.
+            # written by another version of the code into the shared cache: a miss, dropped
+            log.warning("dropped an unreadable response-cache entry (%s: %s) from %s",
+                        type(error).__name__, str(error)[:80], self.path)
+            self._connection().execute("DELETE FROM responses WHERE key = ?", (key,))
+            response = None
         with self._lock:
-            if row is None:
+            if response is None:
                 self.misses += 1
                 return None
             self.hits += 1
-        response = response_from_json(row[0])
         response.cached = True
         response.latency_s = time.perf_counter() - start
         return response

@@ -484,6 +484,10 @@ class OpenAIChatClient:
             reply = client.chat.completions.create(**arguments)
         except openai.OpenAIError as error:
             raise self._error(error) from None  # the SDK's chain repeats the reply, key included
+        except UnicodeDecodeError as error:  # the SDK decodes the body as UTF-8
+            raise EfficientEQAError(f"model server at {self.url} sent a reply that is not UTF-8 "
+                                    f"(byte {error.start})", fix="check base_url and the "
+                                    "server's log") from None
         if not isinstance(reply, ChatCompletion):  # the SDK hands back a body it cannot decode
             raise EfficientEQAError(f"model server at {self.url} sent a reply that is not JSON: "
                                     f"{self._redact(_one_line(str(reply), 120))}", fix="check base_url")
