@@ -214,18 +214,20 @@ def test_yes_prob_mode_grades_from_the_probability_of_yes(tmp_path):
     def logprobs(text, top):  # P(yes) = 0.8 at the one token
         return [TokenLogprob("yes", math.log(0.8), (("yes", math.log(0.8)), ("no", math.log(0.2))))]
 
-    model = StubChatModel(["yes"], logprob_fn=logprobs)
+    model = StubChatModel(["yes", "yes"], logprob_fn=logprobs)
     judge = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob")
     judgement = judge.judge("What is on the desk?", "a laptop", "a notebook computer")
-    assert judgement.score == 4 and judgement.raw == "P(yes)=0.800"
+    assert judgement.score == 4 and judgement.raw.startswith("P(yes)=0.800 ")
     assert judgement.judge == "stub (yes-prob)"
-    request = model.requests[0]
-    assert request.max_tokens == 1 and request.logprobs and request.messages[0].text.endswith("Correct?\n")
+    same, correct = model.requests  # both questions, one token each
+    assert all(r.max_tokens == 1 and r.logprobs for r in model.requests)
+    assert "say the same thing" in same.messages[0].text
+    assert correct.messages[0].text.endswith("Correct?\n")
     # no yes/no at all among the alternatives: the documented default, with the problem
-    silent = StubChatModel(["maybe"])
+    silent = StubChatModel(["maybe", "maybe"])
     low = LLMMatchJudge(silent, cache_path=tmp_path / "k.sqlite", mode="yes-prob").judge(
-        "Q?", "red", "crimson")
-    assert low.score == DEFAULT_SCORE and low.problems
+        "Q?", "a mug", "a cup")
+    assert low.score == DEFAULT_SCORE and len(low.problems) == 3
 
 
 def test_yes_prob_mode_needs_logprobs():
@@ -267,10 +269,11 @@ def test_yes_prob_reads_yes_and_no_tokens_in_any_spelling(tmp_path, yes, no):
         return [TokenLogprob(yes, math.log(0.6), ((yes, math.log(0.6)), (yes.upper() + " ", math.log(0.3)),
                                                   (no, math.log(0.1)), ("The", math.log(0.2))))]
 
-    model = StubChatModel(["Yes"], logprob_fn=logprobs)
+    model = StubChatModel(["Yes", "Yes"], logprob_fn=logprobs)
     judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob").judge(
         "What is on the desk?", "a laptop", "a notebook computer")
-    assert judgement.problems == () and judgement.raw == "P(yes)=0.900" and judgement.score == 4
+    assert judgement.problems == () and judgement.raw.startswith("P(yes)=0.900 ")
+    assert judgement.score == 5
 
 
 @pytest.mark.parametrize("yes, no, expected", [
@@ -316,12 +319,12 @@ def test_rule_bounds_hold_the_model_grade_and_the_cache_keeps_the_models_own(tmp
     def logprobs(text, top):  # P(yes) = 0.1: the model would say 1
         return [TokenLogprob("no", math.log(0.9), (("yes", math.log(0.1)), ("no", math.log(0.9))))]
 
-    model = StubChatModel(["no", "no"], logprob_fn=logprobs)
+    model = StubChatModel(["no"] * 4, logprob_fn=logprobs)
     judge = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob")
     first = judge.judge("Where is the radio?", "on the shelf", "On the shelf above the sink")
     assert first.score == 4 and "P(yes)=0.100" in first.raw and "held to 4-5" in first.raw
     again = judge.judge("Where is the radio?", "on the shelf", "On the shelf above the sink")
-    assert again.cached and again.score == 4 and len(model.requests) == 1
+    assert again.cached and again.score == 4 and len(model.requests) == 2
     # no bound: the model's grade stands
     other = judge.judge("Where is the radio?", "on the shelf", "In the garage")
     assert other.score == 1 and "held" not in other.raw
@@ -334,27 +337,47 @@ def test_an_opposite_yes_no_with_more_words_is_wrong_without_a_model_call(tmp_pa
     assert judgement.score == 1 and "by rule" in judgement.raw and not model.requests
 
 
-@pytest.mark.parametrize("p, score", [(0.6, 2), (0.75, 3), (0.8, 4), (0.95, 5), (0.3, 1)])
-def test_yes_prob_grades_p_yes_squared(tmp_path, p, score):
-    """The yes-prob prompt leans towards yes: the grade is 1 + round(4 * P(yes) ** 2), so
-    P(yes) = 0.6 (where wrong answers sit) is 2, not 3."""
-    from efficienteqa.eval.judge import YES_POWER
+def test_yes_prob_grades_the_geometric_mean_of_both_questions(tmp_path):
+    """The strict question says 0.25, the lenient one 0.81: P = sqrt(0.25 * 0.81) = 0.45, grade
+    1 + round(4 * 0.45) = 3 (either alone would give 2 or 4); one unreadable reply leaves the
+    other's P(yes), and says so."""
     from efficienteqa.models.base import TokenLogprob
 
-    def logprobs(text, top):
-        return [TokenLogprob("yes", math.log(p), (("yes", math.log(p)), ("no", math.log(1 - p))))]
+    def script(messages):  # the reply text tells logprobs which question was asked
+        return "yes" if messages[0].text.endswith("Correct?\n") else "Yes"
 
-    model = StubChatModel(["yes"], logprob_fn=logprobs)
+    def logprobs(text, top):
+        p = 0.81 if text == "yes" else 0.25
+        return [TokenLogprob(text, math.log(p), ((text, math.log(p)), ("no", math.log(1 - p))))]
+
+    model = StubChatModel(script, logprob_fn=logprobs)
     judgement = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="yes-prob").judge(
         "What is on the desk?", "a laptop", "a notebook computer")
-    assert YES_POWER == 2.0 and judgement.score == score
+    assert judgement.score == 3 and judgement.raw == (
+        "P(yes)=0.450 (judge_same 0.250; judge_correct 0.810)")
+
+    def half_silent(messages):
+        return "yes" if messages[0].text.endswith("Correct?\n") else "Hmm"
+
+    def some_logprobs(text, top):
+        return logprobs(text, top) if text == "yes" else [TokenLogprob(text, -0.1, ((text, -0.1),))]
+
+    model = StubChatModel(half_silent, logprob_fn=some_logprobs)
+    judgement = LLMMatchJudge(model, cache_path=tmp_path / "k.sqlite", mode="yes-prob").judge(
+        "What is on the desk?", "a laptop", "a notebook computer")
+    assert judgement.score == 4 and judgement.raw.startswith("P(yes)=0.810 ")
+    assert judgement.problems == ("no yes/no among the judge_same reply's tokens",)
 
 
-def test_the_yes_prob_version_holds_the_mapping(monkeypatch):
-    """A changed P(yes) -> grade mapping must not reuse grades cached under the old one."""
+def test_the_yes_prob_version_holds_both_prompts_and_the_mapping(monkeypatch):
+    """A changed prompt or mapping must not reuse grades cached under the old one."""
     from efficienteqa.eval import judge
 
     before = judge.prompt_version("yes-prob")
-    monkeypatch.setattr(judge, "YES_POWER", 1.0)
+    monkeypatch.setattr(judge, "YES_COMBINE", "arithmetic mean")
     assert judge.prompt_version("yes-prob") != before
-    assert judge.prompt_version("grade") == judge.prompt_version("grade")
+    monkeypatch.undo()
+    real = judge.load_prompt
+    monkeypatch.setattr(judge, "load_prompt", lambda name, package: real(name, package) + (
+        " " if name == "judge_correct" else ""))
+    assert judge.prompt_version("yes-prob") != before

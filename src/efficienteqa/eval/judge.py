@@ -8,14 +8,17 @@ grades say so in ``raw``. Synthetic questions, whose every accepted answer is kn
 by ``rule_judge`` instead, with LLM-Match beside it when a judge model is given.
 
 ``mode="yes-prob"`` is for judges too small to grade 1-5 (the embedded 1.5B model's grades were
-nearly uniform over 1-5, whatever the answers): the judge is asked only whether the response
-gives the correct answer (prompts/judge_same.txt: the rubric's yes and no cases with six worked
-examples), and the grade is ``1 + round(4 * P(yes) ** YES_POWER)`` from the token
-probabilities of its one-token reply (tokens read as words: "▁Yes", "Yes." and " yes" are
-yes). The prompt leans the 1.5B model towards yes (P(yes) of wrong answers 0.5-0.75), and
-``YES_POWER`` = 2 undoes that lean: fitted on the shared hand-graded set (HM-EQA), the one with
-the lowest mean absolute error there. ``judge_rules.rule_bounds`` then holds the grade to what
-the words alone make certain (an opposite yes/no, another colour, the reference's words).
+nearly uniform over 1-5, whatever the answers): the judge is asked two yes/no questions, and
+the grade is ``1 + round(4 * P)`` where ``P`` is the geometric mean of the two P(yes) read from
+the token probabilities of its one-token replies (tokens read as words: "▁Yes", "Yes." and
+" yes" are yes). The two questions lean opposite ways, and their mean holds the lean of
+neither: prompts/judge_same.txt asks whether the response says the same thing as the correct
+answer (strict: a right answer in other words or with more detail often gets P(yes) < 0.5);
+prompts/judge_correct.txt asks whether it gives the correct answer, with the rubric's yes and
+no cases and six worked examples (lenient: wrong answers get 0.5-0.75). On the shared
+hand-graded set the mean agreed better than either question alone. ``judge_rules.rule_bounds``
+then holds the grade to what the words alone make certain (an opposite yes/no, another colour,
+the reference's words).
 ``mode="grade"`` (the OpenEQA form) is the default for capable judges such as GPT-4o.
 
 Bad judge output never raises: replies are parsed leniently, retried once, and otherwise scored
@@ -201,15 +204,16 @@ def render_prompt(question: str, reference: str, response: str, extra: Sequence[
 JUDGE_MODES = ("grade", "yes-prob")
 
 
-# yes-prob: the grade is 1 + round(4 * P(yes) ** YES_POWER) (see the module docstring).
-YES_POWER = 2.0
+# yes-prob: the templates asked, and how their P(yes) become one (see the module docstring).
+YES_PROMPTS = ("judge_same", "judge_correct")
+YES_COMBINE = "geometric mean"
 
 
 def prompt_version(mode: str = "grade") -> str:
-    """A hash of everything the judge is told and of how its reply becomes a grade, so a changed
-    prompt or mapping does not reuse old grades."""
+    """A hash of everything the judge is told and of how its replies become a grade, so a
+    changed prompt or mapping does not reuse old grades."""
     text = (load_prompt("judge", PROMPTS) + "\n" + REMINDER if mode == "grade"
-            else load_prompt("judge_same", PROMPTS) + f"\nP(yes) ** {YES_POWER:g}")
+            else "\n".join([*(load_prompt(t, PROMPTS) for t in YES_PROMPTS), YES_COMBINE]))
     return hashlib.sha256(f"{mode}\n{text}".encode()).hexdigest()[:16]
 
 
@@ -310,8 +314,8 @@ class LLMMatchJudge:
         judgement = self._lookup(key)
         if judgement is None:
             if self.mode == "yes-prob":
-                judgement = self._yes_prob(render_prompt(question, reference, response, extra,
-                                                         template="judge_same"))
+                judgement = self._yes_prob([render_prompt(question, reference, response, extra,
+                                                          template=t) for t in YES_PROMPTS])
             else:
                 judgement = self._grade(render_prompt(question, reference, response, extra))
             self._store(key, judgement)
@@ -323,15 +327,28 @@ class LLMMatchJudge:
                        raw=f"{judgement.raw} (held to {bounds.low}-{bounds.high} by rule: "
                            f"{bounds.rule}: {score})")
 
-    def _yes_prob(self, prompt: str) -> Judgement:
-        reply = self.model.chat([Message("user", prompt)], max_tokens=1, temperature=0.0,
-                                logprobs=TOP_LOGPROBS)
-        p = p_yes(reply.logprobs or [])
-        if p is None:
-            return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name, reply.text,
-                             (f"no yes/no among the reply's tokens, scored {DEFAULT_SCORE}",))
-        score = MIN_SCORE + round((MAX_SCORE - MIN_SCORE) * p ** YES_POWER)
-        return Judgement(score, score_value(score), self.name, f"P(yes)={p:.3f}")
+    def _yes_prob(self, prompts: Sequence[str]) -> Judgement:
+        """One call per prompt; the grade from the geometric mean of their P(yes). A prompt
+        whose reply holds no yes/no is left out (and said); none at all is the default grade."""
+        found: list[float] = []
+        parts, problems = [], []
+        for template, prompt in zip(YES_PROMPTS, prompts, strict=True):
+            reply = self.model.chat([Message("user", prompt)], max_tokens=1, temperature=0.0,
+                                    logprobs=TOP_LOGPROBS)
+            p = p_yes(reply.logprobs or [])
+            if p is None:
+                parts.append(f"{template} {reply.text!r}")
+                problems.append(f"no yes/no among the {template} reply's tokens")
+            else:
+                parts.append(f"{template} {p:.3f}")
+                found.append(p)
+        if not found:
+            return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name,
+                             "; ".join(parts), (*problems, f"scored {DEFAULT_SCORE}"))
+        p = math.prod(found) ** (1.0 / len(found))
+        score = MIN_SCORE + round((MAX_SCORE - MIN_SCORE) * p)
+        return Judgement(score, score_value(score), self.name,
+                         f"P(yes)={p:.3f} ({'; '.join(parts)})", tuple(problems))
 
     def _grade(self, prompt: str) -> Judgement:
         caps = self.model.capabilities
