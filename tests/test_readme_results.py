@@ -1,8 +1,9 @@
-"""Published runs (issue 17 section 3): summary.json, the README's results tables, paired
+"""Published runs: summary.json, the results tables of the README and of docs/RESULTS.md, paired
 differences.
 
-The README's results blocks must equal what their folders under ``results/`` generate; the block
-machinery is checked on a tmp README with run folders written here (no model).
+Every results block of README.md and docs/RESULTS.md must equal what its folders under
+``results/`` generate; the block machinery is checked on a tmp README with run folders written
+here (no model).
 """
 
 from __future__ import annotations
@@ -57,16 +58,36 @@ def two_runs(root: Path) -> tuple[Path, Path]:
     return ref, new
 
 
-def test_the_readme_results_tables_are_what_their_results_folders_generate():
-    text = (ROOT / "README.md").read_text()
+# The pages whose results tables are generated: the README's short main table, and every run
+# table in docs/RESULTS.md. Each must hold at least one block.
+GENERATED_PAGES = ("README.md", "docs/RESULTS.md")
+
+
+@pytest.mark.parametrize("page", GENERATED_PAGES)
+def test_the_published_results_tables_are_what_their_results_folders_generate(page):
+    text = (ROOT / page).read_text()
     blocks = readme_blocks(text)
-    assert blocks, "README.md has no <!-- results: ... --> block"
+    assert blocks, f"{page} has no <!-- results: ... --> block"
     for command, _ in blocks:
         args = parse_report_command(command)
         assert args.markdown and all((ROOT / f / RUN_FILE).exists() for f in args.folders), command
+        assert args.paired_against is None or args.paired_against in args.folders, command
     assert regenerate_readme(text, ROOT) == text, (
-        "a README results table differs from its results/ folders: regenerate it with the command "
-        "in its <!-- results: ... --> line")
+        f"a results table in {page} differs from its results/ folders: regenerate it with the "
+        "command in its <!-- results: ... --> line")
+
+
+def test_the_readme_main_table_is_a_short_form_of_the_full_one():
+    """The README shows some rows of docs/RESULTS.md's main table, from the same folders and
+    against the same reference: the two cannot tell different stories."""
+    def main_block(page: str) -> tuple[list[Path], Path | None]:
+        blocks = [parse_report_command(c) for c, _ in readme_blocks((ROOT / page).read_text())]
+        (args,) = [a for a in blocks if any("main-heldout" in str(f) for f in a.folders)]
+        return args.folders, args.paired_against
+
+    short, short_ref = main_block("README.md")
+    full, full_ref = main_block("docs/RESULTS.md")
+    assert set(short) <= set(full) and short_ref == full_ref
 
 
 def test_a_stale_readme_block_is_regenerated_and_other_text_kept(tmp_path):
