@@ -128,3 +128,12 @@ def bounds(question: str, reference: str, response: str) -> tuple[int, int] | No
 def test_rule_bounds_hold_the_model_to_what_the_words_make_certain(question, reference, response,
                                                                     expected):
     assert bounds(question, reference, response) == expected
+
+
+def test_an_opposite_yes_no_is_not_wrong_when_an_accepted_answer_says_it():
+    from efficienteqa.eval.judge_rules import rule_bounds
+
+    held = rule_bounds("Is the door open?", "no", "Yes, a little, by the hinge")
+    assert held is not None and (held.low, held.high) == (1, 1) and "yes against no" in held.rule
+    held = rule_bounds("Is the door open?", "no", "Yes, a little, by the hinge", ["yes"])
+    assert held is not None and (held.low, held.high) == (4, 5)  # as the accepted bare yes

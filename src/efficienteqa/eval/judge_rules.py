@@ -432,10 +432,11 @@ def rule_bounds(question: str, reference: str, response: str, extra: Sequence[st
     if not tokens:
         return None
     got = stance(response, question)
-    for ref_text in (reference, *extra):
-        ref = stance(ref_text, question)
-        if ref.value and got.value and _opposite(ref.value, got.value):
-            return Bounds(MIN_SCORE, MIN_SCORE, f"says {got.value} against {ref.value}")
+    refs = [stance(ref_text, question).value for ref_text in (reference, *extra)]
+    if got.value and got.value not in refs:
+        against = next((r for r in refs if r and _opposite(r, got.value)), None)
+        if against is not None:
+            return Bounds(MIN_SCORE, MIN_SCORE, f"says {got.value} against {against}")
     if hedges(response) or "or" in tokens or any(t in NEGATORS for t in tokens):
         return None
     caps = [_other_colour(question, ref_text, response) for ref_text in (reference, *extra)]
