@@ -1,6 +1,6 @@
 """The paper's Z_th and K ablations (Fig. 5/6), replayed from one run explored to the budget.
 
-Issue 17, section 2. Exploration does not depend on the stop rule or on K, so one run of
+DESIGN 3.6. Exploration does not depend on the stop rule or on K, so one run of
 
     efficienteqa eval --no-early-stop --out RUN_DIR [--method ... --dataset ...]
 
@@ -30,7 +30,7 @@ Files, next to the run (``--out``, default ``RUN_DIR/ablation_replay.json``):
 
 Tables: Z_th -> accuracy, mean steps, share stopped by relevancy (at ``--stop-k``, default the
 run's K); K -> accuracy at the budget and at each Z_th's stop. The paper's numbers (HM-EQA,
-GPT-4o, its own set-up; SPEC 3.6) are printed beside them for the shape only.
+GPT-4o, its own set-up; DESIGN 3.6) are printed beside them for the shape only.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent, parse_vlm
 from efficienteqa.stop.relevancy import StopConfig
 
-# The paper's Fig. 5/6 (HM-EQA, 100 questions, GPT-4o; SPEC 3.6): LLM-Match on its own set-up.
+# The paper's Fig. 5/6 (HM-EQA, 100 questions, GPT-4o; DESIGN 3.6): LLM-Match on its own set-up.
 PAPER_Z = {1.0: (28.94, 47.75), 2.0: (28.70, 53.50), 3.0: (30.16, 54.25)}  # steps, LLM-Match
 PAPER_K = {10: 53.50, 5: 54.25, 3: 52.00, 1: 51.25}
 BUDGET = "budget"  # the setting without early stop: the episode as recorded

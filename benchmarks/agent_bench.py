@@ -1,10 +1,10 @@
-"""The agent end to end on synthetic questions (issue 5): steps, stops, answers, wall time.
+"""The agent end to end on synthetic questions: steps, stops, answers, wall time.
 
 Back-ends (the offline default stack): synthetic houses with Sweet Home 3D CC0 furniture rendered
 by moderngl/EGL on the CPU; semantic-sensor perception (object labels as text, no pixels);
 Qwen2.5-Coder-1.5B Q4_K_M on the local llama.cpp server; MiniLM text relevancy; LLM grouping.
 Answers are compared with the ground truth by normalised string match, not LLM-Match (the
-judge is the evaluation issue's). The response cache is off, so every model call is timed.
+judge belongs to the evaluation). The response cache is off, so every model call is timed.
 
     python benchmarks/agent_bench.py --questions 12 [--relevancy minilm-match] [--out out/bench]
 """

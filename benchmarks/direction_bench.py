@@ -1,4 +1,4 @@
-"""Direction benchmark (issue 15 part 4): which lettered direction leads to the evidence?
+"""Direction benchmark (DESIGN 8): which lettered direction leads to the evidence?
 
 Frames come from exploration episodes in synthetic houses, run with the explore module as the
 agent runs it (SFE, the default prompt points; flat semantic values, so the episodes do not

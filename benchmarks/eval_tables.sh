@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The evaluation behind the README's tables (issue 6): every method on the first LIMIT questions
+# The evaluation behind the README's tables: every method on the first LIMIT questions
 # of the synthetic split, the Z_th and K ablations, the Ray speed-up with cached model calls, and
 # Blind on HM-EQA. Runs resume: re-running this script continues where it stopped.
 #

@@ -1,4 +1,4 @@
-"""Exploration benchmarks (issue 3): per-step cost, coverage, and semantic steering.
+"""Exploration benchmarks (DESIGN 3.2, 8; results/explore/): per-step cost, coverage, and semantic steering.
 
 Back-ends: synthetic environment (Sweet Home 3D CC0 furniture, or --assets builtin), depth and
 instance buffers rendered with moderngl/EGL on the CPU; no model: semantic values are either
@@ -72,7 +72,7 @@ STOP_CLEARANCE: float | None = None  # --stop-clearance override
 REFUSAL_RETRIES = module_retries  # --refusal-retries override
 EXPLORER_CONFIG: dict = {}  # --set FIELD=VALUE overrides of the explorer's config
 EXPLORATION = "default"  # --exploration: a key of explore.registry.EXPLORATIONS
-PROMPTS = PromptConfig()  # --prompt FIELD=VALUE overrides; --prompt paper: SPEC 3.3's
+PROMPTS = PromptConfig()  # --prompt FIELD=VALUE overrides; --prompt paper: DESIGN 3.3's
 
 # Semantic scorers for steering: name -> factory(env, question, evidence distance, glimpsed).
 # "oracle" is the ground truth; others (model-free text scorers, model elicitations) register
@@ -86,7 +86,7 @@ STEERING_SCORERS: dict[str, ScorerFactory] = {
 
 def _text_scorer(name: str) -> ScorerFactory:
     """A model-free direction scorer of the offline stack (stack.EXPLORE_SCORERS) over the
-    semantic perception's direction texts (issue 15 part 4)."""
+    semantic perception's direction texts (DESIGN 8)."""
     def factory(env: SyntheticEnv, q: Question, distance_m: EvidenceDistance,
                 glimpsed: Callable[[np.ndarray], bool]) -> SemanticScorer:
         from efficienteqa.perception.semantic import SemanticPerception
@@ -588,9 +588,9 @@ def main() -> None:
                              "--set backoff_m=1.0")
     parser.add_argument("--prompt", action="append", default=[], metavar="FIELD=VALUE",
                         help="override a field of the prompt points' PromptConfig (repeatable); "
-                             "'--prompt paper' starts from SPEC 3.3's (2-10 m, 1 m apart)")
+                             "'--prompt paper' starts from DESIGN 3.3's (2-10 m, 1 m apart)")
     parser.add_argument("--exploration", default="default", choices=list(EXPLORATIONS),
-                        help="the frontier explorer's options beyond SPEC 3.2: default, or "
+                        help="the frontier explorer's options beyond DESIGN 3.2: default, or "
                              "paper (every one off; with --stop-clearance 0 --refusal-retries 0 "
                              "--prompt paper: the paper preset)")
     parser.add_argument("--out", default="out/bench")

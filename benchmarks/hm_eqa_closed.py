@@ -1,4 +1,4 @@
-"""HM-EQA closed-set, Blind LLM (issue 17 part 4): letter accuracy against the majority-choice
+"""HM-EQA closed-set, Blind LLM (results/hm-eqa/blind-closed/): letter accuracy against the majority-choice
 prior, overall and per question category (HM-EQA's ``label`` column).
 
 Reads a run of

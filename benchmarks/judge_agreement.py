@@ -1,4 +1,4 @@
-"""How an LLM-Match judge agrees with hand grades (issue 14): mean absolute error, Spearman
+"""How an LLM-Match judge agrees with hand grades (DESIGN 8): mean absolute error, Spearman
 correlation and the mean grade it gives to answers graded 1, per judge and mode.
 
 The default data is the shared hand-graded set (HM-EQA questions; 120 constructed responses and

@@ -1,4 +1,4 @@
-"""Issue 17's targets for the main table: EfficientEQA's mean steps as a fraction of white-box
+"""The main table's targets (results/main-heldout/): EfficientEQA's mean steps over white-box
 ExploreEQA's (target <= 0.6) and its accuracy gain (target >= +10 points), paired over the
 questions both runs answered, each with a paired bootstrap 95% interval (scipy.stats.bootstrap:
 the differences as the report's paired columns, the ratio of mean steps by percentile).
@@ -57,7 +57,7 @@ def main() -> None:
     d_low, d_high = mean_interval(list(steps[0] - steps[1]))
     gain = 100 * (right[0].mean() - right[1].mean())
     g_low, g_high = (100 * v for v in mean_interval(list(right[0] - right[1])))
-    # The issue's bar: the point estimate meets the target and the paired interval of the
+    # The targets' bar: the point estimate meets the target and the paired interval of the
     # difference excludes 0; whether the interval clears the target itself is printed too.
     steps_met = ratio <= 0.6 and d_high < 0
     gain_met = gain >= 10 and g_low > 0

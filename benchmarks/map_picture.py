@@ -34,7 +34,7 @@ from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.visualize import map_image, world_to_image
 from efficienteqa.scenes import synthetic_questions
 
-# The two sides: the paper's machinery (SPEC 3.2-3.3 with the paper's stepping) and the defaults.
+# The two sides: the paper's machinery (DESIGN 3.2-3.3 with the paper's stepping) and the defaults.
 SIDES = {
     "paper": {"explorer": {**EXPLORATIONS["paper"], "stop_clearance_m": 0.0}, "prompts": "paper",
               "retries": 0},

@@ -1,4 +1,4 @@
-"""Model back-end benchmark (issue 4): latency and tokens per call type on the default stack.
+"""Model back-end benchmark: latency and tokens per call type on the default stack.
 
 Back-ends: the embedded language model (Qwen2.5-Coder-1.5B-Instruct Q4_K_M, llama.cpp server on
 loopback, 2 threads) reading semantic-sensor descriptions of synthetic-house frames (CC0
@@ -126,7 +126,7 @@ def main() -> None:
     print(f"cache hit: {1e3 * (time.perf_counter() - t):.1f} ms")
     print(f"peak memory: server {server_peak_mib(info):.0f} MiB, this process "
           f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
-    print("judging: LLM-Match comes with the evaluation issue; not measured here")
+    print("judging: LLM-Match is measured by the evaluation, not here")
 
 
 if __name__ == "__main__":

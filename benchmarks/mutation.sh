@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Mutation benchmark (issue 14), not a CI step: mutmut mutates the stop module (stop/), the VC
+# Mutation benchmark, not a CI step: mutmut mutates the stop module (stop/), the VC
 # parser (vc/parse.py), the RAG answer (answer/rag.py) and the judge (eval/judge.py), runs each
 # mutant against the fast tests that reach it ([tool.mutmut] in pyproject.toml) and prints, per
 # file, the share of mutants killed: a test failed (or timed out) with the mutation in place.

@@ -1,4 +1,4 @@
-"""Throughput of the evaluation runner on 1, 2, 4, 8 Ray workers at API latency (issue 17 part 5).
+"""Throughput of the evaluation runner on 1, 2, 4, 8 Ray workers at API latency (DESIGN 6, results/ray/).
 
 The model is the replay server (``benchmarks/replay_server.py``), started here on a free port: it
 answers every call from the response cache after ``--latency-s`` seconds, as GPT-4o or a shared

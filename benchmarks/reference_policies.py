@@ -1,4 +1,4 @@
-"""Reference policies for the steering benchmark (issue 24, items 5-6): yardsticks, not agents.
+"""Reference policies for the steering benchmark (DESIGN 9): yardsticks, not agents.
 
 They walk a synthetic house with the project's step rule and read its ground truth (rooms,
 doors, the navigation grid, which room holds the question's evidence); the renderer only says

@@ -5,7 +5,7 @@ Usage: .venv/bin/python benchmarks/render_bench.py [--triangles 150000 330000]
 
 Each scene is a 12 x 12 m textured floor, walls on a 4 m grid, textured and plain boxes
 ("furniture", 12 triangles each) and dense icospheres that bring it to the requested count.
-The camera (SPEC default: 1.5 m high, 30 deg down, 120 deg FOV) walks a circle inside; each
+The camera (DESIGN 3.1 default: 1.5 m high, 30 deg down, 120 deg FOV) walks a circle inside; each
 size is warmed up, then timed over ``--frames`` renders (read-back of RGB, depth and instance
 included). Prints median and 95th percentile milliseconds per frame.
 """

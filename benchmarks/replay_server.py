@@ -1,4 +1,4 @@
-"""An OpenAI-compatible replay server, for benchmarks only (issue 17 part 5).
+"""An OpenAI-compatible replay server, for benchmarks only (DESIGN 6, results/ray/).
 
 It answers ``POST /v1/chat/completions`` from the project's response cache
 (``efficienteqa.models.cache``) after sleeping a set latency, so that the evaluation runner can be

@@ -1,4 +1,4 @@
-"""Seeing the evidence and stopping at it (issue 24): the real agent, without the language model.
+"""Seeing the evidence and stopping at it (DESIGN 9): the real agent, without the language model.
 
 Back-ends: synthetic houses (Sweet Home 3D CC0 furniture), semantic-sensor perception (the
 simulator's labels as text, not pixels), MiniLM text relevancy, the model-free

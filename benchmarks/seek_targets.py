@@ -1,4 +1,4 @@
-"""Issue 24's measures of an evaluation run: is the evidence seen, and does the robot stop on it?
+"""The measures of DESIGN 9 on an evaluation run: is the evidence seen, and does the robot stop on it?
 
 Reads ``episodes.jsonl`` and, where the run folder still has them, each episode's
 ``episodes/*/episode.json`` (for the steps that showed the evidence); writes ``seek.json`` beside

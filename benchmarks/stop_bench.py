@@ -1,4 +1,4 @@
-"""Stop rules replayed on recorded trajectories, no model (issue 16 part 1).
+"""Stop rules replayed on recorded trajectories, no model (DESIGN 8, results/stop/).
 
 ``record``: the agent (``Agent.run``, early stop off, a stub chat model that is never asked
 anything but the final answer) walks each synthetic house; every valid frame keeps its step,

@@ -1,5 +1,5 @@
-"""Ablations replayed from one episode explored to its budget (issue 17, section 2): a replayed
-stop and retrieval equal the live ones; the replayed stop follows SPEC 3.4 for every Z_th."""
+"""Ablations replayed from one episode explored to its budget (DESIGN 3.6): a replayed
+stop and retrieval equal the live ones; the replayed stop follows DESIGN 3.4 for every Z_th."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ CAMERA = CameraSpec().scaled(320, 240)
 
 
 def _paper_stop(sims: list[float], z_th: float, min_step: int = 10) -> int | None:
-    """SPEC 3.4 written out: the first step t >= min_step whose z against the mean and sample
+    """DESIGN 3.4 written out: the first step t >= min_step whose z against the mean and sample
     std of the frames before it exceeds z_th (steps from 1)."""
     for t in range(min_step, len(sims) + 1):
         history = np.array(sims[:t - 1])
@@ -166,7 +166,7 @@ def test_the_benchmark_replays_stops_without_a_model_and_resumes(tmp_path, capsy
     summary = __import__("json").loads((tmp_path / "ablation_replay.json").read_text())
     z = {r["stop"]: r for r in summary["z_th"]}
     assert z["budget"]["mean_steps"] == 20 and z["budget"]["relevancy_stop_share"] == 0
-    # Episode a stops at 11/13/16/19 (SPEC 3.4 above); the flat episode b never stops.
+    # Episode a stops at 11/13/16/19 (DESIGN 3.4 above); the flat episode b never stops.
     assert z["paper@z=1"]["mean_steps"] == (11 + 20) / 2
     assert z["paper@z=4"]["mean_steps"] == (19 + 20) / 2 and z["paper@z=4"]["relevancy_stop_share"] == 50
     assert summary["k"] == [{"k": k, **{name: None for name in z}} for k in (1, 3, 5)]

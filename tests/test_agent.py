@@ -73,7 +73,7 @@ def test_a_model_that_never_points_at_it_runs_to_the_budget(house4, tmp_path):
     scene, q = house4
     # Steered away, the robot still passes the office by chance: at step 11 a frame names the
     # desk there (since frontiers along slanted edges are kept). 10 steps stay clear of it under
-    # SPEC 3.4's rule, without the gate and the target steering (which walks to the office).
+    # DESIGN 3.4's rule, without the gate and the target steering (which walks to the office).
     r = _episode(scene, q, averse_model, tmp_path, max_steps=10,
                  stop=StopConfig(rule="paper"), gate="none", steering="none").result
     assert r.stop_reason == "budget" and r.steps == 10
@@ -373,7 +373,7 @@ def test_the_token_answer_settings_reach_the_answerer(house4, given, read):
 
 
 def test_an_unreadable_relevancy_reply_is_missing_and_every_problem_is_counted(house4, tmp_path):
-    """Issue 25 defects 5 and 6: the frame whose yes/no reply could not be read has no Sim, so
+    """The frame whose yes/no reply could not be read has no Sim, so
     it neither stops the robot nor is retrieved; the explore, relevancy and answer problems are
     counted in episode.json."""
     scene, q = house4
@@ -404,7 +404,7 @@ def test_an_unreadable_relevancy_reply_is_missing_and_every_problem_is_counted(h
 
 
 def test_an_episode_that_fails_at_its_answer_keeps_what_it_explored(house4, tmp_path):
-    """Issue 25 defect 4: ``ask`` writes episode.json with the steps taken and every model
+    """``ask`` writes episode.json with the steps taken and every model
     call made before the failure, and the error carries that record for eval's row."""
     scene, q = house4
 
@@ -426,7 +426,7 @@ def test_an_episode_that_fails_at_its_answer_keeps_what_it_explored(house4, tmp_
 
 
 def test_the_records_back_ends_say_the_servers_capabilities_and_the_answers_fallback(house4):
-    """Issue 25 defect 3: a server without token probabilities gets the paper's verbalized
+    """A server without token probabilities gets the paper's verbalized
     answer, and every record says so, with the capabilities it was run with."""
     scene, _ = house4
     without = StubChatModel(["x"], capabilities=Capabilities(images=True, logprobs=False,

@@ -1,4 +1,4 @@
-"""The answer with its confidence (SPEC 3.5, 3.6): the VC answer, the white-box token
+"""The answer with its confidence (DESIGN 3.5, 3.6): the VC answer, the white-box token
 probability, the Blind LLM."""
 
 from __future__ import annotations
@@ -131,7 +131,7 @@ def test_verbalized_token_probability_reads_the_answer_not_the_written_number(to
     result = verbalized_token_probability(stub, "What is on the nightstand?", ["a speaker"])
     assert result.answer == answer and result.confidence == pytest.approx(confidence)
     prompt = stub.requests[0].messages[-1].text
-    assert "Give your 1 best guesses" in prompt and "answer; confidence" in prompt  # SPEC 3.5, M=1
+    assert "Give your 1 best guesses" in prompt and "answer; confidence" in prompt  # DESIGN 3.5, M=1
     assert stub.requests[0].logprobs == 1
 
 
@@ -249,7 +249,7 @@ def test_focus_on_what_stands_on_the_surface_not_the_surface():
 
 
 def test_image_answers_get_hints_written_for_images():
-    """Issue 25 defect 2: a VLM reading frames is not told about entries, brackets or words
+    """A VLM reading frames is not told about entries, brackets or words
     written before a name; the text hints stay as they were (the offline cache still hits)."""
     from efficienteqa.answer.vc import answer_token_probability
 
@@ -268,7 +268,7 @@ def test_image_answers_get_hints_written_for_images():
 
 
 def test_images_beyond_the_servers_cap_are_cut_least_relevant_first():
-    """Issue 25 defect 4: a server that takes one image per request gets the best frame only,
+    """A server that takes one image per request gets the best frame only,
     and the answer's problems say so."""
     from dataclasses import replace as _replace
 
@@ -300,7 +300,7 @@ def test_images_beyond_the_servers_cap_are_cut_least_relevant_first():
     ("", "", 0),
 ])
 def test_the_answer_line_of_a_chatty_reply(raw, answer, line):
-    """Issue 25: a VLM server's preamble, code fence or markdown is not the answer."""
+    """A VLM server's preamble, code fence or markdown is not the answer."""
     from efficienteqa.answer.vc import reply_answer
 
     assert reply_answer(raw) == (answer, line)

@@ -475,7 +475,7 @@ def test_broken_cache_does_not_fail_the_call(serve, tmp_path, caplog):
 @pytest.mark.parametrize("entry", ["{not json", '{"text": "B", "model": 7, "logprobs": [1]}',
                                    '[1, 2]', '{"bogus": 1}'])
 def test_a_bad_cache_entry_is_a_miss_and_is_dropped(serve, tmp_path, caplog, entry):
-    """Issue 26: another version of the code may write into the shared cache; an entry this one
+    """Another version of the code may write into the shared cache; an entry this one
     cannot read costs one model call, once, not every episode that hits it."""
     server = serve()
     client = make_client(server, tmp_path, cache=True)
@@ -489,7 +489,7 @@ def test_a_bad_cache_entry_is_a_miss_and_is_dropped(serve, tmp_path, caplog, ent
 
 
 def test_a_reply_that_is_not_utf8_is_one_line(serve, tmp_path):
-    """Issue 26: bytes that are not UTF-8 from a server are a clear error, not a traceback."""
+    """Bytes that are not UTF-8 from a server are a clear error, not a traceback."""
     bad = b'{"choices": [{"index": 0, "message": {"role": "assistant", "content": "\xff\xfe"}}]}'
     client = make_client(serve(Reply(body=bad)), tmp_path)
     with pytest.raises(EfficientEQAError, match="not UTF-8|not JSON") as err:
@@ -510,7 +510,7 @@ def test_probe_capabilities(serve, tmp_path):
     assert not client.probe_capabilities().logprobs  # answered, but without logprobs
 
 
-# ------------------------------------------------------------------ issue 25: the model layer
+# ------------------------------------------------ real servers' habits: the model layer
 
 @pytest.fixture
 def private_cache(tmp_path, monkeypatch):
@@ -574,7 +574,7 @@ def test_an_unreachable_openai_server_fails_before_the_work_with_its_own_hint(pr
 
 
 def test_the_probe_retries_once_whatever_the_retries(serve, private_cache):
-    """A dead or hung server fails the start in two tries, not the calls' five (issue 26)."""
+    """A dead or hung server fails the start in two tries, not the calls' five."""
     base_url = f"http://127.0.0.1:{closed_port()}/v1"
     with pytest.raises(EfficientEQAError, match="unreachable after 2 tries"):
         build_chat_model(ChatBackend(kind="openai", model="m", base_url=base_url, retries=4))
@@ -593,7 +593,7 @@ def test_the_local_server_is_not_probed(serve, private_cache):
 
 
 def test_the_image_probe_finds_a_per_request_cap(serve, private_cache):
-    """vLLM's --limit-mm-per-prompt image=1 answers HTTP 400 to 5 images (issue 25, item 4)."""
+    """vLLM's --limit-mm-per-prompt image=1 answers HTTP 400 to 5 images."""
     limit = Reply(400, {"error": {"message": "At most 1 image(s) may be provided in one request."}})
     server = serve(Reply(body=completion(logprobs=True)), Reply(), limit, Reply())
     caps = build_chat_model(openai_backend(server, images=True)).capabilities
@@ -815,7 +815,7 @@ def _smollm2_gguf() -> Path | None:
 @pytest.fixture(scope="module")
 def llama_server(tmp_path_factory):
     if importlib.util.find_spec("llama_cpp") is None:
-        pytest.skip("llama_cpp is not importable (see PLATFORM.md: build llama-cpp-python portable)")
+        pytest.skip("llama_cpp is not importable (build llama-cpp-python with GGML_NATIVE=OFF)")
     gguf = _smollm2_gguf()
     if gguf is None:
         pytest.skip("SmolLM2 gguf not installed (run: efficienteqa models install smollm2-135m)")

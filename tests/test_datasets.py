@@ -127,7 +127,7 @@ def test_hm_eqa_missing_column_and_bad_pose(tmp_path):
 
 
 def test_hm_eqa_bad_bytes_and_huge_fields_are_one_line(tmp_path):
-    """Issue 26: invalid UTF-8 and a field over csv's 131,072-character limit."""
+    """Invalid UTF-8 and a field over csv's 131,072-character limit."""
     _write(tmp_path, [GOOD])
     path = tmp_path / "questions.csv"
     path.write_bytes(path.read_bytes() + b"s1,0,Is it \xff on?,\"['a', 'b']\",q,A,state\n")
@@ -222,7 +222,7 @@ def test_names_and_flags():
     assert synthetic.parse_seeds("0-9") == list(range(10))
     assert synthetic.parse_seeds("1,4,7") == [1, 4, 7]
     assert synthetic.parse_seeds("7, 0-2") == [0, 1, 2, 7]
-    with pytest.raises(EfficientEQAError, match="names more than 5000 houses"):  # issue 26
+    with pytest.raises(EfficientEQAError, match="names more than 5000 houses"):
         load_dataset("synthetic:0-100000000", limit=2)  # at once, not after generating them
     with pytest.raises(EfficientEQAError, match="names more than 5000 houses"):
         load_dataset("synthetic:0-2999,5000-7999", limit=2)

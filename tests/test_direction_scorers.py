@@ -1,4 +1,4 @@
-"""Direction scorers (issue 15 part 4): the model-free text scorers, the black-box elicitations
+"""Direction scorers (DESIGN 8): the model-free text scorers, the black-box elicitations
 with a stub model, the explore scorer a stack picks, and the direction benchmark's labelling."""
 
 from __future__ import annotations

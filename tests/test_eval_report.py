@@ -304,7 +304,7 @@ def test_evidence_in_view_and_refused_moves_are_summarised_and_tabled(tmp_path):
 
 
 def test_parse_problems_are_summed_per_kind_of_call_and_tabled(tmp_path):
-    """Issue 25 defect 6: the explore, relevancy and answer calls' unread replies reach the run's
+    """The explore, relevancy and answer calls' unread replies reach the run's
     summary and report; runs recorded before the counts existed show no table."""
     rows = [episode(0), episode(1), episode(2, status="failed")]
     rows[0]["extra"] = {"problems": {"explore": 3, "relevancy": 1, "answer": 0}}

@@ -223,7 +223,7 @@ def test_settings_added_later_default_to_none_so_recorded_runs_resume():
     """A new setting with a non-None default changes every new manifest, and each run recorded
     before it (results/) is then refused as another configuration. These are the settings that
     had non-None defaults when the published runs were recorded; add new ones as None, unless
-    the new default changes what a run does: ``gate`` and ``steering`` (issue 24) are set by
+    the new default changes what a run does: ``gate`` and ``steering`` (DESIGN 9) are set by
     default on purpose, so that a run recorded without them is not resumed with them."""
     import dataclasses
 
@@ -270,7 +270,7 @@ def test_blind_needs_no_image_relevancy_scorer(tmp_path, monkeypatch, relevancy)
 
 
 def test_a_failed_episode_keeps_the_steps_and_the_calls_it_paid_for(tmp_path):
-    """Issue 25 defect 4: an episode that fails at its answer call has explored and called the
+    """An episode that fails at its answer call has explored and called the
     model; its row counts those calls (``usage``) beside the error."""
     run_eval(spec("eval_stubs:fails_late"), questions(1), tmp_path, prepare=False)
     (row,) = lines(tmp_path)
@@ -280,7 +280,7 @@ def test_a_failed_episode_keeps_the_steps_and_the_calls_it_paid_for(tmp_path):
 
 
 def test_a_folder_with_episodes_but_no_run_json_is_refused(tmp_path):
-    """Issue 26: deleting run.json must not let another configuration adopt the episodes."""
+    """Deleting run.json must not let another configuration adopt the episodes."""
     run_eval(spec(), questions(2), tmp_path, prepare=False)
     (tmp_path / "run.json").unlink()
     with pytest.raises(EfficientEQAError, match="holds episodes but no run.json"):
@@ -359,7 +359,7 @@ def test_a_run_resumes_with_another_timeout_or_retries_but_not_another_server(tm
 
 
 def test_white_box_explore_eqa_is_refused_before_the_first_episode(tmp_path, monkeypatch):
-    """Issue 25 defect 3: refused once, in one line, not failed per episode."""
+    """Refused once, in one line, not failed per episode."""
     from efficienteqa.models.base import Capabilities
     from efficienteqa.models.stub import StubChatModel
 

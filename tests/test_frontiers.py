@@ -100,7 +100,7 @@ def test_clustering_equals_brute_force_dbscan(seed, eps):
 
 def test_a_diagonal_frontier_survives_clustering():
     cells = np.array([[k, k] for k in range(12)])  # a staircase boundary: corner to corner
-    assert cluster(cells, FrontierConfig(cluster_eps_cells=1.0)) == []  # SPEC's eps: all noise
+    assert cluster(cells, FrontierConfig(cluster_eps_cells=1.0)) == []  # ExploreEQA's eps: all noise
     (group,) = cluster(cells)  # the default eps keeps it as one frontier
     assert len(group) == 12
 
@@ -211,14 +211,14 @@ def slanted_state() -> MapState:
 
 
 def test_a_slanted_boundary_is_one_frontier_not_noise():
-    """Issue 24 item 5: the explorer reported "no frontier left" with rooms unexplored (houses
+    """The explorer reported "no frontier left" with rooms unexplored (houses
     19 and 2000 of the exploration benchmark), since every frontier cell of such a boundary
     is isolated and DBSCAN dropped them all."""
     s = slanted_state()
     cells = frontier_cells(s.island, s.unexplored)
     assert sorted(map(tuple, cells)) == [(k, 3 * k) for k in range(1, 19)]  # 3 columns apart
     assert cluster(cells) == []  # all noise for DBSCAN
-    assert extract_frontiers(s, FrontierConfig(isolated_along_boundary=False)) == []  # SPEC
+    assert extract_frontiers(s, FrontierConfig(isolated_along_boundary=False)) == []  # as ExploreEQA
     (f,) = extract_frontiers(s)
     assert f.size == 18
     assert f.normal[0] < 0 < f.normal[1]  # up and to the left: the unexplored side

@@ -1,4 +1,4 @@
-"""The main table's benchmark (issue 17 part 1) on 2 questions: every method runs on the same
+"""The main table's benchmark (results/main-heldout/) on 2 questions: every method runs on the same
 episodes, with the small real model, and the report pairs them against white-box ExploreEQA."""
 
 import json

@@ -1,5 +1,5 @@
 """Every agent method end to end against an OpenAI-compatible server (tests/vlm_server.py) in the
-configurations real servers have (issue 25 part 2): logprobs returned (GPT-4o, vLLM), ignored or
+configurations real servers have (DESIGN 9): logprobs returned (GPT-4o, vLLM), ignored or
 rejected (servers without logprobs), one image per request (vLLM's --limit-mm-per-prompt
 image=1). RGB perception, the VLM as relevancy scorer (vlm-match), a synthetic house with the
 built-in furniture, 4 steps. Each run either finishes with its episode written, or fails in one

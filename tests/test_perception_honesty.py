@@ -1,4 +1,4 @@
-"""Semantic-sensor perception says only what the camera shows (issue 14, section 3).
+"""Semantic-sensor perception says only what the camera shows (DESIGN 5).
 
 Random poses in several synthetic houses; for each frame the test works out from the instance
 and depth buffers alone (with the floor plan to name floor points) which rooms have floor in

@@ -23,16 +23,16 @@ from efficienteqa.observation import PromptPoint
 from efficienteqa.perception.image import CIRCLE_FILL, draw_prompts
 
 CAMERA = CameraSpec()  # 640 x 480, 120 deg, 1.5 m, pitched 30 deg down
-SPEC = GridSpec((0.0, 0.0), 0.1, (80, 120))  # 12 m x 8 m
+GRID = GridSpec((0.0, 0.0), 0.1, (80, 120))  # 12 m x 8 m
 ROBOT = Pose2D(1.0, 4.0, 0.0)  # facing +x
 
 
 def _state(free: np.ndarray, robot: Pose2D = ROBOT) -> MapState:
-    return MapState(SPEC, free, ~free, np.zeros_like(free), free.copy(), (robot.x, robot.y))
+    return MapState(GRID, free, ~free, np.zeros_like(free), free.copy(), (robot.x, robot.y))
 
 
 def _room() -> np.ndarray:
-    free = np.zeros(SPEC.shape, dtype=bool)
+    free = np.zeros(GRID.shape, dtype=bool)
     free[1:-1, 1:-1] = True
     return free
 
@@ -59,7 +59,7 @@ def _check(points: list[PromptPoint], state: MapState) -> None:
     assert [p.letter for p in points] == list("ABC"[: len(points)])
     us = [p.pixel[0] for p in points]
     assert us == sorted(us)  # "A" is the leftmost
-    free_grid, island = OccupancyGrid(SPEC, state.free), OccupancyGrid(SPEC, state.island)
+    free_grid, island = OccupancyGrid(GRID, state.free), OccupancyGrid(GRID, state.island)
     robot = np.array(state.robot_xy)
     for p in points:
         assert 2.0 <= np.linalg.norm(np.array(p.xy) - robot) <= 10.0
@@ -99,10 +99,10 @@ def test_no_candidate_behind_a_wall(seed):
 
 
 def test_fewer_than_two_candidates_give_nothing():
-    corridor = np.zeros(SPEC.shape, dtype=bool)
+    corridor = np.zeros(GRID.shape, dtype=bool)
     corridor[36:44, 5:33] = True  # x in [0.5, 3.3], y in [3.6, 4.4]: too small for two points
     assert _candidates(_state(corridor)) == []
-    small_room = np.zeros(SPEC.shape, dtype=bool)
+    small_room = np.zeros(GRID.shape, dtype=bool)
     small_room[30:50, 1:25] = True  # a 2.4 m x 2 m box: nothing 2 m away
     assert _candidates(_state(small_room)) == []
     off_island = _state(_room(), Pose2D(-5.0, -5.0, 0.0))
@@ -146,10 +146,10 @@ def test_unexplored_candidates_are_preferred():
 
 
 def test_default_prompts_ask_where_no_point_is_2_m_away():
-    """A small room (no floor 2 m from the robot): SPEC 3.3's 2-10 m finds no point to ask
+    """A small room (no floor 2 m from the robot): the paper's 2-10 m (DESIGN 3.3) finds no point to ask
     about; the default PromptConfig asks about points from 1 m, 0.75 m apart."""
-    free = np.zeros(SPEC.shape, dtype=bool)
-    (i0, j0), (i1, j1) = (SPEC.world_to_cell((ROBOT.x + dx, ROBOT.y + dy))
+    free = np.zeros(GRID.shape, dtype=bool)
+    (i0, j0), (i1, j1) = (GRID.world_to_cell((ROBOT.x + dx, ROBOT.y + dy))
                           for dx, dy in ((-0.5, -1.0), (1.6, 1.0)))
     free[i0:i1 + 1, j0:j1 + 1] = True  # rows along y, columns along x
     state = _state(free)
@@ -175,14 +175,14 @@ def test_the_paper_prompts_are_spec_3_3():
 
 @pytest.mark.parametrize("name", ["default", "paper"])
 def test_circles_of_points_in_one_line_of_sight_do_not_overlap(name):
-    """Issue 25 (9): a corridor straight ahead: floor points metres apart in the world project
+    """A corridor straight ahead: floor points metres apart in the world project
     to nearly the same pixel column, and the far ones to nearly the same row (6 m and 10 m
     ahead are 17 px apart). Every pair of chosen circles must stay apart in pixels, for both
     prompt sets; an overlapping point is not asked about."""
     from efficienteqa.explore.prompting import MIN_CIRCLE_GAP_PX
     from efficienteqa.perception.image import CIRCLE_RADIUS_PX
 
-    corridor = np.zeros(SPEC.shape, dtype=bool)
+    corridor = np.zeros(GRID.shape, dtype=bool)
     corridor[36:44, 5:118] = True  # x in [0.5, 11.8], y in [3.6, 4.4]; the robot at (1, 4)
     state = _state(corridor)
     config = PROMPT_CONFIGS[name]

@@ -1,4 +1,4 @@
-"""Retrieval of the top-K frames and the RAG answer (SPEC 3.5)."""
+"""Retrieval of the top-K frames and the RAG answer (DESIGN 3.5)."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""The steering benchmark's reference policies (benchmarks/reference_policies.py, issue 24
+"""The steering benchmark's reference policies (benchmarks/reference_policies.py, DESIGN 9
 items 5-6) on one small built-in house: they reach the evidence, a random walk does not."""
 
 from __future__ import annotations

@@ -208,7 +208,7 @@ def test_without_retries_a_refused_move_spends_the_step(refusing_house, tmp_path
 @needs_egl
 def test_retrieval_sends_the_model_one_frame_per_view(refusing_house, tmp_path):
     """Three steps spent in place are one view: the answer reads it once (the default), or
-    three times with SPEC 3.5's retrieval (--repeated-views, the paper preset)."""
+    three times with DESIGN 3.5's retrieval (--repeated-views, the paper preset)."""
     scene, q = refusing_house
     distinct = _run(scene, q, tmp_path / "distinct", refusal_retries=0)
     repeated = _run(scene, q, tmp_path / "repeated", refusal_retries=0, distinct_views=False)

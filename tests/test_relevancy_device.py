@@ -1,4 +1,4 @@
-"""Issue 25 (11): the image relevancy scorers' device, local weights and downloads, from the
+"""The image relevancy scorers' device, local weights and downloads, from the
 command line (``--device``, ``--relevancy-weights``, ``--allow-download``) to the model.
 
 No real weights exist on this machine: a tiny random BLIP-2 saved to a folder stands in for a

@@ -1,5 +1,5 @@
 """Seeing the evidence and stopping at it: the question's target, the answerability gate, the
-eligible-frame stop and the target steering (issue 24)."""
+eligible-frame stop and the target steering (DESIGN 9)."""
 
 from __future__ import annotations
 

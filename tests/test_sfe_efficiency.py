@@ -1,4 +1,4 @@
-"""Exploration efficiency options of the frontier explorer (issue 15 part 2, SPEC 8)."""
+"""Exploration efficiency options of the frontier explorer (DESIGN 8)."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ from test_sfe import corridor, make_state
 
 
 def spec_explorer(**options: object) -> FrontierExplorer:
-    """Frontier-only as SPEC 3.2 (every option off) but for ``options``, seeded 0."""
+    """Frontier-only as DESIGN 3.2 (every option off) but for ``options``, seeded 0."""
     explorer = FrontierExplorer(SFEConfig(**{**PAPER_SFE, "use_values": False, **options}))
     explorer.reset(0)
     return explorer
@@ -38,7 +38,7 @@ def test_idle_is_the_same_view_again():
 
 def one_end() -> tuple:
     """The corridor with only its +x end unexplored; the robot on that frontier's standing
-    point, facing it: the SPEC 3.2 choice is to stay and look again."""
+    point, facing it: the DESIGN 3.2 choice is to stay and look again."""
     state = corridor(slice(0, 110))
     explorer = spec_explorer()
     d = explorer.decide(state, Pose2D(6.0, 1.0, 0.0), None, 1)
@@ -104,7 +104,7 @@ def test_small_frontiers_weigh_less_but_are_still_chosen():
 def doorway() -> tuple:
     """Two 10 x 3 m rooms, a wall at y = 3 m with a 1 m door at x = 4-5 m; the robot at
     (8, 1.5) in the lower room. Of the upper room only x > 4 m is explored: its frontier lies
-    just past the door, its normal along -x, so SPEC 3.2's back-off point is beside the door in
+    just past the door, its normal along -x, so DESIGN 3.2's back-off point is beside the door in
     the upper room, out of the doorway's line."""
     free = np.zeros((62, 100), dtype=bool)
     free[1:-1, 1:-1] = True

@@ -1,4 +1,4 @@
-"""The relevancy stopping rule (SPEC 3.4) on constructed Sim sequences."""
+"""The relevancy stopping rule (DESIGN 3.4) on constructed Sim sequences."""
 
 import numpy as np
 import pytest
@@ -9,7 +9,7 @@ from efficienteqa.stop import RelevancyStopper, StopConfig, step_budget
 
 
 def run(sims, **cfg):
-    cfg.setdefault("rule", "paper")  # SPEC 3.4's rule unless a test names another
+    cfg.setdefault("rule", "paper")  # DESIGN 3.4's rule unless a test names another
     stopper = RelevancyStopper(StopConfig(**cfg))
     return [stopper.check(step, s) for step, s in enumerate(sims, start=1)]
 
@@ -109,7 +109,7 @@ def test_incremental_statistics_match_the_batch_ones(sims):
         assert c.sigma == pytest.approx(np.std(sims[:i], ddof=1), abs=1e-6)
 
 
-# Stop rules beyond the paper (SPEC 8): each on a sequence where it and "paper" disagree.
+# Stop rules beyond the paper (DESIGN 8): each on a sequence where it and "paper" disagree.
 
 SPIKE_AT_8 = [0.10, 0.12, 0.11, 0.13, 0.10, 0.12, 0.11, 0.90, 0.12, 0.11, 0.13, 0.12]
 

@@ -13,7 +13,7 @@ from efficienteqa.mapping.tsdf import BEHIND_WEIGHT, TSDFVolume, VolumeSpec
 # centre, and looks along +x, so the optical axis runs through voxels [20, ix, 10].
 CAMERA = CameraSpec(width=64, height=48, hfov_deg=90.0, height_m=1.05, pitch_deg=0.0)
 POSE = Pose2D(1.05, 2.05, 0.0)
-SPEC = VolumeSpec((0.0, 0.0, 0.0), 0.1, (40, 60, 20))  # x 0-6 m, y 0-4 m, z 0-2 m
+VOLUME = VolumeSpec((0.0, 0.0, 0.0), 0.1, (40, 60, 20))  # x 0-6 m, y 0-4 m, z 0-2 m
 AXIS_IY, AXIS_IZ = 20, 10
 
 
@@ -23,7 +23,7 @@ def wall_depth(wall_x: float) -> np.ndarray:
 
 
 def fused(*depths: np.ndarray) -> TSDFVolume:
-    vol = TSDFVolume(SPEC, trunc_m=0.5)
+    vol = TSDFVolume(VOLUME, trunc_m=0.5)
     for depth in depths:
         vol.integrate(depth, CAMERA.intrinsics, camera_to_world(POSE, CAMERA))
     return vol
@@ -41,10 +41,10 @@ def test_volume_spec_around_and_grid():
 def test_wall_zero_crossing_signs_and_truncation():
     vol = fused(wall_depth(4.0))
     line, w = vol.tsdf[AXIS_IY, :, AXIS_IZ], vol.weight[AXIS_IY, :, AXIS_IZ]
-    xs = (np.arange(SPEC.shape[1]) + 0.5) * SPEC.voxel_m
+    xs = (np.arange(VOLUME.shape[1]) + 0.5) * VOLUME.voxel_m
     k = int(np.nonzero((line[:-1] > 0) & (line[1:] <= 0) & (w[1:] > 0))[0][0])
-    crossing = xs[k] + line[k] / (line[k] - line[k + 1]) * SPEC.voxel_m
-    assert crossing == pytest.approx(4.0, abs=SPEC.voxel_m)
+    crossing = xs[k] + line[k] / (line[k] - line[k + 1]) * VOLUME.voxel_m
+    assert crossing == pytest.approx(4.0, abs=VOLUME.voxel_m)
     assert line[39] == pytest.approx(0.05 / 0.5) and line[40] == pytest.approx(-0.05 / 0.5)
     assert (line[11:40] > 0).all() and (w[11:40] == 1).all()  # in front: weight 1 per frame
     assert w[40:45] == pytest.approx(np.full(5, BEHIND_WEIGHT))  # behind: down-weighted
@@ -76,7 +76,7 @@ def test_depth_zero_changes_nothing():
 
 
 def test_beyond_max_depth_is_ignored():
-    vol = TSDFVolume(SPEC)
+    vol = TSDFVolume(VOLUME)
     assert vol.integrate(wall_depth(4.0), CAMERA.intrinsics, camera_to_world(POSE, CAMERA),
                          max_depth_m=2.0) is None
     assert (vol.weight == 0).all()
@@ -94,22 +94,22 @@ def test_explored_only_in_bottom_centre_window():
     assert vol.weight[35, 39, 5] == 1 and not vol.explored[35, 39, 5]
     # Explored = observed, in the window, and in front of or at the surface.
     iy, ix, iz = np.nonzero(vol.weight > 0)
-    centres = np.array(SPEC.origin) + (np.stack([ix, iy, iz], axis=1) + 0.5) * SPEC.voxel_m
+    centres = np.array(VOLUME.origin) + (np.stack([ix, iy, iz], axis=1) + 0.5) * VOLUME.voxel_m
     cam = (centres - camera_to_world(POSE, CAMERA)[:3, 3]) @ camera_to_world(POSE, CAMERA)[:3, :3]
     k = CAMERA.intrinsics
     u = k[0, 0] * cam[:, 0] / cam[:, 2] + k[0, 2]
     v = k[1, 1] * cam[:, 1] / cam[:, 2] + k[1, 2]
     inside = (u >= 0.25 * 64) & (u < 0.75 * 64) & (v >= 0.4 * 48) & (v < 48)
-    at_or_before_surface = (4.0 - POSE.x) - cam[:, 2] >= -SPEC.voxel_m  # deeper: not seen
+    at_or_before_surface = (4.0 - POSE.x) - cam[:, 2] >= -VOLUME.voxel_m  # deeper: not seen
     assert (vol.explored[iy, ix, iz] == (inside & at_or_before_surface)).all()
     assert (inside & ~at_or_before_surface).any()  # the band behind the wall is observed too
 
 
 def test_explored_depth_limit():
-    vol = TSDFVolume(SPEC)
+    vol = TSDFVolume(VOLUME)
     vol.integrate(wall_depth(4.0), CAMERA.intrinsics, camera_to_world(POSE, CAMERA),
                   explored_depth_m=2.0)
     iy, ix, iz = np.nonzero(vol.explored)
-    depth_along_axis = (ix + 0.5) * SPEC.voxel_m - POSE.x  # the camera looks along +x
+    depth_along_axis = (ix + 0.5) * VOLUME.voxel_m - POSE.x  # the camera looks along +x
     assert len(ix) and depth_along_axis.max() <= 2.0 + 1e-6
     assert (vol.weight[:, 31:, :] > 0).any()  # deeper voxels are still fused, just not explored

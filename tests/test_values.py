@@ -10,16 +10,16 @@ import pytest
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.values import SemanticValueMap, gsv_from_yes, lsv_from_confidences
 
-SPEC = GridSpec((0.0, 0.0), 0.1, (40, 50))  # 5 m x 4 m
+GRID = GridSpec((0.0, 0.0), 0.1, (40, 50))  # 5 m x 4 m
 
 
 def _within(xy: tuple[float, float], radius_m: float) -> np.ndarray:
-    x, y = SPEC.centres()
+    x, y = GRID.centres()
     return (x - xy[0]) ** 2 + (y - xy[1]) ** 2 <= radius_m ** 2
 
 
 def test_paint_is_a_running_average_on_overlapping_disks():
-    vm = SemanticValueMap(SPEC)
+    vm = SemanticValueMap(GRID)
     vm.paint([(2.0, 2.0)], [1.0])
     vm.paint(np.array([[2.8, 2.0]]), np.array([0.0]))
     a, b = _within((2.0, 2.0), 1.0), _within((2.8, 2.0), 1.0)
@@ -33,14 +33,14 @@ def test_paint_is_a_running_average_on_overlapping_disks():
 
 
 def test_paint_respects_radius_and_several_points_in_one_call():
-    vm = SemanticValueMap(SPEC, radius_m=0.55)
+    vm = SemanticValueMap(GRID, radius_m=0.55)
     vm.paint([(1.0, 1.0), (3.5, 2.5)], [0.4, 0.9])
     np.testing.assert_array_equal(vm.count > 0, _within((1.0, 1.0), 0.55) | _within((3.5, 2.5), 0.55))
     assert vm.raw[_within((1.0, 1.0), 0.55)].max() == pytest.approx(0.4)
 
 
 def test_paint_near_and_beyond_the_border():
-    vm = SemanticValueMap(SPEC)
+    vm = SemanticValueMap(GRID)
     vm.paint([(0.1, 0.1), (100.0, 100.0)], [1.0, 1.0])
     assert vm.count[0, 0] == 1 and vm.count.sum() == _within((0.1, 0.1), 1.0).sum()
     with pytest.raises(ValueError):
@@ -48,7 +48,7 @@ def test_paint_near_and_beyond_the_border():
 
 
 def test_smoothing_spreads_keeps_the_total_and_is_memoised():
-    vm = SemanticValueMap(SPEC)
+    vm = SemanticValueMap(GRID)
     vm.paint([(2.5, 2.0)], [1.0])
     raw, smooth = vm.raw, vm.smoothed()
     assert smooth.sum() == pytest.approx(raw.sum(), rel=1e-6)

@@ -459,7 +459,7 @@ def test_answer_and_confidence_on_separate_labelled_lines():
     ("it's on the table", "it's on the table"), ("**", "**"), ("", ""),
 ])
 def test_clean_answer_strips_markup_only(raw, clean):
-    """Issue 25 (12): the answer shown and recorded, without markdown emphasis, a leading "The
+    """The answer shown and recorded, without markdown emphasis, a leading "The
     answer is", surrounding quotes and a final period."""
     from efficienteqa.vc.parse import clean_answer
 

@@ -25,7 +25,7 @@ def test_yes_no_confidence_is_the_match_probability(reply, p_yes):
                                    ""])
 def test_an_unreadable_reply_is_missing_and_recorded(reply):
     """Not 0.5 (``DEFAULT_P_YES``), which stands far above a confident "no" (0.1) and became the
-    outlier that stopped the robot (issue 25 defect 5)."""
+    outlier that stopped the robot."""
     scorer = VLMMatchScorer(StubChatModel([reply]))
     assert math.isnan(scorer.score("Where is the sofa?", text="x"))
     assert scorer.problems and "relevancy missing" in scorer.problems[0]

@@ -1,4 +1,4 @@
-"""The exploration call of verbalized confidence (SPEC 3.3) and its white-box reading."""
+"""The exploration call of verbalized confidence (DESIGN 3.3) and its white-box reading."""
 
 from __future__ import annotations
 
@@ -100,7 +100,7 @@ def _worth_or_letters(msgs):
 
 @pytest.mark.parametrize("confidence", ["verbalized", "token"])
 def test_an_image_vlm_judges_worth_exploring_on_the_unmarked_frame(confidence):
-    """Issue 25 (9): SPEC 3.3 asks "is this direction worth exploring" on the plain RGB frame
+    """DESIGN 3.3 asks "is this direction worth exploring" on the plain RGB frame
     and the lettered points on the frame with circles: two calls, the second's only image the
     frame as captured, with no circle on it."""
     from efficienteqa.explore.vlm_scorer import VLMScorer

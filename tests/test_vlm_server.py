@@ -1,4 +1,4 @@
-"""The test VLM server (tests/vlm_server.py) and the model layer's fixes of issue 25 against it:
+"""The test VLM server (tests/vlm_server.py) and the model layer's fixes for real servers' habits against it:
 the probe (logprobs returned / ignored / rejected, the image cap), finish_reason, timeouts and
 retries, image encoding, the API key per host, the cache key per server, the cost."""
 
@@ -170,7 +170,7 @@ def test_the_server_records_headers_parameters_and_images(vlm):
     assert seen.authorization == "Bearer no-key" and "user-agent" in seen.headers
 
 
-# ---------------------------------------------------------------- issue 25 (3): the probe
+# ---------------------------------------------------------------------------------- the probe
 
 def test_a_gpt4o_like_server_is_probed_with_logprobs(vlm, private_cache):
     server = vlm()

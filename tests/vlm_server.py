@@ -1,4 +1,4 @@
-"""An OpenAI-compatible chat server with real servers' habits, for the test suite (issue 25).
+"""An OpenAI-compatible chat server with real servers' habits, for the test suite (docs/servers.md).
 
 It runs on 127.0.0.1 (port 0: a free one) in a thread, answers ``POST /v1/chat/completions``
 and ``GET /v1/models``, checks every image it is sent and records every request. It answers the

@@ -1,6 +1,6 @@
 """The EfficientEQA agent: explore -> stop -> answer, composed from injected parts.
 
-Per step t (the start view is step 1; SPEC 3.1):
+Per step t (the start view is step 1; DESIGN 3.1):
 1. the frame's relevancy ``Sim(I_t, Q)`` is checked against the earlier frames (stop module);
    an outlier after step 10 ends exploration;
 2. otherwise the explore module fuses the frame into the map, asks the scorer for semantic
@@ -8,7 +8,7 @@ Per step t (the start view is step 1; SPEC 3.1):
 Then the K most relevant frames of the whole history answer the question (answer module).
 Frames with >= 50% invalid depth are mapped but never reach a model.
 
-The ExploreEQA baselines are configurations of the same loop (SPEC 3.6): no early stop, and
+The ExploreEQA baselines are configurations of the same loop (DESIGN 3.6): no early stop, and
 ``answer_at="best-step"``: the episode's answer is the one of the frame with the highest
 relevancy x confidence. The model answers the frames after exploration, most relevant first,
 until none left can win (``answer.best_step``): the answer of asking at every step, in fewer calls.
@@ -73,7 +73,7 @@ STEERINGS = ("none", "target")
 
 @dataclass(frozen=True)
 class AgentConfig:
-    """Every knob of an episode; ablations are values here. ``max_steps`` None: the SPEC budget
+    """Every knob of an episode; ablations are values here. ``max_steps`` None: the budget of DESIGN 3.1,
     ``int(sqrt(floor area) * 3)``. ``confidence``: how the model's confidence is read, in words
     ("verbalized", black-box) or from token probabilities ("token", white-box)."""
 
@@ -84,23 +84,23 @@ class AgentConfig:
     seed: int = 0
     confidence: Confidence = "verbalized"
     answer_at: str = "retrieval"  # one of ANSWER_AT
-    # Beyond the paper (SPEC 8), None: the default. Re-plans within a step after the
+    # Beyond the paper (DESIGN 8), None: the default. Re-plans within a step after the
     # environment refuses a move (None: explore.module.REFUSAL_RETRIES; 0: a refused move
     # spends the step); the clearance the planner wants where a move ends (None: the
     # explorer's default; 0: stop where the path is cut).
     refusal_retries: int | None = None
     stop_clearance_m: float | None = None
     # Where prompt points may lie: "default" (from 1 m, asks at more steps) or "paper"
-    # (SPEC 3.3: 2-10 m); see explore.prompting.PROMPT_CONFIGS.
+    # (DESIGN 3.3: 2-10 m); see explore.prompting.PROMPT_CONFIGS.
     prompts: str = "default"
-    # Retrieval keeps K different views (answer.rag.same_view); False: SPEC 3.5's top-K frames,
+    # Retrieval keeps K different views (answer.rag.same_view); False: DESIGN 3.5's top-K frames,
     # copies of one view included.
     distinct_views: bool = True
-    # The frontier explorer's options beyond SPEC 3.2: "default" (SFEConfig's) or "paper"
+    # The frontier explorer's options beyond DESIGN 3.2: "default" (SFEConfig's) or "paper"
     # (every one off); see explore.registry.EXPLORATIONS.
     exploration: str = "default"
     # How the retrieved frames are answered: "direct" (one greedy answer with a hint for the
-    # question's form, confidence its token probability; needs logprobs), "paper" (SPEC 3.5's
+    # question's form, confidence its token probability; needs logprobs), "paper" (DESIGN 3.5's
     # M verbalized guesses, grouped), or "auto": direct when the model gives logprobs.
     answer: str = "auto"
     # answer_at="best-step": True asks the model at every valid frame, as ExploreEQA does
@@ -112,17 +112,17 @@ class AgentConfig:
     # geometric mean, so a short answer ("no") does not outscore a longer one for its length.
     answer_probability: str | None = None
     # White-box ExploreEQA's per-frame prompt: None, one short line ("short"); "verbalized",
-    # SPEC 3.5's prompt with one guess, as black-box asks, read by its token probability.
+    # DESIGN 3.5's prompt with one guess, as black-box asks, read by its token probability.
     token_answer: str | None = None
-    # Beyond the paper (SPEC 9): the answerability gate a relevancy outlier must pass to stop
+    # Beyond the paper (DESIGN 9): the answerability gate a relevancy outlier must pass to stop
     # the robot (stop.gate.GATES: "rules" on the frame's description, "model", one yes/no call
     # to the agent's model, "auto" the first where the perception describes objects, "none").
     # With a gate the stop needs no step-10 floor (StopConfig.min_step 2). Chosen on training
-    # houses 0-20, checked on the held-out main table (issue 24; README "Seeing the evidence").
+    # houses 0-20, checked on the held-out main table (DESIGN 9; README "Seeing the evidence").
     # The gate itself is injected (stack.build_gate); an Agent given none under "auto" runs
     # without one.
     gate: str = "auto"
-    # Beyond the paper (SPEC 9): "target" wraps the frontier explorer in explore.target's
+    # Beyond the paper (DESIGN 9): "target" wraps the frontier explorer in explore.target's
     # steering by the question's target (go to the named room, inspect, look around); "none".
     steering: str = "target"
 
@@ -155,7 +155,7 @@ class AgentConfig:
             raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
 
 
-# The paper's algorithm (SPEC 3.2-3.5) with every option beyond it off: what `--preset paper`
+# The paper's algorithm (DESIGN 3.2-3.5) with every option beyond it off: what `--preset paper`
 # sets besides the back-ends (with the VLM as explore scorer), and what a table calls "paper
 # configuration".
 PAPER_CONFIG = AgentConfig(stop=StopConfig(rule="paper", min_step=PAPER_MIN_STEP),

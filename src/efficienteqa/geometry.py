@@ -17,7 +17,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class CameraSpec:
-    """A pinhole RGB-D camera mounted on the robot (SPEC 3.1 defaults)."""
+    """A pinhole RGB-D camera mounted on the robot (DESIGN 3.1 defaults)."""
 
     width: int = 640
     height: int = 480

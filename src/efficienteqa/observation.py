@@ -2,7 +2,7 @@
 
 An ``Observation`` is one RGB-D frame in canonical form (``geometry``: x, y on the floor, z up,
 metres; OpenCV camera axes). A ``PromptPoint`` is a lettered floor point marked on a frame
-(visual prompting, SPEC 3.3). Both sit at the bottom of the layers so that environments,
+(visual prompting, DESIGN 3.3). Both sit at the bottom of the layers so that environments,
 mapping, perception and exploration share them without importing each other.
 """
 
@@ -33,7 +33,7 @@ class Observation:
 
     @property
     def invalid_fraction(self) -> float:
-        """Share of pixels without depth (SPEC 3.1: frames >= 0.5 are not sent to models)."""
+        """Share of pixels without depth (DESIGN 3.1: frames >= 0.5 are not sent to models)."""
         return float(np.mean(self.depth_m <= 0))
 
 

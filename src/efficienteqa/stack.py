@@ -1,6 +1,6 @@
 """Build an agent from back-end names: the one place that turns configuration into objects.
 
-The default stack is the offline one (SPEC 5): semantic-sensor perception, Qwen2.5-Coder-1.5B on
+The default stack is the offline one (DESIGN 5): semantic-sensor perception, Qwen2.5-Coder-1.5B on
 the local llama.cpp server, MiniLM text relevancy. ``--vlm openai:gpt-4o --perception rgb
 --relevancy blip2-itm`` is the paper's stack, by configuration alone.
 """
@@ -191,7 +191,7 @@ GROUPINGS.register("llm", lambda model, relevancy: LLMGrouper(
     model, embedder=getattr(relevancy, "embed", None)))
 
 
-# Semantic scorers of the explore module (SPEC 3.3; issue 15 part 4). "vlm" is the paper's:
+# Semantic scorers of the explore module (DESIGN 3.3, 8). "vlm" is the paper's:
 # the agent's own model with verbalized confidence (or token probabilities when the config asks
 # for them). The others read the semantic perception's direction texts without a model; the
 # direction benchmark (benchmarks/direction_bench.py) chose "direction-logit" for the offline

@@ -1,4 +1,4 @@
-"""The answer module of the paper: retrieval-augmented generation over the frame history (SPEC 3.5)."""
+"""The answer module of the paper: retrieval-augmented generation over the frame history (DESIGN 3.5)."""
 
 from efficienteqa.answer.rag import RagAnswerer, TopK
 

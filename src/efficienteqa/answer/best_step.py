@@ -1,4 +1,4 @@
-"""ExploreEQA's answer (SPEC 3.6): the answer of the frame with the highest relevancy x confidence.
+"""ExploreEQA's answer (DESIGN 3.6): the answer of the frame with the highest relevancy x confidence.
 
 ExploreEQA asks the model at every step. Without an early stop nothing during exploration
 depends on those answers, so they can be asked after it, lazily: frames in decreasing relevancy,

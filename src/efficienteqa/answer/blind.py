@@ -1,4 +1,4 @@
-"""The Blind LLM baseline (SPEC 3.6): the question only, no observations; the model must guess
+"""The Blind LLM baseline (DESIGN 3.6): the question only, no observations; the model must guess
 when unsure. Open-ended: the same VC answer (M guesses -> group -> argmax) as the RAG answer.
 Closed-set (HM-EQA's four choices): the letter with the highest token probability."""
 

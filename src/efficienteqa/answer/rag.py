@@ -1,4 +1,4 @@
-"""RAG answering (SPEC 3.5): the K most relevant frames of the whole history go to the model.
+"""RAG answering (DESIGN 3.5): the K most relevant frames of the whole history go to the model.
 
 ``TopK`` keeps the K best frames in a min-heap as the episode runs, so memory stays flat however
 long the history grows; ``RagAnswerer`` asks the model for M candidate answers with verbalized
@@ -70,7 +70,7 @@ class TopK(Generic[T]):
     Items pushed with a ``View`` are distinct views: a frame that ``same_view`` matches with
     one held replaces it when its Sim is higher and is dropped otherwise, so K retrieved frames
     are K different views (a robot that did not move between steps sends the model one frame,
-    not three copies). Items pushed without a view are all kept, as SPEC 3.5 reads."""
+    not three copies). Items pushed without a view are all kept, as DESIGN 3.5 reads."""
 
     def __init__(self, k: int = TOP_K) -> None:
         if k < 1:
@@ -113,8 +113,8 @@ class TopK(Generic[T]):
 class RagAnswerer:
     """Answer from retrieved evidence: frame descriptions (text models) or RGB frames (VLMs).
 
-    ``direct`` (SPEC 8, beyond the paper): one greedy answer to a prompt with a hint for the
-    question's form, its confidence the answer's token probability, instead of SPEC 3.5's M
+    ``direct`` (DESIGN 8, beyond the paper): one greedy answer to a prompt with a hint for the
+    question's form, its confidence the answer's token probability, instead of DESIGN 3.5's M
     verbalized guesses; it needs a model that gives logprobs. ``probability``: how a token
     answer's confidence is read from its tokens (``answer.vc.ANSWER_PROBABILITIES``);
     ``token_prompt``: which prompt a token-confidence answer that is not direct asks

@@ -1,4 +1,4 @@
-"""The answer with its confidence (SPEC 3.5, 3.6): M guesses with verbalized confidences ->
+"""The answer with its confidence (DESIGN 3.5, 3.6): M guesses with verbalized confidences ->
 normalise -> group -> argmax, or, for the white-box baseline, one greedy answer whose
 confidence is its token probability. ``evidence`` is the top-K frame descriptions (best first)
 or the top-K RGB frames."""
@@ -178,14 +178,14 @@ def vc_answer(model: ChatModel, prompt: str, images: tuple[np.ndarray, ...], que
 
 def answer_with_confidence(model: ChatModel, question: str, evidence: Sequence[str | np.ndarray],
                            grouper: Grouper, *, m: int = M, max_tokens: int = 96) -> AnswerResult:
-    """The RAG answer (SPEC 3.5): M guesses -> normalise -> group -> argmax."""
+    """The RAG answer (DESIGN 3.5): M guesses -> normalise -> group -> argmax."""
     prompt, images = _verbalized_prompt(question, evidence, m)
     return vc_answer(model, prompt, images, question, grouper, m, max_tokens)
 
 
 def _verbalized_prompt(question: str, evidence: Sequence[str | np.ndarray],
                        m: int) -> tuple[str, tuple[np.ndarray, ...]]:
-    """SPEC 3.5's answer prompt for ``m`` guesses, with a worked example of the question's form."""
+    """DESIGN 3.5's answer prompt for ``m`` guesses, with a worked example of the question's form."""
     text, images = evidence_text(evidence)
     prompt = load_prompt("answer", PROMPTS).format(question=question, evidence=text, m=m,
                                                    example=answer_example(question))
@@ -197,7 +197,7 @@ def _verbalized_prompt(question: str, evidence: Sequence[str | np.ndarray],
 # answer is not less sure for having more tokens).
 ANSWER_PROBABILITIES = ("product", "per-token")
 # The prompt of a token-probability answer that is not the direct one (white-box ExploreEQA's
-# per-frame answer): "short", one line (``answer_token``), or "verbalized", SPEC 3.5's prompt
+# per-frame answer): "short", one line (``answer_token``), or "verbalized", DESIGN 3.5's prompt
 # with one guess, the black-box answer's (``verbalized_token_probability``).
 TOKEN_ANSWERS = ("short", "verbalized")
 
@@ -209,7 +209,7 @@ def answer_token_probability(model: ChatModel, question: str,
     probability of that answer: the product of its tokens' probabilities, first line only
     (``how="per-token"``: their geometric mean, ``ANSWER_PROBABILITIES``). A token at -inf or
     with an unreadable (NaN) logprob makes it 0; positive logprobs (rounding) count as
-    probability 1. ``hinted``: the direct answer (SPEC 8), whose prompt adds the hint of the
+    probability 1. ``hinted``: the direct answer (DESIGN 8), whose prompt adds the hint of the
     question's form (``question_hint``) and reads text views cut to what the question names
     (``focus_views``)."""
     _check_how(how)
@@ -271,7 +271,7 @@ def reply_answer(raw: str) -> tuple[str, int]:
 def verbalized_token_probability(model: ChatModel, question: str,
                                  evidence: Sequence[str | np.ndarray], *, how: str = "product",
                                  max_tokens: int = 96) -> AnswerResult:
-    """SPEC 3.5's prompt with one guess ("answer; confidence", the black-box per-frame answer),
+    """DESIGN 3.5's prompt with one guess ("answer; confidence", the black-box per-frame answer),
     read white-box: its confidence is the token probability of the answer before the ';'
     (``how`` as in ``answer_token_probability``), not the number the model wrote. The two
     ExploreEQA baselines then differ only in how they read confidence."""

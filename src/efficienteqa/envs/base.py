@@ -1,4 +1,4 @@
-"""The environment contract (Gymnasium-like, SPEC section 4), in the canonical frame.
+"""The environment contract (Gymnasium-like, DESIGN 4), in the canonical frame.
 
 ``reset(seed=, options=) -> (obs, info)``; ``step(target_pose) -> (obs, reward, terminated,
 truncated, info)``. An action is the next pose: the adapter teleports the robot there (the

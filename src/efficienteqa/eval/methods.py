@@ -1,4 +1,4 @@
-"""The methods an evaluation compares (SPEC 3.6), each as a configuration of the one agent.
+"""The methods an evaluation compares (DESIGN 3.6), each as a configuration of the one agent.
 
 =====================  =========  ==========  ==========  ====================  ===========
 method                 explorer   confidence  early stop  answer                model calls
@@ -13,7 +13,7 @@ blind, closed-set      --         token       --          letter of max P       
 =====================  =========  ==========  ==========  ====================  ===========
 
 The RAG answer is ``AgentConfig.answer``'s: by default the direct answer (one hinted answer,
-its token probability as confidence; SPEC 8), SPEC 3.5's M verbalized guesses with ``paper``.
+its token probability as confidence; DESIGN 8), DESIGN 3.5's M verbalized guesses with ``paper``.
 ``frontier-only`` and ``random`` keep EfficientEQA's stop and answer and only drop the semantic
 values: they show what SFE's steering is worth. A method may also be given as
 ``module:function`` (a user's own), called like ``run_agent_method`` but with the question as

@@ -1,4 +1,4 @@
-"""Ablations replayed, not re-explored (issue 17, section 2): the stop for another ``Z_th`` or
+"""Ablations replayed, not re-explored (DESIGN 3.6): the stop for another ``Z_th`` or
 stop rule, and the answer for another K, from one episode explored to its budget.
 
 Exploration does not depend on the stop rule or on K: the relevancy stopper only reads the

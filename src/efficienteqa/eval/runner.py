@@ -9,7 +9,7 @@ one-line error. Only the driver
 appends lines (``records``); a re-run in the same folder skips the episodes already done and
 retries the failed ones.
 
-Ray (SPEC 6): one task per episode, at most ``workers`` at a time, each task one CPU; a task
+Ray (DESIGN 6): one task per episode, at most ``workers`` at a time, each task one CPU; a task
 whose worker process dies is retried by Ray. Workers share the machine's model server (the
 driver starts it first) and its response cache.
 """

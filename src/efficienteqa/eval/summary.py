@@ -5,7 +5,7 @@ Pure functions over a run's manifest and its episode rows (``records.read_run``)
 summary backs the console, the Markdown and the HTML report. Conventions, stated once:
 
 - LLM-Match is the mean over *every* episode of the run: a failed episode, or a done one without
-  a grade, scores 0 like a missing answer (SPEC 3.7). A run with no grade at all has no score
+  a grade, scores 0 like a missing answer (DESIGN 3.7). A run with no grade at all has no score
   (NaN): 0 would read as "everything was wrong".
 - Rule-judge accuracy (synthetic datasets, ``eval.rule_judge``) is the share (%) of *every*
   episode that the rule judge graded right, by the same convention: a failed or ungraded
@@ -197,7 +197,7 @@ def match_value(row: Mapping[str, Any], key: str = "judge") -> float:
 
 
 # Settings added after runs were published, and what a run that does not record them ran with:
-# no answerability gate and no steering by the question's target (issue 24).
+# no answerability gate and no steering by the question's target (DESIGN 9).
 RECORDED_BEFORE: dict[str, Any] = {"gate": "none", "steering": "none"}
 
 
@@ -242,7 +242,7 @@ def _paper_settings() -> tuple[tuple[str, Any], ...]:
 
 
 def _is_paper_configuration(flat: Mapping[str, Any]) -> bool:
-    """Every setting of the paper's configuration, and the VLM's semantic values (SPEC 3.3)."""
+    """Every setting of the paper's configuration, and the VLM's semantic values (DESIGN 3.3)."""
     return (all(k in flat and flat[k] == v for k, v in _paper_settings())
             and flat.get("explore_scorer") == "vlm")
 

@@ -51,7 +51,7 @@ SEMANTIC_WARNING = ("Perception is semantic-sensor: the agent reads the simulato
                     "text, not pixels, so these are not image-model numbers.")
 SEMANTIC_SHORT = "reads the simulator's object labels, not pixels: not image-model numbers"
 CONVENTIONS = ("LLM-Match (%) is the mean over every episode of 100 * (score - 1) / 4; a failed or "
-               "ungraded episode scores 0, like a missing answer (SPEC 3.7). Rule-judge accuracy (%), "
+               "ungraded episode scores 0, like a missing answer (DESIGN 3.7). Rule-judge accuracy (%), "
                "for synthetic questions whose accepted answers are known, is the share of every episode "
                "that states an accepted answer and no contradicting one (no model involved; a failed "
                "episode counts as wrong). Average steps, steps / "

@@ -1,4 +1,4 @@
-"""Frontiers on the 2-D maps and their weights (SPEC 3.2): pure functions on (ny, nx) arrays.
+"""Frontiers on the 2-D maps and their weights (DESIGN 3.2): pure functions on (ny, nx) arrays.
 
 Cells follow ``efficienteqa.mapping.grid``: ``(i, j)`` is row ``i`` along y, column ``j`` along x.
 World vectors are (x, y) metres; a cell offset ``(di, dj)`` is the world direction ``(dj, di)``.
@@ -23,23 +23,23 @@ _EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
 
 @dataclass(frozen=True)
 class FrontierConfig:
-    """Frontier detection and weighting constants (SPEC 3.2 defaults; lengths in metres)."""
+    """Frontier detection and weighting constants (DESIGN 3.2 defaults; lengths in metres)."""
 
     # detection
     min_unexplored_neighbours: int = 3  # a frontier cell has 3-4 unexplored 8-neighbours
     max_unexplored_neighbours: int = 4
     cluster_above_cells: int = 10  # DBSCAN (min 2) only with more cells than this
-    # DBSCAN eps in cells. SPEC says 1: then frontier cells along a diagonal (staircase)
+    # DBSCAN eps in cells. ExploreEQA's is 1: then frontier cells along a diagonal (staircase)
     # boundary touch only corner to corner and are all dropped as noise; the edges of a view
     # wedge through a doorway are such boundaries, and 2 of 10 houses stopped exploring at
     # step 4 with most of the floor unexplored. 1.5 keeps them (8-connected groups).
     cluster_eps_cells: float = 1.5
     # Cells DBSCAN leaves isolated are noise only when alone on their stretch of the island's
-    # boundary (False: all dropped, as SPEC 3.2). Along a boundary slanted at any angle but 0,
+    # boundary (False: all dropped, as ExploreEQA does). Along a boundary slanted at any angle but 0,
     # 45 or 90 deg (the edge of a view wedge, of the floor seen through a doorway) only one
     # cell per stair step has 3-4 unexplored neighbours, two or more cells apart, so no eps
     # below 2 links them: the whole boundary was dropped, and with nothing else left the
-    # episode ended as "explored" with rooms unseen (issue 24 item 5). Frontier-only to the
+    # episode ended as "explored" with rooms unseen (DESIGN 3.2). Frontier-only to the
     # budget, explorer seeds house*1000+0..2: early "no frontier" stops with reachable floor
     # unseen 1/90 -> 0/90 (held-out houses 2000-2029), 1/63 -> 0/63 (training houses 0-20;
     # 2 new ones in house 11 end with all the floor reachable without passing a closed door
@@ -245,7 +245,7 @@ def close_and_facing(xy: np.ndarray, normals: np.ndarray, pose: Pose2D,
 def frontier_weight(r_unexplored: np.ndarray, r_free: np.ndarray, value: np.ndarray,
                     dir_value: np.ndarray, distance_m: np.ndarray, penalised: np.ndarray,
                     config: FrontierConfig = FrontierConfig()) -> np.ndarray:
-    """SPEC 3.2: exp(r_u/0.2) exp(r_f/2) exp(V/0.5) exp(v_dir/0.5) exp(-d/10), x1e-3 if penalised."""
+    """DESIGN 3.2: exp(r_u/0.2) exp(r_f/2) exp(V/0.5) exp(v_dir/0.5) exp(-d/10), x1e-3 if penalised."""
     c = config
     w = np.exp(np.asarray(r_unexplored, float) / c.temp_unexplored
                + np.asarray(r_free, float) / c.temp_free

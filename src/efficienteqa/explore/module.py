@@ -1,4 +1,4 @@
-"""The explore module of the paper, one step at a time (SPEC 3.2-3.3).
+"""The explore module of the paper, one step at a time (DESIGN 3.2-3.3).
 
 Per observation: fuse the frame into the map, pick lettered candidate directions, ask the
 semantic scorer for the local (per letter) and global values, paint SV = LSV * GSV into the
@@ -25,7 +25,7 @@ from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception.base import Sightings
 from efficienteqa.question import Target
 
-VALUE_WARMUP_STEPS = 2  # SPEC 3.2: value terms are off for the first 2 steps
+VALUE_WARMUP_STEPS = 2  # DESIGN 3.2: value terms are off for the first 2 steps
 
 
 @dataclass

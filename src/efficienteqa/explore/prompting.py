@@ -1,4 +1,4 @@
-"""Visual prompting (SPEC 3.3): pick up to three floor points in view and letter them on the frame.
+"""Visual prompting (DESIGN 3.3): pick up to three floor points in view and letter them on the frame.
 
 Geometry only (``project_floor_points``, ``candidate_points``); drawing the letters on the frame is
 ``perception.image.draw_prompts`` (what a vision-language model sees). Points are kept apart in
@@ -31,7 +31,7 @@ _LOS_CHUNK = 2048  # candidates per vectorised line-of-sight batch (bounds memor
 class PromptConfig:
     """Where candidate points may lie (see ``candidate_points``; metres, pixels).
 
-    The defaults ask more often than SPEC 3.3's points 2-10 m away, 1 m apart (``PAPER_PROMPTS``):
+    The defaults ask more often than DESIGN 3.3's points 2-10 m away, 1 m apart (``PAPER_PROMPTS``):
     in small rooms and doorways no two points 2 m off are in view, so only 60% of the steps
     of frontier-only episodes (training houses 0-7) offered directions; points from 1 m,
     0.75 m apart, raise that to 83%. Values can steer only the steps that ask.
@@ -106,7 +106,7 @@ def candidate_points(state: MapState, obs_pose_cam_to_world: np.ndarray, intrins
 
     With ``prefer_unexplored`` the candidates are the unexplored ones whenever at least 2 of
     them qualify: the prompt asks which direction to explore, and values painted where the
-    robot has already looked sit away from every frontier, so they cannot steer (SPEC 3.2
+    robot has already looked sit away from every frontier, so they cannot steer (DESIGN 3.2
     weights frontiers by the value at and beyond them).
     """
     rng = np.random.default_rng(rng_or_seed)

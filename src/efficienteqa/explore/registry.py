@@ -1,7 +1,7 @@
 """The explorer registry: ``make_explorer(name, **config)`` builds "sfe", "frontier-only" or
 "random"; ``config`` holds fields of the explorer's config dataclass (``SFEConfig`` or
 ``RandomConfig``). ``EXPLORATIONS`` names sets of frontier-explorer options: "default" (the
-dataclass defaults) and "paper" (SPEC 3.2's explorer, every option beyond it off).
+dataclass defaults) and "paper" (DESIGN 3.2's explorer, every option beyond it off).
 """
 
 from __future__ import annotations

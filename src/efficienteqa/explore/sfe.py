@@ -1,4 +1,4 @@
-"""Semantic-value-weighted frontier exploration, SFE (SPEC 3.2; paper "Exploration - SFE").
+"""Semantic-value-weighted frontier exploration, SFE (DESIGN 3.2; paper "Exploration - SFE").
 
 Each step: find the frontiers, weight them (semantic values optional), sample one in proportion
 to its weight, stand ``backoff_m`` behind it along its normal, plan on the island grid for a disk
@@ -58,13 +58,13 @@ class SFEConfig:
     # houses 0-9); 0.45 m left 1.3%, mostly objects the map had not seen.
     stop_clearance_m: float = 0.45
     settle_m: float = 0.25  # below reached_m: a settled end still reaches its target
-    # Beyond SPEC 3.2 (SPEC 8); PAPER_SFE turns every one off. Measured with explore_bench
+    # Beyond the paper (DESIGN 8); PAPER_SFE turns every one off. Measured with explore_bench
     # steering on training houses 0-3 (12 questions x 2 explorer seeds, frontier-only / oracle
-    # SFE mean steps until the evidence is in view): SPEC 3.2 28.2 / 22.4; the defaults below
+    # SFE mean steps until the evidence is in view): paper explorer 28.2 / 22.4; the defaults below
     # (skip_idle, approach_unreachable, view_gain) 22.3 / 18.0, floor covered 63% -> 79%.
     #
     # The distance term d of the weight is the planned path length to the standing point
-    # (False: the straight line to the frontier, as SPEC 3.2): a room behind a wall is not
+    # (False: the straight line to the frontier, as the paper): a room behind a wall is not
     # near. Not better on training houses 0-7 (frontier-only floor covered at the budget 67%
     # -> 68% with distance_scale_m 3, within noise; 65% with choice "best" as well).
     path_distance: bool = False
@@ -79,22 +79,22 @@ class SFEConfig:
     # of its standing point, as a sliver of floor seen through a doorway, or every one was
     # looked at max_looks times), head for the reachable cell nearest one's standing point,
     # however far, instead of ending the episode with budget left: going closer maps the way
-    # in (False: "no reachable frontier" ends it, as SPEC 3.2).
+    # in (False: "no reachable frontier" ends it, as in the paper).
     approach_unreachable: bool = True
     # Where a move ends, turn to the view wedge (the explored window: +-view_half_deg out to
     # view_range_m) with the most unexplored cells in sight, unless facing the frontier sees
-    # at least view_keep_share of that (False: face the frontier, as SPEC 3.2): on arrival the
+    # at least view_keep_share of that (False: face the frontier, as the paper): on arrival the
     # robot looks into the unseen part of the room, not at a sliver behind a chair.
     view_gain: bool = True
     view_range_m: float = 5.0
     view_half_deg: float = 40.0
     view_keep_share: float = 0.8
-    # "sample": draw a frontier in proportion to its weight (SPEC 3.2); "best": the heaviest.
+    # "sample": draw a frontier in proportion to its weight (DESIGN 3.2); "best": the heaviest.
     # Not better on training houses 0-7 (floor covered 69% either way, with skip_idle).
     choice: str = "sample"
     # A decision that would take the same view again (stay within reached_m, turn less than
     # idle_turn_deg) counts as a look at its frontier and is made again (False: such a step
-    # is spent, as SPEC 3.2's loop would).
+    # is spent, as the paper's loop would).
     skip_idle: bool = True
     idle_turn_deg: float = 30.0
     idle_retries: int = 4
@@ -106,7 +106,7 @@ class SFEConfig:
     small_frontier_factor: float = 1e-3
 
 
-# SPEC 3.2's explorer: every SFEConfig option beyond it off (the paper preset; the stepping
+# DESIGN 3.2's explorer: every SFEConfig option beyond it off (the paper preset; the stepping
 # options stop_clearance_m and the refusal retries are set apart, by AgentConfig).
 PAPER_SFE: dict[str, Any] = {"skip_idle": False, "stand_on_path": False,
                              "approach_unreachable": False, "view_gain": False,
@@ -126,7 +126,7 @@ class FrontierExplorer:
     def __init__(self, config: SFEConfig | None = None) -> None:
         self.config = config or SFEConfig()
         self.name = "sfe" if self.config.use_values else "frontier-only"
-        # Beyond SPEC 3.2: a factor per frontier multiplied into its weight, set by a wrapper
+        # Beyond the paper (DESIGN 9): a factor per frontier multiplied into its weight, set by a wrapper
         # that knows more than the map (explore.target: the room a frontier lies in).
         self.prior: Callable[[list[Frontier]], np.ndarray] | None = None
         self.reset(0)
@@ -252,7 +252,7 @@ class FrontierExplorer:
     def _weights(self, state: MapState, frontiers: list[Frontier], pose: Pose2D,
                  values: np.ndarray | None, step: int, looks: np.ndarray,
                  distance_m: np.ndarray | None = None) -> np.ndarray:
-        """SPEC 3.2 weights (K,), x ``looked_factor`` for frontiers already looked at."""
+        """DESIGN 3.2 weights (K,), x ``looked_factor`` for frontiers already looked at."""
         cfg = self.config
         weights = frontier_weights(state, frontiers, pose, values, step, cfg.frontier,
                                    distance_m)
@@ -280,7 +280,7 @@ class FrontierExplorer:
         return truncate_path(path[::-1], backoff_m)
 
     def _choose(self, weights: np.ndarray, ok: np.ndarray) -> int:
-        """The frontier to head for: sampled in proportion to ``weights`` (SPEC 3.2), or the
+        """The frontier to head for: sampled in proportion to ``weights`` (DESIGN 3.2), or the
         heaviest one with ``choice`` "best"."""
         if self.config.choice == "best":
             return int(np.argmax(np.where(ok, weights, -np.inf)))

@@ -1,4 +1,4 @@
-"""Steering by the question's target (beyond the paper, SPEC 9): go where the question points,
+"""Steering by the question's target (beyond the paper, DESIGN 9): go where the question points,
 look closely, and say when the named room is searched.
 
 A frontier explorer chooses among the edges of the known map; nothing makes it enter the room a

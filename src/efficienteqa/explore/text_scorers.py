@@ -1,4 +1,4 @@
-"""Semantic scorers that read the direction texts without a chat model (issue 15 part 4).
+"""Semantic scorers that read the direction texts without a chat model (DESIGN 8).
 
 A text model on the offline stack reads each lettered direction as text (the ``semantic``
 perception). These scorers read the same texts, plus how far each point lies from the robot,

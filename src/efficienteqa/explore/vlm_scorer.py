@@ -1,15 +1,15 @@
-"""Semantic values from a (vision-)language model (SPEC 3.3, 3.6): the exploration call of
+"""Semantic values from a (vision-)language model (DESIGN 3.3, 3.6): the exploration call of
 verbalized confidence (M lettered directions with confidences and "worth exploring?") and its
 white-box counterpart read from token probabilities.
 
 Text models (semantic perception) are asked both in one call: the view and the directions are
 text, and the question of the view is the same with or without the directions listed.
 
-Image models get two calls per prompted frame, as the paper specifies (SPEC 3.3): the lettered
+Image models get two calls per prompted frame, as the paper specifies (DESIGN 3.3): the lettered
 directions on the frame with the circles drawn (``explore_letters``; white-box:
 ``explore_choice``), and "is this direction worth exploring?" on the plain RGB frame
 (``explore_worth``; white-box: ``explore_worth_token``), so the circles, which cover the floor
-the robot would walk on, never hide what the GSV judges. The other way the issue (25, 9) left
+the robot would walk on, never hide what the GSV judges. The other way left
 open, one call with both images (the unmarked one first, labelled), was not taken: no vision
 model can be run here to measure whether it answers as well, and it would make the
 exploration call the only one with two images and letters that refer to the second. The cost
@@ -124,7 +124,7 @@ def explore_scores(model: ChatModel, question: str, view: str,
 def explore_token_scores(model: ChatModel, question: str, view: str,
                          directions: Mapping[str, str] | Sequence[str] | None = None,
                          images: Sequence[np.ndarray] | None = None) -> SemanticScore:
-    """ExploreEQA's white-box reading (SPEC 3.6): one greedy reply of two lines (a letter, then
+    """ExploreEQA's white-box reading (DESIGN 3.6): one greedy reply of two lines (a letter, then
     yes/no) with the top alternatives of every token. P(letter) is the softmax over the prompted
     letters at the first token of line 1 where any of them is among the alternatives (the LSV);
     P(yes) likewise over yes/no on the yes/no line (for the GSV). Uniform / ``DEFAULT_P_YES``
@@ -148,7 +148,7 @@ def explore_token_scores(model: ChatModel, question: str, view: str,
 def explore_image_scores(model: ChatModel, question: str, letters: Sequence[str],
                          marked: Sequence[np.ndarray], plain: np.ndarray, *, m: int = M,
                          token: bool = False, max_tokens: int = 48) -> SemanticScore:
-    """The exploration of an image model (SPEC 3.3): the per-letter confidences from the frame
+    """The exploration of an image model (DESIGN 3.3): the per-letter confidences from the frame
     with the lettered circles (``marked``), then P(worth exploring) from the plain frame, in a
     call of its own. ``token``: both read from token probabilities (the white-box baseline):
     the letter of a one-letter reply, and yes/no. ``info`` keeps both replies and usages."""
@@ -187,7 +187,7 @@ def explore_image_scores(model: ChatModel, question: str, letters: Sequence[str]
 
 def worth_exploring(model: ChatModel, question: str, plain: np.ndarray, *, token: bool = False,
                     max_tokens: int = 16) -> tuple[float, dict[str, Any]]:
-    """P(yes) for "is this view worth exploring?" asked on the unmarked frame ``plain`` (SPEC
+    """P(yes) for "is this view worth exploring?" asked on the unmarked frame ``plain`` (DESIGN
     3.3's GSV): verbalized (``parse_worth_exploring``), or with ``token`` read from the first
     reply token's yes/no probabilities (``DEFAULT_P_YES`` when neither is among them)."""
     name = "explore_worth_token" if token else "explore_worth"
@@ -204,7 +204,7 @@ def worth_exploring(model: ChatModel, question: str, plain: np.ndarray, *, token
     return p_yes, {"raw": resp.text or "", "problems": problems, "usage": usage_of(resp)}
 
 
-# Black-box elicitations of a text model over the direction texts (issue 15 part 4), each a
+# Black-box elicitations of a text model over the direction texts (DESIGN 8), each a
 # ``DirectionTextScorer`` (explore/text_scorers.py): per-letter confidences from a frame's
 # question, view and direction texts. ``DirectionScorer`` makes any of them a SemanticScorer.
 

@@ -1,4 +1,4 @@
-"""From the TSDF volume to the 2-D maps every explorer reads (SPEC 3.2).
+"""From the TSDF volume to the 2-D maps every explorer reads (DESIGN 3.2).
 
 All maps live on ``VolumeSpec.grid`` (row along y, column along x; see ``mapping.grid``), so
 ``OccupancyGrid(state.spec, state.island)`` plans on them directly. Heights are world metres.
@@ -18,7 +18,7 @@ from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.tsdf import EXPLORED_WINDOW, TSDFVolume, VolumeSpec
 from efficienteqa.observation import Observation
 
-MAX_INVALID_FRACTION = 0.5  # SPEC 3.1: frames with at least this share of no-depth pixels
+MAX_INVALID_FRACTION = 0.5  # DESIGN 3.1: frames with at least this share of no-depth pixels
 
 
 class Voxels(Protocol):
@@ -37,9 +37,9 @@ def free_and_occupied(volume: Voxels, floor_z: float, robot_height_m: float = 1.
 
     free: every voxel of the column from floor_z + free_z_m up to floor_z + robot_height_m has
     been observed empty (weight > 0, tsdf > 0), and the floor below has been observed (some
-    voxel from floor-0.2 m to floor+0.1 m has weight > 0). This extends SPEC 3.2's "TSDF > 0
+    voxel from floor-0.2 m to floor+0.1 m has weight > 0). This extends DESIGN 3.2's "TSDF > 0
     at 0.2 m" with the robot's body height, so the planner never drives under tables or
-    shelves, and keeps SPEC's "unobserved counts as occupied" for the whole body band.
+    shelves, and keeps the reference's "unobserved counts as occupied" for the whole body band.
     occupied: some observed surface voxel (weight > 0, surface_tsdf <= tsdf <= 0: at most
     0.15 m behind a surface with the defaults) in that height band. Voxels deeper behind a
     surface were not really seen: around the view's edges past a door jamb they are mostly
@@ -84,7 +84,7 @@ def disk(spec: GridSpec, xy: Sequence[float], radius_m: float) -> np.ndarray:
 
 def unexplored_neighbours(unexplored: np.ndarray) -> np.ndarray:
     """Number (uint8, 0-8) of unexplored 8-neighbours of each cell; outside the grid counts
-    as unexplored. Frontier cells have 3-4 (SPEC 3.2)."""
+    as unexplored. Frontier cells have 3-4 (DESIGN 3.2)."""
     padded = np.pad(unexplored.astype(np.uint8), 1, constant_values=1)
     h, w = unexplored.shape
     count = np.zeros((h, w), dtype=np.uint8)
@@ -99,7 +99,7 @@ class Mapper:
     """Fuses each observation into a TSDF volume and derives the 2-D maps of ``MapState``.
 
     The start clearance disk (start_radius_m around start_xy, metres) is free and explored
-    (SPEC 3.2). Every footprint the robot has stood on (robot_radius_m around each pose) is free
+    (DESIGN 3.2). Every footprint the robot has stood on (robot_radius_m around each pose) is free
     too: the robot cannot see under itself, and without this its own cell may be unobserved
     after a step, leaving an empty island and nothing to plan on. The 2-D maps are recomputed
     only inside the grid window the frame touched, so the per-step cost follows what is in

@@ -17,7 +17,7 @@ class MapState:
 
     free: observed free floor where the robot body fits (no obstacle voxel up to its height).
     occupied: observed obstacles (walls, furniture) at body height.
-    explored: seen in the bottom-centre window of some frame (SPEC 3.2), plus the start disk.
+    explored: seen in the bottom-centre window of some frame (DESIGN 3.2), plus the start disk.
     island: the connected free component that contains the robot.
     Cells that are neither free nor occupied have not been observed.
     """

@@ -1,4 +1,4 @@
-"""TSDF volume fusion of metric depth frames (SPEC 3.2).
+"""TSDF volume fusion of metric depth frames (DESIGN 3.2).
 
 Frames: voxel centres live in the canonical world frame (x, y on the floor, z up, metres);
 depth frames come in OpenCV camera axes with ``cam_to_world`` (see ``efficienteqa.geometry``).
@@ -18,9 +18,9 @@ from numba import njit
 
 from efficienteqa.mapping.grid import GridSpec
 
-# (first column, last column, first row, last row) as fractions of the image: SPEC 3.2's
+# (first column, last column, first row, last row) as fractions of the image: DESIGN 3.2's
 # bottom-centre window, the nearby floor the robot has really looked at.
-# SPEC 3.2: columns 25%-75%, "rows below 60% of the height" read as the lower 60% of the rows
+# DESIGN 3.2: columns 25%-75%, "rows below 60% of the height" read as the lower 60% of the rows
 # (from 40% of the height down). The other reading (the bottom 40%) reaches only 1.5 m ahead,
 # as far as the 1.5 m back-off, and frontier exploration then stalls: it explored 17% of the
 # floor against 24% for random moves (benchmarks/explore_bench.py coverage, 4 houses).
@@ -47,7 +47,7 @@ class VolumeSpec:
                voxel_m: float = 0.1, below_m: float = 0.2, above_m: float = 3.5,
                margin_m: float = 0.5) -> VolumeSpec:
         """The volume over the floor box (metres) plus a margin, from floor-below_m to
-        floor+above_m (SPEC 3.2: floor-0.2 m to floor+3.5 m)."""
+        floor+above_m (DESIGN 3.2: floor-0.2 m to floor+3.5 m)."""
         x0, y0 = (float(v) - margin_m for v in bounds_min_xy[:2])
         x1, y1 = (float(v) + margin_m for v in bounds_max_xy[:2])
         nx = math.ceil((x1 - x0) / voxel_m - 1e-9)
@@ -138,7 +138,7 @@ class TSDFVolume:
 
 
 # Serial on purpose: ~1 ms per 640x480 frame, and evaluation runs many episodes side by side
-# (SPEC 6), where threads per kernel only oversubscribe the cores (measured 10x slower on 2).
+# (DESIGN 6), where threads per kernel only oversubscribe the cores (measured 10x slower on 2).
 @njit(cache=True)
 def _integrate(tsdf, weight, explored, depth, fxfycxcy, world_to_cam, origin, voxel_m, box,
                trunc_m, max_depth_m, win_px, behind_weight, explored_depth_m

@@ -1,4 +1,4 @@
-"""The semantic value map (SPEC 3.2-3.3): per-point values SV = LSV * GSV painted on the floor.
+"""The semantic value map (DESIGN 3.2-3.3): per-point values SV = LSV * GSV painted on the floor.
 
 Pure numbers in, arrays out; the VLM that produces the confidences lives elsewhere.
 """
@@ -75,7 +75,7 @@ class SemanticValueMap:
 
 def lsv_from_confidences(per_letter: Mapping[str, float], letters: Sequence[str],
                          max_points: int = 3) -> dict[str, float]:
-    """Local semantic values of the prompted ``letters`` (SPEC 3.3).
+    """Local semantic values of the prompted ``letters`` (DESIGN 3.3).
 
     Confidences of the prompted letters are normalised to sum to 1 (missing, negative or
     non-finite ones count as 0; all zero -> uniform), then scaled by len(letters) / max_points
@@ -92,7 +92,7 @@ def lsv_from_confidences(per_letter: Mapping[str, float], letters: Sequence[str]
 
 
 def gsv_from_yes(p_yes: float, temperature: float = 0.5) -> float:
-    """Global semantic value ``exp(P_yes / temperature) / 3`` (SPEC 3.3); P_yes clamped to
+    """Global semantic value ``exp(P_yes / temperature) / 3`` (DESIGN 3.3); P_yes clamped to
     [0, 1] (NaN counts as 0)."""
     p = 0.0 if math.isnan(p_yes) else min(max(p_yes, 0.0), 1.0)
     return math.exp(p / temperature) / 3.0

@@ -39,7 +39,7 @@ class ChatBackend:
     server costs ``timeout_s * (retries + 1)`` per call).
 
     Images (kind "openai"): ``image_format`` None is "jpeg" (quality 90): a 512x384 frame of a
-    rendered house is 80-315 kB as PNG (issue 25) and about 6 times smaller as JPEG q90
+    rendered house is 80-315 kB as PNG and about 6 times smaller as JPEG q90
     (measured: the first frames of synthetic houses 0 and 3, 185 and 161 kB as PNG, 29 and 27 kB
     as JPEG), a difference the model does not see but every request's upload (K = 5 frames in
     one answer) and the server's decoding do. The local back-end keeps PNG (it is text-only).

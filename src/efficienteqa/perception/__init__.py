@@ -1,4 +1,4 @@
-"""Perception back-ends. ``semantic``: the offline default (SPEC 5) that turns the environment's
+"""Perception back-ends. ``semantic``: the offline default (DESIGN 5) that turns the environment's
 instance buffer into short factual text for a text-only language model."""
 
 from efficienteqa.perception.semantic import (

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 class ImagePerception:
     """The paper's setting: the VLM reads the frames themselves. The exploration call gets the
-    frame with the candidate points drawn as lettered circles (SPEC 3.3), kept apart in pixels;
+    frame with the candidate points drawn as lettered circles (DESIGN 3.3), kept apart in pixels;
     "worth exploring" is asked in a call of its own on the unmarked frame
     (``explore/vlm_scorer.py``)."""
 

@@ -1,4 +1,4 @@
-"""Semantic-sensor perception (SPEC 5): the instance buffer of a frame as short factual text.
+"""Semantic-sensor perception (DESIGN 5): the instance buffer of a frame as short factual text.
 
 No image model's weights can be installed here, so the offline default lets a text-only language
 model read what a frame shows instead of its pixels: the visible objects (category, colour,

@@ -1,4 +1,4 @@
-"""Image-question relevancy Sim(I_t, Q) (SPEC 3.4) behind one protocol.
+"""Image-question relevancy Sim(I_t, Q) (DESIGN 3.4) behind one protocol.
 
 Back-ends: "minilm" (text, offline default), "overlap" (text, no model), "blip2-itm" (the
 paper's), "clip", "siglip". Each is imported only when ``make_scorer`` builds it.

@@ -1,4 +1,4 @@
-"""The relevancy contract Sim(I_t, Q) of SPEC 3.4 and a registry of back-ends.
+"""The relevancy contract Sim(I_t, Q) of DESIGN 3.4 and a registry of back-ends.
 
 A scorer compares a question with one observation: an RGB frame (image scorers: BLIP-2 ITM, CLIP,
 SigLIP) or the frame's text description (text scorers: MiniLM, MiniLM calibrated to a match

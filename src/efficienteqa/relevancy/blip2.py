@@ -1,4 +1,4 @@
-"""The paper's relevancy (SPEC 3.4): BLIP-2 image-text matching, P(match | frame, question).
+"""The paper's relevancy (DESIGN 3.4): BLIP-2 image-text matching, P(match | frame, question).
 
 ``Blip2ForImageTextRetrieval`` with its ITM head: the Q-Former attends to the frame while reading
 the question (truncated to 32 tokens, the Q-Former's text length in training); the two logits are

@@ -1,4 +1,4 @@
-"""Contrastive image-text relevancy (SPEC 5): CLIP and SigLIP via transformers.
+"""Contrastive image-text relevancy (DESIGN 5): CLIP and SigLIP via transformers.
 
 CLIP: cosine similarity of the projected, L2-normalised image and text embeddings, in [-1, 1].
 SigLIP: the sigmoid of its pairwise logit (scaled cosine plus bias), a match probability in

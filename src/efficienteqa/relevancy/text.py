@@ -171,7 +171,7 @@ class MiniLMMatchScorer(MiniLMScorer):
     per object line ``sigmoid(MATCH_COS * cos + MATCH_OVERLAP * overlap + MATCH_BIAS)``, where
     ``cos`` is the MiniLM cosine of question and line and ``overlap`` the share of the
     question's content words in the line; a frame scores its best line. Near 0 for most frames
-    and near 1 where the asked-about object is in view, which is what lets the z-rule of SPEC 3.4
+    and near 1 where the asked-about object is in view, which is what lets the z-rule of DESIGN 3.4
     single the evidence frame out (the raw cosine is too smooth for that). Measured, it did not
     make the z-rule stop more often at the evidence, and it stopped more often without it (the
     README, "Asking a question"), so it is an option, not the default."""

@@ -1,4 +1,4 @@
-"""The stop module of the paper: relevancy-based early stopping (SPEC 3.4)."""
+"""The stop module of the paper: relevancy-based early stopping (DESIGN 3.4)."""
 
 from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig, step_budget
 

@@ -1,4 +1,4 @@
-"""The answerability gate (beyond the paper, SPEC 9): a relevancy outlier stops the robot only
+"""The answerability gate (beyond the paper, DESIGN 9): a relevancy outlier stops the robot only
 when the frame can answer the question.
 
 Relevancy alone stops on the container as readily as on its content: "What is on the

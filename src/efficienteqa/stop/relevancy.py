@@ -1,13 +1,13 @@
-"""Relevancy-based early stopping (SPEC 3.4).
+"""Relevancy-based early stopping (DESIGN 3.4).
 
 Every valid frame gets ``Sim(I_t, Q)``. Against the mean and *sample* standard deviation of the
 frames before it, ``z = (Sim_t - mu) / sigma``; the robot stops at the first frame with
 ``z > z_th``, never before ``min_step``. Statistics are kept incrementally (Welford), so a check
 costs the same at step 5 and at step 500.
 
-Stop rules beyond the paper (SPEC 8), named by ``StopConfig.rule``; components join with "+":
+Stop rules beyond the paper (DESIGN 8), named by ``StopConfig.rule``; components join with "+":
 
-- ``paper``: SPEC 3.4 exactly. ``mu``, ``sigma`` = mean, sample std (n-1) of ``Sim_1..Sim_{t-1}``;
+- ``paper``: DESIGN 3.4 exactly. ``mu``, ``sigma`` = mean, sample std (n-1) of ``Sim_1..Sim_{t-1}``;
   stop at the first ``t >= min_step`` with ``(Sim_t - mu) / sigma > z_th``.
 - ``robust``: ``mu`` = median, ``sigma`` = 1.4826 * MAD of the earlier frames (the modified
   z-score of Iglewicz-Hoaglin, ``0.6745 (x - median) / MAD``), so one spike barely moves the
@@ -35,19 +35,19 @@ if TYPE_CHECKING:
     from efficienteqa.envs.base import Environment
 
 Z_TH = 3.0
-PAPER_MIN_STEP = 10  # SPEC 3.4: never before the 10th step
+PAPER_MIN_STEP = 10  # DESIGN 3.4: never before the 10th step
 MIN_STEP = PAPER_MIN_STEP
 # The agent's default floor (agent.AgentConfig.stop): its answerability gate keeps a stop off
-# frames that cannot answer, so the robot may stop from its second step (issue 24).
+# frames that cannot answer, so the robot may stop from its second step (DESIGN 9).
 GATED_MIN_STEP = 2
 STEPS_PER_SQRT_M2 = 3
 SIGMA_FLOOR = 0.1  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
 MAD_TO_SIGMA = 1.4826  # 1 / 0.6745: MAD of a normal sample -> its standard deviation
 SIM_ABS = 0.75  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
-Z_GATED = 1.0  # the threshold for a frame an answerability gate passed (issue 24)
+Z_GATED = 1.0  # the threshold for a frame an answerability gate passed (DESIGN 9)
 RULE_PARTS = ("lookback", "robust", "floor", "absolute")
 # The default: better than "paper" on every measure of benchmarks/stop_bench.py, chosen on
-# training houses 0-20 and checked on held-out houses 2000-2009 (issue 16).
+# training houses 0-20 and checked on held-out houses 2000-2009 (DESIGN 8, results/stop/).
 DEFAULT_STOP_RULE = "lookback+robust+floor+absolute"
 STOP_RULES = ("paper", "lookback", "robust", "floor", "lookback+floor", "lookback+robust",
               "robust+floor", "lookback+robust+floor", "lookback+robust+floor+absolute")
@@ -88,7 +88,7 @@ def zscore(sim: float, mu: float | None, sigma: float | None, eps: float = 1e-9)
 
 
 def step_budget(floor_area_m2: float, per_sqrt_m2: float = STEPS_PER_SQRT_M2) -> int:
-    """SPEC 3.1: ``int(sqrt(area) * 3)`` steps, at least 1."""
+    """DESIGN 3.1: ``int(sqrt(area) * 3)`` steps, at least 1."""
     if not math.isfinite(floor_area_m2) or floor_area_m2 <= 0:
         raise ValueError(f"floor area must be a positive number of m^2, got {floor_area_m2}")
     return max(1, int(math.sqrt(floor_area_m2) * per_sqrt_m2))
@@ -107,8 +107,8 @@ def env_step_budget(env: Environment) -> int:
 class StopConfig:
     """``z_th``: the outlier threshold; ``min_step``: no stop before this step; ``enabled``:
     False runs to the budget (the ExploreEQA baselines); ``sigma_eps``: a spread at or below it
-    counts as zero (the guard: no z, no stop); ``rule``: ``paper`` (SPEC 3.4; the paper preset)
-    or a rule beyond it (module docstring), default ``lookback+robust+floor``; ``sigma_floor``:
+    counts as zero (the guard: no z, no stop); ``rule``: ``paper`` (DESIGN 3.4; the paper preset)
+    or a rule beyond it (module docstring), default ``lookback+robust+floor+absolute``; ``sigma_floor``:
     the floor of rules with ``floor`` (0.1, fitted to MiniLM's scale on training houses);
     ``sim_abs``: the Sim that stops under rules with ``absolute`` (0.75, the same scale);
     ``z_gated``: the threshold for a frame an answerability gate passed (``check``)."""

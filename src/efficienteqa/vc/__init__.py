@@ -1,5 +1,5 @@
 """Verbalized confidence, the machinery below exploration and answering (paper, "Exploration -
-VC"; SPEC 3.3, 3.5, 3.6).
+VC"; DESIGN 3.3, 3.5, 3.6).
 
 One reply holds M answers with confidences ``{r_i, c_i}``; ``parse`` reads them, ``grouping``
 normalises them (``c_i' = c_i / sum c``), groups them into semantic classes ``R_k = E(r_i)``

@@ -1,4 +1,4 @@
-"""Token probabilities for the white-box baselines (SPEC 3.6): the same quantities as verbalized
+"""Token probabilities for the white-box baselines (DESIGN 3.6): the same quantities as verbalized
 confidence (P(letter), P(yes)), read from a model's top log-probabilities instead of its words."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Habitat-Sim + HM3D behind the environment contract of ``envs.base`` (SPEC 4).
+"""Habitat-Sim + HM3D behind the environment contract of ``envs.base`` (DESIGN 4).
 
 ``habitat_sim`` is imported when an environment is built, never at import time: it is installed
 with conda (it has no usable pip wheel on Linux) and most users never need it. The adapter uses

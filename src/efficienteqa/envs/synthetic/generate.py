@@ -93,7 +93,7 @@ def _reconnect(house: House, max_removals: int = 12) -> OccupancyGrid:
 def _start_point(rng: np.random.Generator, grid: OccupancyGrid, room: Room
                  ) -> tuple[float, float]:
     """A point of the furnished living room with START_CLEARANCE_M of free floor around it
-    (SPEC 3.2 treats that disk as free), or the most open points when the room has none."""
+    (DESIGN 3.2 treats that disk as free), or the most open points when the room has none."""
     xs, ys = grid.spec.centres()
     labels, _ = grid.components(ROBOT_RADIUS_M)
     main = labels == np.argmax(np.bincount(labels.ravel())[1:]) + 1
