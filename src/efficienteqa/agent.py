@@ -118,7 +118,7 @@ class AgentConfig:
     # the robot (stop.gate.GATES: "rules" on the frame's description, "model", one yes/no call
     # to the agent's model, "auto" the first where the perception describes objects, "none").
     # With a gate the stop needs no step-10 floor (StopConfig.min_step 2). Chosen on training
-    # houses 0-20, checked on the held-out main table (DESIGN 9; README "Seeing the evidence").
+    # houses 0-20, checked on the held-out main table (DESIGN 9; docs/RESULTS.md).
     # The gate itself is injected (stack.build_gate); an Agent given none under "auto" runs
     # without one.
     gate: str = "auto"
