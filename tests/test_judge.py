@@ -284,7 +284,7 @@ def test_yes_prob_reads_yes_and_no_tokens_in_any_spelling(tmp_path, yes, no):
     (-0.1, -9999.0, 1.0),
 ])
 def test_p_yes_survives_logprobs_that_underflow(yes, no, expected):
-    """Issue 26: exp() of both logprobs is 0.0 below about -745; P(yes) must not divide by it."""
+    """exp() of both logprobs is 0.0 below about -745; P(yes) must not divide by it."""
     from efficienteqa.eval.judge import p_yes
     from efficienteqa.models.base import TokenLogprob
 
@@ -302,7 +302,7 @@ def test_p_yes_adds_spellings_in_log_space():
 
 
 def test_p_yes_is_none_when_yes_and_no_are_both_masked():
-    """Issue 26: -9999 (vLLM's mask) on both words is no answer, not a 50:50 one."""
+    """-9999 (vLLM's mask) on both words is no answer, not a 50:50 one."""
     from efficienteqa.eval.judge import p_yes
     from efficienteqa.models.base import TokenLogprob
 

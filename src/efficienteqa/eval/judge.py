@@ -248,8 +248,8 @@ def p_yes(tokens: Sequence[TokenLogprob]) -> float | None:
     """P(yes) over {yes, no} at the first generated token whose alternatives hold either (each
     spelling adds to its word's probability); None when no token does. Computed from the
     logprobs themselves (``1 / (1 + exp(log P(no) - log P(yes)))``), so words whose logprobs
-    underflow ``exp()`` are still compared (issue 26); a masked token (-9999 or below, -inf,
-    NaN) counts as absent."""
+    underflow ``exp()`` are still compared (they once divided zero by zero); a masked token
+    (-9999 or below, -inf, NaN) counts as absent."""
     for token in tokens:
         mass = {"yes": -math.inf, "no": -math.inf}
         alternatives = dict(token.top)
