@@ -93,6 +93,28 @@ def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
         assert result.returncode == 1 and "conda install" in result.stdout
 
 
+
+def test_ask_with_the_paper_preset_asks_hm_eqa_in_habitat(tmp_path, hm_eqa_dir):
+    """Issue 27: ``ask --dataset`` had a literal default the preset could not fill, so
+    ``--preset paper --episode 0`` opened a synthetic house and failed as "not a Habitat scene".
+    It is HM-EQA's episode 0 in Habitat-Sim; without habitat_sim, one line naming what is needed."""
+    import os
+
+    env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
+    args = ("ask", "--preset", "paper", "--episode", "0", "--hm-eqa-path", str(hm_eqa_dir),
+            "--out", str(tmp_path / "out"))
+    no_scenes = _run(*args, env=env)
+    assert no_scenes.returncode == 1, no_scenes.stdout + no_scenes.stderr
+    assert "not a Habitat scene" not in no_scenes.stdout
+    assert "hm3d:" in no_scenes.stdout and "needs Habitat-Sim" in no_scenes.stdout
+    assert len(no_scenes.stdout.strip().splitlines()) == 1
+    if importlib.util.find_spec("habitat_sim") is None:
+        result = _run(*args, "--hm3d-root", str(tmp_path), env=env)
+        assert result.returncode == 1, result.stdout + result.stderr
+        assert "Habitat-Sim is not installed" in result.stdout and "conda install" in result.stdout
+        assert len(result.stdout.strip().splitlines()) == 1
+        assert "Traceback" not in result.stdout + result.stderr
+
 @needs_egl
 @needs_small_model
 @pytest.mark.slow

@@ -39,6 +39,9 @@ def _parse_start(text: str | None) -> Pose2D | None:
     return Pose2D(x, y, math.radians(yaw_deg))
 
 
+# The dataset of `ask --episode` and `eval` when neither the command line nor a preset names one.
+DEFAULT_DATASET = "synthetic"
+
 PRESET_HELP = "paper: the paper's set-up (HM-EQA's first 100 in Habitat-Sim, GPT-4o at T=1 on " \
               "RGB, BLIP-2 ITM, Z_th 3, K 5); fills only options not given."
 ENV_HELP = "synthetic (generated houses) | habitat (Habitat-Sim + HM3D; needs --hm3d-root)."
@@ -174,8 +177,8 @@ def ask_command(
                               "hm3d:SCENE (with --env habitat)."),
     episode: str | None = typer.Option(None, help="Ask question ID (or row N) of --dataset, in its "
                                        "scene, from its start pose."),
-    dataset: str = typer.Option("synthetic", help="The dataset of --episode: synthetic | hm-eqa | "
-                                "synthetic:SEEDS."),
+    dataset: str | None = typer.Option(None, help="The dataset of --episode: synthetic (default) | "
+                                       "hm-eqa | synthetic:SEEDS.", show_default=False),
     out: Path = typer.Option(Path("out/ask"), help="Folder for episode.json and report.html."),
     start: str | None = typer.Option(None, help="Start pose X,Y,YAW_DEG (default: the scene's)."),
     z_th: ZTh = None,
@@ -242,7 +245,8 @@ def ask_command(
     if episode is not None:
         from efficienteqa.datasets import find_question, load_dataset
 
-        q = find_question(load_dataset(dataset, path=hm_eqa_path, assets=assets), episode)
+        q = find_question(load_dataset(o["dataset"] or DEFAULT_DATASET, path=hm_eqa_path,
+                                       assets=assets), episode)
         question, scene, reference = q.question, q.scene, q.answer
         habitat_start = HabitatStart.from_source(q.source)
         start_pose = start_pose or (Pose2D(*q.start) if q.start is not None else None)
@@ -404,7 +408,7 @@ def eval_command(
     build_config(o)  # a value the agent refuses (--top-k 0, --z-th nan): here, not per episode
     parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature,
               **stack.server_options())
-    dataset = o["dataset"] or "synthetic"
+    dataset = o["dataset"] or DEFAULT_DATASET
     if closed_set and dataset != "hm-eqa":
         raise EfficientEQAError(f"--closed-set is HM-EQA's multiple-choice mode; {dataset} has no "
                                 "choices", fix="use --dataset hm-eqa, or leave out --closed-set")
