@@ -23,25 +23,18 @@ run() {
   echo "==> $name $(date +%T)"
   "$EQA" eval --dataset "$DATASET" --limit "$LIMIT" --out "$OUT/$name" --judge "$JUDGE" "$@" "${ARGS[@]}" || { echo "failed: $name"; status=1; }
 }
-run default --method efficienteqa
-# ExploreEQA explores with the stack's scorer like the rows above (the white-box default would
-# ask the VLM's token probabilities at every step: two calls a step, ~5 min an episode on 2 CPU
-# cores), so the rows differ in the stop and the answer, the paper's claim.
-run explore-eqa --method explore-eqa --explore-scorer direction-logit
-run explore-eqa-blackbox --method explore-eqa-blackbox --explore-scorer direction-logit
-# White-box variants: black-box's prompt read by its token probability (the two baselines then
-# differ only in the confidence), and the token probability per token (length-normalised).
-run explore-eqa-verbalized-prompt --method explore-eqa --explore-scorer direction-logit --token-answer verbalized
-run explore-eqa-per-token --method explore-eqa --explore-scorer direction-logit --answer-probability per-token
-run frontier-only --method frontier-only
-run random --method random
-run blind --method blind
-# The paper's configuration on the offline stack: the VLM's verbalized confidence steers, SPEC
-# 3.4's stop (no gate, never before step 10), SPEC 3.5's answer, and every option beyond the
-# paper off (no steering by the question's target).
-run paper --method efficienteqa --explore-scorer vlm --stop-rule paper --answer paper \
-  --prompts paper --exploration paper --refusal-retries 0 --stop-clearance-m 0 --repeated-views \
-  --gate none --steering none --min-stop-step 10
+# Each row is a named configuration shipped with the package (src/efficienteqa/configs/NAME.toml,
+# which says what it holds); ARGS, given after it, win. The paper row is the paper's algorithm on
+# the offline stack (paper-offline: DESIGN 3.2-3.5 with every option beyond the paper off).
+run default --preset default
+run explore-eqa --preset explore-eqa
+run explore-eqa-blackbox --preset explore-eqa-blackbox
+run explore-eqa-verbalized-prompt --preset explore-eqa-verbalized-prompt
+run explore-eqa-per-token --preset explore-eqa-per-token
+run frontier-only --preset frontier-only
+run random --preset random
+run blind --preset blind
+run paper --preset paper-offline
 RUNS=("$OUT/default" "$OUT/paper" "$OUT/explore-eqa" "$OUT/explore-eqa-blackbox"
       "$OUT/explore-eqa-verbalized-prompt" "$OUT/explore-eqa-per-token" "$OUT/frontier-only"
       "$OUT/random" "$OUT/blind")

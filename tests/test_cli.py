@@ -164,3 +164,74 @@ def test_an_unwritable_out_folder_fails_before_the_work(command, tmp_path):
     assert result.returncode == 1, result.stdout + result.stderr
     assert "cannot write to" in result.stdout and "Traceback" not in result.stdout + result.stderr
     assert "exploring" not in result.stdout
+
+
+def _stub_env():
+    import os
+    from pathlib import Path
+
+    tests = str(Path(__file__).parent)
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")])}
+
+
+def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(tmp_path):
+    """``--preset paper-offline``: agent.PAPER_CONFIG with the VLM's semantic values on the
+    synthetic questions and the default stack; tables name it as the committed paper row."""
+    from dataclasses import asdict
+
+    from efficienteqa.agent import PAPER_CONFIG
+    from efficienteqa.eval.summary import settings, settings_label
+    from efficienteqa.stack import Stack
+
+    result = _run("eval", "--preset", "paper-offline", "--method", "eval_stubs:echo", "--limit", "1",
+                  "--judge", "none", "--out", str(tmp_path / "run"), env=_stub_env())
+    assert result.returncode == 0, result.stdout + result.stderr
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert run["config"] == json.loads(json.dumps(asdict(PAPER_CONFIG)))
+    assert (run["dataset"], run["env"]) == ("synthetic", "synthetic")
+    assert run["stack"] == {**json.loads(json.dumps(asdict(Stack()))), "explore_scorer": "vlm"}
+    assert settings_label("efficienteqa", settings(run)) == "efficienteqa paper configuration"
+
+
+def test_a_configuration_file_fills_what_the_command_line_leaves_out(tmp_path):
+    config = tmp_path / "mine.toml"
+    config.write_text('base = "paper-offline"\ntop_k = 3\nz_th = 2\nassets = "builtin"\n'
+                      'method = "eval_stubs:echo"\nlimit = 1\njudge = "none"\ndataset = "synthetic:4"\n')
+    result = _run("eval", "--config", str(config), "--top-k", "4", "--out", str(tmp_path / "run"),
+                  env=_stub_env())
+    assert result.returncode == 0, result.stdout + result.stderr
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert run["method"] == "eval_stubs:echo" and run["questions"] == 1
+    assert run["config"]["top_k"] == 4  # the command line wins
+    assert run["config"]["stop"]["z_th"] == 2.0 and run["config"]["stop"]["rule"] == "paper"
+    assert run["assets"] == "builtin"  # an option with a default of its own is filled too
+    given = _run("eval", "--config", str(config), "--assets", "sh3d", "--out", str(tmp_path / "b"),
+                 env=_stub_env())
+    assert given.returncode == 0, given.stdout + given.stderr
+    assert json.loads((tmp_path / "b" / "run.json").read_text())["assets"] == "sh3d"
+
+
+@pytest.mark.parametrize("command", ["ask", "eval"])
+def test_a_bad_configuration_is_one_line_before_any_work(command, tmp_path):
+    question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
+    bad = tmp_path / "bad.toml"
+    for text, message in (("topk = 3\n", "unknown option 'topk'"),
+                          ('top_k = "3"\n', "must be an integer"),
+                          ("top_k = \n", "is not valid TOML"),
+                          (None, "cannot read the configuration")):
+        if text is None:
+            bad.unlink()
+        else:
+            bad.write_text(text)
+        result = _run(command, *question, "--config", str(bad), "--out", str(tmp_path / "out"))
+        assert result.returncode == 1, (text, result.stdout, result.stderr)
+        assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
+        assert len(result.stdout.strip().splitlines()) == 1
+        assert not (tmp_path / "out").exists()
+    result = _run(command, *question, "--preset", "papr", "--out", str(tmp_path / "out"))
+    assert result.returncode == 1 and "unknown preset 'papr'" in result.stdout
+
+
+def test_ask_refuses_a_configuration_of_another_method(tmp_path):
+    result = _run("ask", "Where is the sofa?", "--preset", "explore-eqa", "--out", str(tmp_path / "o"))
+    assert result.returncode == 1 and "method 'explore-eqa' is for eval" in result.stdout

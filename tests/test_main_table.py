@@ -50,3 +50,18 @@ def test_the_main_table_runs_every_method_on_two_questions(tmp_path, small_model
             assert all(1 <= r["usage"]["calls"] <= r["extra"]["valid_frames"] for r in rows)
     # Every row but the reference is paired with white-box ExploreEQA on both questions.
     assert sum(cells.strip() == "2" for line in table for cells in line.split("|")[-2:-1]) == len(RUNS) - 1
+
+
+def test_every_row_is_a_shipped_configuration():
+    """Issue 27: the rows name presets (configs/NAME.toml) instead of spelling out flag lists;
+    the paper row is the paper's algorithm on the offline stack."""
+    import re
+
+    from efficienteqa.presets import preset_names
+
+    script = (ROOT / "benchmarks" / "main_table.sh").read_text()
+    rows = dict(re.findall(r"^run (\S+) --preset (\S+)$", script, flags=re.M))
+    assert set(rows) == set(RUNS) and rows["paper"] == "paper-offline"
+    assert all(preset == name for name, preset in rows.items() if name != "paper")
+    assert set(rows.values()) <= set(preset_names())
+    assert not re.search(r"^run .*--(?!preset)", script, flags=re.M)  # no flag lists

@@ -156,8 +156,9 @@ class AgentConfig:
 
 
 # The paper's algorithm (DESIGN 3.2-3.5) with every option beyond it off: what `--preset paper`
-# sets besides the back-ends (with the VLM as explore scorer), and what a table calls "paper
-# configuration".
+# sets besides the back-ends (with the VLM as explore scorer), `--preset paper-offline`
+# (configs/paper-offline.toml, tests/test_presets.py holds them equal), and what a table calls
+# "paper configuration".
 PAPER_CONFIG = AgentConfig(stop=StopConfig(rule="paper", min_step=PAPER_MIN_STEP),
                            refusal_retries=0, stop_clearance_m=0.0, prompts="paper",
                            distinct_views=False, exploration="paper", answer="paper",

@@ -42,8 +42,15 @@ def _parse_start(text: str | None) -> Pose2D | None:
 # The dataset of `ask --episode` and `eval` when neither the command line nor a preset names one.
 DEFAULT_DATASET = "synthetic"
 
-PRESET_HELP = "paper: the paper's set-up (HM-EQA's first 100 in Habitat-Sim, GPT-4o at T=1 on " \
-              "RGB, BLIP-2 ITM, Z_th 3, K 5); fills only options not given."
+PRESET_HELP = ("A named configuration shipped with the package (efficienteqa/configs/NAME.toml): "
+               "paper (the paper's set-up: HM-EQA's first 100 in Habitat-Sim, GPT-4o at T=1 on "
+               "RGB, BLIP-2 ITM, Z_th 3, K 5) | paper-offline (the paper's algorithm on the "
+               "offline stack) | a main-table row: default, explore-eqa, explore-eqa-blackbox, "
+               "explore-eqa-verbalized-prompt, explore-eqa-per-token, frontier-only, random, "
+               "blind. Fills only options not given.")
+CONFIG_HELP = ("A configuration file: TOML, one option = value a line, the options' names with "
+               "underscores (min_stop_step = 10), base = \"PRESET\" to start from a preset. "
+               "Fills options not given on the command line, before --preset.")
 ENV_HELP = "synthetic (generated houses) | habitat (Habitat-Sim + HM3D; needs --hm3d-root)."
 HM3D_HELP = "Folder holding the HM3D scene folders, e.g. 00800-TEEsavR23oF/ (see docs/habitat.md)."
 
@@ -160,13 +167,55 @@ Hm3dRoot = Annotated[Path | None, typer.Option(help=HM3D_HELP)]
 HmEqaPath = Annotated[Path | None, typer.Option(help="Folder with HM-EQA's questions.csv and "
                                                 "scene_init_poses.csv (default: downloaded).")]
 Assets = Annotated[str, typer.Option(help="'sh3d' (furniture package) or 'builtin' (boxes).")]
-Preset = Annotated[str | None, typer.Option(help=PRESET_HELP)]
+Preset = Annotated[str | None, typer.Option(help=PRESET_HELP, show_default=False)]
+ConfigFile = Annotated[Path | None, typer.Option("--config", metavar="FILE", help=CONFIG_HELP,
+                                                 show_default=False)]
 Dataset = Annotated[str | None, typer.Option(help="synthetic (the fixed split; default) | "
                                              "synthetic:SEEDS (e.g. synthetic:0-9) | hm-eqa.",
                                              show_default=False)]
 ClosedSet = Annotated[bool, typer.Option("--closed-set", help="HM-EQA's four-choice mode (all 500 "
                                          "questions): graded by the chosen letter; the default "
                                          "judge is then none.")]
+
+
+# Options a configuration cannot set: what the command reads it from, and where its output goes.
+_NOT_CONFIGURABLE = ("ctx", "question", "preset", "config_file", "out")
+
+
+def _option_types() -> dict[str, type]:
+    """The options of ``ask`` and ``eval`` a configuration may set, each with its type (from
+    the commands' signatures: the options are declared once)."""
+    import typing
+
+    types: dict[str, type] = {}
+    for command in (ask_command, eval_command):
+        for name, hint in typing.get_type_hints(command).items():
+            if name in _NOT_CONFIGURABLE or name == "return":
+                continue
+            kinds = [a for a in typing.get_args(hint) if a is not type(None)] or [hint]
+            types[name] = kinds[0]
+    return types
+
+
+def _options(ctx: typer.Context) -> dict:
+    """The command's options, those left out on the command line filled from --config, then
+    from --preset: each option set once, whatever the source."""
+    from efficienteqa.presets import fill, load_config, load_preset
+
+    params = dict(ctx.params)
+    left_out = ("DEFAULT", "DEFAULT_MAP")  # by name: typer may bring its own click
+    given = {k for k in params
+             if getattr(ctx.get_parameter_source(k), "name", "DEFAULT") not in left_out}
+    types = _option_types()
+    values: dict = {}
+    if params.get("preset") is not None:
+        values.update(load_preset(params["preset"], types))
+    if params.get("config_file") is not None:
+        values.update(load_config(params["config_file"], types))
+    options = fill(params, values, given)
+    if "method" in values and "method" not in params:
+        options["method"] = values["method"]  # ask refuses another method
+    return options
 
 
 @app.command("ask")
@@ -220,6 +269,7 @@ def ask_command(
     hm_eqa_path: HmEqaPath = None,
     assets: Assets = "sh3d",
     preset: Preset = None,
+    config_file: ConfigFile = None,
     cache: Cache = None,
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
@@ -228,13 +278,17 @@ def ask_command(
     from efficienteqa.agent import StepRecord
     from efficienteqa.ask import ask
     from efficienteqa.envs.habitat.scenes import HabitatStart
-    from efficienteqa.presets import apply_preset, build_config, build_stack
+    from efficienteqa.presets import build_config, build_stack
     from efficienteqa.records import check_writable
     from efficienteqa.scenes import open_scene
     from efficienteqa.stack import check_stack, parse_vlm
     from efficienteqa.stop.relevancy import env_step_budget
 
-    o = apply_preset(preset, ctx.params)
+    o = _options(ctx)
+    if (o.get("method") or "efficienteqa") != "efficienteqa":
+        raise EfficientEQAError(f"ask runs efficienteqa; method {o['method']!r} is for eval",
+                                fix="use efficienteqa eval --method with this configuration")
+    scene, episode, start, assets = o["scene"], o["episode"], o["start"], o["assets"]
     config, stack = build_config(o), build_stack(o)
     # Bad input fails before the scene is built.
     check_stack(stack)
@@ -245,7 +299,7 @@ def ask_command(
     if episode is not None:
         from efficienteqa.datasets import find_question, load_dataset
 
-        q = find_question(load_dataset(o["dataset"] or DEFAULT_DATASET, path=hm_eqa_path,
+        q = find_question(load_dataset(o["dataset"] or DEFAULT_DATASET, path=o["hm_eqa_path"],
                                        assets=assets), episode)
         question, scene, reference = q.question, q.scene, q.answer
         habitat_start = HabitatStart.from_source(q.source)
@@ -254,10 +308,10 @@ def ask_command(
         raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
                                 'the sofa?", or --episode ID with --dataset')
     with console.status(f"opening {scene}..."):
-        opened = open_scene(scene, assets, env=o["env"] or "synthetic", hm3d_root=hm3d_root,
+        opened = open_scene(scene, assets, env=o["env"] or "synthetic", hm3d_root=o["hm3d_root"],
                             start=habitat_start)
     try:
-        budget = max_steps or env_step_budget(opened.env)
+        budget = o["max_steps"] or env_step_budget(opened.env)
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
         with Progress(*columns, console=console) as progress:
@@ -380,6 +434,7 @@ def eval_command(
     reports: bool = typer.Option(False, "--reports", help="Also write each episode's report.html."),
     assets: Assets = "sh3d",
     preset: Preset = None,
+    config_file: ConfigFile = None,
     cache: Cache = None,
 ) -> None:
     """Run a method on a dataset, resumably: one JSON line per episode, graded by the rule judge
@@ -397,11 +452,12 @@ def eval_command(
     from efficienteqa.eval.methods import METHODS, RunSpec, default_judge, resolve
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
-    from efficienteqa.presets import apply_preset, build_config, build_stack, given
+    from efficienteqa.presets import build_config, build_stack, given
     from efficienteqa.records import check_writable
     from efficienteqa.stack import check_stack, parse_vlm
 
-    o = apply_preset(preset, ctx.params)
+    o = _options(ctx)
+    method, closed_set, assets, hm3d_root = o["method"], o["closed_set"], o["assets"], o["hm3d_root"]
     resolve(method)  # bad input fails before anything slow
     stack = build_stack(o)
     check_stack(stack)
@@ -424,12 +480,12 @@ def eval_command(
     if judge_spec:
         parse_vlm(judge_spec, images=False)
     check_writable(out)
-    questions = load_dataset(dataset, path=hm_eqa_path, limit=o["limit"], closed_set=closed_set,
+    questions = load_dataset(dataset, path=o["hm_eqa_path"], limit=o["limit"], closed_set=closed_set,
                              assets=assets)
     spec = RunSpec(method=method, dataset=dataset, stack=stack, config=build_config(o),
                    closed_set=closed_set,
                    judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"] or "auto", judge_spec or ""),
-                   reports=reports, assets=assets,
+                   reports=o["reports"], assets=assets,
                    hm3d_root=str(hm3d_root) if hm3d_root is not None else None,
                    **given(o, ["env"]))
     done_before = len(read_episodes(out / "episodes.jsonl").done)
@@ -458,7 +514,7 @@ def eval_command(
                               highlight=False, soft_wrap=True)
             progress.update(task, advance=1, info=info)
 
-        result = run_eval(spec, questions, out, workers=workers, address=address,
+        result = run_eval(spec, questions, out, workers=o["workers"], address=o["address"],
                           on_episode=on_episode)
     console.print(f"{result.ran} episodes run, {result.skipped} already done, {result.failed} failed, "
                   f"{result.wall_s:.0f} s ({result.episodes_per_hour:.0f} episodes/hour)",

@@ -1,23 +1,28 @@
 """From command-line options to the dataclasses of a run: the one configuration path of the CLI.
 
-An option the user leaves out arrives as None. A preset fills the ones it names; whatever is
-still None takes the default of the dataclass it belongs to (``Stack``, ``AgentConfig``,
+An option the user leaves out arrives as None. A named configuration fills the ones it names
+(``--config FILE``, then ``--preset NAME``; the command line wins over both); whatever is still
+None takes the default of the dataclass it belongs to (``Stack``, ``AgentConfig``,
 ``StopConfig``, ``RunSpec``), so no default is written twice.
 
-``paper``: the set-up of the paper's experiments (its Sec. IV): HM-EQA's first 100 questions
-in Habitat-Sim, GPT-4o (gpt-4o-2024-05-13, temperature 1) reading the RGB frames, BLIP-2 ITM
-(Salesforce/blip2-itm-vit-g) for relevancy, Z_th = 3 and K = 5. The paper does not name its
-LLM-Match judge; the preset uses the same GPT-4o, grading 1-5. In Habitat-Sim the preset runs
-ExploreEQA's set-up, the defaults of ``envs.habitat.env.HabitatEnv``: the camera on a body
-tilted 30 degrees down (``camera_mount="body-tilt"``), moves set without a navmesh check
-(``moves="unchecked"``, so no refused move spends a step) and the step budget from the x-z box
-of the whole navmesh (``budget_area="navmesh-bbox"``); docs/habitat.md, "Fidelity to ExploreEQA".
+A configuration is a TOML file of ``option = value`` lines, the options' names with
+underscores (``min_stop_step = 10`` for ``--min-stop-step``, ``distinct_views = false`` for
+``--repeated-views``), and optionally ``base = "NAME"``: a preset it starts from. The presets
+are the files ``configs/NAME.toml`` shipped in the package, each saying what it holds:
+``paper`` (the paper's experiments: HM-EQA in Habitat-Sim, GPT-4o, BLIP-2 ITM; ExploreEQA's
+Habitat set-up, docs/habitat.md, "Fidelity to ExploreEQA"), ``paper-offline`` (the paper's
+algorithm, ``agent.PAPER_CONFIG``, on the offline default stack) and one per row of
+benchmarks/main_table.sh.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import difflib
+import sys
+from collections.abc import Iterator, Mapping
 from dataclasses import fields, replace
+from importlib import resources
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from efficienteqa.errors import EfficientEQAError
@@ -26,44 +31,145 @@ if TYPE_CHECKING:
     from efficienteqa.agent import AgentConfig
     from efficienteqa.stack import Stack
 
-PAPER_VLM = "openai:gpt-4o-2024-05-13"
-
-PRESETS: dict[str, dict[str, Any]] = {
-    "paper": {
-        "dataset": "hm-eqa", "limit": 100, "env": "habitat",
-        "vlm": PAPER_VLM, "temperature": 1.0, "perception": "rgb", "relevancy": "blip2-itm",
-        "grouping": "llm", "z_th": 3.0, "top_k": 5,
-        # SPEC 3.4's z-rule: mean and sample std of the earlier frames, no stop before step 10
-        "stop_rule": "paper", "min_stop_step": 10,
-        # nothing beyond the paper: no answerability gate, no steering by the question's target
-        "gate": "none", "steering": "none",
-        # the VLM's verbalized confidence gives the semantic values (SPEC 3.3)
-        "explore_scorer": "vlm",
-        "judge": PAPER_VLM, "judge_mode": "grade",
-        # the paper's stepping: a move ends where the 3 m cut falls, a refused move spends a step
-        "refusal_retries": 0, "stop_clearance_m": 0.0,
-        # SPEC 3.3's prompt points, 2-10 m away and 1 m apart; SPEC 3.2's frontier explorer
-        "prompts": "paper", "exploration": "paper",
-        # SPEC 3.5's retrieval: the K most relevant frames, repeats of one view included
-        "distinct_views": False,
-        # SPEC 3.5's answer: M verbalized guesses, grouped
-        "answer": "paper",
-    },
-}
+PAPER_VLM = "openai:gpt-4o-2024-05-13"  # configs/paper.toml's vlm and judge
 
 # Command-line names of StopConfig fields (the others are named as their fields).
 _STOP_OPTIONS = {"z_th": "z_th", "min_stop_step": "min_step", "stop_rule": "rule"}
+_TYPE_NAMES = {bool: "true or false", int: "an integer", float: "a number", str: "a string",
+               Path: "a path (a string)"}
+
+
+def _configs() -> Any:
+    return resources.files("efficienteqa") / "configs"
+
+
+def preset_names() -> list[str]:
+    """The presets shipped with the package: ``configs/*.toml``."""
+    return sorted(f.name[:-5] for f in _configs().iterdir() if f.name.endswith(".toml"))
+
+
+def _read_toml(text: str, where: str) -> dict[str, Any]:
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover - Python 3.10
+        try:
+            import tomli as tomllib
+        except ImportError:
+            raise EfficientEQAError(f"cannot read {where}: TOML needs Python 3.11 or tomli",
+                                    fix="pip install tomli") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise EfficientEQAError(f"{where} is not valid TOML: {exc}",
+                                fix="write one option = value per line, as configs/paper.toml "
+                                "does") from None
+
+
+def _check(values: Mapping[str, Any], schema: Mapping[str, type] | None, where: str,
+           folder: Path | None) -> dict[str, Any]:
+    """The values, each of the type ``schema`` gives its option (ints are numbers too; a path
+    is relative to ``folder``, the file's own); an unknown key or a wrong type is one error."""
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        if schema is None:
+            out[key] = value
+            continue
+        if key not in schema:
+            near = difflib.get_close_matches(key, list(schema), n=1)
+            raise EfficientEQAError(f"unknown option {key!r} in {where}",
+                                    fix=f"did you mean {near[0]!r}?" if near else
+                                    "use the options' names with underscores, e.g. "
+                                    "min_stop_step = 10 for --min-stop-step (see --help)")
+        kind = schema[key]
+        ok = (isinstance(value, bool) if kind is bool else
+              isinstance(value, (int, float)) and not isinstance(value, bool) if kind is float else
+              isinstance(value, int) and not isinstance(value, bool) if kind is int else
+              isinstance(value, str))
+        if not ok:
+            raise EfficientEQAError(f"{key} in {where} must be {_TYPE_NAMES.get(kind, kind)}, "
+                                    f"not {value!r}", fix="e.g. " + {
+                                        bool: f"{key} = true", int: f"{key} = 5",
+                                        float: f"{key} = 3.0"}.get(kind, f'{key} = "text"'))
+        if kind is float:
+            value = float(value)
+        elif kind is Path:
+            value = Path(value).expanduser()
+            if folder is not None and not value.is_absolute():
+                value = folder / value
+        out[key] = value
+    return out
+
+
+def _resolve(text: str, where: str, schema: Mapping[str, type] | None, folder: Path | None,
+             seen: tuple[str, ...]) -> dict[str, Any]:
+    raw = _read_toml(text, where)
+    base = raw.pop("base", None)
+    values = _check(raw, schema, where, folder)
+    if base is None:
+        return values
+    if not isinstance(base, str):
+        raise EfficientEQAError(f"base in {where} must be a preset's name, not {base!r}",
+                                fix=f"use one of {', '.join(preset_names())}")
+    return {**load_preset(base, schema, seen=(*seen, where)), **values}
+
+
+def load_preset(name: str, schema: Mapping[str, type] | None = None, *,
+                seen: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The options the preset ``configs/NAME.toml`` sets, its base's included."""
+    names = preset_names()
+    if name not in names:
+        raise EfficientEQAError(f"unknown preset {name!r}", fix=f"use one of {', '.join(names)}")
+    where = f"configs/{name}.toml"
+    if where in seen:
+        raise EfficientEQAError(f"the presets' bases go round in a circle: {' -> '.join(seen)}",
+                                fix="give the file a base that does not lead back to it")
+    return _resolve((_configs() / f"{name}.toml").read_text(encoding="utf-8"), where, schema,
+                    None, seen)
+
+
+def load_config(path: Path, schema: Mapping[str, type] | None = None) -> dict[str, Any]:
+    """The options a configuration file sets (``base`` included); paths in it are relative to
+    the file's folder. Unreadable, not TOML, an unknown option or a wrong type: one error."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise EfficientEQAError(f"cannot read the configuration {path}: {reason}",
+                                fix="give a TOML file of option = value lines, e.g. a copy of "
+                                "a preset (efficienteqa/configs/*.toml)") from None
+    return _resolve(text, str(path), schema, Path(path).resolve().parent, ())
+
+
+class _Presets(Mapping[str, dict[str, Any]]):
+    """``PRESETS[name]``: what ``load_preset(name)`` sets, read when asked."""
+
+    def __getitem__(self, name: str) -> dict[str, Any]:
+        if name not in preset_names():
+            raise KeyError(name)
+        return load_preset(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(preset_names())
+
+    def __len__(self) -> int:
+        return len(preset_names())
+
+
+PRESETS: Mapping[str, dict[str, Any]] = _Presets()
+
+
+def fill(options: Mapping[str, Any], values: Mapping[str, Any],
+         given: Any = None) -> dict[str, Any]:
+    """``options`` with ``values``'s value for each option not ``given`` (default: the options
+    left out, None); options ``values`` does not name are kept as they are."""
+    return {k: values[k] if k in values and (k not in given if given is not None else v is None)
+            else v for k, v in options.items()}
 
 
 def apply_preset(name: str | None, options: Mapping[str, Any]) -> dict[str, Any]:
     """``options`` with the preset's value for each option left out (None); options the preset
     does not name are kept as they are."""
-    if name is None:
-        return dict(options)
-    if name not in PRESETS:
-        raise EfficientEQAError(f"unknown preset {name!r}", fix=f"use one of {', '.join(PRESETS)}")
-    values = PRESETS[name]
-    return {k: values[k] if v is None and k in values else v for k, v in options.items()}
+    return dict(options) if name is None else fill(options, load_preset(name))
 
 
 def given(options: Mapping[str, Any], names: Any) -> dict[str, Any]:
