@@ -1,16 +1,23 @@
 """The methods an evaluation compares (DESIGN 3.6), each as a configuration of the one agent.
 
-=====================  =========  ==========  ==========  ====================  ===========
+=====================  =========  ==========  ==========  ====================  ==================
 method                 explorer   confidence  early stop  answer                model calls
-=====================  =========  ==========  ==========  ====================  ===========
-efficienteqa           SFE        verbalized  z > Z_th    RAG over top-K        1 per step
-explore-eqa            SFE        token       none        best step (Sim x p)   2 per step
-explore-eqa-blackbox   SFE        verbalized  none        best step (Sim x C)   2 per step
-frontier-only          frontier   --          z > Z_th    RAG over top-K        0 per step
-random                 random     --          z > Z_th    RAG over top-K        0 per step
-blind                  --         verbalized  --          question only         1
+=====================  =========  ==========  ==========  ====================  ==================
+efficienteqa           SFE        verbalized  z > Z_th    RAG over top-K        see below
+explore-eqa            SFE        token       none        best step (Sim x p)   explore + answers
+explore-eqa-blackbox   SFE        verbalized  none        best step (Sim x C)   explore + answers
+frontier-only          frontier   --          z > Z_th    RAG over top-K        answer (+ gate)
+random                 random     --          z > Z_th    RAG over top-K        answer (+ gate)
+blind                  --         verbalized  --          question only         1 (+ grouping)
 blind, closed-set      --         token       --          letter of max P       1
-=====================  =========  ==========  ==========  ====================  ===========
+=====================  =========  ==========  ==========  ====================  ==================
+
+Model calls of ``efficienteqa``: on the offline default none while exploring (the
+``direction-logit`` scorer and the rules gate need no model), one answer at the end; with a VLM
+over images one exploration call per step (two: letters on the marked frame, "worth exploring"
+on the plain one), one per frame with ``vlm-match`` relevancy, one per flagged frame for the
+model gate, and one answer. ExploreEQA answers lazily at the steps that can still win
+(``answer.best_step``); the count is in each episode's ``model`` block.
 
 The RAG answer is ``AgentConfig.answer``'s: by default the direct answer (one hinted answer,
 its token probability as confidence; DESIGN 8), DESIGN 3.5's M verbalized guesses with ``paper``.

@@ -2,8 +2,9 @@
 
 Every valid frame gets ``Sim(I_t, Q)``. Against the mean and *sample* standard deviation of the
 frames before it, ``z = (Sim_t - mu) / sigma``; the robot stops at the first frame with
-``z > z_th``, never before ``min_step``. Statistics are kept incrementally (Welford), so a check
-costs the same at step 5 and at step 500.
+``z > z_th``, never before ``min_step``. Under this rule (``paper``) the statistics are kept
+incrementally (Welford), so a check costs the same at step 5 and at step 500; the rules beyond
+the paper recompute their baseline from the history at each check (a few hundred floats).
 
 Stop rules beyond the paper (DESIGN 8), named by ``StopConfig.rule``; components join with "+":
 
