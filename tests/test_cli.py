@@ -235,3 +235,37 @@ def test_a_bad_configuration_is_one_line_before_any_work(command, tmp_path):
 def test_ask_refuses_a_configuration_of_another_method(tmp_path):
     result = _run("ask", "Where is the sofa?", "--preset", "explore-eqa", "--out", str(tmp_path / "o"))
     assert result.returncode == 1 and "method 'explore-eqa' is for eval" in result.stdout
+
+
+@pytest.mark.parametrize("command", ["ask", "eval"])
+def test_help_groups_the_options_in_panels(command):
+    """Issue 27: ``--help`` in panels, in this order: what is asked, the method, its back-ends,
+    the options beyond the paper, where the output goes."""
+    import os
+    import re
+
+    result = _run(command, "--help", env={**os.environ, "COLUMNS": "200", "NO_COLOR": "1",
+                                          "TERM": "dumb"})
+    assert result.returncode == 0, result.stderr
+    panels: dict[str, list[str]] = {}
+    current = ""
+    for line in result.stdout.splitlines():
+        title = re.match(r"^╭─ (.+?) ─", line)
+        if title:
+            current = title.group(1)
+            panels[current] = []
+        option = re.match(r"^│ [* ]*(--[a-z0-9-]+)", line)
+        if option and current:
+            panels[current].append(option.group(1))
+    names = [p for p in panels if p not in ("Arguments", "Options")]
+    assert names == ["Question", "Method", "Back-ends", "Beyond the paper (DESIGN 8-9)", "Output"]
+    where = {option: panel for panel, options in panels.items() for option in options}
+    expected = {"--dataset": "Question", "--preset": "Method", "--config": "Method",
+                "--z-th": "Method", "--top-k": "Method", "--explore-scorer": "Method",
+                "--vlm": "Back-ends", "--relevancy": "Back-ends", "--env": "Back-ends",
+                "--gate": "Beyond the paper (DESIGN 8-9)", "--steering": "Beyond the paper (DESIGN 8-9)",
+                "--refusal-retries": "Beyond the paper (DESIGN 8-9)", "--out": "Output"}
+    expected.update({"--episode": "Question"} if command == "ask" else
+                    {"--method": "Method", "--limit": "Question", "--judge": "Back-ends",
+                     "--reports": "Output"})
+    assert {option: where.get(option) for option in expected} == expected

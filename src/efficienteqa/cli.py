@@ -6,7 +6,7 @@ import math
 import sys
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
@@ -54,126 +54,135 @@ CONFIG_HELP = ("A configuration file: TOML, one option = value a line, the optio
 ENV_HELP = "synthetic (generated houses) | habitat (Habitat-Sim + HM3D; needs --hm3d-root)."
 HM3D_HELP = "Folder holding the HM3D scene folders, e.g. 00800-TEEsavR23oF/ (see docs/habitat.md)."
 
+# The panels of `ask --help` and `eval --help`.
+QUESTION, METHOD, BACKENDS, BEYOND, OUTPUT = ("Question", "Method", "Back-ends",
+                                              "Beyond the paper (DESIGN 8-9)", "Output")
+
+
+def _option(panel: str, *args: Any, **kwargs: Any) -> Any:
+    return typer.Option(*args, rich_help_panel=panel, **kwargs)
+
+
 # The options of an agent run, declared once for `ask` and `eval`. Left out, an option is None
 # and takes the default of its dataclass (presets.build_stack / build_config): no default is
 # written twice.
-ZTh = Annotated[float | None, typer.Option("--z-th", help="Stop when a frame's relevancy z-score "
+ZTh = Annotated[float | None, _option(METHOD, "--z-th", help="Stop when a frame's relevancy z-score "
                                            f"exceeds this (default {StopConfig.z_th:g}).",
                                            show_default=False)]
-MinStopStep = Annotated[int | None, typer.Option(help="Never stop before this step (default "
+MinStopStep = Annotated[int | None, _option(METHOD, help="Never stop before this step (default "
                                                  f"{GATED_MIN_STEP}; the paper's: 10).",
                                                  show_default=False)]
-StopRuleOpt = Annotated[str | None, typer.Option(
+StopRuleOpt = Annotated[str | None, _option(METHOD,
     "--stop-rule", help="paper (SPEC 3.4) | lookback | robust | floor, or parts joined by '+' "
     f"(e.g. lookback+floor); default {StopConfig.rule}.", show_default=False)]
-NoEarlyStop = Annotated[bool, typer.Option("--no-early-stop", help="Explore to the budget.")]
-TopK = Annotated[int | None, typer.Option("--top-k", help="Frames retrieved for the answer "
+NoEarlyStop = Annotated[bool, _option(METHOD, "--no-early-stop", help="Explore to the budget.")]
+TopK = Annotated[int | None, _option(METHOD, "--top-k", help="Frames retrieved for the answer "
                                           "(the paper's K).", show_default=False)]
-MaxSteps = Annotated[int | None, typer.Option(help="Step budget (default int(sqrt(area)*3)).")]
-RefusalRetries = Annotated[int | None, typer.Option(
+MaxSteps = Annotated[int | None, _option(METHOD, help="Step budget (default int(sqrt(area)*3)).")]
+RefusalRetries = Annotated[int | None, _option(BEYOND,
     help="Re-plans within one step after the environment refuses a move (left out: the agent's "
     "default; 0: a refused move spends the step, as in the paper's set-up).", show_default=False)]
-StopClearance = Annotated[float | None, typer.Option(
+StopClearance = Annotated[float | None, _option(BEYOND,
     "--stop-clearance-m", help="Clearance (m) the planner wants where a move ends (left out: the "
     "explorer's default; 0: stop where the 3 m cut falls, as in the paper's set-up).", show_default=False)]
-Prompts = Annotated[str | None, typer.Option(
+Prompts = Annotated[str | None, _option(BEYOND,
     help="Where lettered prompt points may lie: default (from 1 m away, so more steps ask) or "
     "paper (2-10 m, SPEC 3.3).", show_default=False)]
-Exploration = Annotated[str | None, typer.Option(
+Exploration = Annotated[str | None, _option(BEYOND,
     help="The frontier explorer's options beyond the paper: default, or paper (SPEC 3.2's "
     "explorer, every one off).", show_default=False)]
-Gate = Annotated[str | None, typer.Option(
+Gate = Annotated[str | None, _option(BEYOND,
     help="The answerability gate a relevancy stop must pass: auto (default: rules with the "
     "semantic perception, else model), rules (the question's target in the frame's "
     "description), model (one yes/no call to the VLM) or none (the paper's stop).",
     show_default=False)]
-Steering = Annotated[str | None, typer.Option(
+Steering = Annotated[str | None, _option(BEYOND,
     help="target (default: go to the room the question names, inspect what it asks about, "
     "look around on entering) or none (the paper's exploration).", show_default=False)]
-DistinctViews = Annotated[bool | None, typer.Option(
+DistinctViews = Annotated[bool | None, _option(BEYOND,
     "--distinct-views/--repeated-views", help="Retrieve K different views (default), or the K "
     "most relevant frames even when they repeat one view (SPEC 3.5).", show_default=False)]
-AnswerOpt = Annotated[str | None, typer.Option(
+AnswerOpt = Annotated[str | None, _option(METHOD,
     "--answer", help="How the retrieved frames are answered: auto (default: direct when the model "
     "gives logprobs), direct (one answer with a hint for the question's form, confidence its token "
     "probability) or paper (M verbalized guesses, grouped; SPEC 3.5).", show_default=False)]
-AnswerProbability = Annotated[str | None, typer.Option(
+AnswerProbability = Annotated[str | None, _option(METHOD,
     "--answer-probability", help="How a token-probability answer's confidence (white-box "
     "ExploreEQA's, the direct answer's) is read: product (default: the whole answer's "
     "probability) or per-token (its tokens' geometric mean, length-normalised).",
     show_default=False)]
-TokenAnswer = Annotated[str | None, typer.Option(
+TokenAnswer = Annotated[str | None, _option(METHOD,
     "--token-answer", help="White-box ExploreEQA's per-frame prompt: short (default: one line) or "
     "verbalized (SPEC 3.5's prompt with one guess, as black-box asks, read by its token "
     "probability).", show_default=False)]
-Seed = Annotated[int | None, typer.Option(help="Seed of the explorer's frontier sampling.",
+Seed = Annotated[int | None, _option(METHOD, help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
-Vlm = Annotated[str | None, typer.Option(help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
+Vlm = Annotated[str | None, _option(BACKENDS, help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
                                          "openai:MODEL[@BASE_URL] (key in OPENAI_API_KEY).",
                                          show_default=False)]
 # The model server's options (Stack fields; None: ChatBackend's defaults).
-TimeoutS = Annotated[float | None, typer.Option(
+TimeoutS = Annotated[float | None, _option(BACKENDS,
     "--timeout-s", help="Seconds the model server has for each try of a call (default 120); a "
     "hung server costs this times the tries.", show_default=False)]
-Retries = Annotated[int | None, typer.Option(
+Retries = Annotated[int | None, _option(BACKENDS,
     help="Retries of a model call after the first try, on timeouts, refused connections, 429 "
     "and 5xx (default 4).", show_default=False)]
-ApiKeyEnv = Annotated[str | None, typer.Option(
+ApiKeyEnv = Annotated[str | None, _option(BACKENDS,
     "--api-key-env", help="The environment variable whose key is sent to the --vlm server, or "
     "none. Default: OPENAI_API_KEY for api.openai.com only; no key for any other server.",
     show_default=False)]
-ImageFormat = Annotated[str | None, typer.Option(
+ImageFormat = Annotated[str | None, _option(BACKENDS,
     "--image-format", help="png | jpeg (default jpeg, quality 90, for openai: servers: about 6 "
     "times smaller than PNG).", show_default=False)]
-ImageMaxSide = Annotated[int | None, typer.Option(
+ImageMaxSide = Annotated[int | None, _option(BACKENDS,
     "--image-max-side", help="Images are shrunk to this longer side in px (default 512).",
     show_default=False)]
-ImageDetail = Annotated[str | None, typer.Option(
+ImageDetail = Annotated[str | None, _option(BACKENDS,
     "--image-detail", help="auto | low | high: OpenAI's image_url.detail (default: not sent, "
     "the server's own).", show_default=False)]
-Temperature = Annotated[float | None, typer.Option(help="The VLM's sampling temperature for every "
+Temperature = Annotated[float | None, _option(BACKENDS, help="The VLM's sampling temperature for every "
                                                    "call (default 0).", show_default=False)]
-PerceptionOpt = Annotated[str | None, typer.Option(
+PerceptionOpt = Annotated[str | None, _option(BACKENDS,
     "--perception", help="semantic (object labels as text; default) | rgb (pixels, needs an image "
     "VLM).", show_default=False)]
-Relevancy = Annotated[str | None, typer.Option(
+Relevancy = Annotated[str | None, _option(BACKENDS,
     help="minilm (default over text) | minilm-match (MiniLM calibrated to a match probability) | "
     "overlap | vlm-match (the VLM answers 'does this view show it?'; default over images) | "
     "blip2-itm (default over images where its weights are) | clip | siglip.",
     show_default=False)]
-Device = Annotated[str | None, typer.Option(
+Device = Annotated[str | None, _option(BACKENDS,
     "--device", help="Where an image relevancy model (blip2-itm, clip, siglip) runs: auto "
     "(default: the GPU torch sees, in float16, else the CPU) | cpu | cuda | cuda:N.",
     show_default=False)]
-RelevancyWeights = Annotated[str | None, typer.Option(
+RelevancyWeights = Annotated[str | None, _option(BACKENDS,
     "--relevancy-weights", metavar="DIR", help="A local folder with the relevancy model's "
     "weights, e.g. from `hf download Salesforce/blip2-itm-vit-g --local-dir DIR` (default: the "
     "model's Hugging Face cache).", show_default=False)]
-AllowDownload = Annotated[bool | None, typer.Option(
+AllowDownload = Annotated[bool | None, _option(BACKENDS,
     "--allow-download/--no-download", help="Let missing relevancy weights download from the "
     "Hugging Face Hub (default: no; the error names the model).", show_default=False)]
-ExploreScorer = Annotated[str | None, typer.Option(
+ExploreScorer = Annotated[str | None, _option(METHOD,
     help="Where the semantic values come from: auto (default: the VLM's verbalized confidence "
     "when it reads images or with token confidence, else direction-logit) | vlm | "
     "direction-logit (no model: features of the direction texts) | nearest | keyword.",
     show_default=False)]
-Grouping = Annotated[str | None, typer.Option(help="How equivalent answers are grouped: llm "
+Grouping = Annotated[str | None, _option(METHOD, help="How equivalent answers are grouped: llm "
                                               "(default) | rules.", show_default=False)]
-Cache = Annotated[bool | None, typer.Option("--cache/--no-cache", help="Replay identical model "
+Cache = Annotated[bool | None, _option(BACKENDS, "--cache/--no-cache", help="Replay identical model "
                                             "requests from the response cache (default on).",
                                             show_default=False)]
-Env = Annotated[str | None, typer.Option(help=ENV_HELP + " Default synthetic.", show_default=False)]
-Hm3dRoot = Annotated[Path | None, typer.Option(help=HM3D_HELP)]
-HmEqaPath = Annotated[Path | None, typer.Option(help="Folder with HM-EQA's questions.csv and "
+Env = Annotated[str | None, _option(BACKENDS, help=ENV_HELP + " Default synthetic.", show_default=False)]
+Hm3dRoot = Annotated[Path | None, _option(BACKENDS, help=HM3D_HELP)]
+HmEqaPath = Annotated[Path | None, _option(QUESTION, help="Folder with HM-EQA's questions.csv and "
                                                 "scene_init_poses.csv (default: downloaded).")]
-Assets = Annotated[str, typer.Option(help="'sh3d' (furniture package) or 'builtin' (boxes).")]
-Preset = Annotated[str | None, typer.Option(help=PRESET_HELP, show_default=False)]
-ConfigFile = Annotated[Path | None, typer.Option("--config", metavar="FILE", help=CONFIG_HELP,
+Assets = Annotated[str, _option(BACKENDS, help="'sh3d' (furniture package) or 'builtin' (boxes).")]
+Preset = Annotated[str | None, _option(METHOD, help=PRESET_HELP, show_default=False)]
+ConfigFile = Annotated[Path | None, _option(METHOD, "--config", metavar="FILE", help=CONFIG_HELP,
                                                  show_default=False)]
-Dataset = Annotated[str | None, typer.Option(help="synthetic (the fixed split; default) | "
+Dataset = Annotated[str | None, _option(QUESTION, help="synthetic (the fixed split; default) | "
                                              "synthetic:SEEDS (e.g. synthetic:0-9) | hm-eqa.",
                                              show_default=False)]
-ClosedSet = Annotated[bool, typer.Option("--closed-set", help="HM-EQA's four-choice mode (all 500 "
+ClosedSet = Annotated[bool, _option(QUESTION, "--closed-set", help="HM-EQA's four-choice mode (all 500 "
                                          "questions): graded by the chosen letter; the default "
                                          "judge is then none.")]
 
@@ -222,32 +231,30 @@ def _options(ctx: typer.Context) -> dict:
 def ask_command(
     ctx: typer.Context,
     question: str | None = typer.Argument(None, help="The question, in free text (or --episode)."),
-    scene: str = typer.Option("synthetic:0", help="synthetic:SEED (a generated house) or "
+    scene: str = _option(QUESTION, "synthetic:0", help="synthetic:SEED (a generated house) or "
                               "hm3d:SCENE (with --env habitat)."),
-    episode: str | None = typer.Option(None, help="Ask question ID (or row N) of --dataset, in its "
+    episode: str | None = _option(QUESTION, None, help="Ask question ID (or row N) of --dataset, in its "
                                        "scene, from its start pose."),
-    dataset: str | None = typer.Option(None, help="The dataset of --episode: synthetic (default) | "
+    dataset: str | None = _option(QUESTION, None, help="The dataset of --episode: synthetic (default) | "
                                        "hm-eqa | synthetic:SEEDS.", show_default=False),
-    out: Path = typer.Option(Path("out/ask"), help="Folder for episode.json and report.html."),
-    start: str | None = typer.Option(None, help="Start pose X,Y,YAW_DEG (default: the scene's)."),
+    start: str | None = _option(QUESTION, None, help="Start pose X,Y,YAW_DEG (default: the scene's)."),
+    hm_eqa_path: HmEqaPath = None,
+    preset: Preset = None,
+    config_file: ConfigFile = None,
     z_th: ZTh = None,
     min_stop_step: MinStopStep = None,
     stop_rule: StopRuleOpt = None,
     no_early_stop: NoEarlyStop = False,
     top_k: TopK = None,
     max_steps: MaxSteps = None,
-    refusal_retries: RefusalRetries = None,
-    stop_clearance_m: StopClearance = None,
-    prompts: Prompts = None,
-    distinct_views: DistinctViews = None,
     answer: AnswerOpt = None,
     answer_probability: AnswerProbability = None,
     token_answer: TokenAnswer = None,
-    exploration: Exploration = None,
-    gate: Gate = None,
-    steering: Steering = None,
-    explorer: str | None = typer.Option(None, help="sfe (default) | frontier-only | random.",
+    explorer: str | None = _option(METHOD, None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
+    grouping: Grouping = None,
+    explore_scorer: ExploreScorer = None,
+    seed: Seed = None,
     vlm: Vlm = None,
     temperature: Temperature = None,
     timeout_s: TimeoutS = None,
@@ -261,16 +268,18 @@ def ask_command(
     device: Device = None,
     relevancy_weights: RelevancyWeights = None,
     allow_download: AllowDownload = None,
-    grouping: Grouping = None,
-    explore_scorer: ExploreScorer = None,
-    seed: Seed = None,
     env: Env = None,
     hm3d_root: Hm3dRoot = None,
-    hm_eqa_path: HmEqaPath = None,
     assets: Assets = "sh3d",
-    preset: Preset = None,
-    config_file: ConfigFile = None,
     cache: Cache = None,
+    refusal_retries: RefusalRetries = None,
+    stop_clearance_m: StopClearance = None,
+    prompts: Prompts = None,
+    distinct_views: DistinctViews = None,
+    exploration: Exploration = None,
+    gate: Gate = None,
+    steering: Steering = None,
+    out: Path = _option(OUTPUT, Path("out/ask"), help="Folder for episode.json and report.html."),
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -380,31 +389,28 @@ def judge_command(
 @app.command("eval")
 def eval_command(
     ctx: typer.Context,
-    method: str = typer.Option("efficienteqa", help="efficienteqa | explore-eqa | "
-                               "explore-eqa-blackbox | blind | frontier-only | random | module:function."),
     dataset: Dataset = None,
-    out: Path = typer.Option(..., help="Run folder: run.json, episodes.jsonl, episodes/ (resumed "
-                             "when it exists)."),
-    limit: int | None = typer.Option(None, help="Only the first N questions of the dataset."),
-    workers: int = typer.Option(1, help="Episodes in parallel; more than 1 runs on Ray."),
-    address: str | None = typer.Option(None, help="A Ray cluster address (default: a local Ray)."),
+    limit: int | None = _option(QUESTION, None, help="Only the first N questions of the dataset."),
+    hm_eqa_path: HmEqaPath = None,
+    closed_set: ClosedSet = False,
+    preset: Preset = None,
+    config_file: ConfigFile = None,
+    method: str = _option(METHOD, "efficienteqa", help="efficienteqa | explore-eqa | "
+                               "explore-eqa-blackbox | blind | frontier-only | random | module:function."),
     z_th: ZTh = None,
     min_stop_step: MinStopStep = None,
     stop_rule: StopRuleOpt = None,
     no_early_stop: NoEarlyStop = False,
     top_k: TopK = None,
     max_steps: MaxSteps = None,
-    refusal_retries: RefusalRetries = None,
-    stop_clearance_m: StopClearance = None,
-    prompts: Prompts = None,
-    distinct_views: DistinctViews = None,
     answer: AnswerOpt = None,
     answer_probability: AnswerProbability = None,
     token_answer: TokenAnswer = None,
-    exploration: Exploration = None,
-    gate: Gate = None,
-    steering: Steering = None,
     seed: Seed = None,
+    grouping: Grouping = None,
+    explore_scorer: ExploreScorer = None,
+    workers: int = _option(BACKENDS, 1, help="Episodes in parallel; more than 1 runs on Ray."),
+    address: str | None = _option(BACKENDS, None, help="A Ray cluster address (default: a local Ray)."),
     vlm: Vlm = None,
     temperature: Temperature = None,
     timeout_s: TimeoutS = None,
@@ -418,24 +424,27 @@ def eval_command(
     device: Device = None,
     relevancy_weights: RelevancyWeights = None,
     allow_download: AllowDownload = None,
-    grouping: Grouping = None,
-    explore_scorer: ExploreScorer = None,
-    judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec), or 'rule'/'none' "
+    judge: str | None = _option(BACKENDS, None, help="The LLM-Match judge (a VLM spec), or 'rule'/'none' "
                                      "for no model. Synthetic questions are always graded by the "
                                      "rule judge too. Default: rule for synthetic datasets, "
                                      "local:qwen2.5-coder-1.5b for hm-eqa.", show_default=False),
-    judge_mode: str | None = typer.Option(None, help="grade (the judge says 1-5) | yes-prob (1 + 4 "
+    judge_mode: str | None = _option(BACKENDS, None, help="grade (the judge says 1-5) | yes-prob (1 + 4 "
                                           "P(yes) for 'same answer?') | auto (default: yes-prob for "
                                           "local models).", show_default=False),
-    hm_eqa_path: HmEqaPath = None,
-    closed_set: ClosedSet = False,
     env: Env = None,
     hm3d_root: Hm3dRoot = None,
-    reports: bool = typer.Option(False, "--reports", help="Also write each episode's report.html."),
     assets: Assets = "sh3d",
-    preset: Preset = None,
-    config_file: ConfigFile = None,
     cache: Cache = None,
+    refusal_retries: RefusalRetries = None,
+    stop_clearance_m: StopClearance = None,
+    prompts: Prompts = None,
+    distinct_views: DistinctViews = None,
+    exploration: Exploration = None,
+    gate: Gate = None,
+    steering: Steering = None,
+    out: Path = _option(OUTPUT, ..., help="Run folder: run.json, episodes.jsonl, episodes/ (resumed "
+                             "when it exists)."),
+    reports: bool = _option(OUTPUT, False, "--reports", help="Also write each episode's report.html."),
 ) -> None:
     """Run a method on a dataset, resumably: one JSON line per episode, graded by the rule judge
     (synthetic) and by LLM-Match (with a judge model)."""
