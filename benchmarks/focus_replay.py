@@ -18,7 +18,7 @@ import json
 import re
 from pathlib import Path
 
-from efficienteqa.answer.vc import answer_token_probability
+from efficienteqa.answer.calls import answer_token_probability
 from efficienteqa.eval.judge_rules import MAX_SCORE
 from efficienteqa.eval.rule_judge import rule_judgement
 from efficienteqa.models.backends import build_chat_model

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from efficienteqa.answer.vc import answer_with_confidence
+from efficienteqa.answer.calls import answer_with_confidence
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.labels import HouseLabels
 from efficienteqa.explore.prompting import candidate_points

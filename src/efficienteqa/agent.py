@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answer
+from efficienteqa.answer.calls import ANSWER_PROBABILITIES, TOKEN_ANSWERS
 from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK, View
-from efficienteqa.answer.vc import ANSWER_PROBABILITIES, TOKEN_ANSWERS
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
 from efficienteqa.explore.module import (

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from efficienteqa.answer.vc import PROMPTS, answer_example, vc_answer
+from efficienteqa.answer.calls import PROMPTS, answer_example, vc_answer
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.vc.grouping import Grouper

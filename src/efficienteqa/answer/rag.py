@@ -17,7 +17,7 @@ from typing import Generic, Literal, TypeVar
 
 import numpy as np
 
-from efficienteqa.answer.vc import (
+from efficienteqa.answer.calls import (
     answer_token_probability,
     answer_with_confidence,
     verbalized_token_probability,
@@ -116,9 +116,9 @@ class RagAnswerer:
     ``direct`` (DESIGN 8, beyond the paper): one greedy answer to a prompt with a hint for the
     question's form, its confidence the answer's token probability, instead of DESIGN 3.5's M
     verbalized guesses; it needs a model that gives logprobs. ``probability``: how a token
-    answer's confidence is read from its tokens (``answer.vc.ANSWER_PROBABILITIES``);
+    answer's confidence is read from its tokens (``answer.calls.ANSWER_PROBABILITIES``);
     ``token_prompt``: which prompt a token-confidence answer that is not direct asks
-    (``answer.vc.TOKEN_ANSWERS``)."""
+    (``answer.calls.TOKEN_ANSWERS``)."""
 
     def __init__(self, model: ChatModel, grouper: Grouper, m: int = M,
                  confidence: Confidence = "verbalized", direct: bool = False,

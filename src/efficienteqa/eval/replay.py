@@ -18,7 +18,7 @@ episode: the one that the rule would have stopped is its prefix up to the stop s
   recorded pose (JSON round-trips floats exactly) renders the frame the agent saw, and the
   stack's perception describes it as the agent did. Checked: on a run of the synthetic split
   (``efficienteqa eval --method frontier-only --dataset synthetic --limit 3 --no-early-stop``)
-  the re-observed descriptions of the retrieved steps, numbered as ``answer.vc.evidence_text``
+  the re-observed descriptions of the retrieved steps, numbered as ``answer.calls.evidence_text``
   numbers them, are exactly the evidence of the answer prompt stored in ``model.exchanges``
   (``answer_prompt_matches`` checks one episode; the benchmark checks every episode it replays).
 
@@ -31,8 +31,8 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Generic, TypeVar
 
+from efficienteqa.answer.calls import evidence_text, focus_views
 from efficienteqa.answer.rag import Ranked, TopK, View
-from efficienteqa.answer.vc import evidence_text, focus_views
 from efficienteqa.geometry import Pose2D
 from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig
 

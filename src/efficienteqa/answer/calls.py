@@ -1,7 +1,9 @@
-"""The answer with its confidence (DESIGN 3.5, 3.6): M guesses with verbalized confidences ->
-normalise -> group -> argmax, or, for the white-box baseline, one greedy answer whose
-confidence is its token probability. ``evidence`` is the top-K frame descriptions (best first)
-or the top-K RGB frames."""
+"""The answer module's model calls (``calls``: what it asks a model; apart from the ``vc`` package).
+
+The answer with its confidence (DESIGN 3.5, 3.6): the prompt with its hint for the question's
+form, then M guesses with verbalized confidences -> normalise -> group -> argmax, or, for the
+white-box baseline, one greedy answer whose confidence is its token probability. ``evidence``
+is the top-K frame descriptions (best first) or the top-K RGB frames."""
 
 from __future__ import annotations
 

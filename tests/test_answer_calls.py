@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from efficienteqa.answer.blind import blind_answer
-from efficienteqa.answer.vc import (
+from efficienteqa.answer.calls import (
     answer_example,
     answer_token_probability,
     answer_with_confidence,
@@ -123,7 +123,7 @@ def test_verbalized_token_probability_reads_the_answer_not_the_written_number(to
                                                                                confidence):
     """White-box ExploreEQA on the black-box prompt: the same reply, its confidence the
     probability of the answer's tokens, whatever number the model wrote."""
-    from efficienteqa.answer.vc import verbalized_token_probability
+    from efficienteqa.answer.calls import verbalized_token_probability
 
     text = "".join(t for t, _ in tokens)
     stub = StubChatModel([text], logprob_fn=lambda t, top: [TokenLogprob(w, math.log(p))
@@ -136,7 +136,7 @@ def test_verbalized_token_probability_reads_the_answer_not_the_written_number(to
 
 
 def test_verbalized_token_probability_of_an_empty_reply_is_zero():
-    from efficienteqa.answer.vc import verbalized_token_probability
+    from efficienteqa.answer.calls import verbalized_token_probability
 
     stub = StubChatModel([""], logprob_fn=lambda t, top: [])
     result = verbalized_token_probability(stub, "What is on the nightstand?", ["a speaker"])
@@ -251,7 +251,7 @@ def test_focus_on_what_stands_on_the_surface_not_the_surface():
 def test_image_answers_get_hints_written_for_images():
     """A VLM reading frames is not told about entries, brackets or words
     written before a name; the text hints stay as they were (the offline cache still hits)."""
-    from efficienteqa.answer.vc import answer_token_probability
+    from efficienteqa.answer.calls import answer_token_probability
 
     frames = [np.zeros((8, 8, 3), np.uint8)] * 2
     for question in ("How many chairs are in the kitchen?", "Is the lamp in the office on?",
@@ -301,13 +301,13 @@ def test_images_beyond_the_servers_cap_are_cut_least_relevant_first():
 ])
 def test_the_answer_line_of_a_chatty_reply(raw, answer, line):
     """A VLM server's preamble, code fence or markdown is not the answer."""
-    from efficienteqa.answer.vc import reply_answer
+    from efficienteqa.answer.calls import reply_answer
 
     assert reply_answer(raw) == (answer, line)
 
 
 def test_a_preambles_tokens_do_not_count_in_the_answers_probability():
-    from efficienteqa.answer.vc import answer_token_probability
+    from efficienteqa.answer.calls import answer_token_probability
 
     def tokens(text, top):  # noqa: ANN001, ANN202 - "Sure!" unlikely, the answer likely
         return [TokenLogprob("Sure!", math.log(0.01)), TokenLogprob(" Here is my answer.\n", 0.0),
