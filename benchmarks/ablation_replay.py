@@ -62,7 +62,7 @@ from efficienteqa.eval.runner import episode_folder
 from efficienteqa.records import code_version, plain, write_json
 from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent, parse_vlm
-from efficienteqa.stop.relevancy import StopConfig
+from efficienteqa.stop.rules import StopConfig
 
 # The paper's Fig. 5/6 (HM-EQA, 100 questions, GPT-4o; DESIGN 3.6): LLM-Match on its own set-up.
 PAPER_Z = {1.0: (28.94, 47.75), 2.0: (28.70, 53.50), 3.0: (30.16, 54.25)}  # steps, LLM-Match

@@ -46,7 +46,7 @@ from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION
 from efficienteqa.perception.semantic import SemanticPerception
 from efficienteqa.relevancy.text import MiniLMScorer, line_features
 from efficienteqa.scenes import synthetic_questions
-from efficienteqa.stop.relevancy import RelevancyStopper, StopConfig, step_budget
+from efficienteqa.stop.rules import RelevancyStopper, StopConfig, step_budget
 
 FIT_SEEDS = range(1000, 1020)
 CHECK_SEEDS = range(1020, 1030)

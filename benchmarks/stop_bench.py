@@ -10,7 +10,7 @@ house serves all its questions; with ``--explorer sfe`` (the default explorer, m
 ``direction-logit`` scorer) each question walks its own. Trajectories are cached as JSON, one
 file per house, under ``--out``.
 
-``replay``: each stop rule (``stop.relevancy.STOP_RULES``) over the cached trajectories:
+``replay``: each stop rule (``stop.rules.STOP_RULES``) over the cached trajectories:
 
 - precision: relevancy stops whose stop frame, or one of the top-5 frames by Sim up to the stop,
   shows the evidence (a stop on a "no" question never does);
@@ -42,7 +42,7 @@ from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stack import Stack, build_agent, build_relevancy
-from efficienteqa.stop.relevancy import (
+from efficienteqa.stop.rules import (
     MIN_STEP,
     SIGMA_FLOOR,
     STOP_RULES,

@@ -20,7 +20,7 @@ from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
 from efficienteqa.eval.summary import RunSummary, ablations, distinct_labels, summarise
 from efficienteqa.eval.tables import SEMANTIC_WARNING, read_summaries, write_report
 from efficienteqa.records import write_json
-from efficienteqa.stop.relevancy import StopConfig
+from efficienteqa.stop.rules import StopConfig
 
 BACKENDS = {"environment": "synthetic-builtin", "perception": "semantic-sensor",
             "vlm": "qwen2.5-coder-1.5b", "vlm_backend": "local:qwen2.5-coder-1.5b",

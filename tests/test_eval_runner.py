@@ -227,7 +227,7 @@ def test_settings_added_later_default_to_none_so_recorded_runs_resume():
     default on purpose, so that a run recorded without them is not resumed with them."""
     import dataclasses
 
-    from efficienteqa.stop.relevancy import StopConfig
+    from efficienteqa.stop.rules import StopConfig
 
     def set_by_default(cls):
         return {f.name for f in dataclasses.fields(cls)

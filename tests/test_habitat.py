@@ -334,7 +334,7 @@ UPSTAIRS = {"x": [-0.5, 8.5], "z": [-3.5, 1.5], "y": FLOOR_Y + 3.0}  # a second 
 def test_the_step_budget_reads_the_navmesh_box_of_every_floor(open_env, budget_area, area, budget):
     """ExploreEQA's budget: int(sqrt(scene_size) * 3), scene_size the x-z box of the whole
     navmesh (PathFinder.get_bounds, both floors: 9 m x 5 m), not the start floor's 25 m^2."""
-    from efficienteqa.stop.relevancy import env_step_budget
+    from efficienteqa.stop.rules import env_step_budget
 
     env = open_env({"navmesh": (NAV, UPSTAIRS)}, budget_area=budget_area)
     assert env.floor_area_m2 == pytest.approx(25.0)
@@ -343,7 +343,7 @@ def test_the_step_budget_reads_the_navmesh_box_of_every_floor(open_env, budget_a
 
 
 def test_the_synthetic_houses_keep_their_floor_area_budget(env_seed3):
-    from efficienteqa.stop.relevancy import env_step_budget, step_budget
+    from efficienteqa.stop.rules import env_step_budget, step_budget
 
     assert env_step_budget(env_seed3) == step_budget(env_seed3.floor_area_m2)
 

@@ -10,7 +10,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.presets import PRESETS, apply_preset, build_config, build_stack
 from efficienteqa.stack import Stack
 from efficienteqa.stop import StopConfig
-from efficienteqa.stop.relevancy import GATED_MIN_STEP
+from efficienteqa.stop.rules import GATED_MIN_STEP
 
 NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "top_k": None,
                  "max_steps": None, "seed": None, "explorer": None, "vlm": None,

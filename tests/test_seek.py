@@ -18,7 +18,7 @@ from efficienteqa.perception.base import Sighting, Sightings
 from efficienteqa.perception.semantic import FrameDescription, VisibleObject
 from efficienteqa.question import Target, names, parse_question, singular
 from efficienteqa.stop.gate import RulesGate
-from efficienteqa.stop.relevancy import RelevancyStopper, StopConfig
+from efficienteqa.stop.rules import RelevancyStopper, StopConfig
 
 
 @pytest.mark.parametrize("question,kind,obj,support,rooms", [

@@ -51,7 +51,7 @@ from efficienteqa.perception.base import Perception
 from efficienteqa.question import Target, parse_question
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
 from efficienteqa.stop.gate import GATES, AnswerGate
-from efficienteqa.stop.relevancy import (
+from efficienteqa.stop.rules import (
     GATED_MIN_STEP,
     PAPER_MIN_STEP,
     RelevancyStopper,

@@ -13,7 +13,7 @@ from rich.console import Console
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
-from efficienteqa.stop.relevancy import GATED_MIN_STEP, StopConfig  # light: help texts show its defaults
+from efficienteqa.stop.rules import GATED_MIN_STEP, StopConfig  # light: help texts show its defaults
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="EfficientEQA: explore a house, stop early, answer a question.")
@@ -291,7 +291,7 @@ def ask_command(
     from efficienteqa.records import check_writable
     from efficienteqa.scenes import open_scene
     from efficienteqa.stack import check_stack, parse_vlm
-    from efficienteqa.stop.relevancy import env_step_budget
+    from efficienteqa.stop.rules import env_step_budget
 
     o = _options(ctx)
     if (o.get("method") or "efficienteqa") != "efficienteqa":

@@ -34,7 +34,7 @@ from typing import Any, Generic, TypeVar
 from efficienteqa.answer.calls import evidence_text, focus_views
 from efficienteqa.answer.rag import Ranked, TopK, View
 from efficienteqa.geometry import Pose2D
-from efficienteqa.stop.relevancy import RelevancyStopper, StopCheck, StopConfig
+from efficienteqa.stop.rules import RelevancyStopper, StopCheck, StopConfig
 
 T = TypeVar("T")
 

@@ -1,4 +1,4 @@
-"""Relevancy-based early stopping (DESIGN 3.4).
+"""The stop rules: relevancy-based early stopping (DESIGN 3.4).
 
 Every valid frame gets ``Sim(I_t, Q)``. Against the mean and *sample* standard deviation of the
 frames before it, ``z = (Sim_t - mu) / sigma``; the robot stops at the first frame with
