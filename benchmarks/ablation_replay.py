@@ -15,7 +15,7 @@ records every frame's relevancy (``episode.json``'s ``per_step``), and this scri
   ``stack.build_agent``). Only this answer call reaches the model; a setting whose retrieved
   frames equal another's of the same episode reuses its answer.
 
-Every answer is graded by the rule judge (``eval.rule_judge``; an episode without a rule grade
+Every answer is graded by the rule judge (``eval.synthetic_judge``; an episode without a rule grade
 or whose answer failed counts as wrong, as in ``eval.summary``). Before answering, each
 episode's re-observed frames are checked against its stored answer prompt
 (``eval.replay.answer_prompt_matches``); a mismatch is reported.
@@ -57,8 +57,8 @@ from efficienteqa.eval.replay import (
     retrieve,
     stop_config_for,
 )
-from efficienteqa.eval.rule_judge import RULE_CATEGORIES, rule_judgement
 from efficienteqa.eval.runner import episode_folder
+from efficienteqa.eval.synthetic_judge import RULE_CATEGORIES, rule_judgement
 from efficienteqa.records import code_version, plain, write_json
 from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent, parse_vlm

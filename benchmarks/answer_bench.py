@@ -51,8 +51,8 @@ import explore_bench  # noqa: E402  (seed_set)
 from efficienteqa.envs.synthetic.env import SyntheticEnv  # noqa: E402
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M  # noqa: E402
 from efficienteqa.envs.synthetic.questions import CATEGORIES, Question, evidence_visible  # noqa: E402
-from efficienteqa.eval.judge_rules import MAX_SCORE  # noqa: E402
-from efficienteqa.eval.rule_judge import rule_judgement  # noqa: E402
+from efficienteqa.eval.llm_match_rules import MAX_SCORE  # noqa: E402
+from efficienteqa.eval.synthetic_judge import rule_judgement  # noqa: E402
 from efficienteqa.geometry import Pose2D  # noqa: E402
 from efficienteqa.perception.semantic import SemanticPerception  # noqa: E402
 from efficienteqa.scenes import synthetic_questions  # noqa: E402

@@ -19,8 +19,8 @@ import re
 from pathlib import Path
 
 from efficienteqa.answer.calls import answer_token_probability
-from efficienteqa.eval.judge_rules import MAX_SCORE
-from efficienteqa.eval.rule_judge import rule_judgement
+from efficienteqa.eval.llm_match_rules import MAX_SCORE
+from efficienteqa.eval.synthetic_judge import rule_judgement
 from efficienteqa.models.backends import build_chat_model
 from efficienteqa.stack import Stack, parse_vlm
 

@@ -18,7 +18,7 @@ from efficienteqa.eval.judge import (
     score_value,
     trim_response,
 )
-from efficienteqa.eval.judge_rules import rule_score
+from efficienteqa.eval.llm_match_rules import rule_score
 from efficienteqa.models.base import Capabilities
 from efficienteqa.models.stub import StubChatModel
 

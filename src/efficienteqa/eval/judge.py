@@ -2,10 +2,10 @@
 from 1 to 5, mapped to 0-100 and averaged over questions.
 
 Clear cases are graded without the model, because a small judge gets them wrong and any judge
-must agree (``judge_rules``): the same answer, a count against another count, a bare yes/no
+must agree (``llm_match_rules``): the same answer, a count against another count, a bare yes/no
 against a bare yes/no, a non-answer, guesses, an answer that only repeats the question. Such
 grades say so in ``raw``. Synthetic questions, whose every accepted answer is known, are graded
-by ``rule_judge`` instead, with LLM-Match beside it when a judge model is given.
+by ``synthetic_judge`` instead, with LLM-Match beside it when a judge model is given.
 
 ``mode="yes-prob"`` is for judges too small to grade 1-5 (the embedded 1.5B model's grades were
 nearly uniform over 1-5, whatever the answers): the judge is asked two yes/no questions, and
@@ -16,7 +16,7 @@ neither: prompts/judge_same.txt asks whether the response says the same thing as
 answer (strict: a right answer in other words or with more detail often gets P(yes) < 0.5);
 prompts/judge_correct.txt asks whether it gives the correct answer, with the rubric's yes and
 no cases and six worked examples (lenient: wrong answers get 0.5-0.75). On the shared
-hand-graded set the mean agreed better than either question alone. ``judge_rules.rule_bounds``
+hand-graded set the mean agreed better than either question alone. ``llm_match_rules.rule_bounds``
 then holds the grade to what the words alone make certain (an opposite yes/no, another colour,
 the reference's words).
 ``mode="grade"`` (the OpenEQA form) is the default for capable judges such as GPT-4o.
@@ -41,7 +41,7 @@ from typing import Any
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval.judge_rules import MAX_SCORE, MIN_SCORE, rule_bounds, rule_score
+from efficienteqa.eval.llm_match_rules import MAX_SCORE, MIN_SCORE, rule_bounds, rule_score
 from efficienteqa.models.base import ChatModel, Message, TokenLogprob
 from efficienteqa.vc.prompts import load_prompt
 

@@ -56,7 +56,7 @@ def build_judge(spec: str, mode: str) -> Any:
 
 def _rule(q: EvalQuestion, answer: str) -> dict[str, Any] | None:
     """The rule judge's grade, for questions that carry their accepted answers."""
-    from efficienteqa.eval.rule_judge import RULE_CATEGORIES, rule_judgement
+    from efficienteqa.eval.synthetic_judge import RULE_CATEGORIES, rule_judgement
 
     if not q.accepted or q.category not in RULE_CATEGORIES:
         return None

@@ -7,7 +7,7 @@ summary backs the console, the Markdown and the HTML report. Conventions, stated
 - LLM-Match is the mean over *every* episode of the run: a failed episode, or a done one without
   a grade, scores 0 like a missing answer (DESIGN 3.7). A run with no grade at all has no score
   (NaN): 0 would read as "everything was wrong".
-- Rule-judge accuracy (synthetic datasets, ``eval.rule_judge``) is the share (%) of *every*
+- Rule-judge accuracy (synthetic datasets, ``eval.synthetic_judge``) is the share (%) of *every*
   episode that the rule judge graded right, by the same convention: a failed or ungraded
   episode counts as wrong, and a run without rule grades has none (NaN). It is reported beside
   LLM-Match, not instead of it.

@@ -12,7 +12,7 @@ from efficienteqa.envs.synthetic.answers import NUMBER_WORDS, lexicon
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.envs.synthetic.primitives import builtin_catalog
 from efficienteqa.envs.synthetic.questions import generate_questions
-from efficienteqa.eval.rule_judge import RULE_JUDGE, rule_judgement
+from efficienteqa.eval.synthetic_judge import RULE_JUDGE, rule_judgement
 
 SEEDS = (0, 1, 2, 5, 8, 13)
 

@@ -1,9 +1,14 @@
-"""Grades that need no model: the clear cases every judge must agree on, decided before an
-LLM-Match judge is asked (a small judge gets exactly these wrong), and the text helpers the
-synthetic rule judge shares.
+"""The rules around the LLM-Match judge (``eval.judge``): grades that need no model and bounds
+on the grade the model gives.
 
-Each rule looks only at the question, the reference (and accepted answers) and the response,
-never at an item's id, and says why it decided. In order, the first that decides wins:
+The clear cases every judge must agree on are decided before an LLM-Match judge is asked (a
+small judge gets exactly these wrong); ``rule_bounds`` holds the model's grade to what the words
+alone make certain; the text helpers here are shared with the synthetic questions' rule judge
+(``eval.synthetic_judge``).
+
+Each rule of ``rule_score`` looks only at the question, the reference (and accepted answers)
+and the response, never at an item's id, and says why it decided. In order, the first that
+decides wins:
 
 1. **same answer**: the response is the reference or an accepted answer once case, articles
    and punctuation are ignored: 5.

@@ -1,4 +1,4 @@
-"""The ``rule`` judge: synthetic answers graded by the generator's key, with no model.
+"""The synthetic questions' judge, ``rule``: answers graded by the generator's key, with no model.
 
 A synthetic question carries every accepted form of its answer (``EvalQuestion.accepted``:
 synonyms, digits or words, grey/gray, "on"/"open" for yes), and ``envs.synthetic.answers``
@@ -9,7 +9,7 @@ not also state a contradicting one; otherwise it is wrong (1). In detail:
 - **hedges** ("I can't tell", "maybe", "not sure") state nothing: 1;
 - **counts**: the numbers stated (digits, words, "none"/"zero") must be exactly the answer's:
   "two or three" states a contradicting number;
-- **yes/no** (existence and state questions): the response's stance (``judge_rules.stance``:
+- **yes/no** (existence and state questions): the response's stance (``llm_match_rules.stance``:
   yes/no words, negations, "on"/"off" and "open"/"closed" read against the question,
   "there is" for existence) must be the answer's and not both: "yes and no" is wrong;
 - **colours, objects, rooms**: mentions are found by longest match over the accepted forms and
@@ -29,7 +29,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from efficienteqa.eval.judge import MISSING_ANSWER, Judgement, score_value, trim_response
-from efficienteqa.eval.judge_rules import (
+from efficienteqa.eval.llm_match_rules import (
     MAX_SCORE,
     MIN_SCORE,
     NEGATORS,
