@@ -18,7 +18,7 @@ from efficienteqa import cli
 from efficienteqa.agent import AgentConfig
 from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
 from efficienteqa.eval.summary import RunSummary, ablations, distinct_labels, summarise
-from efficienteqa.eval.tables import SEMANTIC_WARNING, read_summaries, write_report
+from efficienteqa.eval.tables import SEMANTIC_WARNING, read_summaries, write_folders_report
 from efficienteqa.records import write_json
 from efficienteqa.stop.rules import StopConfig
 
@@ -112,8 +112,8 @@ def test_empty_run_and_blind_run_have_no_steps_rather_than_zero(tmp_path):
              for i, score in ((0, 5), (1, 1))]
     s = summarise(manifest("blind"), blind)
     assert math.isnan(s.mean_steps) and s.llm_match == 50 and s.stop_reasons == {"none": 2}
-    md, page = write_report([write_run(tmp_path / "blind", manifest("blind"), blind),
-                             write_run(tmp_path / "empty", manifest(), [])], tmp_path / "out")
+    md, page = write_folders_report([write_run(tmp_path / "blind", manifest("blind"), blind),
+                                     write_run(tmp_path / "empty", manifest(), [])], tmp_path / "out")
     assert "| blind | 50.00 | - | - |" in md.read_text()
     assert "blind (no steps): 50.0" in page.read_text()
 
@@ -189,7 +189,7 @@ def test_report_markdown_html_and_plots(tmp_path):
     folders = _runs(tmp_path)
     odd = episode(9, 4, category="<b>odd|cat</b>")
     folders.append(write_run(tmp_path / "odd", manifest(top_k=3), [odd]))
-    md_path, html_path = write_report(folders, tmp_path / "out")
+    md_path, html_path = write_folders_report(folders, tmp_path / "out")
     md = md_path.read_text()
     assert "| Method | LLM-Match (%) ↑ | Avg steps ↓ | Steps / oracle ↓ | Episodes |" in md
     assert "| efficienteqa | 30.00 | 12.00 | 2.00 | 5 (4 judged, 1 failed) |" in md
@@ -222,7 +222,7 @@ def test_a_torn_last_line_is_skipped_and_reported(tmp_path):
         f.write(b'{"id": "q9", "status": "do')
     (s,) = read_summaries([folder])
     assert isinstance(s, RunSummary) and s.torn == 1 and s.n == 2
-    md = write_report([folder], folder)[0].read_text()
+    md = write_folders_report([folder], folder)[0].read_text()
     assert "1 line(s) in episodes.jsonl were skipped: unreadable" in md and "| 1 skipped |" in md
 
 
@@ -266,7 +266,7 @@ def test_rule_judge_accuracy_is_reported_beside_llm_match(tmp_path):
     assert (a.rule_accuracy, a.n_rule, a.rule_by_category) == (50.0, 3, {"colour": 50.0, "count": 50.0})
     assert a.llm_match == pytest.approx((100 + 75 + 100 + 0) / 4) and "rule" in a.backends["judge"]
     assert b.rule_accuracy == 100.0 and math.isnan(b.llm_match)
-    md = write_report([with_model, no_model], tmp_path / "out")[0].read_text()
+    md = write_folders_report([with_model, no_model], tmp_path / "out")[0].read_text()
     assert "| Method | Rule-judge accuracy (%) ↑ | LLM-Match (%) ↑ | Avg steps ↓ |" in md
     assert "| efficienteqa | 50.00 | 68.75 | 12.00 | 2.00 | 4 (3 rule-graded, 3 judged, 1 failed) |" in md
     assert "| efficienteqa K=3 | 100.00 | - |" in md
@@ -296,10 +296,11 @@ def test_evidence_in_view_and_refused_moves_are_summarised_and_tabled(tmp_path):
     assert s.refused_per_step == pytest.approx(3 / 48)  # 4 episodes record it, 12 steps each
     old = summarise(manifest(), [episode(0), episode(1)])
     assert old.n_evidence == 0 and math.isnan(old.never_seen) and math.isnan(old.refused_per_step)
-    md = write_report([write_run(tmp_path / "run", manifest(), rows)], tmp_path / "out")[0].read_text()
+    md = write_folders_report([write_run(tmp_path / "run", manifest(), rows)],
+                              tmp_path / "out")[0].read_text()
     assert "| Method | First seen, step ↓ | First seen / oracle ↓ | Never seen ↓ |" in md
     assert "| efficienteqa | 9.00 | 2.50 | 33% | 33% | 6% | 3 |" in md
-    bare = write_report([write_run(tmp_path / "old", manifest(), [episode(0)])], tmp_path / "o2")
+    bare = write_folders_report([write_run(tmp_path / "old", manifest(), [episode(0)])], tmp_path / "o2")
     assert "First seen" not in bare[0].read_text()
 
 
@@ -311,8 +312,9 @@ def test_parse_problems_are_summed_per_kind_of_call_and_tabled(tmp_path):
     rows[1]["extra"] = {"problems": {"explore": 2, "relevancy": 0, "answer": 1}}
     s = summarise(manifest(), rows)
     assert s.problems == {"explore": 5, "relevancy": 1, "answer": 1}
-    md = write_report([write_run(tmp_path / "run", manifest(), rows)], tmp_path / "out")[0].read_text()
+    md = write_folders_report([write_run(tmp_path / "run", manifest(), rows)],
+                              tmp_path / "out")[0].read_text()
     assert "| efficienteqa | 5 | 1 | 1 | 2 |" in md
     assert summarise(manifest(), [episode(0)]).problems == {}
-    bare = write_report([write_run(tmp_path / "old", manifest(), [episode(0)])], tmp_path / "o2")
+    bare = write_folders_report([write_run(tmp_path / "old", manifest(), [episode(0)])], tmp_path / "o2")
     assert "Replies not read plainly" not in bare[0].read_text()

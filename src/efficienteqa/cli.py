@@ -565,8 +565,8 @@ def report_command(
         paired_differences,
         publish_run,
         read_summaries,
-        render_report,
         run_folders,
+        write_run_report,
     )
 
     summaries = read_summaries(folders)
@@ -579,7 +579,7 @@ def report_command(
         return
     single = out is None and len(folders) == 1
     target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
-    md, page = render_report(summaries, target, stamp=not single)
+    md, page = write_run_report(summaries, target, stamp=not single)
     header, rows = overview_rows(summaries)
     table = Table()
     for i, name in enumerate(header):  # names whole, numbers right-aligned

@@ -521,7 +521,7 @@ def _intro(summaries: Sequence[RunSummary], stamp: bool) -> list[str]:
     return intro
 
 
-def render_report(summaries: Sequence[RunSummary], out: Path, *, stamp: bool = True) -> tuple[Path, Path]:
+def write_run_report(summaries: Sequence[RunSummary], out: Path, *, stamp: bool = True) -> tuple[Path, Path]:
     """Write ``report.md`` (with its plots as .svg files beside it) and ``report.html`` (plots
     inline, no other file needed) into ``out``. ``stamp`` False: no date written, so the same
     runs give the same files."""
@@ -538,9 +538,9 @@ def render_report(summaries: Sequence[RunSummary], out: Path, *, stamp: bool = T
     return md, page
 
 
-def write_report(folders: Sequence[Path], out: Path) -> tuple[Path, Path]:
+def write_folders_report(folders: Sequence[Path], out: Path) -> tuple[Path, Path]:
     """Summarise the runs in ``folders`` and write ``out/report.md`` and ``out/report.html``."""
-    return render_report(read_summaries(folders), out)
+    return write_run_report(read_summaries(folders), out)
 
 
 # --- published runs: summary.json, the README's table ----------------------------------------------
