@@ -269,3 +269,23 @@ def test_help_groups_the_options_in_panels(command):
                     {"--method": "Method", "--limit": "Question", "--judge": "Back-ends",
                      "--reports": "Output"})
     assert {option: where.get(option) for option in expected} == expected
+
+
+def test_judge_grades_with_evals_default_judge_unless_told(tmp_path, monkeypatch):
+    """Issue 27: `efficienteqa judge` had its own literal default judge; it is eval's
+    (RunSpec.judge), in the mode eval gives it (auto: yes-prob for a local model)."""
+    from typer.testing import CliRunner
+
+    from efficienteqa import cli
+    from efficienteqa.eval import runner
+    from efficienteqa.eval.methods import RunSpec, default_judge
+
+    calls = []
+    monkeypatch.setattr(runner, "rejudge", lambda run, judge, mode: calls.append((judge, mode)) or (0, 0.0))
+    monkeypatch.setattr(RunSpec, "judge", "local:smollm2-135m")  # whatever eval's default is
+    result = CliRunner().invoke(cli.app, ["judge", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert default_judge("hm-eqa") == "local:smollm2-135m"
+    result = CliRunner().invoke(cli.app, ["judge", str(tmp_path), "--judge", "openai:gpt-4o"])
+    assert result.exit_code == 0, result.output
+    assert calls == [("local:smollm2-135m", "yes-prob"), ("openai:gpt-4o", "grade")]

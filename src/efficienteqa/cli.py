@@ -356,11 +356,12 @@ def ask_command(
                   soft_wrap=True)
 
 
-def _judge_mode(mode: str, judge: str) -> str:
-    """``auto``: token probabilities for the small local models, the 1-5 grade otherwise."""
+def _judge_mode(mode: str | None, judge: str) -> str:
+    """``auto`` (and left out, for eval and judge alike): token probabilities for the small
+    local models, the 1-5 grade otherwise."""
     from efficienteqa.eval.judge import JUDGE_MODES
 
-    if mode == "auto":
+    if mode is None or mode == "auto":
         return "yes-prob" if judge.startswith("local:") else "grade"
     if mode not in JUDGE_MODES:
         raise EfficientEQAError(f"unknown judge mode {mode!r}", fix="use grade, yes-prob or auto")
@@ -370,13 +371,18 @@ def _judge_mode(mode: str, judge: str) -> str:
 @app.command("judge")
 def judge_command(
     runs: list[Path] = typer.Argument(..., help="Run folders written by `efficienteqa eval`."),
-    judge: str = typer.Option("local:qwen2.5-coder-1.5b", help="The LLM-Match judge (a VLM spec)."),
-    judge_mode: str = typer.Option("auto", help="grade | yes-prob | auto (see `eval --help`)."),
+    judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec). Default: eval's "
+                                     "judge model (the local model, RunSpec.judge).",
+                                     show_default=False),
+    judge_mode: str | None = typer.Option(None, help="grade | yes-prob | auto (default; see `eval "
+                                          "--help`).", show_default=False),
 ) -> None:
     """Grade finished runs again with another judge (e.g. openai:gpt-4o); results are kept."""
+    from efficienteqa.eval.methods import RunSpec
     from efficienteqa.eval.runner import rejudge
     from efficienteqa.stack import parse_vlm
 
+    judge = judge or RunSpec.judge or ""  # the one default judge model, eval's
     parse_vlm(judge, images=False)
     mode = _judge_mode(judge_mode, judge)
     for run in runs:
@@ -427,7 +433,7 @@ def eval_command(
     judge: str | None = _option(BACKENDS, None, help="The LLM-Match judge (a VLM spec), or 'rule'/'none' "
                                      "for no model. Synthetic questions are always graded by the "
                                      "rule judge too. Default: rule for synthetic datasets, "
-                                     "local:qwen2.5-coder-1.5b for hm-eqa.", show_default=False),
+                                     "the local judge model (RunSpec.judge) for hm-eqa.", show_default=False),
     judge_mode: str | None = _option(BACKENDS, None, help="grade (the judge says 1-5) | yes-prob (1 + 4 "
                                           "P(yes) for 'same answer?') | auto (default: yes-prob for "
                                           "local models).", show_default=False),
@@ -493,7 +499,7 @@ def eval_command(
                              assets=assets)
     spec = RunSpec(method=method, dataset=dataset, stack=stack, config=build_config(o),
                    closed_set=closed_set,
-                   judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"] or "auto", judge_spec or ""),
+                   judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"], judge_spec or ""),
                    reports=o["reports"], assets=assets,
                    hm3d_root=str(hm3d_root) if hm3d_root is not None else None,
                    **given(o, ["env"]))
