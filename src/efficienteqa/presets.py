@@ -31,7 +31,6 @@ if TYPE_CHECKING:
     from efficienteqa.agent import AgentConfig
     from efficienteqa.stack import Stack
 
-PAPER_VLM = "openai:gpt-4o-2024-05-13"  # configs/paper.toml's vlm and judge
 
 # Command-line names of StopConfig fields (the others are named as their fields).
 _STOP_OPTIONS = {"z_th": "z_th", "min_stop_step": "min_step", "stop_rule": "rule"}
