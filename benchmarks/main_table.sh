@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The main table (issue 17 part 1): every method of SPEC 3.6 on the same questions and start
+# The main table (docs/RESULTS.md): every method of DESIGN 3.6 on the same questions and start
 # poses, the first LIMIT questions of the synthetic split (8 per category for 48; houses 100-999,
 # never used for tuning), graded by the rule judge and by JUDGE's LLM-Match beside it (JUDGE=none:
 # the rule judge only); then the table with paired differences against white-box ExploreEQA.

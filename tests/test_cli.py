@@ -55,7 +55,7 @@ def test_ask_with_a_bad_scene_start_or_model_is_one_line():
 
 @pytest.mark.parametrize("command", ["ask", "eval"])
 def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
-    """Checked before any scene is built or any episode explored (issue 25 item 1, issue 26)."""
+    """Checked before any scene is built or any episode explored."""
     import os
 
     question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
@@ -95,7 +95,7 @@ def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
 
 
 def test_ask_with_the_paper_preset_asks_hm_eqa_in_habitat(tmp_path, hm_eqa_dir):
-    """Issue 27: ``ask --dataset`` had a literal default the preset could not fill, so
+    """``ask --dataset`` had a literal default the preset could not fill, so
     ``--preset paper --episode 0`` opened a synthetic house and failed as "not a Habitat scene".
     It is HM-EQA's episode 0 in Habitat-Sim; without habitat_sim, one line naming what is needed."""
     import os
@@ -156,7 +156,7 @@ def test_eval_exits_non_zero_when_an_episode_failed_and_a_re_run_resumes_it(tmp_
 
 @pytest.mark.parametrize("command", ["ask", "eval"])
 def test_an_unwritable_out_folder_fails_before_the_work(command, tmp_path):
-    """Issue 26: the episode used to be explored, then lost to a traceback."""
+    """The episode used to be explored, then lost to a traceback."""
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
@@ -239,7 +239,7 @@ def test_ask_refuses_a_configuration_of_another_method(tmp_path):
 
 @pytest.mark.parametrize("command", ["ask", "eval"])
 def test_help_groups_the_options_in_panels(command):
-    """Issue 27: ``--help`` in panels, in this order: what is asked, the method, its back-ends,
+    """``--help`` in panels, in this order: what is asked, the method, its back-ends,
     the options beyond the paper, where the output goes."""
     import os
     import re
@@ -272,7 +272,7 @@ def test_help_groups_the_options_in_panels(command):
 
 
 def test_judge_grades_with_evals_default_judge_unless_told(tmp_path, monkeypatch):
-    """Issue 27: `efficienteqa judge` had its own literal default judge; it is eval's
+    """`efficienteqa judge` had its own literal default judge; it is eval's
     (RunSpec.judge), in the mode eval gives it (auto: yes-prob for a local model)."""
     from typer.testing import CliRunner
 

@@ -14,18 +14,8 @@ SUFFIXES = {".py", ".sh", ".md", ".txt", ".toml", ".cfg", ".yaml", ".yml", ".jso
 SKIPPED_PARTS = {"__pycache__", ".mypy_cache", ".pytest_cache"}
 THIS = Path(__file__).resolve()
 
-# Files being rewritten by others while the references were replaced; each still cites the
-# old specification or a tracker issue. Remove an entry once its file is fixed; then empty set.
-ALLOWED: set[str] = {
-    "src/efficienteqa/cli.py",
-    "src/efficienteqa/presets.py",
-    "src/efficienteqa/eval/judge.py",
-    "benchmarks/main_table.sh",
-    "tests/test_cli.py",
-    "tests/test_presets.py",
-    "tests/test_judge.py",
-    "tests/test_readme_results.py",
-}
+# Files allowed to cite the old specification or a tracker issue: none.
+ALLOWED: set[str] = set()
 
 # The paper answer's back-end label, as published runs recorded it (results/*/episodes.jsonl,
 # the tables built from them): renaming it in stack.ANSWER_LABELS would split one back-end in two.

@@ -53,7 +53,7 @@ def test_the_main_table_runs_every_method_on_two_questions(tmp_path, small_model
 
 
 def test_every_row_is_a_shipped_configuration():
-    """Issue 27: the rows name presets (configs/NAME.toml) instead of spelling out flag lists;
+    """The rows name presets (configs/NAME.toml) instead of spelling out flag lists;
     the paper row is the paper's algorithm on the offline stack."""
     import re
 

@@ -57,10 +57,10 @@ def test_a_preset_fills_only_what_was_left_out():
     assert build_stack(o).perception == "rgb"
     config = build_config(o)  # the paper's stepping: no re-plans, no clearance at a move's end
     assert (config.refusal_retries, config.stop_clearance_m, config.prompts) == (0, 0.0, "paper")
-    assert config.exploration == "paper"  # SPEC 3.2's explorer
+    assert config.exploration == "paper"  # DESIGN 3.2's explorer
     assert build_config(NOTHING_GIVEN).refusal_retries is None  # the default re-plans
     assert config.distinct_views is False and build_config(NOTHING_GIVEN).distinct_views
-    assert config.answer == "paper" and build_config(NOTHING_GIVEN).answer == "auto"  # SPEC 3.5
+    assert config.answer == "paper" and build_config(NOTHING_GIVEN).answer == "auto"  # DESIGN 3.5
     from efficienteqa.agent import PAPER_CONFIG
 
     every = apply_preset("paper", {**NOTHING_GIVEN, "stop_rule": None, "explore_scorer": None})
@@ -87,7 +87,7 @@ def test_a_value_the_agent_refuses_is_one_clear_error():
 
 
 def test_images_get_an_image_relevancy_scorer_unless_one_is_named(monkeypatch):
-    """``--perception rgb`` alone must not pick MiniLM, which reads text (issue 25 defect 1):
+    """``--perception rgb`` alone must not pick MiniLM, which reads text:
     BLIP-2 where its weights are on the machine, else the VLM's own yes/no (vlm-match)."""
     from efficienteqa import stack
     from efficienteqa.presets import build_stack
@@ -102,7 +102,7 @@ def test_images_get_an_image_relevancy_scorer_unless_one_is_named(monkeypatch):
 
 
 # The main table's rows as benchmarks/main_table.sh spelled them out before the presets held
-# them (issue 27): each preset must set exactly these options.
+# them once: each preset must set exactly these options.
 MAIN_TABLE_ROWS = {
     "default": {"method": "efficienteqa"},
     "explore-eqa": {"method": "explore-eqa", "explore_scorer": "direction-logit"},

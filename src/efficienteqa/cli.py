@@ -73,7 +73,7 @@ MinStopStep = Annotated[int | None, _option(METHOD, help="Never stop before this
                                                  f"{GATED_MIN_STEP}; the paper's: 10).",
                                                  show_default=False)]
 StopRuleOpt = Annotated[str | None, _option(METHOD,
-    "--stop-rule", help="paper (SPEC 3.4) | lookback | robust | floor, or parts joined by '+' "
+    "--stop-rule", help="paper (DESIGN 3.4) | lookback | robust | floor, or parts joined by '+' "
     f"(e.g. lookback+floor); default {StopConfig.rule}.", show_default=False)]
 NoEarlyStop = Annotated[bool, _option(METHOD, "--no-early-stop", help="Explore to the budget.")]
 TopK = Annotated[int | None, _option(METHOD, "--top-k", help="Frames retrieved for the answer "
@@ -87,9 +87,9 @@ StopClearance = Annotated[float | None, _option(BEYOND,
     "explorer's default; 0: stop where the 3 m cut falls, as in the paper's set-up).", show_default=False)]
 Prompts = Annotated[str | None, _option(BEYOND,
     help="Where lettered prompt points may lie: default (from 1 m away, so more steps ask) or "
-    "paper (2-10 m, SPEC 3.3).", show_default=False)]
+    "paper (2-10 m, DESIGN 3.3).", show_default=False)]
 Exploration = Annotated[str | None, _option(BEYOND,
-    help="The frontier explorer's options beyond the paper: default, or paper (SPEC 3.2's "
+    help="The frontier explorer's options beyond the paper: default, or paper (DESIGN 3.2's "
     "explorer, every one off).", show_default=False)]
 Gate = Annotated[str | None, _option(BEYOND,
     help="The answerability gate a relevancy stop must pass: auto (default: rules with the "
@@ -101,11 +101,11 @@ Steering = Annotated[str | None, _option(BEYOND,
     "look around on entering) or none (the paper's exploration).", show_default=False)]
 DistinctViews = Annotated[bool | None, _option(BEYOND,
     "--distinct-views/--repeated-views", help="Retrieve K different views (default), or the K "
-    "most relevant frames even when they repeat one view (SPEC 3.5).", show_default=False)]
+    "most relevant frames even when they repeat one view (DESIGN 3.5).", show_default=False)]
 AnswerOpt = Annotated[str | None, _option(METHOD,
     "--answer", help="How the retrieved frames are answered: auto (default: direct when the model "
     "gives logprobs), direct (one answer with a hint for the question's form, confidence its token "
-    "probability) or paper (M verbalized guesses, grouped; SPEC 3.5).", show_default=False)]
+    "probability) or paper (M verbalized guesses, grouped; DESIGN 3.5).", show_default=False)]
 AnswerProbability = Annotated[str | None, _option(METHOD,
     "--answer-probability", help="How a token-probability answer's confidence (white-box "
     "ExploreEQA's, the direct answer's) is read: product (default: the whole answer's "
@@ -113,7 +113,7 @@ AnswerProbability = Annotated[str | None, _option(METHOD,
     show_default=False)]
 TokenAnswer = Annotated[str | None, _option(METHOD,
     "--token-answer", help="White-box ExploreEQA's per-frame prompt: short (default: one line) or "
-    "verbalized (SPEC 3.5's prompt with one guess, as black-box asks, read by its token "
+    "verbalized (DESIGN 3.5's prompt with one guess, as black-box asks, read by its token "
     "probability).", show_default=False)]
 Seed = Annotated[int | None, _option(METHOD, help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
