@@ -17,7 +17,7 @@ from efficienteqa.stop.rules import GATED_MIN_STEP, StopConfig  # light: help te
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="EfficientEQA: explore a house, stop early, answer a question.")
-scenes = typer.Typer(no_args_is_help=True, help="Synthetic houses: generate and preview.")
+scenes = typer.Typer(no_args_is_help=True, help="Synthetic houses: generate one.")
 app.add_typer(scenes, name="scenes")
 models = typer.Typer(no_args_is_help=True,
                      help="Local language models (gguf from PyPI) and the llama.cpp server.")
@@ -558,8 +558,10 @@ def report_command(
     paired_against: Path | None = typer.Option(None, "--paired-against", help="A reference run: "
                                                "each run's accuracy and steps against it, paired "
                                                "over the questions both answered (bootstrap 95% CI)."),
-    markdown: bool = typer.Option(False, "--markdown", help="Print only the Markdown table of the "
-                                  "runs (as the README's results blocks hold it)."),
+    markdown: bool = typer.Option(False, "--markdown", help="Print the Markdown table of the "
+                                  "runs (as the README's results blocks hold it) instead of "
+                                  "writing the report pages; each run folder still gets its "
+                                  "summary.json and report.html."),
 ) -> None:
     """Tables and plots across evaluation runs (the paper's Tables I-III in form): Markdown and HTML.
     Every run folder also gets its summary.json and report.html (a published run, results/)."""
