@@ -17,8 +17,8 @@ THIS = Path(__file__).resolve()
 # Files allowed to cite the old specification or a tracker issue: none.
 ALLOWED: set[str] = set()
 
-# The paper answer's back-end label, as published runs recorded it (results/*/episodes.jsonl,
-# the tables built from them): renaming it in stack.ANSWER_LABELS would split one back-end in two.
+# The paper answer's back-end label as published runs recorded it (results/*/episodes.jsonl):
+# eval.summary.RECORDED_LABELS reads it as today's label, so it must name it.
 RECORDED = ("grouped; SPEC 3.5)",)
 
 # The old specification and platform notes lived outside the repository; tracker issues too.

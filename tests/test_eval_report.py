@@ -318,3 +318,14 @@ def test_parse_problems_are_summed_per_kind_of_call_and_tabled(tmp_path):
     assert summarise(manifest(), [episode(0)]).problems == {}
     bare = write_folders_report([write_run(tmp_path / "old", manifest(), [episode(0)])], tmp_path / "o2")
     assert "Replies not read plainly" not in bare[0].read_text()
+
+
+def test_a_recorded_label_reads_as_todays():
+    """Runs recorded the paper answer's label citing the old specification; tables show it as
+    today's label, so one back-end is not split in two."""
+    from efficienteqa.stack import ANSWER_LABELS
+
+    old = {**BACKENDS, "answer": "paper (M verbalized guesses, grouped; SPEC 3.5)"}
+    new = {**BACKENDS, "answer": ANSWER_LABELS["paper"]}
+    s = summarise(manifest(), [episode(0, backends=old), episode(1, backends=new)])
+    assert s.backends["answer"] == [ANSWER_LABELS["paper"]]

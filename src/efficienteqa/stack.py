@@ -241,7 +241,7 @@ def explore_scorer_label(name: str, model: ChatModel, config: AgentConfig) -> st
 
 
 ANSWER_LABELS = {"direct": "direct (one hinted answer, confidence its token probability)",
-                 "paper": "paper (M verbalized guesses, grouped; SPEC 3.5)"}
+                 "paper": "paper (M verbalized guesses, grouped; DESIGN 3.5)"}
 
 
 def answer_name(config: AgentConfig, model: ChatModel) -> str:

@@ -276,8 +276,13 @@ def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (
     return " ".join(parts)
 
 
+# Back-end labels as earlier runs recorded them, and as they read now.
+RECORDED_LABELS = {"paper (M verbalized guesses, grouped; SPEC 3.5)":
+                   "paper (M verbalized guesses, grouped; DESIGN 3.5)"}
+
+
 def _distinct(values: Iterable[Any]) -> list[str]:
-    return sorted({str(v) for v in values if v not in (None, "")})
+    return sorted({RECORDED_LABELS.get(str(v), str(v)) for v in values if v not in (None, "")})
 
 
 def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *, torn: int = 0,
