@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.module import ExploreStep
@@ -50,7 +51,7 @@ def map_url(result: EpisodeResult) -> str:
 def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = None,
         config: AgentConfig | None = None, start: Pose2D | None = None,
         on_step: StepHook | None = None, model: ChatModel | None = None,
-        relevancy: RelevancyScorer | None = None, assets: str = "sh3d",
+        relevancy: RelevancyScorer | None = None, assets: str = DEFAULT_ASSETS,
         report: bool = True) -> AskResult:
     """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
     ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``

@@ -11,8 +11,10 @@ from typing import Annotated, Any
 import typer
 from rich.console import Console
 
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
+from efficienteqa.models.local.weights import DEFAULT_MODEL
 from efficienteqa.stop.rules import GATED_MIN_STEP, StopConfig  # light: help texts show its defaults
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
@@ -270,7 +272,7 @@ def ask_command(
     allow_download: AllowDownload = None,
     env: Env = None,
     hm3d_root: Hm3dRoot = None,
-    assets: Assets = "sh3d",
+    assets: Assets = DEFAULT_ASSETS,
     cache: Cache = None,
     refusal_retries: RefusalRetries = None,
     stop_clearance_m: StopClearance = None,
@@ -439,7 +441,7 @@ def eval_command(
                                           "local models).", show_default=False),
     env: Env = None,
     hm3d_root: Hm3dRoot = None,
-    assets: Assets = "sh3d",
+    assets: Assets = DEFAULT_ASSETS,
     cache: Cache = None,
     refusal_retries: RefusalRetries = None,
     stop_clearance_m: StopClearance = None,
@@ -602,7 +604,7 @@ def report_command(
 def scenes_generate(
     seed: int = typer.Option(0, help="The house seed; a seed fully determines a house."),
     out: Path = typer.Option(Path("out/scene"), help="Output folder."),
-    assets: str = typer.Option("sh3d", help="'sh3d' (furniture package) or 'builtin' (boxes)."),
+    assets: str = typer.Option(DEFAULT_ASSETS, help="'sh3d' (furniture package) or 'builtin' (boxes)."),
     cc_by: bool = typer.Option(False, "--cc-by", help="Also use the CC-BY catalogues "
                                "(writes ATTRIBUTION.md)."),
 ) -> None:
@@ -648,7 +650,7 @@ def models_runtime() -> None:
 
 @models.command("serve")
 def models_serve(
-    name: str = typer.Argument("qwen2.5-coder-1.5b", help="The model to serve."),
+    name: str = typer.Argument(DEFAULT_MODEL, help="The model to serve."),
     port: int | None = typer.Option(None, help="Port on 127.0.0.1 (default 8765, or a free one)."),
     threads: int = typer.Option(2, help="CPU threads."),
     ctx: int = typer.Option(4096, help="Context length in tokens."),

@@ -12,6 +12,7 @@ from efficienteqa.envs.base import Environment
 from efficienteqa.envs.habitat.scenes import HabitatStart
 from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import generate_house
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.oracle import annotate
 from efficienteqa.envs.synthetic.preview import contact_sheet, topdown_map
 from efficienteqa.envs.synthetic.questions import Question, generate_questions, save_questions
@@ -39,7 +40,7 @@ def synthetic_questions(env: SyntheticEnv, per_category: int = 2, oracle: bool =
     return annotate(env, questions) if oracle else questions
 
 
-def write_scene(seed: int, out: Path, assets: str = "sh3d", cc_by: bool = False) -> SceneFiles:
+def write_scene(seed: int, out: Path, assets: str = DEFAULT_ASSETS, cc_by: bool = False) -> SceneFiles:
     """``house.json``, ``questions.jsonl``, ``map.png`` and ``views.png`` for ``seed`` (and
     ``ATTRIBUTION.md`` when CC-BY models are used)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -82,7 +83,7 @@ ENVS = ("synthetic", "habitat")
 FIX_HABITAT = "run hm3d scenes with --env habitat --hm3d-root FOLDER (see docs/habitat.md)"
 
 
-def open_scene(spec: str, assets: str = "sh3d", *, env: str = "synthetic",
+def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic",
                hm3d_root: Path | str | None = None, start: HabitatStart | None = None,
                oracle: bool = True) -> Scene:
     """``synthetic:SEED`` -> the generated house with its questions (with oracle steps unless

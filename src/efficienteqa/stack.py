@@ -28,6 +28,7 @@ from efficienteqa.explore.vlm_scorer import VLMScorer
 from efficienteqa.models.backends import CHAT_BACKENDS, ChatBackend, build_chat_model
 from efficienteqa.models.base import ChatModel
 from efficienteqa.models.client import IMAGE_DETAILS, IMAGE_FORMATS
+from efficienteqa.models.local.weights import DEFAULT_MODEL
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
 from efficienteqa.registry import Registry
@@ -57,7 +58,7 @@ class Stack:
     the GPU torch sees, in float16, else the CPU), ``relevancy_weights`` (a local folder with
     its weights) and ``allow_download`` (fetch them from the Hugging Face Hub when missing)."""
 
-    vlm: str = "local:qwen2.5-coder-1.5b"
+    vlm: str = f"local:{DEFAULT_MODEL}"
     perception: str = "semantic"
     relevancy: str = "minilm"
     grouping: str = "llm"

@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 
 DATASETS = {
@@ -24,7 +25,7 @@ __all__ = ["DATASETS", "EvalQuestion", "find_question", "load_dataset"]
 
 
 def load_dataset(name: str, *, path: Path | None = None, limit: int | None = None,
-                 closed_set: bool = False, assets: str = "sh3d") -> list[EvalQuestion]:
+                 closed_set: bool = False, assets: str = DEFAULT_ASSETS) -> list[EvalQuestion]:
     """The questions of dataset ``name`` in its own order; ``limit`` keeps the first N (the
     synthetic orders interleave categories and houses, so a prefix stays balanced).
 

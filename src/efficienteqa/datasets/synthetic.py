@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.questions import CATEGORIES, Question
 from efficienteqa.errors import EfficientEQAError
 
@@ -39,7 +40,7 @@ log = logging.getLogger(__name__)
 SPLIT_VERSION = "v1"
 SPLIT_DATASET = f"synthetic-{SPLIT_VERSION}"
 SPLIT_FILE = f"synthetic_{SPLIT_VERSION}.jsonl"
-SPLIT_ASSETS = "sh3d"
+SPLIT_ASSETS = DEFAULT_ASSETS
 SPLIT_SEEDS = range(100, 1000)  # 0-20: development benchmarks; >= 1000: calibration
 LIVE_DATASET = "synthetic"
 HEADER_FORMAT = "efficienteqa-synthetic-split"
@@ -232,7 +233,7 @@ def _house_questions(seed: int, assets: str) -> list[Question]:
         return synthetic_questions(env)
 
 
-def load_seeds(seeds: Sequence[int], assets: str = "sh3d") -> list[EvalQuestion]:
+def load_seeds(seeds: Sequence[int], assets: str = DEFAULT_ASSETS) -> list[EvalQuestion]:
     """Every question of the given houses, interleaved; generated once, then read from the cache
     (a progress bar shows when several houses must be generated)."""
     folder = cache_dir("datasets", "synthetic", assets)

@@ -39,7 +39,9 @@ from typing import Any
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.datasets.base import EvalQuestion
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.models.local.weights import DEFAULT_MODEL
 from efficienteqa.stack import Stack
 
 
@@ -57,10 +59,10 @@ class RunSpec:
     dataset: str
     stack: Stack = field(default_factory=Stack)
     config: AgentConfig = field(default_factory=AgentConfig)
-    judge: str | None = "local:qwen2.5-coder-1.5b"
+    judge: str | None = f"local:{DEFAULT_MODEL}"
     judge_mode: str = "yes-prob"  # "grade" (1-5 asked for; capable judges) | "yes-prob"
     reports: bool = False
-    assets: str = "sh3d"
+    assets: str = DEFAULT_ASSETS
     closed_set: bool = False
     env: str = "synthetic"
     hm3d_root: str | None = None

@@ -8,6 +8,7 @@ from urllib.parse import urlsplit
 
 from efficienteqa.models.base import Capabilities, ChatModel
 from efficienteqa.models.client import ClientConfig, OpenAIChatClient
+from efficienteqa.models.local.weights import DEFAULT_MODEL
 from efficienteqa.registry import Registry
 
 OPENAI_URL = "https://api.openai.com/v1"
@@ -49,7 +50,7 @@ class ChatBackend:
     """
 
     kind: str = "local"
-    model: str = "qwen2.5-coder-1.5b"
+    model: str = DEFAULT_MODEL
     base_url: str | None = None
     api_key_env: str | None = None
     images: bool = False

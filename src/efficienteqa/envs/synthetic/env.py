@@ -9,7 +9,7 @@ import numpy as np
 from efficienteqa.envs.synthetic.build import build_geometry
 from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house, navigation_grid
-from efficienteqa.envs.synthetic.house import House
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS, House
 from efficienteqa.envs.synthetic.layout import WALL_HEIGHT_M
 from efficienteqa.envs.synthetic.primitives import builtin_catalog
 from efficienteqa.envs.synthetic.render import Renderer
@@ -26,7 +26,7 @@ def catalog_for(assets: str, cc_by: bool = False) -> Catalog:
     "builtin": coloured boxes for tests."""
     if assets == "builtin":
         return builtin_catalog()
-    if assets == "sh3d":
+    if assets == DEFAULT_ASSETS:
         return load_catalog(("CC0-1.0", "CC-BY-3.0") if cc_by else ("CC0-1.0",))
     raise EfficientEQAError(f"unknown assets {assets!r}", fix="use 'sh3d' or 'builtin'")
 
@@ -49,7 +49,7 @@ class SyntheticEnv:
         self.steps = 0
 
     @classmethod
-    def from_seed(cls, seed: int, assets: str = "sh3d", camera: CameraSpec | None = None
+    def from_seed(cls, seed: int, assets: str = DEFAULT_ASSETS, camera: CameraSpec | None = None
                   ) -> SyntheticEnv:
         catalog = catalog_for(assets)
         return cls(generate_house(seed, catalog, assets), catalog, camera)

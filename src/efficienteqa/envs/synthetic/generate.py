@@ -10,7 +10,7 @@ from efficienteqa.envs.synthetic.build import DOOR_SIZE_M
 from efficienteqa.envs.synthetic.catalog import Catalog
 from efficienteqa.envs.synthetic.colours import PALETTE
 from efficienteqa.envs.synthetic.furnish import furnish
-from efficienteqa.envs.synthetic.house import House, PlacedObject
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS, House, PlacedObject
 from efficienteqa.envs.synthetic.layout import Door, Layout, Room, generate_layout
 from efficienteqa.envs.synthetic.navigation import rasterise
 from efficienteqa.geometry import CameraSpec, Pose2D
@@ -28,7 +28,7 @@ COLOURABLE = ("sofa", "armchair", "bed", "office chair", "wardrobe", "refrigerat
 RECOLOURS = ("red", "blue", "green", "yellow", "orange", "purple", "pink", "white", "black")
 
 
-def generate_house(seed: int, catalog: Catalog, assets: str = "sh3d") -> House:
+def generate_house(seed: int, catalog: Catalog, assets: str = DEFAULT_ASSETS) -> House:
     """The house of ``seed``: the same seed and catalogue always give the same house."""
     rng = np.random.default_rng(seed)
     layout = generate_layout(rng, int(rng.integers(5, 10)))

@@ -15,6 +15,10 @@ HOUSE_FORMAT = 1
 MOUNTED_Z_M = 1.0  # objects hung at least this high (wall cabinets, lamps) leave the floor free
 
 
+# The furniture of a synthetic house unless told otherwise: the Sweet Home 3D package.
+DEFAULT_ASSETS = "sh3d"
+
+
 @dataclass
 class PlacedObject:
     """One object in the house. (x, y, z) is the bottom centre in metres; yaw in radians turns
@@ -57,7 +61,7 @@ class House:
     layout: Layout
     objects: list[PlacedObject]
     start: Pose2D
-    assets: str = "sh3d"  # "sh3d" (the furniture package) or "builtin" (boxes, for tests)
+    assets: str = DEFAULT_ASSETS  # "sh3d" (the furniture package) or "builtin" (boxes, for tests)
     meta: dict[str, Any] = field(default_factory=dict)
 
     def room(self, room_id: int) -> Room:
