@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from efficienteqa.envs.checks import check_arrays, check_env
 from efficienteqa.geometry import Pose2D, backproject
 from efficienteqa.observation import Observation
 
@@ -26,20 +27,11 @@ SLACK_M = 0.3  # walls are thick; surfaces lie on the bounding box
 
 
 def check_habitat_observation(obs: Observation, env: HabitatEnv) -> None:
-    cam = env.camera
-    h, w = cam.height, cam.width
-    assert obs.rgb.shape == (h, w, 3) and obs.rgb.dtype == np.uint8, "rgb must be (H, W, 3) uint8"
-    assert obs.depth_m.shape == (h, w) and obs.depth_m.dtype == np.float32, "depth_m (H, W) f32"
-    assert np.all(np.isfinite(obs.depth_m)) and np.all(obs.depth_m >= 0), "depth finite, >= 0"
-    if obs.instance is not None:
-        assert obs.instance.shape == (h, w) and obs.instance.dtype == np.int32, "instance (H, W) i32"
-    assert np.allclose(obs.intrinsics, cam.intrinsics), "intrinsics must match the camera"
-    rot = obs.cam_to_world[:3, :3]
-    assert np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) and np.isclose(np.linalg.det(rot), 1.0)
+    check_arrays(obs, env)
     assert np.allclose(obs.cam_to_world, env.camera_pose(), atol=1e-6), \
         "cam_to_world must be the sensor pose Habitat-Sim reports"
     offset = np.hypot(obs.cam_to_world[0, 3] - obs.pose.x, obs.cam_to_world[1, 3] - obs.pose.y)
-    assert offset <= cam.height_m + 1e-6, "the camera must be within its mount's reach of the robot"
+    assert offset <= env.camera.height_m + 1e-6, "the camera must be within its mount's reach"
     lo, hi = env.bounds
     assert lo[2] < obs.cam_to_world[2, 3] < hi[2], "the camera must be above the floor, below a storey"
     valid = obs.depth_m > 0
@@ -51,18 +43,6 @@ def check_habitat_observation(obs: Observation, env: HabitatEnv) -> None:
 
 
 def check_habitat_env(env: HabitatEnv, moves: list[Pose2D]) -> None:
-    """Reset, observe, and step through ``moves`` (navigable poses), checking every frame."""
-    obs, info = env.reset(seed=0)
-    check_habitat_observation(obs, env)
-    assert isinstance(info, dict)
-    start = obs.pose
-    assert env.is_navigable(start.x, start.y), "the start pose must be navigable"
-    assert env.floor_area_m2 > 0 and env.budget_area_m2 > 0
-    for pose in moves:
-        obs, reward, terminated, truncated, info = env.step(pose)
-        check_habitat_observation(obs, env)
-        assert isinstance(reward, float) and isinstance(terminated, bool)
-        assert isinstance(truncated, bool) and isinstance(info, dict)
-        assert (obs.pose.x, obs.pose.y) == (pose.x, pose.y), "a navigable move must arrive"
-    again, _ = env.reset(seed=0)
-    assert again.pose == start, "reset must return to the start"
+    """``check_env`` with Habitat's frame check, and a budget area."""
+    assert env.budget_area_m2 > 0
+    check_env(env, moves, check=check_habitat_observation)  # type: ignore[arg-type]
