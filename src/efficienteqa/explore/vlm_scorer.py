@@ -107,7 +107,17 @@ def explore_scores(model: ChatModel, question: str, view: str,
     resp = model.chat([Message("user", prompt, tuple(images or ()))], max_tokens=max_tokens,
                       temperature=0.0)
     raw = resp.text or ""
-    parsed = parse_letters(raw, letters, m)
+    scores, problems, candidates = _letter_scores(question, raw, letters, m)
+    p_yes, worth_problems = parse_worth_exploring(raw)
+    return SemanticScore(scores, p_yes, {"raw": raw, "problems": problems + worth_problems,
+                                         "candidates": candidates, "usage": usage_of(resp)})
+
+
+def _letter_scores(question: str, raw: str, letters: Sequence[str], m: int
+                   ) -> tuple[dict[str, float], list[str], list[tuple[str, float]]]:
+    """The verbalized per-letter confidences of a reply, normalised over ``letters`` (uniform
+    when none is usable), with the parse problems and the candidates as read."""
+    parsed = parse_letters(raw, list(letters), m)
     problems = list(parsed.problems)
     classes = group_answers(question, parsed.candidates, ExactGrouper(), problems)
     mass = {c.text: c.confidence for c in classes}
@@ -115,10 +125,7 @@ def explore_scores(model: ChatModel, question: str, view: str,
     if total <= 0:
         problems.append("no usable letter confidences: uniform")
     scores = {x: (mass.get(x, 0.0) / total if total > 0 else 1.0 / len(letters)) for x in letters}
-    p_yes, worth_problems = parse_worth_exploring(raw)
-    return SemanticScore(scores, p_yes, {"raw": raw, "problems": problems + worth_problems,
-                                         "candidates": [(c.text, c.confidence) for c in parsed.candidates],
-                                         "usage": usage_of(resp)})
+    return scores, problems, [(c.text, c.confidence) for c in parsed.candidates]
 
 
 def explore_token_scores(model: ChatModel, question: str, view: str,
@@ -168,16 +175,7 @@ def explore_image_scores(model: ChatModel, question: str, letters: Sequence[str]
             question=question, view="the image", directions=directions)
         resp = model.chat([Message("user", prompt, tuple(marked))], max_tokens=max_tokens,
                           temperature=0.0)
-        parsed = parse_letters(resp.text or "", letters, m)
-        problems = list(parsed.problems)
-        classes = group_answers(question, parsed.candidates, ExactGrouper(), problems)
-        mass = {c.text: c.confidence for c in classes}
-        total = sum(mass.get(x, 0.0) for x in letters)
-        if total <= 0:
-            problems.append("no usable letter confidences: uniform")
-        scores = {x: (mass.get(x, 0.0) / total if total > 0 else 1.0 / len(letters))
-                  for x in letters}
-        candidates = [(c.text, c.confidence) for c in parsed.candidates]
+        scores, problems, candidates = _letter_scores(question, resp.text or "", letters, m)
     p_yes, worth = worth_exploring(model, question, plain, token=token)
     return SemanticScore(scores, p_yes, {
         "raw": resp.text or "", "worth_raw": worth["raw"],
