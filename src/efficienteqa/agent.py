@@ -267,8 +267,8 @@ class Agent:
 
     def _problems_since(self, said: tuple[int, int]) -> list[str]:
         """The relevancy scorer's and the gate's problems noted since ``_problems_said``."""
-        return [*list(getattr(self.relevancy, "problems", ()))[said[0]:],
-                *(f"gate: {p}" for p in list(getattr(self.gate, "problems", ()))[said[1]:])]
+        return [*getattr(self.relevancy, "problems", [])[said[0]:],
+                *(f"gate: {p}" for p in getattr(self.gate, "problems", [])[said[1]:])]
 
     def _n_calls(self) -> int:
         return len(self.exchanges.exchanges) if self.exchanges is not None else 0

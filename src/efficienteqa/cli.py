@@ -120,7 +120,7 @@ TokenAnswer = Annotated[str | None, _option(METHOD,
 Seed = Annotated[int | None, _option(METHOD, help="Seed of the explorer's frontier sampling.",
                                           show_default=False)]
 Vlm = Annotated[str | None, _option(BACKENDS, help="local:MODEL (default local:qwen2.5-coder-1.5b), or "
-                                         "openai:MODEL[@BASE_URL] (key in OPENAI_API_KEY).",
+                                         "openai:MODEL[@BASE_URL] (key: see --api-key-env).",
                                          show_default=False)]
 # The model server's options (Stack fields; None: ChatBackend's defaults).
 TimeoutS = Annotated[float | None, _option(BACKENDS,

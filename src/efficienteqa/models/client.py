@@ -41,6 +41,7 @@ from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatResponse, Message, TokenLogprob, Usage
 from efficienteqa.models.cache import ResponseCache, request_key
+from efficienteqa.records import write_json
 
 if TYPE_CHECKING:
     import openai
@@ -316,10 +317,7 @@ class OpenAIChatClient:
         record = {"base_url": self.config.base_url.rstrip("/"), "model": self.name, **found,
                   "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_text(json.dumps(record, indent=1))
-            tmp.replace(path)
+            write_json(path, record)
         except OSError as error:
             log.warning("cannot keep the probe of %s (%s)", self.url, _one_line(str(error)))
         return self._capabilities

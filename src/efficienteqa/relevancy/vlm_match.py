@@ -50,7 +50,7 @@ class VLMMatchScorer:
                                    temperature=0.0)
         reply = response.text or ""
         p_yes, problems = parse_worth_exploring(reply)
-        if getattr(response, "finish_reason", None) == "length":
+        if response.finish_reason == "length":
             problems.append(f"reply cut at {self.max_tokens} tokens")
         if any(p.startswith(NO_YES_NO) for p in problems):
             self.problems.append(f"unreadable reply {reply[:60]!r}: relevancy missing")
