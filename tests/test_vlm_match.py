@@ -7,7 +7,6 @@ import pytest
 
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.relevancy.vlm_match import VLMMatchScorer
-from efficienteqa.vc.parse import DEFAULT_P_YES
 
 
 @pytest.mark.parametrize("reply, p_yes", [("yes 80", 0.8), ("no 90", pytest.approx(0.1)),
