@@ -145,8 +145,9 @@ ImageDetail = Annotated[str | None, _option(BACKENDS,
 Temperature = Annotated[float | None, _option(BACKENDS, help="The VLM's sampling temperature for every "
                                                    "call (default 0).", show_default=False)]
 PerceptionOpt = Annotated[str | None, _option(BACKENDS,
-    "--perception", help="semantic (object labels as text; default) | rgb (pixels, needs an image "
-    "VLM).", show_default=False)]
+    "--perception", help="semantic (object labels as text; default) | pixels (RGB-D read by the "
+    "project's own network, described as text) | rgb (images, needs an image VLM).",
+    show_default=False)]
 Relevancy = Annotated[str | None, _option(BACKENDS,
     help="minilm (default over text) | minilm-match (MiniLM calibrated to a match probability) | "
     "overlap | vlm-match (the VLM answers 'does this view show it?'; default over images) | "

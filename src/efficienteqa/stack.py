@@ -182,9 +182,16 @@ def _rgb(**_: Any) -> Perception:
     return ImagePerception()
 
 
+def _pixels(**_: Any) -> Perception:
+    from efficienteqa.perception.pixels.backend import PixelPerception
+
+    return PixelPerception.load()
+
+
 PERCEPTIONS: Registry[Perception] = Registry("perception")
 PERCEPTIONS.register("semantic", _semantic)
 PERCEPTIONS.register("rgb", _rgb)
+PERCEPTIONS.register("pixels", _pixels)
 
 GROUPINGS: Registry[Grouper] = Registry("grouping")
 GROUPINGS.register("rules", lambda **_: RuleGrouper())

@@ -16,6 +16,9 @@ from efficienteqa.eval.summary import BACKEND_KEYS, RunSummary
 
 SEMANTIC_SENSOR = "semantic-sensor"
 SEMANTIC_SHORT = "reads the simulator's object labels, not pixels: not image-model numbers"
+PIXELS = "pixels"
+PIXELS_SHORT = ("reads RGB-D through the project's own network, trained on its synthetic renders: "
+                "not figures of a pretrained image model")
 EVIDENCE_NOTE = ("Computed after each episode from the ground truth (the agent never sees it): a "
                  "frame shows the evidence when every evidence object covers the oracle's pixel "
                  "threshold. First seen and first seen / oracle are over the episodes that saw it; "
@@ -77,6 +80,8 @@ def provenance(summaries: Sequence[RunSummary]) -> list[str]:
         text = f"{names.get(key, key)} {', '.join(values) or '-'}"
         if key == "perception" and SEMANTIC_SENSOR in values:
             text += f" ({SEMANTIC_SHORT})"
+        if key == "perception" and PIXELS in values:
+            text += f" ({PIXELS_SHORT})"
         parts.append(text)
     newest = max((s.newest for s in summaries if s.newest is not None), default=None)
     codes = sorted({s.code_version for s in summaries})

@@ -494,9 +494,14 @@ class SemanticPerception:
         self._last: tuple[Observation, FrameDescription] | None = None
         self._seen: tuple[Observation, Target, Sightings] | None = None
 
+    def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
+        """The frame and labels the describer reads: the scene's own here. A perception that
+        predicts them from pixels (``perception.pixels``) overrides this, and only this."""
+        return obs, self.labels
+
     def describe(self, obs: Observation) -> FrameDescription:
         if self._last is None or self._last[0] is not obs:  # described once per observation
-            self._last = (obs, describe_frame(obs, self.labels, noise=self.noise))
+            self._last = (obs, describe_frame(*self.read(obs), noise=self.noise))
         return self._last[1]
 
     def frame(self, obs: Observation) -> str:
@@ -510,14 +515,16 @@ class SemanticPerception:
         return "\n".join(lines) or (f"walls and floor in the {d.room}" if d.room else "walls and floor")
 
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest:
+        seen, labels = self.read(obs)
         return ExploreRequest(self.frame(obs),
-                              describe_directions(obs, prompts, self.labels, noise=self.noise))
+                              describe_directions(seen, prompts, labels, noise=self.noise))
 
     def sightings(self, obs: Observation, target: Target) -> Sightings:
         """The floor of each room in view and the target's things in view (see ``sightings``);
         computed once per observation and target (the explorer and the gate both read them)."""
         if self._seen is None or self._seen[0] is not obs or self._seen[1] != target:
-            self._seen = (obs, target, sightings(obs, self.labels, target, self.noise))
+            seen, labels = self.read(obs)
+            self._seen = (obs, target, sightings(seen, labels, target, self.noise))
         return self._seen[2]
 
 

@@ -132,7 +132,7 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
     stop_step = record["steps"] if record["stop_reason"] == "relevancy" else None
     ref = record.get("reference") or {}
     backends = record["backends"]
-    text_perception = backends.get("perception") == "semantic-sensor"
+    text_perception = backends.get("perception") in ("semantic-sensor", "pixels")
     model = record["model"]
 
     target = record.get("target") or {}

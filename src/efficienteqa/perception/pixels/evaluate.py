@@ -1,0 +1,180 @@
+"""How well pixel perception sees, against the semantic sensor's ground truth (DESIGN 9,
+learned perception).
+
+Per frame, the objects the semantic sensor lists at the oracle's pixel threshold are the truth,
+and the objects pixel perception would describe (at the describer's own threshold) are the
+predictions. An object in view is *found* when the predicted regions of its category cover at
+least half of its pixels; a predicted object is *right* when at least half of its pixels lie on
+true objects of its category. Colour and state are scored on found objects (the predicted object
+that overlaps it most), the room type of the floor on the true floor pixels. Everything is split
+by category, by size (furniture and small objects) and by distance (under 2 m, 2-4 m, beyond).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections import defaultdict
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from efficienteqa.envs.base import SceneLabels
+from efficienteqa.geometry import backproject
+from efficienteqa.observation import Observation
+from efficienteqa.perception.pixels.backend import PixelPerception
+from efficienteqa.perception.pixels.segment import FLOOR_TOLERANCE_M
+from efficienteqa.perception.semantic import VisibleObject, scaled_min_pixels, visible_objects
+
+ORACLE_PIXELS = 250  # at 640x480: the oracle's "in view" (an evidence object this large)
+COVER = 0.5  # a true object is found when its category's predicted pixels cover this share
+NEAR_M, FAR_M = 2.0, 4.0
+SMALL_WITHIN_M = 3.0  # the small-object target counts objects this close
+
+
+def room_type(name: str | None) -> str | None:
+    """A room's type: "guest bedroom" is a bedroom (pixels cannot tell whose it is)."""
+    if name is None:
+        return None
+    return name[len("guest "):] if name.startswith("guest ") else name
+
+
+@dataclass
+class Tally:
+    """Counts for one slice: found / true objects, right / predicted objects, colours and
+    states right / scored."""
+
+    true: int = 0
+    found: int = 0
+    predicted: int = 0
+    right: int = 0
+    colour: list[int] = field(default_factory=lambda: [0, 0])
+    state: list[int] = field(default_factory=lambda: [0, 0])
+
+    def add(self, other: Tally) -> None:
+        self.true += other.true
+        self.found += other.found
+        self.predicted += other.predicted
+        self.right += other.right
+        for a, b in ((self.colour, other.colour), (self.state, other.state)):
+            a[0] += b[0]
+            a[1] += b[1]
+
+    def figures(self) -> dict[str, Any]:
+        def share(a: int, b: int) -> float | None:
+            return round(a / b, 4) if b else None
+
+        return {"recall": share(self.found, self.true), "precision": share(self.right,
+                                                                           self.predicted),
+                "objects": self.true, "predicted": self.predicted,
+                "colour": share(*self.colour), "colour_n": self.colour[1],
+                "state": share(*self.state), "state_n": self.state[1]}
+
+
+@dataclass
+class Scores:
+    """Every tally by slice ("all", "category:<c>", "size:<s>", "distance:<d>",
+    "small within 3 m"), the floor's room-type counts and the per-frame times."""
+
+    tallies: dict[str, Tally] = field(default_factory=lambda: defaultdict(Tally))
+    floor: list[int] = field(default_factory=lambda: [0, 0])
+    seconds: list[float] = field(default_factory=list)
+    frames: int = 0
+
+    def to_json(self) -> dict[str, Any]:
+        times = sorted(self.seconds)
+        return {"frames": self.frames,
+                "floor_room_type": round(self.floor[0] / self.floor[1], 4) if self.floor[1]
+                else None, "floor_pixels": self.floor[1],
+                "median_ms": round(1000 * times[len(times) // 2], 1) if times else None,
+                "slices": {k: t.figures() for k, t in sorted(self.tallies.items())}}
+
+
+def _slices(obj: VisibleObject, small: frozenset[str]) -> list[str]:
+    size = "small" if obj.label.category in small else "furniture"
+    d = obj.distance_m
+    distance = "under 2 m" if d < NEAR_M else "2-4 m" if d < FAR_M else "beyond 4 m"
+    out = ["all", f"category:{obj.label.category}", f"size:{size}", f"distance:{distance}",
+           f"size:{size}, distance:{distance}"]
+    if size == "small" and d < SMALL_WITHIN_M:
+        out.append("small within 3 m")
+    return out
+
+
+def score_frame(obs: Observation, truth: SceneLabels, perception: PixelPerception,
+                small: frozenset[str], scores: Scores) -> None:
+    """Add one frame's counts to ``scores``."""
+    assert obs.instance is not None, "scoring needs the frame's true instance buffer"
+    stripped = Observation(rgb=obs.rgb, depth_m=obs.depth_m, cam_to_world=obs.cam_to_world,
+                           intrinsics=obs.intrinsics, pose=obs.pose)
+    start = time.perf_counter()
+    seen, predicted_labels = perception.read(stripped)
+    scores.seconds.append(time.perf_counter() - start)
+    scores.frames += 1
+    h, w = obs.depth_m.shape
+    true_objects = [o for o in visible_objects(obs, truth, scaled_min_pixels(h, w)) if
+                    o.pixels >= max(4, round(ORACLE_PIXELS * h * w / (640 * 480)))]
+    predicted = visible_objects(seen, predicted_labels)
+    assert seen.instance is not None
+    pred_category = np.full((h, w), "", dtype=object)
+    for p in predicted:
+        pred_category[seen.instance == p.instance_id] = p.label.category
+    true_category = np.full((h, w), "", dtype=object)
+    for o in visible_objects(obs, truth, 1):
+        true_category[obs.instance == o.instance_id] = o.label.category
+    for o in true_objects:
+        mask = obs.instance == o.instance_id
+        same = pred_category[mask] == o.label.category
+        tally = Tally(true=1, found=int(same.mean() >= COVER))
+        if tally.found:
+            ids, counts = np.unique(seen.instance[mask & (pred_category == o.label.category)],
+                                    return_counts=True)
+            best = predicted_labels.label(int(ids[counts.argmax()]))
+            if best is not None and o.label.colour is not None:
+                tally.colour = [int(best.colour == o.label.colour), 1]
+            if best is not None and o.label.state is not None:
+                tally.state = [int(best.state == o.label.state), 1]
+        for key in _slices(o, small):
+            scores.tallies[key].add(tally)
+    for p in predicted:
+        mask = seen.instance == p.instance_id
+        right = int(np.mean(true_category[mask] == p.label.category) >= COVER)
+        for key in ("all", f"category:{p.label.category}",
+                    f"size:{'small' if p.label.category in small else 'furniture'}"):
+            scores.tallies[key].add(Tally(predicted=1, right=right))
+    _score_floor(obs, truth, seen, predicted_labels, scores)
+
+
+def _score_floor(obs: Observation, truth: SceneLabels, seen: Observation,
+                 predicted: SceneLabels, scores: Scores) -> None:
+    """Room type of the true floor pixels (every 4th pixel each way), as the predicted labels
+    name the room at each pixel's floor point."""
+    assert obs.instance is not None and seen.instance is not None
+    k = 4
+    points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[::k, ::k]
+    floor = ((obs.instance[::k, ::k] == 0) & (obs.depth_m[::k, ::k] > 0)
+             & (np.abs(points[..., 2]) < FLOOR_TOLERANCE_M))
+    for x, y in points[floor][:, :2]:
+        want = room_type(truth.room_at(float(x), float(y)))
+        if want is None:
+            continue
+        scores.floor[1] += 1
+        scores.floor[0] += int(predicted.room_at(float(x), float(y)) == want)
+
+
+def evaluate(frames: Iterable[tuple[Observation, SceneLabels]], perception: PixelPerception,
+             small: frozenset[str], progress: Callable[[int], None] | None = None) -> Scores:
+    scores = Scores()
+    for n, (obs, truth) in enumerate(frames, start=1):
+        score_frame(obs, truth, perception, small, scores)
+        if progress is not None:
+            progress(n)
+    return scores
+
+
+def write_scores(scores: Scores, path: Any, about: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({**about, **scores.to_json()}, indent=1) + "\n")
+

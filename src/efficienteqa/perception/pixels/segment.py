@@ -1,0 +1,194 @@
+"""From the network's per-pixel classes to what the semantic describer reads (DESIGN 9,
+learned perception).
+
+The pixel network gives, at half the frame's size, a category per pixel (nothing, wall, the floor
+of a room type, a door or an object category), a colour and a state. This module turns them into
+the two things the label-reading describer (``perception.semantic``) takes: an instance buffer at
+full size (-1 nothing, 0 walls and floors, 1.. objects) and ``SceneLabels`` that answer only from
+this frame: each predicted object's category, colour, state, room and, for doors, the rooms on
+either side; the room at a floor point from the floor the frame shows. Pure numpy and scipy.
+
+Instances are the connected regions of one object category, cut where depth jumps (two chairs
+side by side are two chairs when one stands behind the other). Colour and state are the majority
+of the pixels' predictions inside a region; the room of an object is the room of the predicted
+floor nearest to it; a door's near side is the room of the floor in front of it, its far side
+the room of the floor seen beyond it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from efficienteqa.envs.base import DoorSides, ObjectLabel
+from efficienteqa.geometry import backproject
+
+FLOOR_PREFIX = "floor:"
+FLOOR_TOLERANCE_M = 0.05  # as the semantic describer: floor pixels lie this close to z = 0
+ROOM_CELL_M = 0.1  # floor points vote for their room on this grid
+ROOM_REACH_M = 1.0  # a point's room: the predicted floor within this distance
+DEPTH_JUMP = 0.08  # neighbours whose depths differ by more than this share are two objects
+MIN_REGION_PIXELS = 6  # at half size: smaller regions are noise (the describer lists >= 150/4)
+DOOR_SIDE_M = 1.5  # the floor this far around a door names the rooms on its sides
+
+
+@dataclass(frozen=True)
+class PixelClasses:
+    """The network's reading of one frame at half size: ``category`` (h, w) indices into
+    ``categories``, ``colour`` (h, w) indices into ``colours``, ``state`` (h, w) 0 for none,
+    else 1 + an index into ``states``."""
+
+    category: np.ndarray
+    colour: np.ndarray
+    state: np.ndarray
+    categories: Sequence[str]
+    colours: Sequence[str]
+    states: Sequence[str]
+
+
+class FrameLabels:
+    """``SceneLabels`` read off one frame: the predicted objects' labels, and the room at a point
+    from the floor the frame shows (the nearest predicted floor cell within ROOM_REACH_M)."""
+
+    def __init__(self, labels: dict[int, ObjectLabel], cells: np.ndarray, rooms: list[str]
+                 ) -> None:
+        self._labels = labels
+        self._rooms = rooms
+        self._tree = cKDTree(cells) if len(cells) else None
+
+    def label(self, instance_id: int) -> ObjectLabel | None:
+        return self._labels.get(int(instance_id))
+
+    def room_at(self, x: float, y: float) -> str | None:
+        if self._tree is None:
+            return None
+        distance, k = self._tree.query((x, y), distance_upper_bound=ROOM_REACH_M)
+        return self._rooms[int(k)] if np.isfinite(distance) else None
+
+
+def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarray,
+               cam_to_world: np.ndarray) -> tuple[np.ndarray, FrameLabels]:
+    """The full-size instance buffer and the frame's labels from the network's classes.
+    ``depth_m``, ``intrinsics`` and ``cam_to_world`` are the frame's own (full size)."""
+    h, w = depth_m.shape
+    small = classes.category
+    sh, sw = small.shape
+    fy, fx = h // sh, w // sw
+    if (sh * fy, sw * fx) != (h, w):
+        raise ValueError(f"classes {small.shape} do not tile a {h}x{w} frame")
+    depth_small = depth_m[fy // 2::fy, fx // 2::fx]
+    names = list(classes.categories)
+    is_floor = np.array([n.startswith(FLOOR_PREFIX) for n in names])
+    first_object = names.index("door")
+    floor_points = _floor_points(small, is_floor, depth_m, intrinsics, cam_to_world, fy, fx)
+    cells, rooms = _floor_cells(*floor_points, names)
+    room_of = FrameLabels({}, cells, rooms)
+
+    instance_small = np.where(small == 0, -1, 0).astype(np.int32)
+    instance_small[depth_small <= 0] = -1
+    regions = _regions(small, depth_small, first_object)
+    points = backproject(depth_small, _scaled(intrinsics, fy, fx), cam_to_world)
+    camera_xy = np.array([cam_to_world[0, 3], cam_to_world[1, 3]])
+    labels: dict[int, ObjectLabel] = {}
+    for k, (category, mask) in enumerate(regions, start=1):
+        instance_small[mask] = k
+        xy = np.median(points[mask][:, :2], axis=0)
+        colour = _majority(classes.colour[mask], len(classes.colours))
+        state = _majority(classes.state[mask], len(classes.states) + 1)
+        name = names[category]
+        door = None
+        if name == "door":
+            door = _door_sides(xy, camera_xy, room_of)
+            room = door.rooms[0]
+        else:
+            room = room_of.room_at(float(xy[0]), float(xy[1]))
+        labels[k] = ObjectLabel(name, classes.colours[colour] if colour is not None else None,
+                                classes.states[state - 1] if state else None, room, door)
+    instance = np.repeat(np.repeat(instance_small, fy, axis=0), fx, axis=1)
+    instance[depth_m <= 0] = -1
+    return instance, FrameLabels(labels, cells, rooms)
+
+
+def _scaled(intrinsics: np.ndarray, fy: int, fx: int) -> np.ndarray:
+    k = intrinsics.astype(np.float64).copy()
+    k[0] /= fx
+    k[1] /= fy
+    return k
+
+
+def _floor_points(small: np.ndarray, is_floor: np.ndarray, depth_m: np.ndarray,
+                  intrinsics: np.ndarray, cam_to_world: np.ndarray, fy: int, fx: int
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """World xy and category of each predicted floor pixel at floor height (half size)."""
+    depth_small = depth_m[fy // 2::fy, fx // 2::fx]
+    points = backproject(depth_small, _scaled(intrinsics, fy, fx), cam_to_world)
+    floor = is_floor[small] & (depth_small > 0) & (np.abs(points[..., 2]) < FLOOR_TOLERANCE_M)
+    return points[floor][:, :2], small[floor]
+
+
+def _floor_cells(xy: np.ndarray, category: np.ndarray, names: list[str]
+                 ) -> tuple[np.ndarray, list[str]]:
+    """One room per ROOM_CELL_M cell of predicted floor: its pixels' majority room type."""
+    if not len(xy):
+        return np.zeros((0, 2)), []
+    cells = np.floor(xy / ROOM_CELL_M).astype(np.int64)
+    key = (cells[:, 0] << 32) + (cells[:, 1] & 0xFFFFFFFF)
+    order = np.lexsort((category, key))
+    key, category, cells = key[order], category[order], cells[order]
+    pairs, starts, counts = np.unique(np.stack([key, category], 1), axis=0, return_index=True,
+                                      return_counts=True)
+    best: dict[int, tuple[int, int, int]] = {}  # cell key -> (count, category, row)
+    for (cell, cat), start, n in zip(pairs.tolist(), starts.tolist(), counts.tolist()):
+        if cell not in best or n > best[cell][0]:
+            best[cell] = (n, cat, start)
+    rows = [row for _, _, row in best.values()]
+    centres = (cells[rows] + 0.5) * ROOM_CELL_M
+    return centres, [names[cat][len(FLOOR_PREFIX):] for _, cat, _ in best.values()]
+
+
+def _regions(small: np.ndarray, depth: np.ndarray, first_object: int
+             ) -> list[tuple[int, np.ndarray]]:
+    """Connected regions of each object category (doors included), cut at depth jumps; each
+    as (category, mask at half size), largest first within a category."""
+    jump = np.zeros(small.shape, bool)
+    rel = DEPTH_JUMP * np.maximum(depth, 1e-3)
+    jump[:, 1:] |= np.abs(np.diff(depth, axis=1)) > rel[:, 1:]
+    jump[1:, :] |= np.abs(np.diff(depth, axis=0)) > rel[1:, :]
+    out: list[tuple[int, np.ndarray]] = []
+    for category in np.unique(small[small >= first_object]).tolist():
+        mask = (small == category) & (depth > 0)
+        cores, n = ndimage.label(mask & ~jump)
+        if n == 0:
+            continue
+        # pixels on a jump join the region nearest to them (within the category's mask)
+        _, (ri, ci) = ndimage.distance_transform_edt(cores == 0, return_indices=True)
+        grown = np.where(mask, cores[ri, ci], 0)
+        sizes = np.bincount(grown.ravel(), minlength=n + 1)
+        for k in np.argsort(-sizes[1:], kind="stable") + 1:
+            if sizes[k] >= MIN_REGION_PIXELS:
+                out.append((int(category), grown == k))
+    return out
+
+
+def _majority(values: np.ndarray, n: int) -> int | None:
+    """The commonest value of a region's pixels (None for an empty region)."""
+    if not values.size:
+        return None
+    return int(np.bincount(values.ravel().astype(np.int64), minlength=n).argmax())
+
+
+def _door_sides(xy: np.ndarray, camera_xy: np.ndarray, rooms: FrameLabels) -> DoorSides:
+    """A door's sides as the frame shows them: the room of the floor between the camera and the
+    door (rooms[0]), and of the floor beyond it; the wall line faces the camera."""
+    toward = camera_xy - xy
+    norm = float(np.hypot(*toward))
+    normal = toward / norm if norm > 1e-6 else np.array([1.0, 0.0])
+    near = rooms.room_at(*(xy + 0.5 * normal))
+    far = rooms.room_at(*(xy - DOOR_SIDE_M * normal))
+    far = far if far != near else None
+    return DoorSides((near, far), float(xy[0]), float(xy[1]), (float(normal[0]),
+                                                                float(normal[1])))
