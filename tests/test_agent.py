@@ -362,11 +362,12 @@ def test_the_papers_stack_rgb_frames_and_blip2_itm(house4, tmp_path, request):
     assert (done.result.answer, done.result.confidence) == ("black", pytest.approx(0.6))
 
 
-@pytest.mark.parametrize("given, read", [((None, None), ("product", "short")),
-                                         (("per-token", "verbalized"), ("per-token", "verbalized"))])
+@pytest.mark.parametrize("given, read", [({}, ("product", "short")),
+                                         ({"answer_probability": "per-token",
+                                           "token_answer": "verbalized"}, ("per-token", "verbalized"))])
 def test_the_token_answer_settings_reach_the_answerer(house4, given, read):
     scene, _ = house4
-    config = AgentConfig(confidence="token", answer_probability=given[0], token_answer=given[1])
+    config = AgentConfig(confidence="token", **given)
     built = build_agent(scene.env, Stack(grouping="rules"), config, "test",
                         model=StubChatModel([]), relevancy=WordOverlapScorer())
     assert (built.agent.answerer.probability, built.agent.answerer.token_prompt) == read

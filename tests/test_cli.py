@@ -272,20 +272,25 @@ def test_help_groups_the_options_in_panels(command):
 
 
 def test_judge_grades_with_evals_default_judge_unless_told(tmp_path, monkeypatch):
-    """`efficienteqa judge` had its own literal default judge; it is eval's
-    (RunSpec.judge), in the mode eval gives it (auto: yes-prob for a local model)."""
+    """`efficienteqa judge` had its own literal default judge; it is eval's and RunSpec's
+    (eval.judge.DEFAULT_JUDGE), in the mode eval gives it (DEFAULT_JUDGE_MODE, auto: yes-prob
+    for a local model)."""
     from typer.testing import CliRunner
 
     from efficienteqa import cli
-    from efficienteqa.eval import runner
+    from efficienteqa.eval import judge, methods, runner
     from efficienteqa.eval.methods import RunSpec, default_judge
 
     calls = []
     monkeypatch.setattr(runner, "rejudge", lambda run, judge, mode: calls.append((judge, mode)) or (0, 0.0))
-    monkeypatch.setattr(RunSpec, "judge", "local:smollm2-135m")  # whatever eval's default is
+    monkeypatch.setattr(judge, "DEFAULT_JUDGE", "local:smollm2-135m")  # whatever the default is
+    monkeypatch.setattr(methods, "DEFAULT_JUDGE", "local:smollm2-135m")  # as imported there
     result = CliRunner().invoke(cli.app, ["judge", str(tmp_path)])
     assert result.exit_code == 0, result.output
     assert default_judge("hm-eqa") == "local:smollm2-135m"
     result = CliRunner().invoke(cli.app, ["judge", str(tmp_path), "--judge", "openai:gpt-4o"])
     assert result.exit_code == 0, result.output
     assert calls == [("local:smollm2-135m", "yes-prob"), ("openai:gpt-4o", "grade")]
+    # RunSpec, made without the CLI, resolves the same default mode for the same judges.
+    assert [RunSpec("blind", "hm-eqa", judge=j).judge_mode for j in ("local:m", "openai:gpt-4o")] == [
+        "yes-prob", "grade"]

@@ -71,10 +71,11 @@ def test_a_folder_of_another_configuration_is_refused(tmp_path):
 
 
 def test_a_run_recorded_before_a_setting_existed_is_the_same_run(tmp_path):
-    """Settings added later default to None; a run.json without them still resumes."""
+    """A format-1 run.json without a setting added later (the temperature) still resumes: it is
+    read as the value it ran with (records.upgrade)."""
     run_eval(spec(), questions(1), tmp_path, prepare=False)
     manifest = json.loads((tmp_path / "run.json").read_text())
-    del manifest["stack"]["temperature"]
+    del manifest["format"], manifest["stack"]["temperature"]
     (tmp_path / "run.json").write_text(json.dumps(manifest))
     again = run_eval(spec(), questions(2), tmp_path, prepare=False)
     assert (again.ran, again.skipped) == (1, 1)
@@ -219,26 +220,24 @@ def test_a_users_method_is_not_told_the_answer(tmp_path):
                                          "oracle_steps": None, "source": ["house_seed"]}
 
 
-def test_settings_added_later_default_to_none_so_recorded_runs_resume():
-    """A new setting with a non-None default changes every new manifest, and each run recorded
-    before it (results/) is then refused as another configuration. These are the settings that
-    had non-None defaults when the published runs were recorded; add new ones as None, unless
-    the new default changes what a run does: ``gate`` and ``steering`` (DESIGN 9) are set by
-    default on purpose, so that a run recorded without them is not resumed with them."""
+def test_every_default_is_a_value_but_those_whose_none_is_one_of_its_own():
+    """Typing a default is the same run (run.json records values, DESIGN 6): no setting is None
+    for "a default decided elsewhere". A None left is a value of its own: ``max_steps``, the
+    scene's budget; the model server's options and the relevancy weights' folder, not sent or
+    not given. A new setting gets a value; runs recorded before it are read by records.upgrade."""
     import dataclasses
 
     from efficienteqa.stop.rules import StopConfig
 
-    def set_by_default(cls):
+    def none_by_default(cls):
         return {f.name for f in dataclasses.fields(cls)
-                if (f.default if f.default is not dataclasses.MISSING else f.default_factory()) is not None}
+                if (f.default if f.default is not dataclasses.MISSING else f.default_factory()) is None}
 
-    assert set_by_default(AgentConfig) == {"explorer", "stop", "top_k", "seed", "confidence", "answer_at",
-                                           "prompts", "distinct_views", "exploration", "answer",
-                                           "gate", "steering"}
-    assert set_by_default(Stack) == {"vlm", "perception", "relevancy", "grouping", "cache", "explore_scorer"}
-    assert set_by_default(StopConfig) == {"z_th", "min_step", "enabled", "sigma_eps", "rule",
-                                          "sigma_floor", "sim_abs", "z_gated"}
+    assert none_by_default(AgentConfig) == {"max_steps"}
+    assert none_by_default(StopConfig) == set()
+    assert none_by_default(Stack) == {"timeout_s", "retries", "api_key_env", "image_format",
+                                      "image_max_side", "image_detail", "device",
+                                      "relevancy_weights", "allow_download"}
 
 
 def test_run_json_records_what_an_agent_methods_episodes_ran_with():

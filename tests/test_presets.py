@@ -7,6 +7,7 @@ import pytest
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.explore.module import REFUSAL_RETRIES
 from efficienteqa.presets import PRESETS, apply_preset, build_config, build_stack
 from efficienteqa.stack import Stack
 from efficienteqa.stop import StopConfig
@@ -58,7 +59,7 @@ def test_a_preset_fills_only_what_was_left_out():
     config = build_config(o)  # the paper's stepping: no re-plans, no clearance at a move's end
     assert (config.refusal_retries, config.stop_clearance_m, config.prompts) == (0, 0.0, "paper")
     assert config.exploration == "paper"  # DESIGN 3.2's explorer
-    assert build_config(NOTHING_GIVEN).refusal_retries is None  # the default re-plans
+    assert build_config(NOTHING_GIVEN).refusal_retries == REFUSAL_RETRIES  # the default re-plans
     assert config.distinct_views is False and build_config(NOTHING_GIVEN).distinct_views
     assert config.answer == "paper" and build_config(NOTHING_GIVEN).answer == "auto"  # DESIGN 3.5
     from efficienteqa.agent import PAPER_CONFIG

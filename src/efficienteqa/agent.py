@@ -26,7 +26,12 @@ from typing import Any
 import numpy as np
 
 from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answer
-from efficienteqa.answer.calls import ANSWER_PROBABILITIES, TOKEN_ANSWERS
+from efficienteqa.answer.calls import (
+    ANSWER_PROBABILITIES,
+    ANSWER_PROBABILITY,
+    TOKEN_ANSWER,
+    TOKEN_ANSWERS,
+)
 from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK, View
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
@@ -40,7 +45,7 @@ from efficienteqa.explore.module import (
 )
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
 from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, make_explorer
-from efficienteqa.explore.sfe import FrontierExplorer
+from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig
 from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
@@ -73,9 +78,12 @@ STEERINGS = ("none", "target")
 
 @dataclass(frozen=True)
 class AgentConfig:
-    """Every knob of an episode; ablations are values here. ``max_steps`` None: the budget of DESIGN 3.1,
-    ``int(sqrt(floor area) * 3)``. ``confidence``: how the model's confidence is read, in words
-    ("verbalized", black-box) or from token probabilities ("token", white-box)."""
+    """Every knob of an episode; ablations are values here. Each default is a value, written
+    here once and recorded in run.json as it is (a run that types the default is the same
+    run). ``max_steps`` None: the scene's budget of DESIGN 3.1, ``int(sqrt(floor area) * 3)``
+    (``budget``), a number only the scene knows. ``confidence``: how the model's confidence
+    is read, in words ("verbalized", black-box) or from token probabilities ("token",
+    white-box)."""
 
     explorer: str = "sfe"  # "sfe" | "frontier-only" | "random"
     stop: StopConfig = field(default_factory=lambda: StopConfig(min_step=GATED_MIN_STEP))
@@ -84,12 +92,11 @@ class AgentConfig:
     seed: int = 0
     confidence: Confidence = "verbalized"
     answer_at: str = "retrieval"  # one of ANSWER_AT
-    # Beyond the paper (DESIGN 8), None: the default. Re-plans within a step after the
-    # environment refuses a move (None: explore.module.REFUSAL_RETRIES; 0: a refused move
-    # spends the step); the clearance the planner wants where a move ends (None: the
-    # explorer's default; 0: stop where the path is cut).
-    refusal_retries: int | None = None
-    stop_clearance_m: float | None = None
+    # Beyond the paper (DESIGN 8). Re-plans within a step after the environment refuses a move
+    # (0: a refused move spends the step); the clearance the planner wants where a move ends
+    # (0: stop where the path is cut).
+    refusal_retries: int = REFUSAL_RETRIES
+    stop_clearance_m: float = SFEConfig.stop_clearance_m
     # Where prompt points may lie: "default" (from 1 m, asks at more steps) or "paper"
     # (DESIGN 3.3: 2-10 m); see explore.prompting.PROMPT_CONFIGS.
     prompts: str = "default"
@@ -104,16 +111,17 @@ class AgentConfig:
     # M verbalized guesses, grouped), or "auto": direct when the model gives logprobs.
     answer: str = "auto"
     # answer_at="best-step": True asks the model at every valid frame, as ExploreEQA does
-    # online; None (the default), only the frames that can still win: the same answer in fewer
-    # calls (answer.best_step). None, not False, so runs recorded before it resume.
-    answer_every_step: bool | None = None
+    # online; False, only the frames that can still win: the same answer in fewer calls
+    # (answer.best_step).
+    answer_every_step: bool = False
     # A token-probability answer's confidence (white-box ExploreEQA's p, the direct answer's):
-    # None, the whole answer's probability (the product of its tokens'); "per-token", their
-    # geometric mean, so a short answer ("no") does not outscore a longer one for its length.
-    answer_probability: str | None = None
-    # White-box ExploreEQA's per-frame prompt: None, one short line ("short"); "verbalized",
-    # DESIGN 3.5's prompt with one guess, as black-box asks, read by its token probability.
-    token_answer: str | None = None
+    # "product", the whole answer's probability (the product of its tokens'); "per-token",
+    # their geometric mean, so a short answer ("no") does not outscore a longer one for its
+    # length.
+    answer_probability: str = ANSWER_PROBABILITY
+    # White-box ExploreEQA's per-frame prompt: "short", one line; "verbalized", DESIGN 3.5's
+    # prompt with one guess, as black-box asks, read by its token probability.
+    token_answer: str = TOKEN_ANSWER
     # Beyond the paper (DESIGN 9): the answerability gate a relevancy outlier must pass to stop
     # the robot (stop.gate.GATES: "rules" on the frame's description, "model", one yes/no call
     # to the agent's model, "auto" the first where the perception describes objects, "none").
@@ -145,14 +153,22 @@ class AgentConfig:
                              f"not {self.exploration!r}")
         if self.prompts not in PROMPT_CONFIGS:
             raise ValueError(f"prompts must be one of {tuple(PROMPT_CONFIGS)}, not {self.prompts!r}")
-        if self.answer_probability not in (None, *ANSWER_PROBABILITIES):
+        if self.refusal_retries < 0:
+            raise ValueError(f"refusal_retries must be 0 or more, not {self.refusal_retries}")
+        if not self.stop_clearance_m >= 0:
+            raise ValueError(f"stop_clearance_m must be 0 or more, not {self.stop_clearance_m}")
+        if self.answer_probability not in ANSWER_PROBABILITIES:
             raise ValueError(f"answer_probability must be one of {ANSWER_PROBABILITIES}, "
                              f"not {self.answer_probability!r}")
-        if self.token_answer not in (None, *TOKEN_ANSWERS):
+        if self.token_answer not in TOKEN_ANSWERS:
             raise ValueError(f"token_answer must be one of {TOKEN_ANSWERS}, "
                              f"not {self.token_answer!r}")
         if self.answer_at not in ANSWER_AT:
             raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
+
+    def budget(self, env: Environment) -> int:
+        """The episode's step budget: ``max_steps``, or the scene's (``stop.env_step_budget``)."""
+        return self.max_steps if self.max_steps is not None else env_step_budget(env)
 
 
 # The paper's algorithm (DESIGN 3.2-3.5) with every option beyond it off: what `--preset paper`
@@ -279,10 +295,9 @@ class Agent:
         cfg = self.config
         t0 = time.perf_counter()
         obs, _ = env.reset(options={"start": start} if start is not None else None)
-        budget = cfg.max_steps or env_step_budget(env)
-        options = exploration_options(cfg.explorer, cfg.exploration)
-        if cfg.stop_clearance_m is not None:
-            options["stop_clearance_m"] = cfg.stop_clearance_m
+        budget = cfg.budget(env)
+        options = {**exploration_options(cfg.explorer, cfg.exploration),
+                   "stop_clearance_m": cfg.stop_clearance_m}
         explorer = make_explorer(cfg.explorer, **options)
         if cfg.steering == "target" and isinstance(explorer, FrontierExplorer):
             explorer = TargetExplorer(explorer)
@@ -298,7 +313,6 @@ class Agent:
         if gate is not None:
             gate.reset()
         frames: dict[int, str | np.ndarray] = {}  # flagged frames the gate may still judge
-        retries = REFUSAL_RETRIES if cfg.refusal_retries is None else cfg.refusal_retries
         stopper = RelevancyStopper(cfg.stop)
         top: TopK[str | np.ndarray] = TopK(cfg.top_k)
         candidates: list[StepFrame[str | np.ndarray]] = []  # answer_at="best-step"
@@ -361,7 +375,7 @@ class Agent:
                 stop_reason = "searched" if decision.reason == "searched" else "explored"
                 break
             t = time.perf_counter()
-            moved = move(env, explore, obs.pose, decision, step, retries)
+            moved = move(env, explore, obs.pose, decision, step, cfg.refusal_retries)
             record.timings_ms["env"] = 1e3 * (time.perf_counter() - t)
             obs, record.refused, record.blocked = moved.obs, moved.refused, moved.blocked
             if moved.decision is not decision:  # re-planned after a refusal
@@ -413,7 +427,7 @@ class Agent:
             records[c.step - 1].calls += self._calls_since(n)
             return said
 
-        best, asked = best_step_answer(candidates, ask, every_step=bool(self.config.answer_every_step))
+        best, asked = best_step_answer(candidates, ask, every_step=self.config.answer_every_step)
         for a in asked:
             records[a.step - 1].step_answer = {"answer": a.answer.answer,
                                                "confidence": a.answer.confidence, "value": a.value}

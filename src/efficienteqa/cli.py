@@ -294,7 +294,6 @@ def ask_command(
     from efficienteqa.records import check_writable
     from efficienteqa.scenes import open_scene
     from efficienteqa.stack import check_stack, parse_vlm
-    from efficienteqa.stop.rules import env_step_budget
 
     o = _options(ctx)
     if (o.get("method") or "efficienteqa") != "efficienteqa":
@@ -323,7 +322,7 @@ def ask_command(
         opened = open_scene(scene, assets, env=o["env"] or "synthetic", hm3d_root=o["hm3d_root"],
                             start=habitat_start)
     try:
-        budget = o["max_steps"] or env_step_budget(opened.env)
+        budget = config.budget(opened.env)
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
         with Progress(*columns, console=console) as progress:
@@ -360,15 +359,11 @@ def ask_command(
 
 
 def _judge_mode(mode: str | None, judge: str) -> str:
-    """``auto`` (and left out, for eval and judge alike): token probabilities for the small
-    local models, the 1-5 grade otherwise."""
-    from efficienteqa.eval.judge import JUDGE_MODES
+    """The mode of ``judge`` for eval and judge alike: left out, ``eval.judge.DEFAULT_JUDGE_MODE``
+    ("auto": token probabilities for the small local models, the 1-5 grade otherwise)."""
+    from efficienteqa.eval.judge import DEFAULT_JUDGE_MODE, judge_mode
 
-    if mode is None or mode == "auto":
-        return "yes-prob" if judge.startswith("local:") else "grade"
-    if mode not in JUDGE_MODES:
-        raise EfficientEQAError(f"unknown judge mode {mode!r}", fix="use grade, yes-prob or auto")
-    return mode
+    return judge_mode(mode or DEFAULT_JUDGE_MODE, judge)
 
 
 @app.command("judge")
@@ -381,11 +376,11 @@ def judge_command(
                                           "--help`).", show_default=False),
 ) -> None:
     """Grade finished runs again with another judge (e.g. openai:gpt-4o); results are kept."""
-    from efficienteqa.eval.methods import RunSpec
+    from efficienteqa.eval.judge import DEFAULT_JUDGE
     from efficienteqa.eval.runner import rejudge
     from efficienteqa.stack import parse_vlm
 
-    judge = judge or RunSpec.judge or ""  # the one default judge model, eval's
+    judge = judge or DEFAULT_JUDGE  # the one default judge model, eval's
     parse_vlm(judge, images=False)
     mode = _judge_mode(judge_mode, judge)
     for run in runs:
@@ -470,11 +465,12 @@ def eval_command(
     from efficienteqa.eval.methods import METHODS, RunSpec, default_judge, resolve
     from efficienteqa.eval.records import read_episodes
     from efficienteqa.eval.runner import run_eval
-    from efficienteqa.presets import build_config, build_stack, given
+    from efficienteqa.presets import build_config, build_stack, given, named_configuration
     from efficienteqa.records import check_writable
     from efficienteqa.stack import check_stack, parse_vlm
 
     o = _options(ctx)
+    preset, preset_values = named_configuration(o["preset"], o["config_file"], _option_types())
     method, closed_set, assets, hm3d_root = o["method"], o["closed_set"], o["assets"], o["hm3d_root"]
     resolve(method)  # bad input fails before anything slow
     stack = build_stack(o)
@@ -503,6 +499,7 @@ def eval_command(
     spec = RunSpec(method=method, dataset=dataset, stack=stack, config=build_config(o),
                    closed_set=closed_set,
                    judge=judge_spec, judge_mode=_judge_mode(o["judge_mode"], judge_spec or ""),
+                   preset=preset, preset_config=build_config(preset_values),
                    reports=o["reports"], assets=assets,
                    hm3d_root=str(hm3d_root) if hm3d_root is not None else None,
                    **given(o, ["env"]))

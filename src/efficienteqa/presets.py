@@ -203,3 +203,17 @@ def build_config(options: Mapping[str, Any]) -> AgentConfig:
         return AgentConfig(stop=stop, **given(options, agent_fields))
     except ValueError as exc:  # a value the dataclass refuses, e.g. --prompts bogus
         raise EfficientEQAError(str(exc), fix="see efficienteqa ask --help") from None
+
+
+def named_configuration(preset: str | None, config_file: Path | None,
+                        schema: Mapping[str, type] | None = None) -> tuple[str | None, dict[str, Any]]:
+    """The named configuration a run's options start from: its name (the ``--config`` file's,
+    without its suffix, else the preset's; None for neither: the defaults) and the options it
+    sets (the file's over the preset's, as the command line is filled). A run records both
+    (``RunSpec.preset``, ``preset_config``): its table label names what it changed against them."""
+    values: dict[str, Any] = {}
+    if preset is not None:
+        values.update(load_preset(preset, schema))
+    if config_file is not None:
+        values.update(load_config(config_file, schema))
+    return (Path(config_file).stem if config_file is not None else preset), values

@@ -44,7 +44,7 @@ MINILM_KINDS = ("minilm", "minilm-match")
 class Stack:
     """Which back-ends an episode uses. ``vlm``: "local:MODEL" or "openai:MODEL[@BASE_URL]";
     ``cache``: replay identical model requests from the response cache (off for timings);
-    ``temperature``: the VLM's sampling temperature for every call (None: 0, greedy);
+    ``temperature``: the VLM's sampling temperature for every call (0: greedy);
     ``explore_scorer``: where the semantic values come from (``EXPLORE_SCORERS``; "auto": the
     VLM's verbalized confidence when it reads images or token probabilities are asked for,
     else ``OFFLINE_EXPLORE_SCORER``).
@@ -63,7 +63,7 @@ class Stack:
     relevancy: str = "minilm"
     grouping: str = "llm"
     cache: bool = True
-    temperature: float | None = None
+    temperature: float = 0.0
     explore_scorer: str = "auto"
     timeout_s: float | None = None
     retries: int | None = None
@@ -371,8 +371,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     m = 1 if config.answer_at == "best-step" else M
     answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy), m=m,
                            confidence=config.confidence, direct=answer == "direct",
-                           probability=config.answer_probability or "product",
-                           token_prompt=config.token_answer or "short")
+                           probability=config.answer_probability,
+                           token_prompt=config.token_answer)
     gate = build_gate(config.gate, perception, recorder)
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder, gate=gate)
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,

@@ -197,16 +197,18 @@ def _verbalized_prompt(question: str, evidence: Sequence[str | np.ndarray],
 # How an answer's token probabilities make its confidence: "product", the probability of the
 # whole answer (the default), or "per-token", their geometric mean (length-normalised: a long
 # answer is not less sure for having more tokens).
-ANSWER_PROBABILITIES = ("product", "per-token")
+ANSWER_PROBABILITY = "product"  # the default, AgentConfig.answer_probability's
+ANSWER_PROBABILITIES = (ANSWER_PROBABILITY, "per-token")
 # The prompt of a token-probability answer that is not the direct one (white-box ExploreEQA's
 # per-frame answer): "short", one line (``answer_token``), or "verbalized", DESIGN 3.5's prompt
 # with one guess, the black-box answer's (``verbalized_token_probability``).
-TOKEN_ANSWERS = ("short", "verbalized")
+TOKEN_ANSWER = "short"  # the default, AgentConfig.token_answer's
+TOKEN_ANSWERS = (TOKEN_ANSWER, "verbalized")
 
 
 def answer_token_probability(model: ChatModel, question: str,
                              evidence: Sequence[str | np.ndarray], *, hinted: bool = False,
-                             max_tokens: int = 24, how: str = "product") -> AnswerResult:
+                             max_tokens: int = 24, how: str = ANSWER_PROBABILITY) -> AnswerResult:
     """A short greedy answer; its confidence (0-1, as VC's after normalising) is the model's
     probability of that answer: the product of its tokens' probabilities, first line only
     (``how="per-token"``: their geometric mean, ``ANSWER_PROBABILITIES``). A token at -inf or
@@ -271,7 +273,7 @@ def reply_answer(raw: str) -> tuple[str, int]:
 
 
 def verbalized_token_probability(model: ChatModel, question: str,
-                                 evidence: Sequence[str | np.ndarray], *, how: str = "product",
+                                 evidence: Sequence[str | np.ndarray], *, how: str = ANSWER_PROBABILITY,
                                  max_tokens: int = 96) -> AnswerResult:
     """DESIGN 3.5's prompt with one guess ("answer; confidence", the black-box per-frame answer),
     read white-box: its confidence is the token probability of the answer before the ';'

@@ -18,6 +18,8 @@ from typing import Generic, Literal, TypeVar
 import numpy as np
 
 from efficienteqa.answer.calls import (
+    ANSWER_PROBABILITY,
+    TOKEN_ANSWER,
     answer_token_probability,
     answer_with_confidence,
     verbalized_token_probability,
@@ -122,7 +124,7 @@ class RagAnswerer:
 
     def __init__(self, model: ChatModel, grouper: Grouper, m: int = M,
                  confidence: Confidence = "verbalized", direct: bool = False,
-                 probability: str = "product", token_prompt: str = "short") -> None:
+                 probability: str = ANSWER_PROBABILITY, token_prompt: str = TOKEN_ANSWER) -> None:
         self.model, self.grouper, self.m, self.confidence = model, grouper, m, confidence
         self.direct, self.probability, self.token_prompt = direct, probability, token_prompt
 

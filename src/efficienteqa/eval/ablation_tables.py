@@ -25,7 +25,9 @@ def ablation_blocks(summaries: Sequence[RunSummary], prefix: str) -> list[Table 
     blocks: list[Table | Figure] = []
     for key, symbol, with_steps, paper in (("z_th", "Z_th", True, "II"), ("top_k", "K", False, "III")):
         for i, group in enumerate(ablations(summaries, key), 1):
-            name = settings_label(group[0].method, group[0].settings, skip=[key])
+            first = group[0]
+            name = settings_label(first.method, first.settings, skip=[key], preset=first.preset,
+                                  baseline=first.baseline)
             suffix = f"-{i}" if i > 1 else ""
             ruled = any_ruled(group)
             header = [symbol, *([RULE_HEADER] if ruled else []), "LLM-Match (%) ↑",

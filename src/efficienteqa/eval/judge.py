@@ -43,6 +43,7 @@ from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.llm_match_rules import MAX_SCORE, MIN_SCORE, rule_bounds, rule_score
 from efficienteqa.models.base import ChatModel, Message, TokenLogprob
+from efficienteqa.models.local.weights import DEFAULT_MODEL
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.eval"  # the judge's templates: eval/prompts/*.txt
@@ -202,6 +203,24 @@ def render_prompt(question: str, reference: str, response: str, extra: Sequence[
 
 
 JUDGE_MODES = ("grade", "yes-prob")
+# The judge of a run that names none (``eval.methods.default_judge``) and the mode of one that
+# names none, for `efficienteqa eval`, `efficienteqa judge` and ``RunSpec`` alike: "auto",
+# yes-prob for the local models (the published tables' judge: every judged run under results/
+# is local:qwen2.5-coder-1.5b in yes-prob), grade for any other (the OpenEQA form).
+DEFAULT_JUDGE = f"local:{DEFAULT_MODEL}"
+DEFAULT_JUDGE_MODE = "auto"
+# Every judge call is greedy, whatever the run's --temperature (the judge is built without it).
+JUDGE_TEMPERATURE = 0.0
+
+
+def judge_mode(mode: str, judge: str | None) -> str:
+    """The mode ``mode`` names for the judge ``judge`` (a VLM spec, None for none): "auto" is
+    yes-prob for local models, grade otherwise; an unknown mode is one error."""
+    if mode == "auto":
+        return "yes-prob" if (judge or "").startswith("local:") else "grade"
+    if mode not in JUDGE_MODES:
+        raise EfficientEQAError(f"unknown judge mode {mode!r}", fix="use grade, yes-prob or auto")
+    return mode
 
 
 # yes-prob: the templates asked, and how their P(yes) become one (see the module docstring).
@@ -333,7 +352,7 @@ class LLMMatchJudge:
         found: list[float] = []
         parts, problems = [], []
         for template, prompt in zip(YES_PROMPTS, prompts, strict=True):
-            reply = self.model.chat([Message("user", prompt)], max_tokens=1, temperature=0.0,
+            reply = self.model.chat([Message("user", prompt)], max_tokens=1, temperature=JUDGE_TEMPERATURE,
                                     logprobs=TOP_LOGPROBS)
             p = p_yes(reply.logprobs or [])
             if p is None:
@@ -354,13 +373,15 @@ class LLMMatchJudge:
         caps = self.model.capabilities
         schema = SCORE_SCHEMA if caps.json_schema or caps.grammar else None
         messages = [Message("user", prompt)]
-        reply = self.model.chat(messages, max_tokens=MAX_TOKENS, temperature=0.0, json_schema=schema)
+        reply = self.model.chat(messages, max_tokens=MAX_TOKENS, temperature=JUDGE_TEMPERATURE,
+                                json_schema=schema)
         score, problems = parse_score(reply.text)
         if score is not None:
             return Judgement(score, score_value(score), self.name, reply.text)
         retried = [f"retried after: {p}" for p in problems]
         messages += [Message("assistant", reply.text), Message("user", REMINDER)]
-        reply = self.model.chat(messages, max_tokens=MAX_TOKENS, temperature=0.0, json_schema=schema)
+        reply = self.model.chat(messages, max_tokens=MAX_TOKENS, temperature=JUDGE_TEMPERATURE,
+                                json_schema=schema)
         score, problems = parse_score(reply.text)
         if score is not None:
             return Judgement(score, score_value(score), self.name, reply.text, tuple(retried))

@@ -41,7 +41,7 @@ from efficienteqa.agent import AgentConfig
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.models.local.weights import DEFAULT_MODEL
+from efficienteqa.eval.judge import DEFAULT_JUDGE, DEFAULT_JUDGE_MODE, judge_mode
 from efficienteqa.stack import Stack
 
 
@@ -50,8 +50,9 @@ class RunSpec:
     """What every episode of a run shares. ``config`` holds the ablation values (Z_th, K, ...);
     the method's own settings are applied on top by ``method_config``. ``judge``: a VLM spec
     for LLM-Match ("local:MODEL", "openai:MODEL") or None for no judging; ``judge_mode``: see
-    ``eval.judge``. ``env``: the simulator of the dataset's scenes, "synthetic" (generated
-    houses with ``assets`` furniture) or "habitat" (HM3D scenes under ``hm3d_root``). Questions
+    ``eval.judge`` ("auto", the default, is resolved here and recorded as the mode it names).
+    ``env``: the simulator of the dataset's scenes, "synthetic" (generated houses with
+    ``assets`` furniture) or "habitat" (HM3D scenes under ``hm3d_root``). Questions
     that carry their accepted answers (synthetic datasets) are also graded by the ``rule``
     judge, whatever ``judge`` is; the CLI's default judge is ``default_judge(dataset)``."""
 
@@ -59,19 +60,27 @@ class RunSpec:
     dataset: str
     stack: Stack = field(default_factory=Stack)
     config: AgentConfig = field(default_factory=AgentConfig)
-    judge: str | None = f"local:{DEFAULT_MODEL}"
-    judge_mode: str = "yes-prob"  # "grade" (1-5 asked for; capable judges) | "yes-prob"
+    judge: str | None = DEFAULT_JUDGE
+    judge_mode: str = DEFAULT_JUDGE_MODE  # "grade" (1-5 asked for; capable judges) | "yes-prob"
     reports: bool = False
     assets: str = DEFAULT_ASSETS
     closed_set: bool = False
     env: str = "synthetic"
     hm3d_root: str | None = None
+    # The named configuration the options started from (``--preset NAME``, or ``--config
+    # FILE``'s path; None: the defaults) and what it alone sets: a table labels the run by
+    # what it changed against that (DESIGN 6).
+    preset: str | None = None
+    preset_config: AgentConfig = field(default_factory=AgentConfig)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "judge_mode", judge_mode(self.judge_mode, self.judge))
 
 
 def default_judge(dataset: str) -> str | None:
     """The LLM-Match judge of a run that names none: no model for synthetic datasets (the
     ``rule`` judge grades them, exactly and for free), the local model for the others."""
-    return None if dataset.startswith("synthetic") else RunSpec.judge
+    return None if dataset.startswith("synthetic") else DEFAULT_JUDGE
 
 
 @dataclass

@@ -6,6 +6,10 @@ flushed to disk before the next episode is handed out. A run killed mid-write le
 torn last line: readers skip it (and say so), and the next writer starts on a fresh line. Lines
 are keyed by the episode id; a later line for the same id (a retried failure) replaces the
 earlier one, so nothing is ever counted twice.
+
+``run.json`` carries its format (``RUN_FORMAT``). Readers see every run in the current format:
+``upgrade`` reads an older one as what it meant (DESIGN 6), so it resumes with the command
+that made it and keeps its identity and its table label.
 """
 
 from __future__ import annotations
@@ -30,6 +34,21 @@ RUN_IDENTITY = ("method", "dataset", "closed_set", "config", "stack", "judge", "
 SCENE_IDENTITY = ("assets", "env", "hm3d_root")
 LOCK_FILE = ".lock"
 TRANSPORT = ("timeout_s", "retries")  # stack settings that are not part of a run's identity
+# run.json's format. 1 (no "format" key): settings whose default was decided elsewhere were
+# recorded as None, and settings added later were missing. 2: every setting is recorded as the
+# value the run used, and the run names the configuration it started from ("preset", with
+# what that alone set, "preset_config").
+RUN_FORMAT = 2
+# What a format-1 run's None (or a run recorded before the setting existed) meant, by
+# AgentConfig field: written out, not read from today's defaults, since a later default does
+# not change what an old run ran with.
+FORMAT_1_NONE = {"refusal_retries": 3, "stop_clearance_m": 0.45, "answer_every_step": False,
+                 "answer_probability": "product", "token_answer": "short"}
+# Settings added while format 1 was written, and what a run that did not record them ran with:
+# no answerability gate, no steering by the question's target (DESIGN 9).
+FORMAT_1_MISSING = {"gate": "none", "steering": "none"}
+# The stack's None: each call's own temperature, 0 for every call of a run.
+FORMAT_1_STACK_NONE = {"temperature": 0.0}
 
 
 @dataclass
@@ -111,7 +130,7 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
     method, dataset, configuration or back-end) is refused rather than mixed."""
     run_file = out / RUN_FILE
     if run_file.exists():
-        earlier = _read_manifest(run_file)
+        earlier = upgrade(_read_manifest(run_file))
         differs = [k for k in RUN_IDENTITY if _identity(k, earlier) != _identity(k, manifest)]
         differs += [k for k in SCENE_IDENTITY if k in earlier and earlier[k] != manifest.get(k)]
         if differs:
@@ -156,9 +175,33 @@ def _read_manifest(run_file: Path) -> dict[str, Any]:
     return manifest
 
 
+def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
+    """``manifest`` in the current format (``RUN_FORMAT``); a format-1 run's None settings, and
+    the ones it did not record yet, become the values it ran with (``FORMAT_1_*``). A run
+    without ``preset_config`` (format 1) is labelled against today's defaults."""
+    if manifest.get("format", 1) >= RUN_FORMAT:
+        return manifest
+    out = dict(manifest)
+    for key in ("config", "method_config"):
+        config = out.get(key)
+        if isinstance(config, dict):
+            config = {**FORMAT_1_MISSING, **config}
+            config.update({k: v for k, v in FORMAT_1_NONE.items() if config.get(k) is None})
+            out[key] = config
+    stack = out.get("stack")
+    if isinstance(stack, dict):
+        out["stack"] = {**stack, **{k: v for k, v in FORMAT_1_STACK_NONE.items()
+                                    if stack.get(k) is None}}
+    out["format"] = RUN_FORMAT
+    return out
+
+
 def _identity(key: str, manifest: dict[str, Any]) -> Any:
     """What of ``manifest[key]`` identifies the run: a model server's timeout and retries change
-    how long a call may take, not what it answers, so a run resumes with others."""
+    how long a call may take, not what it answers, so a run resumes with others; the judge's
+    mode counts only where there is a judge."""
+    if key == "judge_mode" and manifest.get("judge") is None:
+        return None
     value = _set(manifest.get(key))
     if key == "stack" and isinstance(value, dict):
         value = {k: v for k, v in value.items() if k not in TRANSPORT}
@@ -166,8 +209,8 @@ def _identity(key: str, manifest: dict[str, Any]) -> Any:
 
 
 def _set(value: Any) -> Any:
-    """``value`` without None entries at any depth: a setting added in a later version defaults
-    to None (unset), and a run recorded before it existed is the same run."""
+    """``value`` without None entries at any depth (a setting that is None in both runs, such
+    as ``max_steps`` or a server option left to the back-end, is the same in both)."""
     if isinstance(value, dict):
         return {k: _set(v) for k, v in value.items() if v is not None}
     return value
@@ -179,7 +222,7 @@ def read_run(out: Path) -> tuple[dict[str, Any], Episodes]:
     if not run_file.exists():
         raise EfficientEQAError(f"{out} is not an evaluation run (no {RUN_FILE})",
                                 fix="pass folders written by `efficienteqa eval --out`")
-    manifest = _read_manifest(run_file)
+    manifest = upgrade(_read_manifest(run_file))
     episodes = read_episodes(out / EPISODES_FILE)
     for key, row in list(episodes.by_id.items()):  # lines another method's run appended
         if row.get("method") not in (None, manifest.get("method")):

@@ -31,7 +31,13 @@ from typing import Any
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.methods import RunSpec, effective_config, resolve, usage_of
-from efficienteqa.eval.records import EPISODES_FILE, append_episode, open_run, run_lock
+from efficienteqa.eval.records import (
+    EPISODES_FILE,
+    RUN_FORMAT,
+    append_episode,
+    open_run,
+    run_lock,
+)
 from efficienteqa.records import code_version, plain
 
 Progress = Callable[[dict[str, Any]], None]
@@ -178,16 +184,19 @@ def scene_seeds(scenes: Sequence[str]) -> dict[str, Any]:
 
 def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = ()) -> dict[str, Any]:
     """``run.json``: ``config`` holds the options as given (part of the run's identity);
-    ``method_config``, what the method's episodes ran with (``methods.effective_config``)."""
+    ``method_config``, what the method's episodes ran with (``methods.effective_config``);
+    ``preset`` and ``preset_config``, the named configuration the options started from and
+    what it alone set (a table's label, ``summary.label``)."""
     effective = effective_config(spec.method, spec.config)
-    return plain({"method": spec.method, "dataset": spec.dataset, "closed_set": spec.closed_set,
-                   "config": asdict(spec.config),
-                   "method_config": asdict(effective) if effective is not None else None,
-                   "stack": asdict(spec.stack),
-                   "judge": spec.judge, "judge_mode": spec.judge_mode, "assets": spec.assets,
-                   "env": spec.env, "hm3d_root": spec.hm3d_root,
-                   "questions": n_questions, **scene_seeds(scenes),
-                   "code_version": code_version(), "created": time.time(), "machine": machine()})
+    return plain({"format": RUN_FORMAT, "method": spec.method, "dataset": spec.dataset,
+                  "closed_set": spec.closed_set, "config": asdict(spec.config),
+                  "method_config": asdict(effective) if effective is not None else None,
+                  "stack": asdict(spec.stack),
+                  "preset": spec.preset, "preset_config": asdict(spec.preset_config),
+                  "judge": spec.judge, "judge_mode": spec.judge_mode, "assets": spec.assets,
+                  "env": spec.env, "hm3d_root": spec.hm3d_root,
+                  "questions": n_questions, **scene_seeds(scenes),
+                  "code_version": code_version(), "created": time.time(), "machine": machine()})
 
 
 def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:

@@ -41,6 +41,7 @@ from functools import cache
 from typing import Any, TypeGuard
 
 from efficienteqa.eval.judge import score_value
+from efficienteqa.eval.records import upgrade
 
 # The back-ends a table states, in the order it states them, from the rows' ``backends``.
 BACKEND_KEYS = ("environment", "perception", "vlm", "relevancy", "grouping", "explore_scorer",
@@ -117,6 +118,10 @@ class RunSummary:
     # (0-100, every episode) and the steps (done episodes that explored).
     episode_accuracy: dict[str, float] = field(default_factory=dict, repr=False, compare=False)
     episode_steps: dict[str, float] = field(default_factory=dict, repr=False, compare=False)
+    # The named configuration the run started from and its settings (``preset_settings``), for
+    # labels; None for a run that did not record them (format 1). Not part of summary.json.
+    preset: str | None = field(default=None, repr=False, compare=False)
+    baseline: dict[str, Any] | None = field(default=None, repr=False, compare=False)
 
     @property
     def tokens(self) -> float:
@@ -196,11 +201,6 @@ def match_value(row: Mapping[str, Any], key: str = "judge") -> float:
     return score_value(score if isinstance(score, int) else None)
 
 
-# Settings added after runs were published, and what a run that does not record them ran with:
-# no answerability gate and no steering by the question's target (DESIGN 9).
-RECORDED_BEFORE: dict[str, Any] = {"gate": "none", "steering": "none"}
-
-
 # Settings a method sets itself whatever the options say (eval.methods.method_config): not
 # worth naming in its label. ExploreEQA never stops early, so its stop settings do nothing.
 _EXPLORE_EQA = {"steering", "gate", "min_step", "z_gated"}
@@ -211,10 +211,10 @@ METHOD_SETS: dict[str, set[str]] = {"explore-eqa": _EXPLORE_EQA,
 
 def settings(manifest: Mapping[str, Any]) -> dict[str, Any]:
     """The run's configuration as one flat dict (AgentConfig, its stop rule, the stack, judge):
-    what ablations compare and labels name. ``stop.enabled`` becomes ``early_stop``."""
+    what ablations compare and labels name. ``stop.enabled`` becomes ``early_stop``. An older
+    run's settings are read as what they meant (``records.upgrade``)."""
+    manifest = upgrade(dict(manifest))
     config = dict(manifest.get("config") or {})
-    if config:  # a run recorded before a setting existed ran as that setting's "off"
-        config = {**RECORDED_BEFORE, **config}
     stop = dict(config.pop("stop", None) or {})
     if "enabled" in stop:
         stop["early_stop"] = stop.pop("enabled")
@@ -251,21 +251,57 @@ def _fmt_setting(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+def preset_settings(manifest: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The settings (``settings``) of the named configuration the run started from, as the run
+    recorded them; None for a run that did not (format 1)."""
+    manifest = upgrade(dict(manifest))
+    config = manifest.get("preset_config")
+    return settings({"config": config}) if isinstance(config, Mapping) else None
+
+
 def label(manifest: Mapping[str, Any]) -> str:
-    """A short name for tables: the method plus the agent settings that differ from the defaults
-    ("efficienteqa Z_th=2", "efficienteqa K=10", "explore-eqa closed-set")."""
-    return settings_label(str(manifest.get("method", "?")), settings(manifest))
+    """A short name for tables: the method, the named configuration the run started from, and
+    the agent settings the run changed against it ("efficienteqa Z_th=2", "efficienteqa paper
+    configuration K=10", "explore-eqa closed-set"). A run that did not record its named
+    configuration (format 1) is named by the settings that differ from today's defaults."""
+    preset = manifest.get("preset")
+    return settings_label(str(manifest.get("method", "?")), settings(manifest),
+                          preset=preset if isinstance(preset, str) else None,
+                          baseline=preset_settings(manifest))
 
 
-def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = ()) -> str:
-    """``method`` plus the settings in ``flat`` (``settings``) that differ from the defaults,
-    leaving out ``skip`` (an ablation table names its own variable)."""
+# How a label names a named configuration: the paper's by this phrase, one named after the
+# method or "default" by nothing, any other by its name less the method's ("per-token" for the
+# explore-eqa run of configs/explore-eqa-per-token.toml).
+PRESET_LABELS = {"paper": "paper configuration", "paper-offline": "paper configuration",
+                 "default": ""}
+
+
+def _preset_label(method: str, preset: str | None) -> str:
+    if preset is None or preset == method:
+        return ""
+    return PRESET_LABELS.get(preset, preset.removeprefix(f"{method}-"))
+
+
+def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (), *,
+                   preset: str | None = None, baseline: Mapping[str, Any] | None = None) -> str:
+    """``method`` plus the settings in ``flat`` (``settings``) that differ from ``baseline``,
+    the run's named configuration ``preset``'s, leaving out ``skip`` (an ablation table names
+    its own variable). ``baseline`` None (a format-1 run): against today's defaults, named
+    "paper configuration" where it is the paper's."""
     parts = [method]
     skipped = set(skip) | METHOD_SETS.get(method, set())
-    if method not in AGENTLESS_METHODS and _is_paper_configuration(flat):
-        parts.append("paper configuration")
-        skipped |= {k for k, _ in _paper_settings()}
-    for key, default in () if method in AGENTLESS_METHODS else _default_settings():
+    if method in AGENTLESS_METHODS:
+        against: Iterable[tuple[str, Any]] = ()
+    elif baseline is not None:
+        parts += [p for p in [_preset_label(method, preset)] if p]
+        against = baseline.items()
+    else:
+        if _is_paper_configuration(flat):
+            parts.append("paper configuration")
+            skipped |= {k for k, _ in _paper_settings()}
+        against = _default_settings()
+    for key, default in against:
         if key in flat and key not in skipped and flat[key] != default:
             if key == "early_stop":
                 parts.append("no early stop" if not flat[key] else "early stop")
@@ -330,6 +366,8 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
     return RunSummary(
         method=str(manifest.get("method", "?")), dataset=str(manifest.get("dataset", "?")),
         label=label(manifest), source=source, settings=settings(manifest),
+        preset=manifest.get("preset") if isinstance(manifest.get("preset"), str) else None,
+        baseline=preset_settings(manifest),
         n=len(rows), n_done=len(done), n_failed=len(rows) - len(done), n_judged=n_judged,
         planned=planned if isinstance(planned, int) else None, torn=torn,
         llm_match=mean(values) if scored else math.nan,
@@ -412,7 +450,7 @@ def summary_record(s: RunSummary, difference: PairedDifference | None = None) ->
     0-100), without the folder it was read from or the per-episode values, so the file depends on
     the run's files alone; ``difference``: its paired differences against a reference run."""
     record = {k: v for k, v in asdict(s).items()
-              if k not in ("source", "episode_accuracy", "episode_steps")}
+              if k not in ("source", "episode_accuracy", "episode_steps", "preset", "baseline")}
     record.update(tokens=s.tokens, evidence_seen=s.evidence_seen, confidence=CONFIDENCE,
                   bootstrap={"resamples": BOOTSTRAP_RESAMPLES, "seed": BOOTSTRAP_SEED})
     if difference is not None:

@@ -19,6 +19,9 @@ from efficienteqa.mapping.state import MapState
 
 _FOUR_CONNECTED = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
 _EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
+# DESIGN 3.2: the value terms are off for the first 2 steps (step 1 is the start view), in the
+# frontier weights and in what the explore module hands the explorer.
+VALUE_WARMUP_STEPS = 2
 
 
 @dataclass(frozen=True)
@@ -55,7 +58,7 @@ class FrontierConfig:
     temp_value: float = 0.5
     temp_dir_value: float = 0.5
     distance_scale_m: float = 10.0
-    value_off_steps: int = 2  # value terms are off while step <= this (step 1 = start view)
+    value_off_steps: int = VALUE_WARMUP_STEPS  # value terms are off while step <= this
     # close-and-facing penalty
     close_m: float = 0.5
     facing_deg: float = 30.0

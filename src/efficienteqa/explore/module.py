@@ -15,17 +15,16 @@ import numpy as np
 
 from efficienteqa.envs.base import Environment
 from efficienteqa.explore.base import Decision, Explorer
+from efficienteqa.explore.frontiers import VALUE_WARMUP_STEPS
 from efficienteqa.explore.prompting import PromptConfig, prompt_points
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec
-from efficienteqa.mapping.maps2d import Mapper
+from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.values import SemanticValueMap, gsv_from_yes, lsv_from_confidences
 from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception.base import Sightings
 from efficienteqa.question import Target
-
-VALUE_WARMUP_STEPS = 2  # DESIGN 3.2: value terms are off for the first 2 steps
 
 
 @dataclass
@@ -89,7 +88,7 @@ class ExploreModule:
         prompts: list[PromptPoint] = []
         lsv: dict[str, float] = {}
         gsv = score = None
-        if self.scorer is not None and obs.invalid_fraction < 0.5:
+        if self.scorer is not None and obs.invalid_fraction < MAX_INVALID_FRACTION:
             h, w = obs.depth_m.shape
             prompts = prompt_points(state, obs.cam_to_world, obs.intrinsics, (w, h),
                                     np.random.default_rng([self.seed, step]), self.prompt_config)

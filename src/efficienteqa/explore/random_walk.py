@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from efficienteqa.explore.base import Decision
-from efficienteqa.explore.sfe import cut_path, settle
+from efficienteqa.explore.sfe import SFEConfig, cut_path, settle
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.state import MapState
 
@@ -20,7 +20,7 @@ class RandomConfig:
     max_step_m: float = 3.0  # goal within this path distance
     robot_radius_m: float = 0.25  # as in SFEConfig
     snap_m: float = 0.5
-    stop_clearance_m: float = 0.45  # as in SFEConfig
+    stop_clearance_m: float = SFEConfig.stop_clearance_m
     settle_m: float = 0.25
 
 

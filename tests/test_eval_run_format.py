@@ -1,0 +1,180 @@
+"""run.json's format: every default is a value, so typing it is the same run; a published
+format-1 run (None for "the default") resumes with the command that made it; a run's table
+label is read against the named configuration it recorded, not against today's files."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import pytest
+
+from efficienteqa import presets
+from efficienteqa.agent import AgentConfig
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.eval import summary
+from efficienteqa.eval.judge import DEFAULT_JUDGE
+from efficienteqa.eval.methods import RunSpec
+from efficienteqa.eval.records import RUN_FILE, RUN_FORMAT, open_run, read_run, upgrade
+from efficienteqa.eval.runner import manifest
+from efficienteqa.eval.summary import label
+from efficienteqa.presets import build_config, build_stack, fill, named_configuration
+from efficienteqa.stack import Stack
+
+ROOT = Path(__file__).resolve().parents[1]
+PUBLISHED = ROOT / "results" / "main-heldout"
+# The options of `eval` as the command line leaves them (None), the ones a row of
+# experiments/main_table.sh sets included.
+LEFT_OUT = dict.fromkeys(["z_th", "min_stop_step", "stop_rule", "top_k", "max_steps", "seed",
+                          "answer", "answer_probability", "token_answer", "refusal_retries",
+                          "stop_clearance_m", "prompts", "distinct_views", "exploration", "gate",
+                          "steering", "explorer", "vlm", "temperature", "perception",
+                          "relevancy", "grouping", "explore_scorer", "cache", "method"])
+# The settings whose default format 1 recorded as None, each typed as its documented default.
+TYPED_DEFAULTS = {"answer_every_step": False, "answer_probability": "product",
+                  "token_answer": "short", "refusal_retries": 3, "stop_clearance_m": 0.45}
+
+
+def published_copy(tmp_path: Path, row: str) -> Path:
+    """A copy of a published run's run.json (format 1) in a folder of its own."""
+    folder = tmp_path / row
+    folder.mkdir()
+    shutil.copy(PUBLISHED / row / RUN_FILE, folder / RUN_FILE)
+    return folder
+
+
+def main_table_spec(row: str, **config: object) -> RunSpec:
+    """The RunSpec `efficienteqa eval --preset ROW --judge local:qwen2.5-coder-1.5b` builds
+    (experiments/main_table.sh), with ``config`` typed on top."""
+    name, values = named_configuration(row, None)
+    options = {**fill(LEFT_OUT, values), **config}
+    return RunSpec(method=options["method"], dataset="synthetic", stack=build_stack(options),
+                   config=build_config(options), judge=DEFAULT_JUDGE, preset=name,
+                   preset_config=build_config(values))
+
+
+def resume(folder: Path, spec: RunSpec) -> None:
+    open_run(folder, manifest(spec, 48))
+
+
+def test_the_published_format_1_run_is_none_where_a_default_was_meant():
+    """The premise: results/ holds format-1 runs that record None for these settings."""
+    run = json.loads((PUBLISHED / "default" / RUN_FILE).read_text())
+    assert "format" not in run and run["stack"]["temperature"] is None
+    assert all(run["config"][k] is None for k in TYPED_DEFAULTS)
+
+
+def test_a_published_format_1_run_resumes_with_the_same_command(tmp_path):
+    folder = published_copy(tmp_path, "default")
+    resume(folder, main_table_spec("default"))
+    assert "format" not in json.loads((folder / RUN_FILE).read_text())  # left as it was
+
+
+def test_typing_the_documented_defaults_is_the_same_run(tmp_path):
+    folder = published_copy(tmp_path, "default")
+    typed = main_table_spec("default", **TYPED_DEFAULTS, temperature=0.0)
+    assert typed.config == main_table_spec("default").config
+    assert typed.stack == main_table_spec("default").stack
+    resume(folder, typed)
+
+
+@pytest.mark.parametrize("other", [{"answer_probability": "per-token"}, {"refusal_retries": 0},
+                                   {"answer_every_step": True}, {"temperature": 1.0}])
+def test_another_value_than_the_one_a_format_1_run_meant_is_another_run(tmp_path, other):
+    folder = published_copy(tmp_path, "default")
+    with pytest.raises(EfficientEQAError, match="holds a run with another (config|stack)"):
+        resume(folder, main_table_spec("default", **other))
+
+
+def test_a_format_1_run_reads_as_the_values_it_ran_with():
+    run = upgrade(json.loads((PUBLISHED / "explore-eqa-per-token" / RUN_FILE).read_text()))
+    assert run["format"] == RUN_FORMAT and run["stack"]["temperature"] == 0.0
+    config = run["config"]
+    assert (config["answer_probability"], config["token_answer"]) == ("per-token", "short")
+    assert (config["refusal_retries"], config["stop_clearance_m"]) == (3, 0.45)
+    # Recorded before the gate and the steering existed: it ran without them.
+    assert (config["gate"], config["steering"], config["answer_every_step"]) == ("none", "none", False)
+    paper = upgrade(json.loads((PUBLISHED / "paper" / RUN_FILE).read_text()))["config"]
+    assert (paper["refusal_retries"], paper["stop_clearance_m"]) == (0, 0.0)  # recorded values stay
+
+
+def test_a_judge_mode_counts_only_with_a_judge(tmp_path):
+    """A run without a judge model resumes whatever mode was recorded beside no judge."""
+    folder = published_copy(tmp_path, "default")
+    run = json.loads((folder / RUN_FILE).read_text())
+    (folder / RUN_FILE).write_text(json.dumps({**run, "judge": None, "judge_mode": "grade"}))
+    resume(folder, replace(main_table_spec("default"), judge=None))
+    with pytest.raises(EfficientEQAError, match="another judge"):
+        resume(folder, main_table_spec("default"))
+
+
+def test_a_new_run_records_its_format_and_its_named_configuration(tmp_path):
+    spec = main_table_spec("explore-eqa-per-token")
+    resume(tmp_path, spec)
+    run, _ = read_run(tmp_path)
+    assert run["format"] == RUN_FORMAT and run["preset"] == "explore-eqa-per-token"
+    assert run["preset_config"] == asdict(spec.preset_config)
+    assert run["preset_config"]["answer_probability"] == "per-token"
+    assert run["judge_mode"] == "yes-prob"  # "auto" for a local judge, recorded as resolved
+
+
+def test_labels_come_from_the_named_configuration_the_run_recorded(tmp_path):
+    def made(row: str, **config: object) -> str:
+        folder = tmp_path / f"{row}-{len(list(tmp_path.iterdir()))}"
+        resume(folder, main_table_spec(row, **config))
+        return label(read_run(folder)[0])
+
+    assert made("default") == "efficienteqa"
+    assert made("default", z_th=2.0) == "efficienteqa Z_th=2"
+    assert made("paper-offline") == "efficienteqa paper configuration"
+    assert made("paper-offline", top_k=10) == "efficienteqa paper configuration K=10"
+    assert made("explore-eqa") == "explore-eqa"
+    assert made("explore-eqa-per-token") == "explore-eqa per-token"
+    assert made("explore-eqa-per-token", answer_probability="product") == (
+        "explore-eqa per-token answer_probability=product")
+
+
+def test_a_changed_preset_file_does_not_relabel_a_run_recorded_before(tmp_path, monkeypatch):
+    """A run made with the paper's Z_th = 3 keeps its label when paper-offline's file later says
+    Z_th = 2; a run made after the change with --z-th 3 is named by that change."""
+    before = tmp_path / "before"
+    resume(before, main_table_spec("paper-offline"))
+    assert label(read_run(before)[0]) == "efficienteqa paper configuration"
+
+    load = presets.load_preset
+
+    def changed(name: str, *args: object, **kwargs: object) -> dict:
+        values = load(name, *args, **kwargs)  # type: ignore[arg-type]
+        return {**values, "z_th": 2.0} if name == "paper-offline" else values
+
+    monkeypatch.setattr(presets, "load_preset", changed)
+    assert label(read_run(before)[0]) == "efficienteqa paper configuration"
+    after = tmp_path / "after"
+    resume(after, main_table_spec("paper-offline", z_th=3.0))
+    assert label(read_run(after)[0]) == "efficienteqa paper configuration Z_th=3"
+
+
+def test_a_changed_default_does_not_relabel_a_run_recorded_before(tmp_path, monkeypatch):
+    """Today's defaults are not what a format-2 run is compared with: its recorded ones are."""
+    folder = tmp_path / "run"
+    resume(folder, RunSpec(method="efficienteqa", dataset="synthetic", judge=None))
+    run = read_run(folder)[0]
+    assert label(run) == "efficienteqa"
+    # As if the default K had become 10 since: the run, at K = 5 then, is still "efficienteqa".
+    paper = summary._paper_settings()  # cached: computed against the defaults of today
+    monkeypatch.setattr(summary, "_paper_settings", lambda: paper)
+    monkeypatch.setattr(summary, "_default_settings",
+                        lambda: tuple({**dict(_settings(AgentConfig())), "top_k": 10}.items()))
+    assert label(run) == "efficienteqa"
+    format_1 = {k: v for k, v in run.items() if k not in ("format", "preset", "preset_config")}
+    assert label(format_1) == "efficienteqa K=5"  # a format-1 run still reads against today's
+
+
+def _settings(config: AgentConfig) -> dict:
+    return summary.settings({"config": asdict(config)})
+
+
+def test_a_stack_left_to_its_defaults_is_the_one_typed_out():
+    assert Stack() == Stack(temperature=0.0)
