@@ -19,9 +19,9 @@ test: setup
 
 # ruff, mypy and the import contracts of docs/ARCHITECTURE.md (CI runs it beside the tests).
 lint: setup
-	$(VENV)/bin/ruff check src tests benchmarks scripts
+	$(VENV)/bin/ruff check src tests benchmarks experiments scripts
 	$(VENV)/bin/mypy src
 	$(VENV)/bin/lint-imports
 
 bench: setup
-	$(VENV)/bin/python benchmarks/render_bench.py
+	$(VENV)/bin/python -m benchmarks.render_bench

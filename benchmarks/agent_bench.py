@@ -6,7 +6,7 @@ Qwen2.5-Coder-1.5B Q4_K_M on the local llama.cpp server; MiniLM text relevancy; 
 Answers are compared with the ground truth by normalised string match, not LLM-Match (the
 judge belongs to the evaluation). The response cache is off, so every model call is timed.
 
-    python benchmarks/agent_bench.py --questions 12 [--relevancy minilm-match] [--out out/bench]
+    python -m benchmarks.agent_bench --questions 12 [--relevancy minilm-match] [--out out/bench]
 """
 
 from __future__ import annotations

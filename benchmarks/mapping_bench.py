@@ -5,8 +5,8 @@ into a fresh ``Mapper``. Prints median / p95 ms per step for each part and the c
 1-10 against 31-40 (it should stay flat as the episode grows), and the last 10 frames replayed
 into an empty map: equal costs mean the cost follows the view, not the history.
 
-    python benchmarks/mapping_bench.py                 # first 6-room house, sh3d furniture
-    python benchmarks/mapping_bench.py --seed 3 --assets builtin
+    python -m benchmarks.mapping_bench                 # first 6-room house, sh3d furniture
+    python -m benchmarks.mapping_bench --seed 3 --assets builtin
 """
 
 from __future__ import annotations

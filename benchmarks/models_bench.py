@@ -4,7 +4,7 @@ Back-ends: the embedded language model (Qwen2.5-Coder-1.5B-Instruct Q4_K_M, llam
 loopback, 2 threads) reading semantic-sensor descriptions of synthetic-house frames (CC0
 furniture); grouping with the rule grouper and the LLM confirmer. No image model is involved.
 
-    python benchmarks/models_bench.py [--model qwen2.5-coder-1.5b] [--calls 8]
+    python -m benchmarks.models_bench [--model qwen2.5-coder-1.5b] [--calls 8]
 """
 
 from __future__ import annotations

@@ -14,8 +14,8 @@ Two times per worker count:
   shutdown not).
 Episodes/minute and the speed-up against 1 worker are given for both.
 
-    python benchmarks/ray_scaling.py --questions 32 --latency-s 1.5
-    python benchmarks/ray_scaling.py --method frontier-only --max-steps 4 --questions 8
+    python -m benchmarks.ray_scaling --questions 32 --latency-s 1.5
+    python -m benchmarks.ray_scaling --method frontier-only --max-steps 4 --questions 8
 
 Writes ``results/ray/<method>-latency<L>.json`` (``--out`` to change): the command, the latency,
 each worker count's figures, the replay hits and misses, the machine and the code version.
@@ -38,17 +38,15 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from benchmarks.replay_server import serve
+from efficienteqa.agent import AgentConfig
+from efficienteqa.datasets import load_dataset
+from efficienteqa.eval.methods import RunSpec
+from efficienteqa.eval.runner import machine, run_eval
+from efficienteqa.records import code_version
+from efficienteqa.stack import Stack
 
-from replay_server import serve  # noqa: E402
-
-from efficienteqa.agent import AgentConfig  # noqa: E402
-from efficienteqa.datasets import load_dataset  # noqa: E402
-from efficienteqa.eval.methods import RunSpec  # noqa: E402
-from efficienteqa.eval.runner import machine, run_eval  # noqa: E402
-from efficienteqa.records import code_version  # noqa: E402
-from efficienteqa.stack import Stack  # noqa: E402
-
+ROOT = Path(__file__).resolve().parents[1]  # the repository: Ray's workers import from it too
 MODEL = "qwen2.5-coder-1.5b"  # the model the response cache holds replies of
 
 
@@ -71,7 +69,8 @@ def run_one(spec: RunSpec, questions: list, workers: int, server: Any) -> dict[s
     # this process's OPENAI_API_KEY, set in main().
     ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
              configure_logging=False,
-             runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}})
+             runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join(
+                 p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)}})
     try:
         warm = ray.remote(num_cpus=1)(_warm_up)
         pids = set(ray.get([warm.remote() for _ in range(workers)]))
@@ -132,7 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     import ray
 
     record = {
-        "command": "python " + " ".join(shlex.quote(a) for a in [sys.argv[0], *(argv or sys.argv[1:])]),
+        "command": "python -m benchmarks.ray_scaling "
+                   + " ".join(shlex.quote(a) for a in (argv or sys.argv[1:])),
         "method": args.method, "dataset": args.dataset, "questions": len(questions),
         "question_ids": [q.id for q in questions], "max_steps": args.max_steps,
         "grouping": args.grouping, "vlm": f"openai:{MODEL}@<replay server>",

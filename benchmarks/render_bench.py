@@ -1,6 +1,6 @@
 """Times the off-screen renderer on synthetic scenes of a given triangle count.
 
-Usage: .venv/bin/python benchmarks/render_bench.py [--triangles 150000 330000]
+Usage: .venv/bin/python -m benchmarks.render_bench [--triangles 150000 330000]
        [--sizes 640x480 320x240] [--frames 30] [--lights 8]
 
 Each scene is a 12 x 12 m textured floor, walls on a 4 m grid, textured and plain boxes

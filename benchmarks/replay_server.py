@@ -23,7 +23,7 @@ that schema (required properties only; strings "", numbers the minimum or 0, arr
 asked (the client's capability probe is such a miss). ``--miss error`` answers HTTP 404 instead, which
 the client reports as a rejected request. Replies to misses are never written to the cache.
 
-    python benchmarks/replay_server.py --port 8799 --latency-s 1.5
+    python -m benchmarks.replay_server --port 8799 --latency-s 1.5
     OPENAI_API_KEY=replay efficienteqa eval --method blind --no-cache \\
         --vlm openai:qwen2.5-coder-1.5b@http://127.0.0.1:8799/v1 --out out/replay_run
 

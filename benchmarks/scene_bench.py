@@ -3,8 +3,8 @@
 Prints one row per house and the medians. Back-ends: synthetic environment, Sweet Home 3D CC0
 furniture (or --assets builtin), moderngl on EGL/llvmpipe (CPU).
 
-    python benchmarks/scene_bench.py --seeds 0 1 2 3 4
-    python benchmarks/scene_bench.py --rooms 6      # five 6-room houses
+    python -m benchmarks.scene_bench --seeds 0 1 2 3 4
+    python -m benchmarks.scene_bench --rooms 6      # five 6-room houses
 """
 
 from __future__ import annotations

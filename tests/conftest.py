@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
 
@@ -27,7 +25,6 @@ def egl_available() -> bool:
 
 def small_model_missing() -> str | None:
     """Why the real SmolLM2 server cannot run here, or None when it can."""
-    import importlib.util
 
     from efficienteqa.models import local
 
@@ -91,14 +88,3 @@ def env_seed3(catalog) -> SyntheticEnv:
     env = SyntheticEnv(generate_house(3, catalog, "builtin"), catalog)
     yield env
     env.close()
-
-
-def load_benchmark(name: str) -> ModuleType:
-    """A script of benchmarks/ imported as a module (its pure parts are tested)."""
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module

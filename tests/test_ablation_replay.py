@@ -156,9 +156,8 @@ def _fake_run(root, episodes: dict[str, list[float]]):
 
 
 def test_the_benchmark_replays_stops_without_a_model_and_resumes(tmp_path, capsys):
-    from conftest import load_benchmark
+    from experiments import ablation_replay as bench
 
-    bench = load_benchmark("ablation_replay")
     flat = [0.1] * 20  # sigma 0: the guard never stops it
     _fake_run(tmp_path, {"d/a": HAND_SIMS, "d/b": flat})
     argv = [str(tmp_path), "--no-answer", "--z-th", "1,2,3,4", "--k", "1,3"]

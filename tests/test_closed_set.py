@@ -108,9 +108,8 @@ def test_closed_set_outside_blind_on_hm_eqa_is_one_line(tmp_path, args, message)
 
 
 def test_the_benchmark_reports_accuracy_against_the_majority_letter():
-    from conftest import load_benchmark
+    from experiments import hm_eqa_closed as bench
 
-    bench = load_benchmark("hm_eqa_closed")
     assert bench.majority(["C", "B", "C", "B", "A"]) == ("B", 40.0)  # a tie goes to the earlier
     rows = [{"id": f"q/{i}", "status": "done", "category": cat, "answer": "x", "reference": "x",
              "extra": {"letter": chose}, "choice": {"value": 100.0 * (chose == ref),

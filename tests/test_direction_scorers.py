@@ -7,7 +7,6 @@ import math
 
 import pytest
 
-from conftest import load_benchmark
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.text_scorers import (
@@ -193,7 +192,9 @@ def test_the_paper_preset_keeps_the_vlm():
 # -- the benchmark's labelling --------------------------------------------------------------
 @pytest.fixture(scope="module")
 def bench():
-    return load_benchmark("direction_bench")
+    from experiments import direction_bench
+
+    return direction_bench
 
 
 def test_best_letters_are_the_closest_and_unlabelled_frames_are_dropped(bench):

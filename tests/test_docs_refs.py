@@ -9,7 +9,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 DESIGN = ROOT / "docs" / "DESIGN.md"
-SCANNED = ("src", "benchmarks", "tests", "docs")
+SCANNED = ("src", "benchmarks", "experiments", "tests", "docs")
 SUFFIXES = {".py", ".sh", ".md", ".txt", ".toml", ".cfg", ".yaml", ".yml", ".json", ".jsonl"}
 SKIPPED_PARTS = {"__pycache__", ".mypy_cache", ".pytest_cache"}
 THIS = Path(__file__).resolve()

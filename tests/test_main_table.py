@@ -28,7 +28,7 @@ def test_the_main_table_runs_every_method_on_two_questions(tmp_path, small_model
            "ARGS": "--vlm local:smollm2-135m --assets builtin --max-steps 3 --relevancy overlap "
                    "--grouping rules"}
     try:
-        result = subprocess.run(["bash", str(ROOT / "benchmarks" / "main_table.sh")], cwd=ROOT,
+        result = subprocess.run(["bash", str(ROOT / "experiments" / "main_table.sh")], cwd=ROOT,
                                 env=env, capture_output=True, text=True, timeout=900)
     finally:
         subprocess.run([str(shim), "models", "stop", "smollm2-135m"], capture_output=True, env=env)
@@ -59,7 +59,7 @@ def test_every_row_is_a_shipped_configuration():
 
     from efficienteqa.presets import preset_names
 
-    script = (ROOT / "benchmarks" / "main_table.sh").read_text()
+    script = (ROOT / "experiments" / "main_table.sh").read_text()
     rows = dict(re.findall(r"^run (\S+) --preset (\S+)$", script, flags=re.M))
     assert set(rows) == set(RUNS) and rows["paper"] == "paper-offline"
     assert all(preset == name for name, preset in rows.items() if name != "paper")

@@ -22,7 +22,7 @@ from vlm_server import Options, servers
 
 pytestmark = needs_egl
 
-# benchmarks/main_table.sh's paper row: the paper's configuration by flags, no preset.
+# experiments/main_table.sh's paper row: the paper's configuration by flags, no preset.
 PAPER = {"explore_scorer": "vlm", "stop_rule": "paper", "answer": "paper", "prompts": "paper",
          "exploration": "paper", "refusal_retries": 0, "stop_clearance_m": 0.0,
          "distinct_views": False, "gate": "none", "steering": "none", "min_stop_step": 10}

@@ -102,7 +102,7 @@ def test_images_get_an_image_relevancy_scorer_unless_one_is_named(monkeypatch):
     assert build_stack({"perception": "rgb"}).relevancy == "blip2-itm"
 
 
-# The main table's rows as benchmarks/main_table.sh spelled them out before the presets held
+# The main table's rows as experiments/main_table.sh spelled them out before the presets held
 # them once: each preset must set exactly these options.
 MAIN_TABLE_ROWS = {
     "default": {"method": "efficienteqa"},

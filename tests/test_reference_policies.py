@@ -1,4 +1,4 @@
-"""The steering benchmark's reference policies (benchmarks/reference_policies.py, DESIGN 9
+"""The steering benchmark's reference policies (experiments/reference_policies.py, DESIGN 9
 items 5-6) on one small built-in house: they reach the evidence, a random walk does not."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import load_benchmark, needs_egl
+from conftest import needs_egl
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
 from efficienteqa.envs.synthetic.oracle import STEP_M, annotate
@@ -26,7 +26,9 @@ FAR = "What is on the bookshelf in the dining room?"
 
 @pytest.fixture(scope="module")
 def ref():
-    return load_benchmark("reference_policies")
+    from experiments import reference_policies
+
+    return reference_policies
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,6 @@
-"""The benchmarks' replay server: cached replies after the latency, concurrently; misses as
-documented (a fixed fallback reply, or HTTP 404 with --miss error)."""
+"""The timing benchmarks' replay server (benchmarks/replay_server.py): cached replies after the
+latency, concurrently; misses as documented (a fixed fallback reply, or HTTP 404 with --miss
+error)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import load_benchmark
 from efficienteqa.models.base import Capabilities, ChatResponse, Message, TokenLogprob
 from efficienteqa.models.cache import ResponseCache, request_key
 from efficienteqa.models.client import ClientConfig, OpenAIChatClient, RequestRejected
@@ -24,7 +24,9 @@ SCHEMA = {"type": "object", "required": ["answer", "confidence"],
 
 @pytest.fixture(scope="module")
 def replay():
-    return load_benchmark("replay_server")
+    from benchmarks import replay_server
+
+    return replay_server
 
 
 def _client(url: str) -> OpenAIChatClient:

@@ -12,7 +12,7 @@ are the files ``configs/NAME.toml`` shipped in the package, each saying what it 
 ``paper`` (the paper's experiments: HM-EQA in Habitat-Sim, GPT-4o, BLIP-2 ITM; ExploreEQA's
 Habitat set-up, docs/habitat.md, "Fidelity to ExploreEQA"), ``paper-offline`` (the paper's
 algorithm, ``agent.PAPER_CONFIG``, on the offline default stack) and one per row of
-benchmarks/main_table.sh.
+experiments/main_table.sh.
 """
 
 from __future__ import annotations

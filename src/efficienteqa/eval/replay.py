@@ -22,7 +22,7 @@ episode: the one that the rule would have stopped is its prefix up to the stop s
   numbers them, are exactly the evidence of the answer prompt stored in ``model.exchanges``
   (``answer_prompt_matches`` checks one episode; the benchmark checks every episode it replays).
 
-Only the answer call of a replayed setting reaches a model (``benchmarks/ablation_replay.py``).
+Only the answer call of a replayed setting reaches a model (``experiments/ablation_replay.py``).
 """
 
 from __future__ import annotations

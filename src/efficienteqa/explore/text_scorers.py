@@ -251,7 +251,7 @@ def direction_features(frame: DirectionFrame, embedder: MiniLMScorer | None = No
 class LogitDirections:
     """A conditional logit over the directions of a frame: confidence of a letter is
     softmax(features . ``weights``) (``direction_features``). The weights are fitted on the
-    training houses (``benchmarks/direction_bench.py fit``); without an ``embedder`` the two
+    training houses (``experiments/direction_bench.py fit``); without an ``embedder`` the two
     cosine features are 0 and their weights unused."""
 
     def __init__(self, weights: Sequence[float], embedder: MiniLMScorer | None = None,
@@ -271,7 +271,7 @@ class LogitDirections:
         return softmax(dict(zip(frame.letters, z.tolist())), self.temperature), {}
 
 
-# Fitted with `python benchmarks/direction_bench.py fit out/direction/train.jsonl --no-embed
+# Fitted with `python -m experiments.direction_bench fit out/direction/train.jsonl --no-embed
 # --l2 0.01` on 2026-11-24: 446 frames of training houses 0-20 (5 questions per house, at most 8
 # frames per episode), in FEATURES order; top-1 by leave-houses-out cross-validation 0.621
 # (nearest point 0.479; l2 0.003 / 0.03: 0.605 / 0.583). With the two MiniLM features (--embed)

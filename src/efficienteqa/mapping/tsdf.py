@@ -23,7 +23,7 @@ from efficienteqa.mapping.grid import GridSpec
 # DESIGN 3.2: columns 25%-75%, "rows below 60% of the height" read as the lower 60% of the rows
 # (from 40% of the height down). The other reading (the bottom 40%) reaches only 1.5 m ahead,
 # as far as the 1.5 m back-off, and frontier exploration then stalls: it explored 17% of the
-# floor against 24% for random moves (benchmarks/explore_bench.py coverage, 4 houses).
+# floor against 24% for random moves (experiments/explore_bench.py coverage, 4 houses).
 EXPLORED_WINDOW = (0.25, 0.75, 0.4, 1.0)
 # Weight of an observation that puts a voxel behind the surface (sdf < 0) relative to one that
 # sees it in front. The truncation band behind a thin occluder (an open door panel seen

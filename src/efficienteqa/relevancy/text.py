@@ -155,7 +155,7 @@ def line_overlaps(wanted: set[str], text: str) -> np.ndarray:
 
 # The match probability of one object line: sigmoid(MATCH_COS * cos + MATCH_OVERLAP * overlap +
 # MATCH_BIAS). Fitted by maximum likelihood (a frame's probability is its best line's) with
-# `python benchmarks/calibrate_relevancy.py` on 2026-11-21: synthetic houses 1000-1019 (disjoint
+# `python -m experiments.calibrate_relevancy` on 2026-11-21: synthetic houses 1000-1019 (disjoint
 # from the development benchmarks 0-20 and the evaluation split 100+), 60 random navigable poses
 # per house plus each question's oracle pose and 4 jittered copies, 2,079 frames x their
 # house's questions = 20,480 (question, frame) pairs, 2,073 positive (every evidence object in

@@ -42,12 +42,12 @@ MIN_STEP = PAPER_MIN_STEP
 # frames that cannot answer, so the robot may stop from its second step (DESIGN 9).
 GATED_MIN_STEP = 2
 STEPS_PER_SQRT_M2 = 3
-SIGMA_FLOOR = 0.1  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
+SIGMA_FLOOR = 0.1  # chosen on training houses 0-20 (experiments/stop_bench.py), MiniLM scale
 MAD_TO_SIGMA = 1.4826  # 1 / 0.6745: MAD of a normal sample -> its standard deviation
-SIM_ABS = 0.75  # chosen on training houses 0-20 (benchmarks/stop_bench.py), MiniLM scale
+SIM_ABS = 0.75  # chosen on training houses 0-20 (experiments/stop_bench.py), MiniLM scale
 Z_GATED = 1.0  # the threshold for a frame an answerability gate passed (DESIGN 9)
 RULE_PARTS = ("lookback", "robust", "floor", "absolute")
-# The default: better than "paper" on every measure of benchmarks/stop_bench.py, chosen on
+# The default: better than "paper" on every measure of experiments/stop_bench.py, chosen on
 # training houses 0-20 and checked on held-out houses 2000-2009 (DESIGN 8, results/stop/).
 DEFAULT_STOP_RULE = "lookback+robust+floor+absolute"
 STOP_RULES = ("paper", "lookback", "robust", "floor", "lookback+floor", "lookback+robust",

@@ -26,7 +26,7 @@ Files, next to the run (``--out``, default ``RUN_DIR/ablation_replay.json``):
   re-run skips the lines already there and retries failed ones (resumable);
 - ``ablation_replay.json``: the settings, the tables and the prompt check.
 
-    python benchmarks/ablation_replay.py RUN_DIR --z-th 1,2,3,4 --k 1,3,5,10
+    python -m experiments.ablation_replay RUN_DIR --z-th 1,2,3,4 --k 1,3,5,10
 
 Tables: Z_th -> accuracy, mean steps, share stopped by relevancy (at ``--stop-k``, default the
 run's K); K -> accuracy at the budget and at each Z_th's stop. The paper's numbers (HM-EQA,

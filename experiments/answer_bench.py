@@ -23,9 +23,9 @@ Variants (``--variant``):
 
 Graded by the rule judge. Per question a JSONL row is cached in ``--out`` (runs resume).
 
-    python benchmarks/answer_bench.py run --seeds training --variant paper --per-category 4
-    python benchmarks/answer_bench.py run --seeds held-out --variant token --per-category 6
-    python benchmarks/answer_bench.py table out/answer_bench/held-out-direct.jsonl
+    python -m experiments.answer_bench run --seeds training --variant paper --per-category 4
+    python -m experiments.answer_bench run --seeds held-out --variant token --per-category 6
+    python -m experiments.answer_bench table out/answer_bench/held-out-direct.jsonl
 
 Develop on the training houses (0-20); report the held-out houses (2000 and up).
 """
@@ -37,54 +37,27 @@ import json
 import math
 import re
 import statistics
-import sys
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import explore_bench  # noqa: E402  (seed_set)
-
-from efficienteqa.envs.synthetic.env import SyntheticEnv  # noqa: E402
-from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M  # noqa: E402
-from efficienteqa.envs.synthetic.questions import CATEGORIES, Question, evidence_visible  # noqa: E402
-from efficienteqa.eval.llm_match_rules import MAX_SCORE  # noqa: E402
-from efficienteqa.eval.synthetic_judge import rule_judgement  # noqa: E402
-from efficienteqa.geometry import Pose2D  # noqa: E402
-from efficienteqa.perception.semantic import SemanticPerception  # noqa: E402
-from efficienteqa.scenes import synthetic_questions  # noqa: E402
+from efficienteqa.envs.synthetic.env import SyntheticEnv
+from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
+from efficienteqa.envs.synthetic.questions import CATEGORIES, Question, evidence_visible
+from efficienteqa.eval.llm_match_rules import MAX_SCORE
+from efficienteqa.eval.synthetic_judge import rule_judgement
+from efficienteqa.geometry import Pose2D
+from efficienteqa.perception.semantic import SemanticPerception
+from efficienteqa.scenes import synthetic_questions
+from experiments.common import auc, seed_set
 
 VARIANTS = ("paper", "first-guess", "token", "direct")
 HEADINGS = 8
 
 
 # -- pure parts (tested) ----------------------------------------------------------------------
-def auc(scores: Sequence[float], right: Sequence[bool]) -> float | None:
-    """P(score of a right answer > score of a wrong one), ties counting 1/2 (the Mann-Whitney
-    U over n_right * n_wrong, by average ranks). None when either side is empty."""
-    if len(scores) != len(right):
-        raise ValueError("one label per score")
-    pairs = sorted(zip(scores, right), key=lambda p: p[0])
-    n_pos = sum(1 for r in right if r)
-    n_neg = len(right) - n_pos
-    if n_pos == 0 or n_neg == 0:
-        return None
-    ranks = [0.0] * len(pairs)
-    i = 0
-    while i < len(pairs):
-        j = i
-        while j + 1 < len(pairs) and pairs[j + 1][0] == pairs[i][0]:
-            j += 1
-        for k in range(i, j + 1):
-            ranks[k] = (i + j) / 2 + 1  # average 1-based rank of the tie block
-        i = j + 1
-    rank_sum = sum(r for r, (_, ok) in zip(ranks, pairs) if ok)
-    return (rank_sum - n_pos * (n_pos + 1) / 2) / (n_pos * n_neg)
-
-
 def category_table(rows: Sequence[dict], categories: Sequence[str] = CATEGORIES
                    ) -> dict[str, tuple[int, int]]:
     """category -> (right, asked), in ``categories`` order (absent ones left out), and "all"."""
@@ -229,7 +202,7 @@ def cmd_run(args: argparse.Namespace) -> None:
     answerer, _ = build_answerer(args.variant)
     rows, left_out = [], []
     with out.open("a") as fh:
-        for env, q in questions(explore_bench.seed_set(args.seeds), args.per_category, args.assets):
+        for env, q in questions(seed_set(args.seeds), args.per_category, args.assets):
             if q.id in done:
                 rows.append(done[q.id])
                 continue

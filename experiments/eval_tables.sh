@@ -3,7 +3,7 @@
 # of the synthetic split, the Z_th and K ablations, the Ray speed-up with cached model calls, and
 # Blind on HM-EQA. Runs resume: re-running this script continues where it stopped.
 #
-#   LIMIT=10 OUT=out/eval benchmarks/eval_tables.sh   # then: efficienteqa report out/eval/syn-*
+#   LIMIT=10 OUT=out/eval experiments/eval_tables.sh   # then: efficienteqa report out/eval/syn-*
 #
 # Back-ends: the offline default stack (synthetic houses, semantic-sensor perception from object
 # labels, Qwen2.5-Coder-1.5B on llama.cpp, MiniLM relevancy, LLM grouping, Qwen as the judge).

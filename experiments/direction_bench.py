@@ -10,9 +10,9 @@ range from the robot and its path distance to the nearest evidence view reachabl
 no point has a finite distance, or where every point is tied, is dropped. An episode ends when
 the evidence is first in view (directions matter until then) or at the step budget.
 
-    python benchmarks/direction_bench.py frames --seeds training --out out/direction/train.jsonl
-    python benchmarks/direction_bench.py frames --seeds 2000-2039 --out out/direction/held.jsonl
-    python benchmarks/direction_bench.py score out/direction/held.jsonl --scorers random,nearest,...
+    python -m experiments.direction_bench frames --seeds training --out out/direction/train.jsonl
+    python -m experiments.direction_bench frames --seeds 2000-2039 --out out/direction/held.jsonl
+    python -m experiments.direction_bench score out/direction/held.jsonl --scorers random,nearest,...
 
 Scorers are evaluated on the cached frames without re-rendering. Top-1 counts fractional credit
 for ties of the scorer (k letters tied at the scorer's best, j of them oracle-best: j / k), so
@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
@@ -34,18 +33,15 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import explore_bench  # noqa: E402  (the steering benchmark's episode set-up)
-
-from efficienteqa.envs.synthetic.env import SyntheticEnv  # noqa: E402
-from efficienteqa.envs.synthetic.questions import Question, evidence_visible  # noqa: E402
-from efficienteqa.explore.module import ExploreModule, SemanticScore, move  # noqa: E402
-from efficienteqa.explore.registry import make_explorer  # noqa: E402
-from efficienteqa.explore.text_scorers import DirectionFrame  # noqa: E402
-from efficienteqa.observation import Observation, PromptPoint  # noqa: E402
-from efficienteqa.perception.semantic import SemanticPerception  # noqa: E402
-from efficienteqa.scenes import synthetic_questions  # noqa: E402
+from efficienteqa.agent import AgentConfig
+from efficienteqa.envs.synthetic.env import SyntheticEnv
+from efficienteqa.envs.synthetic.questions import Question, evidence_visible
+from efficienteqa.explore.module import SemanticScore
+from efficienteqa.explore.text_scorers import DirectionFrame
+from efficienteqa.observation import Observation, PromptPoint
+from efficienteqa.perception.semantic import SemanticPerception
+from efficienteqa.scenes import synthetic_questions
+from experiments.common import evidence_distance, explore_episode, seed_set
 
 TIE_M = 0.05  # distances within this of the least are tied for best
 
@@ -118,23 +114,30 @@ class FrameRecorder:
     def __init__(self, perception: SemanticPerception, distance_m: Callable[[Sequence[float]], float],
                  q: Question, house: int) -> None:
         self.perception, self.distance_m, self.q, self.house = perception, distance_m, q, house
-        self.step = 0
         self.frames: list[Frame] = []
-        self.dropped = 0
+        self.dropped_at: list[int] = []  # the steps of prompted frames that label nothing
+        self._new: list[Frame | None] = []  # recorded this step (None: dropped), not stamped
+
+    def stamp(self, step: int) -> None:
+        """Give the frames recorded since the last call their step (the agent's step hook)."""
+        for f in self._new:
+            if f is None:
+                self.dropped_at.append(step)
+            else:
+                f.step = step
+                self.frames.append(f)
+        self._new = []
 
     def score(self, obs: Observation, prompts: list[PromptPoint], question: str) -> SemanticScore:
         request = self.perception.explore_request(obs, prompts)
         distances = {p.letter: _finite_or_none(self.distance_m(p.xy)) for p in prompts}
-        frame = Frame(question, self.q.id, self.house, self.step, request.view,
+        frame = Frame(question, self.q.id, self.house, 0, request.view,
                       dict(request.directions),  # type: ignore[arg-type]
                       {p.letter: [round(p.xy[0], 3), round(p.xy[1], 3)] for p in prompts},
                       {p.letter: round(float(np.hypot(p.xy[0] - obs.pose.x, p.xy[1] - obs.pose.y)), 3)
                        for p in prompts},
                       distances)
-        if best_letters(distances) is None:
-            self.dropped += 1
-        else:
-            self.frames.append(frame)
+        self._new.append(None if best_letters(distances) is None else frame)
         share = 1.0 / len(prompts)
         return SemanticScore({p.letter: share for p in prompts}, 0.5)
 
@@ -145,30 +148,25 @@ def _finite_or_none(d: float) -> float | None:
 
 def episode_frames(env: SyntheticEnv, q: Question, seed: int, explorer_seed: int
                    ) -> tuple[list[Frame], int]:
-    """The labelled frames of one episode, and how many prompted frames were dropped."""
-    distance_m = explore_bench.evidence_distance(env, q)
+    """The labelled frames of one episode, and how many prompted frames were dropped. The
+    episode is the agent's loop (SFE with the default options, no target steering) with the
+    recorder as its scorer, up to the step the evidence is first in view (that step's frame
+    is not kept: directions matter until then)."""
+    distance_m = evidence_distance(env, q)
     if not distance_m.reachable:
         return [], 0
     recorder = FrameRecorder(SemanticPerception(env.scene_labels()), distance_m, q, seed)
-    module = ExploreModule(explore_bench.make_mapper(env), make_explorer("sfe"), recorder,
-                           seed=explorer_seed)
-    obs, _ = env.reset()
-    for step in range(1, explore_bench.step_budget(env) + 1):
-        if evidence_visible(obs.instance, q.evidence):
-            break
-        recorder.step = step
-        out = module.step(obs, step, q.question)
-        if out.decision.done:
-            break
-        moved = move(env, module, obs.pose, out.decision, step)
-        obs = moved.obs
-        if moved.decision.done:
-            break
-    return recorder.frames, recorder.dropped
+    ep = explore_episode(env, AgentConfig(explorer="sfe", seed=explorer_seed, steering="none"),
+                         q.question, scorer=recorder,
+                         seen=lambda instance: evidence_visible(instance, q.evidence),
+                         on_step=lambda record, obs, out: recorder.stamp(record.step))
+    end = ep.first_seen or ep.steps + 1
+    return ([f for f in recorder.frames if f.step < end],
+            sum(step < end for step in recorder.dropped_at))
 
 
 def cmd_frames(args: argparse.Namespace) -> None:
-    seeds = explore_bench.seed_set(args.seeds)
+    seeds = seed_set(args.seeds)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     done = {(f["house"], f["question_id"]) for f in map(json.loads, out.open())} \

@@ -10,16 +10,16 @@ each judge ends with one line
 
     judge=<spec>:<mode> n=<n> mae=<x> spearman=<x> wrong_mean=<x>
 
-    .venv/bin/python benchmarks/judge_agreement.py                      # the default local judge
-    .venv/bin/python benchmarks/judge_agreement.py --judge-mode grade --judge-mode yes-prob
-    .venv/bin/python benchmarks/judge_agreement.py --judge openai:gpt-4o --judge-mode grade
+    .venv/bin/python -m experiments.judge_agreement                      # the default local judge
+    .venv/bin/python -m experiments.judge_agreement --judge-mode grade --judge-mode yes-prob
+    .venv/bin/python -m experiments.judge_agreement --judge openai:gpt-4o --judge-mode grade
 
 ``--judge`` and ``--judge-mode`` take what ``efficienteqa eval`` takes (both may be repeated:
 every judge is run in every mode). Grades come from the judge's sqlite cache when the same
 judge, prompt and item were graded before; ``--fresh`` uses a cache of its own for this run.
 ``--out FILE`` also writes the figures as JSON (a published result, e.g. results/judge/):
 
-    python benchmarks/judge_agreement.py --judge-mode yes-prob --out results/judge/local-yes-prob.json
+    python -m experiments.judge_agreement --judge-mode yes-prob --out results/judge/local-yes-prob.json
 """
 
 from __future__ import annotations
@@ -39,9 +39,10 @@ from typing import Any
 
 from scipy.stats import spearmanr
 
+from efficienteqa.eval.judge import DEFAULT_JUDGE, judge_mode
+
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "datasets" / "judge-agreement" / "dev.jsonl"
-DEFAULT_JUDGE = "local:qwen2.5-coder-1.5b"
 WRONG = 1  # the hand grade of a wrong answer
 
 
@@ -78,9 +79,7 @@ def load_items(path: Path) -> list[Item]:
 
 def resolve_mode(mode: str, judge: str) -> str:
     """``auto`` as ``efficienteqa eval`` reads it: yes-prob for local models, grade otherwise."""
-    if mode == "auto":
-        return "yes-prob" if judge.startswith("local:") else "grade"
-    return mode
+    return judge_mode(mode, judge)
 
 
 @dataclass(frozen=True)

@@ -2,12 +2,14 @@
 
 Back-ends: synthetic environment (Sweet Home 3D CC0 furniture, or --assets builtin), depth and
 instance buffers rendered with moderngl/EGL on the CPU; no model: semantic values are either
-absent (frontier-only, random) or the ground-truth oracle (explore/oracle.py).
+absent (frontier-only, random), the ground-truth oracle (explore/oracle.py) or a model-free
+direction scorer. Every episode is the agent's own loop (``experiments.common.explore_episode``:
+``Agent.run`` with the early stop off), configured by ``AgentConfig`` from the options below.
 
-    python benchmarks/explore_bench.py cost      # ms per step in a 6-room house
-    python benchmarks/explore_bench.py coverage  # explored floor vs step, frontier-only vs random
-    python benchmarks/explore_bench.py steering  # steps to see the evidence, oracle SFE vs frontier-only
-    python benchmarks/explore_bench.py steering --methods reference:target-room,reference:room-by-room
+    python -m experiments.explore_bench cost      # ms per step in a 6-room house
+    python -m experiments.explore_bench coverage  # explored floor vs step, frontier-only vs random
+    python -m experiments.explore_bench steering  # steps to see the evidence, oracle SFE vs frontier-only
+    python -m experiments.explore_bench steering --methods reference:target-room,reference:room-by-room
                                                  # the reference policies (reference_policies.py)
 
 House seeds: the development houses 0-20 (``--seeds training``) are the ones every earlier
@@ -21,58 +23,26 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import sys
-import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from efficienteqa.agent import mapper_for
-from efficienteqa.datasets.synthetic import parse_seeds
+from efficienteqa.agent import AgentConfig
 from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
-from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house
+from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
-from efficienteqa.explore.module import REFUSAL_RETRIES as module_retries
-from efficienteqa.explore.module import ExploreModule, SemanticScorer, move
-from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer, evidence_distance_field
-from efficienteqa.explore.prompting import PAPER_PROMPTS, PromptConfig
-from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, make_explorer
-from efficienteqa.explore.sfe import FrontierExplorer
-from efficienteqa.explore.target import TargetExplorer
-from efficienteqa.mapping.maps2d import Mapper
-from efficienteqa.perception.semantic import SemanticPerception
-from efficienteqa.question import parse_question
+from efficienteqa.explore.module import REFUSAL_RETRIES, SemanticScorer
+from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer
+from efficienteqa.explore.prompting import PROMPT_CONFIGS
+from efficienteqa.explore.registry import EXPLORATIONS
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from reference_policies import POLICIES as REFERENCE_POLICIES  # noqa: E402
-from reference_policies import run_policy  # noqa: E402
-
-TRAINING_SEEDS = range(0, 21)  # development houses: tuned on
-HELD_OUT_SEEDS = range(2000, 3000)  # never used for tuning
-
-
-def seed_set(spec: str) -> list[int]:
-    """"training" (0-20), "held-out" (2000-2999), or explicit seeds ("0-9", "3,5")."""
-    named = {"training": TRAINING_SEEDS, "held-out": HELD_OUT_SEEDS}
-    return list(named[spec]) if spec in named else parse_seeds(spec)
-
-
-def step_budget(env: SyntheticEnv) -> int:
-    return int(math.sqrt(env.floor_area_m2) * 3)
-
-
-WINDOW: tuple[float, float, float, float] | None = None  # --window: explored window override
-EXPLORED_DEPTH: float | None = None  # --explored-depth override
-STOP_CLEARANCE: float | None = None  # --stop-clearance override
-REFUSAL_RETRIES = module_retries  # --refusal-retries override
-EXPLORER_CONFIG: dict = {}  # --set FIELD=VALUE overrides of the explorer's config
-EXPLORATION = "default"  # --exploration: a key of explore.registry.EXPLORATIONS
-PROMPTS = PromptConfig()  # --prompt FIELD=VALUE overrides; --prompt paper: DESIGN 3.3's
+from efficienteqa.stop.rules import env_step_budget
+from experiments.common import NEAR_M, evidence_distance, explore_episode, seed_set
+from experiments.reference_policies import POLICIES as REFERENCE_POLICIES
+from experiments.reference_policies import run_policy
 
 # Semantic scorers for steering: name -> factory(env, question, evidence distance, glimpsed).
 # "oracle" is the ground truth; others (model-free text scorers, model elicitations) register
@@ -120,100 +90,12 @@ for _t in (0.5, 0.25):
     STEERING_SCORERS[f"direction-logit-t{_t}"] = _sharp_logit(_t)
 
 
-def make_mapper(env: SyntheticEnv) -> Mapper:
-    extra: dict = {"explored_window": WINDOW} if WINDOW else {}
-    if EXPLORED_DEPTH is not None:
-        extra["explored_depth_m"] = EXPLORED_DEPTH
-    return mapper_for(env, (env.house.start.x, env.house.start.y), **extra)
-
-
-def truth_floor(env: SyntheticEnv, mapper: Mapper) -> np.ndarray:
-    """Ground-truth free floor sampled at the map's cell centres."""
-    xs, ys = mapper.spec.centres()
-    i, j = env.grid.spec.world_to_cell(np.stack([xs, ys], axis=-1))
-    ok = env.grid.spec.contains((i, j))
-    out = np.zeros(xs.shape, bool)
-    out[ok] = env.grid.free[i[ok], j[ok]]
-    return out
-
-
-@dataclass
-class Episode:
-    coverage: list[float] = field(default_factory=list)
-    first_seen: int | None = None
-    first_near: int | None = None  # first step within NEAR_M (path) of the evidence
-    steps: int = 0
-    step_ms: list[float] = field(default_factory=list)
-    moves: int = 0  # moves asked of the environment (re-planned tries included)
-    refused: int = 0  # of which the environment refused
-    lost: int = 0  # steps whose every try was refused: the robot stayed
-    asked: int = 0  # steps that offered lettered directions to the scorer
-    points: int = 0  # prompted points
-    off_floor: int = 0  # of which not navigable on the true grid
-    uninformed: int = 0  # asked steps where no point had a finite oracle distance
-    explored: int | None = None  # the step at which the explorer found no frontier left
-
-
-NEAR_M = 2.0
-
-
-def run(env: SyntheticEnv, explorer: str, budget: int, seed: int,
-        scorer: SemanticScorer | None = None, seen: Callable[[np.ndarray], bool] | None = None,
-        coverage: bool = False, distance_m: Callable[[tuple[float, float]], float] | None = None,
-        to_budget: bool = False, question: str = "", steer: bool = False) -> Episode:
-    """One episode of ``budget`` steps at most. It ends when ``seen`` first holds, unless
-    ``to_budget`` (then it goes on, for the coverage at the budget). ``steer``: the frontier
-    explorer steered by the question's target (explore/target.py), reading the semantic
-    perception's sightings."""
-    mapper = make_mapper(env)
-    extra = {**exploration_options(explorer, EXPLORATION), **EXPLORER_CONFIG}
-    if STOP_CLEARANCE is not None:
-        extra["stop_clearance_m"] = STOP_CLEARANCE
-    chosen = make_explorer(explorer, **extra)
-    target = parse_question(question) if steer else None
-    perception = SemanticPerception(env.scene_labels()) if steer else None
-    if steer and isinstance(chosen, FrontierExplorer):
-        chosen = TargetExplorer(chosen)
-    module = ExploreModule(mapper, chosen, scorer, seed=seed, prompts=PROMPTS, target=target)
-    floor = truth_floor(env, mapper) if coverage else None
-    obs, _ = env.reset()
-    ep = Episode()
-    for step in range(1, budget + 1):
-        ep.steps = step
-        if (ep.first_near is None and distance_m is not None
-                and distance_m((obs.pose.x, obs.pose.y)) <= NEAR_M):
-            ep.first_near = step
-        if ep.first_seen is None and seen is not None and seen(obs.instance):
-            ep.first_seen = step
-            if not to_budget:
-                break
-        start = time.perf_counter()
-        sightings = (perception.sightings(obs, target)
-                     if perception is not None and target is not None else None)
-        out = module.step(obs, step, question, sightings)
-        ep.step_ms.append(1e3 * (time.perf_counter() - start))
-        if out.prompts:
-            ep.asked += 1
-            ep.points += len(out.prompts)
-            ep.off_floor += sum(not env.is_navigable(*p.xy) for p in out.prompts)
-            ep.uninformed += bool(out.score and "unreachable" in out.score.info)
-        if floor is not None:
-            ep.coverage.append(out.state.explored_floor_share(floor))
-        if out.decision.done:
-            ep.explored = step
-            break
-        moved = move(env, module, obs.pose, out.decision, step, REFUSAL_RETRIES)
-        obs = moved.obs
-        ep.moves += moved.refused + (not moved.blocked)
-        ep.refused += moved.refused
-        ep.lost += moved.blocked
-        if moved.decision.done:
-            ep.explored = step
-            break
-    if floor is not None and ep.steps > len(ep.coverage):  # the last frame, fused but not planned on
-        mapper.update(obs)
-        ep.coverage.append(mapper.state((obs.pose.x, obs.pose.y)).explored_floor_share(floor))
-    return ep
+def agent_config(args: argparse.Namespace) -> AgentConfig:
+    """The agent's configuration of the exploration options on the command line (the explorer,
+    its seed and the budget are set per episode)."""
+    given = {"stop_clearance_m": args.stop_clearance, "refusal_retries": args.refusal_retries}
+    return AgentConfig(exploration=args.exploration, prompts=args.prompts, steering="none",
+                       **{k: v for k, v in given.items() if v is not None})
 
 
 def houses(n: int, assets: str, rooms: int | None = None) -> list[int]:
@@ -225,10 +107,11 @@ def houses(n: int, assets: str, rooms: int | None = None) -> list[int]:
 
 def cmd_cost(args: argparse.Namespace) -> None:
     seed = houses(1, args.assets, rooms=6)[0]
+    config = replace(agent_config(args), explorer="frontier-only")
     with SyntheticEnv.from_seed(seed, args.assets) as env:
-        run(env, "frontier-only", 5, seed=0)  # warm-up (numba compilation)
+        explore_episode(env, replace(config, max_steps=5))  # warm-up (numba compilation)
         for explorer_seed in range(10):  # an episode long enough to show the cost is flat
-            ep = run(env, "frontier-only", 40, seed=explorer_seed)
+            ep = explore_episode(env, replace(config, max_steps=40, seed=explorer_seed))
             if len(ep.step_ms) >= 30:
                 break
     ms = np.array(ep.step_ms)
@@ -242,9 +125,10 @@ def cmd_coverage(args: argparse.Namespace) -> None:
     curves: dict[str, list[list[float]]] = {"frontier-only": [], "random": []}
     for seed in houses(args.houses, args.assets):
         with SyntheticEnv.from_seed(seed, args.assets) as env:
-            budget = step_budget(env)
+            budget = env_step_budget(env)
             for name in curves:
-                ep = run(env, name, budget, seed=seed, coverage=True)
+                ep = explore_episode(env, replace(agent_config(args), explorer=name, seed=seed,
+                                                  max_steps=budget), coverage=True)
                 curves[name].append(ep.coverage + [ep.coverage[-1]] * (budget - len(ep.coverage)))
                 print(f"house {seed}: {name:13s} explored {ep.coverage[-1]:.0%} of the floor "
                       f"after {len(ep.coverage)} steps (budget {budget})")
@@ -292,7 +176,7 @@ def steering_questions(args: argparse.Namespace):
         for seed, qs in by_house.items():
             with SyntheticEnv.from_seed(seed, args.assets) as env:
                 for q in qs:
-                    yield seed, env, step_budget(env), q
+                    yield seed, env, env_step_budget(env), q
         return
     for seed in seed_set(args.seeds):
         with SyntheticEnv.from_seed(seed, args.assets) as env:
@@ -300,7 +184,7 @@ def steering_questions(args: argparse.Namespace):
             # A few questions per house, their order turned by the seed: many houses, every kind.
             turn = seed % len(asked) if asked else 0
             for q in (asked[turn:] + asked[:turn])[:args.per_house]:
-                yield seed, env, step_budget(env), q
+                yield seed, env, env_step_budget(env), q
 
 
 def cmd_steering(args: argparse.Namespace) -> None:
@@ -314,7 +198,8 @@ def cmd_steering(args: argparse.Namespace) -> None:
     for seed, env, budget, q in steering_questions(args):
         if len(rows) >= args.questions:
             break
-        row = _steer(env, q, budget, seed, args.repeats, args.to_budget, methods)
+        row = _steer(env, q, agent_config(args), budget, seed, args.repeats, args.to_budget,
+                     methods)
         if not row["reachable"]:
             flagged.append(row)
             print(f"{q.id} FLAGGED: no view of the evidence is reachable from the start; "
@@ -481,28 +366,11 @@ def steering_method(name: str) -> str:
     return f"{explorer}:{scorer or 'oracle'}"
 
 
-def evidence_centre(env: SyntheticEnv, q: Question) -> np.ndarray:
-    """The mean (x, y) of the question's evidence objects, metres."""
-    return np.mean([[o.x, o.y] for o in (env.house.object(e) for e in q.evidence)], axis=0)
-
-
-def evidence_distance(env: SyntheticEnv, q: Question) -> EvidenceDistance:
-    """Path distance to the evidence's views reachable from the start: the floor near it in its
-    own room(s) (a plain snap to the nearest floor cell can land behind a wall) and the oracle's
-    pose; a point off the navigable floor counts from the nearest navigable cell (see
-    explore/oracle.py). ``reachable`` is False when no view is reachable from the start."""
-    objects = [env.house.object(e) for e in q.evidence]
-    rooms = {(r.x0, r.y0, r.x1, r.y1) for r in (env.house.room(o.room_id) for o in objects)}
-    start = (env.house.start.x, env.house.start.y)
-    views = [q.oracle_pose[:2]] if q.oracle_pose else []
-    field_m = evidence_distance_field(env.grid, evidence_centre(env, q), ROBOT_RADIUS_M,
-                                      sorted(rooms), 2.0, start_xy=start, views=views)
-    return EvidenceDistance(env.grid, field_m, ROBOT_RADIUS_M)
-
-
-def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
-           to_budget: bool, methods: tuple[str, ...] = ("frontier-only", "sfe:oracle")) -> dict:
-    """Each method's episodes over ``repeats`` explorer seeds (SFE samples frontiers)."""
+def _steer(env: SyntheticEnv, q: Question, config: AgentConfig, budget: int, seed: int,
+           repeats: int, to_budget: bool,
+           methods: tuple[str, ...] = ("frontier-only", "sfe:oracle")) -> dict:
+    """Each method's episodes over ``repeats`` explorer seeds (SFE samples frontiers), run by
+    the agent with ``config``'s exploration options."""
     distance_m = evidence_distance(env, q)
 
     def seen(instance: np.ndarray) -> bool:
@@ -521,14 +389,15 @@ def _steer(env: SyntheticEnv, q: Question, budget: int, seed: int, repeats: int,
         steer = kind == "target"  # target:SCORER steers SFE by the target; target:frontier-only
         scorer = (None if "frontier-only" in (name, scorer_name)
                   else STEERING_SCORERS[scorer_name](env, q, distance_m, glimpsed))
-        explorer = "frontier-only" if scorer is None else "sfe"
+        method = replace(config, explorer="frontier-only" if scorer is None else "sfe",
+                         steering="target" if steer else "none", max_steps=budget)
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
                                                 "moves", "refused", "lost", "asked", "points",
                                                 "off_floor", "uninformed", "explored")}
         for r in range(repeats):
-            ep = run(env, explorer, budget, seed=seed * 1000 + r, scorer=scorer, seen=seen,
-                     coverage=True, distance_m=distance_m, to_budget=to_budget,
-                     question=q.question, steer=steer)
+            ep = explore_episode(env, replace(method, seed=seed * 1000 + r), q.question,
+                                 scorer=scorer, seen=seen, near=distance_m, coverage=True,
+                                 to_budget=to_budget)
             got["first_seen"].append(ep.first_seen)
             # Seeing implies having got near enough.
             got["near"].append(ep.first_near or ep.first_seen or budget + 1)
@@ -583,47 +452,21 @@ def main() -> None:
                              "SCORER one of " + ", ".join(STEERING_SCORERS) + ", and "
                              "reference:POLICY with POLICY one of "
                              + ", ".join(REFERENCE_POLICIES))
-    parser.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
-                        help="override a field of the explorer's config (repeatable), e.g. "
-                             "--set backoff_m=1.0")
-    parser.add_argument("--prompt", action="append", default=[], metavar="FIELD=VALUE",
-                        help="override a field of the prompt points' PromptConfig (repeatable); "
-                             "'--prompt paper' starts from DESIGN 3.3's (2-10 m, 1 m apart)")
+    parser.add_argument("--prompt", dest="prompts", default="default", choices=list(PROMPT_CONFIGS),
+                        help="where prompt points may lie: default, or paper (DESIGN 3.3's: "
+                             "2-10 m, 1 m apart); AgentConfig.prompts")
     parser.add_argument("--exploration", default="default", choices=list(EXPLORATIONS),
                         help="the frontier explorer's options beyond DESIGN 3.2: default, or "
                              "paper (every one off; with --stop-clearance 0 --refusal-retries 0 "
                              "--prompt paper: the paper preset)")
     parser.add_argument("--out", default="out/bench")
-    parser.add_argument("--explored-depth", type=float, default=None,
-                        help="metres along the optical axis within which floor counts as explored")
     parser.add_argument("--stop-clearance", type=float, default=None,
                         help="metres of map clearance the planner wants where a move ends "
                              "(default: the explorer's; 0: where the path is cut, as before)")
     parser.add_argument("--refusal-retries", type=int, default=None,
                         help="re-plans within a step after a refused move (default "
-                             f"{module_retries}; 0: a refused move spends the step, as before)")
-    parser.add_argument("--window", type=float, nargs=4, default=None,
-                        metavar=("U0", "U1", "V0", "V1"),
-                        help="explored window as image fractions (default: the Mapper's)")
+                             f"{REFUSAL_RETRIES}; 0: a refused move spends the step, as before)")
     args = parser.parse_args()
-    global WINDOW, EXPLORED_DEPTH, STOP_CLEARANCE, REFUSAL_RETRIES, PROMPTS, EXPLORATION
-    EXPLORATION = args.exploration
-    prompt: dict = {}
-    for item in args.prompt:
-        if item == "paper":
-            PROMPTS = PAPER_PROMPTS
-            continue
-        key, _, value = item.partition("=")
-        prompt[key] = json.loads(value)
-    PROMPTS = replace(PROMPTS, **prompt)
-    for item in args.set:
-        key, _, value = item.partition("=")
-        EXPLORER_CONFIG[key] = json.loads(value)
-    WINDOW = tuple(args.window) if args.window else None
-    EXPLORED_DEPTH = args.explored_depth
-    STOP_CLEARANCE = args.stop_clearance
-    if args.refusal_retries is not None:
-        REFUSAL_RETRIES = args.refusal_retries
     jobs = {"cost": cmd_cost, "coverage": cmd_coverage, "steering": cmd_steering, "table": cmd_table}
     jobs[args.job](args)
 

@@ -6,40 +6,34 @@ rendered on the CPU, no model: both episodes explore frontier-only (no semantic 
 default, or SFE with the ground-truth oracle values (``--method sfe``). Same house, question,
 start pose and explorer seed on both sides.
 
-    python benchmarks/map_picture.py --house 2003 --out docs/images/explore_before_after.png
+    python -m experiments.map_picture --house 2003 --out docs/images/explore_before_after.png
 """
 
 from __future__ import annotations
 
 import argparse
-import math
-import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from explore_bench import evidence_centre, evidence_distance  # noqa: E402  (the oracle set-up)
-
-from efficienteqa.agent import mapper_for
+from efficienteqa.agent import PAPER_CONFIG, AgentConfig
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
-from efficienteqa.explore.module import REFUSAL_RETRIES, ExploreModule, move
 from efficienteqa.explore.oracle import OracleScorer
-from efficienteqa.explore.prompting import PROMPT_CONFIGS
-from efficienteqa.explore.registry import EXPLORATIONS, make_explorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.visualize import map_image, world_to_image
 from efficienteqa.scenes import synthetic_questions
+from efficienteqa.stop.rules import env_step_budget
+from experiments.common import evidence_centre, evidence_distance, explore_episode, truth_floor
 
-# The two sides: the paper's machinery (DESIGN 3.2-3.3 with the paper's stepping) and the defaults.
+# The two sides: the paper's machinery (DESIGN 3.2-3.3 with the paper's stepping) and the defaults,
+# as the agent configures them (without the target steering: the picture is of the explorer).
 SIDES = {
-    "paper": {"explorer": {**EXPLORATIONS["paper"], "stop_clearance_m": 0.0}, "prompts": "paper",
-              "retries": 0},
-    "default": {"explorer": EXPLORATIONS["default"], "prompts": "default",
-                "retries": REFUSAL_RETRIES},
+    "paper": replace(AgentConfig(), exploration=PAPER_CONFIG.exploration,
+                     prompts=PAPER_CONFIG.prompts, stop_clearance_m=PAPER_CONFIG.stop_clearance_m,
+                     refusal_retries=PAPER_CONFIG.refusal_retries, steering="none"),
+    "default": AgentConfig(steering="none"),
 }
 SCALE = 4  # picture pixels per map cell
 
@@ -54,41 +48,23 @@ class Run:
     evidence_uv: tuple[float, float] = (0.0, 0.0)  # the evidence's centre in the picture
 
 
-def episode(env: SyntheticEnv, q: Question, side: dict, method: str, seed: int,
+def episode(env: SyntheticEnv, q: Question, side: AgentConfig, method: str, seed: int,
             budget: int) -> Run:
-    """One episode to the budget; the map picture of its last state."""
-    centre = evidence_centre(env, q)
-    start = (env.house.start.x, env.house.start.y)
+    """One episode to the budget (the agent's loop); the map picture of its last state."""
     scorer = None
     if method == "sfe":
         scorer = OracleScorer(evidence_distance(env, q),
                               lambda inst: any(evidence_visible(inst, [e], min_pixels=20)
                                                for e in q.evidence))
-    mapper = mapper_for(env, start)
-    explorer = make_explorer("sfe" if method == "sfe" else "frontier-only", **side["explorer"])
-    module = ExploreModule(mapper, explorer, scorer, seed=seed, prompts=PROMPT_CONFIGS[side["prompts"]])
-    xs, ys = mapper.spec.centres()
-    i, j = env.grid.spec.world_to_cell(np.stack([xs, ys], axis=-1))
-    inside = env.grid.spec.contains((i, j))
-    floor = np.zeros(xs.shape, bool)
-    floor[inside] = env.grid.free[i[inside], j[inside]]
-    run = Run()
-    obs, _ = env.reset()
-    out = None
-    for step in range(1, budget + 1):
-        run.steps = step
-        run.poses.append(obs.pose)
-        if run.first_seen is None and evidence_visible(obs.instance, q.evidence):
-            run.first_seen = step
-        out = module.step(obs, step, q.question)
-        if out.decision.done:
-            break
-        obs = move(env, module, obs.pose, out.decision, step, side["retries"]).obs
-    mapper.update(obs)
-    state = mapper.state((obs.pose.x, obs.pose.y))
-    run.coverage = state.explored_floor_share(floor)
-    run.image = map_image(state, trajectory=run.poses, scale=SCALE)
-    u, v = world_to_image(mapper.spec, centre, SCALE)
+    config = replace(side, explorer="sfe" if method == "sfe" else "frontier-only", seed=seed,
+                     max_steps=budget)
+    ep = explore_episode(env, config, q.question, scorer=scorer, to_budget=True,
+                         seen=lambda instance: evidence_visible(instance, q.evidence))
+    assert ep.state is not None  # an episode run to the budget ends with its map
+    run = Run(poses=ep.poses, first_seen=ep.first_seen, steps=ep.steps)
+    run.coverage = ep.state.explored_floor_share(truth_floor(env))
+    run.image = map_image(ep.state, trajectory=run.poses, scale=SCALE)
+    u, v = world_to_image(ep.state.spec, evidence_centre(env, q), SCALE)
     run.evidence_uv = (float(u), float(v))
     return run
 
@@ -113,7 +89,7 @@ def main() -> None:
     with SyntheticEnv.from_seed(args.house, "sh3d") as env:
         questions = [q for q in synthetic_questions(env) if q.evidence]
         q = next(x for x in questions if args.question in (None, x.id))
-        budget = int(math.sqrt(env.floor_area_m2) * 3)
+        budget = env_step_budget(env)
         runs = {name: episode(env, q, side, args.method, args.seed, budget)
                 for name, side in SIDES.items()}
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.6))

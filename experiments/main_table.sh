@@ -5,7 +5,7 @@
 # the rule judge only); then the table with paired differences against white-box ExploreEQA.
 # Runs resume: re-running continues (a run graded later by `efficienteqa judge` resumes too).
 #
-#   LIMIT=48 OUT=results/main-heldout benchmarks/main_table.sh
+#   LIMIT=48 OUT=results/main-heldout experiments/main_table.sh
 #
 # DATASET: another question set (e.g. synthetic:0-3). ARGS go to every `efficienteqa eval` (the CI test passes the small model and tiny episodes).
 # Back-ends: the offline default stack unless ARGS say otherwise (synthetic houses, semantic-

@@ -7,8 +7,8 @@ answer is graded here (``eval`` does that). Everything this benchmark reports is
 the answer: where the robot went, when the evidence was first in view (every evidence object
 with >= 250 px, as the oracle counts), where and why it stopped.
 
-    python benchmarks/seek_bench.py --split main --limit 48 --variant default --variant target
-    python benchmarks/seek_bench.py --split training --variant target --set gate=rules
+    python -m experiments.seek_bench --split main --limit 48 --variant default --variant target
+    python -m experiments.seek_bench --split training --variant target --set gate=rules
 
 Variants are named sets of ``AgentConfig`` fields (``VARIANTS``); ``--set FIELD=VALUE`` adds to
 every variant (``min_step=2`` goes to the stop config). Splits: ``training`` (houses 0-20, the

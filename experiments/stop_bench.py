@@ -21,8 +21,8 @@ file per house, under ``--out``.
 - steps saved: mean of (the walk's last step without a stop - the stop step) over all episodes,
   and the mean steps used / budget.
 
-    python benchmarks/stop_bench.py record --seeds 0-20 [--explorer frontier-only]
-    python benchmarks/stop_bench.py replay --seeds 0-20
+    python -m experiments.stop_bench record --seeds 0-20 [--explorer frontier-only]
+    python -m experiments.stop_bench replay --seeds 0-20
 """
 
 from __future__ import annotations

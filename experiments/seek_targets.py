@@ -4,7 +4,7 @@ Reads ``episodes.jsonl`` and, where the run folder still has them, each episode'
 ``episodes/*/episode.json`` (for the steps that showed the evidence); writes ``seek.json`` beside
 them, so the figures stay readable once the heavy episode folders are gone.
 
-    python benchmarks/seek_targets.py results/main-heldout/default [results/main-heldout/default-v1]
+    python -m experiments.seek_targets results/main-heldout/default [results/main-heldout/default-v1]
 
 Measures (questions with evidence unless said otherwise; the oracle's step counts are the
 synthetic split's): first sight / oracle (never seen counted as budget + 1), evidence never seen

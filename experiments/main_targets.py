@@ -3,7 +3,7 @@ ExploreEQA's (target <= 0.6) and its accuracy gain (target >= +10 points), paire
 questions both runs answered, each with a paired bootstrap 95% interval (scipy.stats.bootstrap:
 the differences as the report's paired columns, the ratio of mean steps by percentile).
 
-    python benchmarks/main_targets.py results/main-heldout/default results/main-heldout/explore-eqa
+    python -m experiments.main_targets results/main-heldout/default results/main-heldout/explore-eqa
 """
 
 from __future__ import annotations

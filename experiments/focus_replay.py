@@ -6,7 +6,7 @@ answer prompt are answered again by ``answer_token_probability(hinted=True)`` (t
 direct answer, which reads them through ``focus_views``), graded by the rule judge, and set
 beside the run's own answer. Only the answer call reaches the model (the local default).
 
-    python benchmarks/focus_replay.py out/e2e/default out/focus/default-focus.jsonl
+    python -m experiments.focus_replay out/e2e/default out/focus/default-focus.jsonl
 
 Rows are appended to the output JSONL (a re-run skips the episodes it holds).
 """

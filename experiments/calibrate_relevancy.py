@@ -17,7 +17,7 @@ The fit is then checked where it matters, on the z-rule: frontier-only trajector
 in houses 1020-1029, every question of the house scored along its house's trajectory, the
 stopper of DESIGN 3.4 run on raw cosine and on the calibrated probabilities.
 
-    python benchmarks/calibrate_relevancy.py [--random-poses 60] [--jitter 4] [--out out/calib]
+    python -m experiments.calibrate_relevancy [--random-poses 60] [--jitter 4] [--out out/calib]
 """
 
 from __future__ import annotations
@@ -33,20 +33,19 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 from scipy.special import expit
-from scipy.stats import rankdata
 
-from efficienteqa.agent import mapper_for
+from efficienteqa.agent import AgentConfig, StepRecord
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
-from efficienteqa.explore.module import ExploreModule
-from efficienteqa.explore.registry import make_explorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION
+from efficienteqa.observation import Observation
 from efficienteqa.perception.semantic import SemanticPerception
 from efficienteqa.relevancy.text import MiniLMScorer, line_features
 from efficienteqa.scenes import synthetic_questions
-from efficienteqa.stop.rules import RelevancyStopper, StopConfig, step_budget
+from efficienteqa.stop.rules import RelevancyStopper, StopConfig
+from experiments.common import auc, explore_episode
 
 FIT_SEEDS = range(1000, 1020)
 CHECK_SEEDS = range(1020, 1030)
@@ -122,13 +121,6 @@ def fit(feats: np.ndarray, y: np.ndarray, use_overlap: bool, l2: float = 1e-3) -
     return theta if use_overlap else np.array([theta[0], 0.0, theta[1]])
 
 
-def auc(scores: np.ndarray, y: np.ndarray) -> float:
-    pos = y > 0.5
-    ranks = rankdata(scores)
-    n1, n0 = int(pos.sum()), int((~pos).sum())
-    return float((ranks[pos].sum() - n1 * (n1 + 1) / 2) / (n1 * n0))
-
-
 def collect(seeds: range, scorer: MiniLMScorer, n_random: int, jitter: int
             ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     all_feats, labels, cats = [], [], []
@@ -162,21 +154,18 @@ def trajectories(seeds: range, scorer: MiniLMScorer, explorer_seeds: int) -> lis
         with SyntheticEnv.from_seed(seed) as env:
             qs = synthetic_questions(env)
             perception = SemanticPerception(env.scene_labels())
-            budget = step_budget(env.floor_area_m2)
             for es in range(explorer_seeds):
-                obs, _ = env.reset()
-                module = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)),
-                                       make_explorer("frontier-only"), None, seed=es)
                 frames: list[tuple[int, str, np.ndarray]] = []
-                for step in range(1, budget + 1):
-                    if obs.invalid_fraction < MAX_INVALID_FRACTION:
-                        frames.append((step, perception.relevancy_text(obs), obs.instance))
-                    out = module.step(obs, step)
-                    if out.decision.done or step == budget:
-                        break
-                    obs, _, _, _, info = env.step(out.decision.pose)
-                    if info["blocked"]:
-                        module.blocked((out.decision.pose.x, out.decision.pose.y))
+
+                def keep(record: StepRecord, obs: Observation, out: object,
+                         frames: list = frames, perception: SemanticPerception = perception) -> None:
+                    if record.valid:  # the frames the agent scores
+                        frames.append((record.step, perception.relevancy_text(obs), obs.instance))
+
+                # The agent's loop, frontier-only; a refused move spends the step.
+                explore_episode(env, AgentConfig(explorer="frontier-only", seed=es,
+                                                 refusal_retries=0, steering="none"),
+                                on_step=keep)
                 texts = [t for _, t, _ in frames]
                 for q in qs:
                     episodes.append({
@@ -235,7 +224,7 @@ def check(fits: dict[str, np.ndarray], scorer: MiniLMScorer, explorer_seeds: int
     y_check = np.concatenate([np.asarray(e["seen"], float) for e in episodes])
     for name, fn in sims.items():
         held_out = np.concatenate([fn(e["feats"]) for e in episodes])
-        print(f"{name:16s}: held-out AUC {auc(held_out, y_check):.4f} "
+        print(f"{name:16s}: held-out AUC {auc(held_out, y_check > 0.5):.4f} "
               f"({len(y_check)} pairs, {int(y_check.sum())} positive)")
     for name, fn in sims.items():
         rows = [simulate(e["steps"], fn(e["feats"]), e["seen"]) for e in episodes]
@@ -279,17 +268,17 @@ def main() -> None:
         pos, neg = p[y > 0.5], p[y < 0.5]
         print(f"{name:12s} A={params[0]:.3f} B={params[1]:.3f} C={params[2]:.3f}  "
               f"(cos-only: c={-params[2] / params[0]:.4f}, tau={1 / params[0]:.4f})  "
-              f"log-loss {ll:.4f}, AUC {auc(p, y):.4f}; p positives median "
+              f"log-loss {ll:.4f}, AUC {auc(p, y > 0.5):.4f}; p positives median "
               f"{np.median(pos):.3f}, negatives median {np.median(neg):.4f}, "
               f"p90 {np.percentile(neg, 90):.4f}, p99 {np.percentile(neg, 99):.3f}")
-    print(f"raw best-line cosine AUC {auc(cos, y):.4f}; positives median "
+    print(f"raw best-line cosine AUC {auc(cos, y > 0.5):.4f}; positives median "
           f"{np.median(cos[y > 0.5]):.3f}, negatives median {np.median(cos[y < 0.5]):.3f}")
     by_cat = {}
     for c in sorted(set(cats)):
         m = np.array([k == c for k in cats])
         if y[m].sum() and (1 - y[m]).sum():
-            by_cat[c] = (auc(cos[m], y[m]),
-                         auc(expit(frame_logit(fits["cos+overlap"], feats[m])), y[m]))
+            by_cat[c] = (auc(cos[m], y[m] > 0.5),
+                         auc(expit(frame_logit(fits["cos+overlap"], feats[m])), y[m] > 0.5))
     print("AUC by category (cos / cos+overlap): " + ", ".join(
         f"{c} {a:.3f}/{b:.3f}" for c, (a, b) in by_cat.items()))
     summary = {"fit_seeds": [FIT_SEEDS.start, FIT_SEEDS.stop - 1], "pairs": len(y),

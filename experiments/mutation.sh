@@ -4,8 +4,8 @@
 # mutant against the fast tests that reach it ([tool.mutmut] in pyproject.toml) and prints, per
 # file, the share of mutants killed: a test failed (or timed out) with the mutation in place.
 #
-#   benchmarks/mutation.sh                          # all four files
-#   benchmarks/mutation.sh "efficienteqa.stop.*"    # only mutants whose names match (mutmut run's patterns)
+#   experiments/mutation.sh                          # all four files
+#   experiments/mutation.sh "efficienteqa.stop.*"    # only mutants whose names match (mutmut run's patterns)
 #
 # JOBS (default 2) mutants run at once. Working files go to mutants/ (git-ignored), made afresh
 # each run; mutmut's own log is mutants/run.log, and `mutmut results` / `mutmut show NAME` list

@@ -12,7 +12,7 @@ category, the accuracy against that category's own majority prior. A failed epis
 wrong, as in ``eval.summary``. Also which letters the model chose against the correct ones, and
 how often it chose a filler ("(Do not choose this option)"). Writes ``RUN_DIR/closed_set.json``.
 
-    python benchmarks/hm_eqa_closed.py results/hm-eqa/blind-closed
+    python -m experiments.hm_eqa_closed results/hm-eqa/blind-closed
 
 The majority prior knows the answers of the whole set; it is the floor a letter-biased guesser
 reaches, not a method.
