@@ -56,51 +56,6 @@ def test_skip_idle_goes_up_close_instead_of_taking_the_same_view():
     assert not d.done and d.pose.x - pose.x == pytest.approx(1.5, abs=0.15)
 
 
-def room_behind_wall() -> tuple:
-    """A 10 x 6 m floor split by a wall at y = 3 m with a door at its +x end; the robot at
-    (2, 1.5). Unexplored: the -x part of the room over the wall (its frontier 3 m away in a
-    straight line, 14 m by path) and the +x part of the robot's room (4 m either way)."""
-    free = np.zeros((60, 100), dtype=bool)
-    free[1:-1, 1:-1] = True
-    free[29:31, :] = False  # the wall
-    free[29:31, 88:98] = True  # the door
-    explored = np.ones_like(free)
-    explored[31:, :30] = False
-    explored[:29, 60:] = False
-    return make_state(free, explored, (2.0, 1.5)), Pose2D(2.0, 1.5, 0.0)
-
-
-def test_path_distance_prefers_the_frontier_near_by_path():
-    state, pose = room_behind_wall()
-    over_the_wall = {}
-    for path_distance in (False, True):
-        explorer = spec_explorer(path_distance=path_distance, choice="best",
-                         frontier=FrontierConfig(distance_scale_m=3.0))
-        over_the_wall[path_distance] = explorer.decide(state, pose, None, 1).frontier.xy[1] > 3
-    assert over_the_wall == {False: True, True: False}
-
-
-def test_small_frontiers_weigh_less_but_are_still_chosen():
-    free = np.zeros((40, 100), dtype=bool)
-    free[1:-1, 1:-1] = True
-    explored = np.ones_like(free)
-    explored[18:20, 20:24] = False  # a 0.2 x 0.4 m hole 2 m away: one small frontier
-    explored[1:-1, 80:] = False  # the way on: the far end, 4 m away
-    state = make_state(free, explored, (4.0, 2.0))
-    pose = Pose2D(4.0, 2.0, math.pi)
-    weights = {}
-    for cells in (0, 10):
-        explorer = spec_explorer(small_frontier_cells=cells)
-        d = explorer.decide(state, pose, None, 1)
-        weights[cells] = (d.weights, np.array([f.size for f in d.frontiers]))
-    (plain, sizes), (small, _) = weights[0], weights[10]
-    assert (sizes < 10).any() and (sizes >= 10).any()
-    assert small == pytest.approx(np.where(sizes < 10, plain * 1e-3, plain))
-    explored[1:-1, 80:] = True  # only the hole is left: still chosen
-    explorer = spec_explorer(small_frontier_cells=10)
-    assert not explorer.decide(make_state(free, explored, (4.0, 2.0)), pose, None, 1).done
-
-
 def doorway() -> tuple:
     """Two 10 x 3 m rooms, a wall at y = 3 m with a 1 m door at x = 4-5 m; the robot at
     (8, 1.5) in the lower room. Of the upper room only x > 4 m is explored: its frontier lies
@@ -113,23 +68,6 @@ def doorway() -> tuple:
     explored = np.ones_like(free)
     explored[32:, :40] = False
     return make_state(free, explored, (8.0, 1.5)), Pose2D(8.0, 1.5, 0.0)
-
-
-def test_stand_on_path_stands_in_the_doorway_line_before_the_frontier():
-    state, pose = doorway()
-    targets = {}
-    for on_path in (False, True):
-        explorer = spec_explorer(stand_on_path=on_path)
-        d = explorer.decide(state, pose, None, 1)
-        targets[on_path] = (np.array(d.target_xy), np.array(d.frontier.xy))
-    paper, frontier = targets[False]
-    assert paper == pytest.approx(frontier + [1.5, 0.0])  # behind it, against its normal
-    on_path, _ = targets[True]
-    grid = state.island_grid
-    to_frontier = grid.distance_field(tuple(on_path), 0.25)
-    i, j = state.spec.world_to_cell(frontier)
-    assert on_path[1] < 3.5 and 4.0 < on_path[0] < 5.0  # in the doorway (y 3-3.2 m), facing in
-    assert to_frontier[i, j] == pytest.approx(1.5, abs=0.3)  # 1.5 m of path before it
 
 
 def test_approach_unreachable_heads_for_a_sliver_instead_of_ending():
@@ -176,9 +114,8 @@ def test_approach_unreachable_goes_on_after_every_frontier_was_looked_at():
 
 def test_the_paper_exploration_switches_every_option_off():
     paper = SFEConfig(**exploration_options("sfe", "paper"))
-    assert not (paper.skip_idle or paper.stand_on_path or paper.approach_unreachable
-                or paper.view_gain or paper.path_distance or paper.small_frontier_cells)
-    assert paper.choice == "sample" and paper.frontier == FrontierConfig()
+    assert not (paper.skip_idle or paper.approach_unreachable or paper.view_gain)
+    assert paper.frontier == FrontierConfig()
     assert exploration_options("random", "paper") == {}
     assert make_explorer("frontier-only", **exploration_options("frontier-only", "paper")
                          ).config == replace(paper, use_values=False)

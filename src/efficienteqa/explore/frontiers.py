@@ -260,18 +260,16 @@ def frontier_weight(r_unexplored: np.ndarray, r_free: np.ndarray, value: np.ndar
 
 def frontier_weights(state: MapState, frontiers: list[Frontier], pose: Pose2D,
                      values: np.ndarray | None, step: int,
-                     config: FrontierConfig = FrontierConfig(),
-                     distance_m: np.ndarray | None = None) -> np.ndarray:
-    """Weights (K,) of ``frontiers``; d is ``distance_m`` (K,) metres when given (e.g. path
-    lengths), else the Euclidean distance from the robot to each frontier point. Value terms
-    are off when ``values`` is None or step <= value_off_steps."""
+                     config: FrontierConfig = FrontierConfig()) -> np.ndarray:
+    """Weights (K,) of ``frontiers``; d is the Euclidean distance from the robot to each
+    frontier point. Value terms are off when ``values`` is None or step <= value_off_steps."""
     if not frontiers:
         return np.zeros(0)
     xy = np.array([f.xy for f in frontiers], dtype=float)
     normals = np.array([f.normal for f in frontiers], dtype=float)
     use_values = values is not None and step > config.value_off_steps
     feats = ray_features(state, xy, normals, values if use_values else None, config)
-    distance = np.linalg.norm(xy - pose.xy, axis=1) if distance_m is None else distance_m
+    distance = np.linalg.norm(xy - pose.xy, axis=1)
     return frontier_weight(feats["r_unexplored"], feats["r_free"], feats["value"],
                            feats["dir_value"], distance, close_and_facing(xy, normals, pose, config),
                            config)

@@ -62,19 +62,7 @@ class SFEConfig:
     # steering on training houses 0-3 (12 questions x 2 explorer seeds, frontier-only / oracle
     # SFE mean steps until the evidence is in view): paper explorer 28.2 / 22.4; the defaults below
     # (skip_idle, approach_unreachable, view_gain) 22.3 / 18.0, floor covered 63% -> 79%.
-    #
-    # The distance term d of the weight is the planned path length to the standing point
-    # (False: the straight line to the frontier, as the paper): a room behind a wall is not
-    # near. Not better on training houses 0-7 (frontier-only floor covered at the budget 67%
-    # -> 68% with distance_scale_m 3, within noise; 65% with choice "best" as well).
-    path_distance: bool = False
-    # Stand backoff_m of planned path before the frontier (on the way to it) instead of
-    # backoff_m behind it against its normal: a frontier seen through a doorway at an angle has
-    # a sideways normal, and the point behind it lies beside the doorway, facing the wall.
-    # Off: with the defaults, an earlier form (which also turned in place at frontiers nearer
-    # than backoff_m by path) saw the evidence later (oracle SFE 18.0 -> 21.1 steps); this
-    # form is not measured yet.
-    stand_on_path: bool = False
+    # Options measured and dropped: docs/exploration.md, "Tried and dropped".
     # When no frontier is left to choose (none has a reachable cell within max_stand_shift_m
     # of its standing point, as a sliver of floor seen through a doorway, or every one was
     # looked at max_looks times), head for the reachable cell nearest one's standing point,
@@ -89,28 +77,18 @@ class SFEConfig:
     view_range_m: float = 5.0
     view_half_deg: float = 40.0
     view_keep_share: float = 0.8
-    # "sample": draw a frontier in proportion to its weight (DESIGN 3.2); "best": the heaviest.
-    # Not better on training houses 0-7 (floor covered 69% either way, with skip_idle).
-    choice: str = "sample"
     # A decision that would take the same view again (stay within reached_m, turn less than
     # idle_turn_deg) counts as a look at its frontier and is made again (False: such a step
     # is spent, as the paper's loop would).
     skip_idle: bool = True
     idle_turn_deg: float = 30.0
     idle_retries: int = 4
-    # Frontiers of fewer cells than this (0: off) get their weight x small_frontier_factor:
-    # mostly floor hidden behind furniture, rarely the way into a room; still chosen when
-    # nothing bigger is reachable. Not better on training houses 0-7 (floor covered 69% -> 66%
-    # at 5 cells, with skip_idle).
-    small_frontier_cells: int = 0
-    small_frontier_factor: float = 1e-3
 
 
 # DESIGN 3.2's explorer: every SFEConfig option beyond it off (the paper preset; the stepping
 # options stop_clearance_m and the refusal retries are set apart, by AgentConfig).
-PAPER_SFE: dict[str, Any] = {"skip_idle": False, "stand_on_path": False,
-                             "approach_unreachable": False, "view_gain": False,
-                             "path_distance": False, "choice": "sample", "small_frontier_cells": 0}
+PAPER_SFE: dict[str, Any] = {"skip_idle": False, "approach_unreachable": False,
+                             "view_gain": False}
 
 
 @dataclass
@@ -201,17 +179,8 @@ class FrontierExplorer:
                                                    shift_m)
                 ok &= allowed
                 if ok.any():
-                    if cfg.path_distance:
-                        dist = grid.distance_field(start, radius, cfg.snap_m)
-                        stay.weights = weights = self._weights(
-                            state, frontiers, pose, values, step, looks,
-                            path_lengths(state, dist, stands, pose))
-                    k = self._choose(np.where(ok, weights, 0.0), ok)
-                    stand = stands[k]
-                    if cfg.stand_on_path and backoff[k] > 0:
-                        stand = self._approach(state, grid, start, reachable, radius,
-                                               np.asarray(frontiers[k].xy), backoff[k], stand)
-                    self._target = _Target(frontiers[k], stand, radius)
+                    k = sample_index(self._rng, np.where(ok, weights, 0.0), ok)
+                    self._target = _Target(frontiers[k], stands[k], radius)
                     break
             else:
                 stay.reason = "no reachable frontier"
@@ -250,41 +219,13 @@ class FrontierExplorer:
 
     # ----- helpers -------------------------------------------------------------------------
     def _weights(self, state: MapState, frontiers: list[Frontier], pose: Pose2D,
-                 values: np.ndarray | None, step: int, looks: np.ndarray,
-                 distance_m: np.ndarray | None = None) -> np.ndarray:
+                 values: np.ndarray | None, step: int, looks: np.ndarray) -> np.ndarray:
         """DESIGN 3.2 weights (K,), x ``looked_factor`` for frontiers already looked at."""
         cfg = self.config
-        weights = frontier_weights(state, frontiers, pose, values, step, cfg.frontier,
-                                   distance_m)
+        weights = frontier_weights(state, frontiers, pose, values, step, cfg.frontier)
         if self.prior is not None:
             weights = weights * self.prior(frontiers)
-        if cfg.small_frontier_cells:
-            small = np.array([f.size for f in frontiers]) < cfg.small_frontier_cells
-            weights = np.where(small, weights * cfg.small_frontier_factor, weights)
         return np.where(looks == 0, weights, weights * cfg.looked_factor)
-
-    def _approach(self, state: MapState, grid: OccupancyGrid, start: tuple[float, float],
-                  reachable: np.ndarray, radius_m: float, frontier_xy: np.ndarray,
-                  backoff_m: float, fallback: np.ndarray) -> np.ndarray:
-        """The point ``backoff_m`` metres of path before the reachable cell nearest the
-        frontier point, on the planned path to it: through a doorway, in the doorway's line
-        and in sight of the frontier. ``fallback`` when there is no such path or it is not
-        longer than ``backoff_m`` (the robot would only turn where it stands)."""
-        cells = np.argwhere(reachable)
-        xy = state.spec.cell_to_world(cells)
-        goal = xy[np.argmin(np.linalg.norm(xy - frontier_xy, axis=1))]
-        path = grid.shortest_path(start, (float(goal[0]), float(goal[1])), radius_m,
-                                  self.config.snap_m)
-        if path is None or path_length(path) <= backoff_m:
-            return fallback
-        return truncate_path(path[::-1], backoff_m)
-
-    def _choose(self, weights: np.ndarray, ok: np.ndarray) -> int:
-        """The frontier to head for: sampled in proportion to ``weights`` (DESIGN 3.2), or the
-        heaviest one with ``choice`` "best"."""
-        if self.config.choice == "best":
-            return int(np.argmax(np.where(ok, weights, -np.inf)))
-        return sample_index(self._rng, weights, ok)
 
     def _keep_target(self, state: MapState, cells: np.ndarray, reachable: np.ndarray,
                      pose: Pose2D) -> bool:
@@ -406,19 +347,6 @@ def idle(new: Pose2D, pose: Pose2D, within_m: float, turn_deg: float) -> bool:
     turn = abs(float(wrap_angle(new.yaw - pose.yaw)))
     return bool(np.hypot(new.x - pose.x, new.y - pose.y) <= within_m
                 and turn < math.radians(turn_deg))
-
-
-def path_lengths(state: MapState, dist: np.ndarray, stands: np.ndarray, pose: Pose2D
-                 ) -> np.ndarray:
-    """Path length (m) from the robot to each standing point (K, 2) on the distance field
-    ``dist`` (m, on ``state.spec``); the straight line where a point has no finite one."""
-    i, j = state.spec.world_to_cell(stands)
-    inside = state.spec.contains((i, j))
-    out = np.linalg.norm(stands - pose.xy, axis=1)
-    d = dist[np.clip(i, 0, dist.shape[0] - 1), np.clip(j, 0, dist.shape[1] - 1)]
-    use = inside & np.isfinite(d)
-    out[use] = d[use]
-    return out
 
 
 def sample_index(rng: np.random.Generator, weights: np.ndarray,
