@@ -167,7 +167,7 @@ AllowDownload = Annotated[bool | None, _option(BACKENDS,
 ExploreScorer = Annotated[str | None, _option(METHOD,
     help="Where the semantic values come from: auto (default: the VLM's verbalized confidence "
     "when it reads images or with token confidence, else direction-logit) | vlm | "
-    "direction-logit (no model: features of the direction texts) | nearest | keyword.",
+    "direction-logit (no model: features of the direction texts).",
     show_default=False)]
 Grouping = Annotated[str | None, _option(METHOD, help="How equivalent answers are grouped: llm "
                                               "(default) | rules.", show_default=False)]
