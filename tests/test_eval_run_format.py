@@ -21,7 +21,7 @@ from efficienteqa.eval.records import RUN_FILE, RUN_FORMAT, open_run, read_run, 
 from efficienteqa.eval.runner import manifest
 from efficienteqa.eval.summary import label
 from efficienteqa.presets import build_config, build_stack, fill, named_configuration
-from efficienteqa.stack import Stack
+from efficienteqa.stack import Stack, parse_vlm
 
 ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = ROOT / "results" / "main-heldout"
@@ -178,3 +178,63 @@ def _settings(config: AgentConfig) -> dict:
 
 def test_a_stack_left_to_its_defaults_is_the_one_typed_out():
     assert Stack() == Stack(temperature=0.0)
+
+
+# The stack's settings whose default was None ("the default decided elsewhere") until they
+# became values, each as the value it meant.
+STACK_DEFAULTS = {"device": "auto", "allow_download": False, "image_max_side": 512,
+                  "image_format": "auto"}
+
+
+def test_the_stacks_defaults_are_values_a_user_can_type():
+    assert Stack() == Stack(temperature=0.0, **STACK_DEFAULTS)  # type: ignore[arg-type]
+    assert build_stack({**LEFT_OUT, **STACK_DEFAULTS}) == build_stack(LEFT_OUT)
+    # "auto" leaves the format to the back-end: JPEG for an openai: server, PNG for the local one.
+    openai = Stack(vlm="openai:gpt-4o", perception="rgb")
+    assert parse_vlm(openai.vlm, images=True, **openai.server_options()).image_format is None
+    with pytest.raises(EfficientEQAError, match=r"auto \| png \| jpeg"):
+        parse_vlm(openai.vlm, images=True, image_format="webp")
+
+
+def test_a_format_1_run_that_did_not_record_the_stacks_defaults_reads_as_them(tmp_path):
+    run = json.loads((PUBLISHED / "default" / RUN_FILE).read_text())
+    assert not set(STACK_DEFAULTS) & set(run["stack"])  # the premise: recorded before they existed
+    assert upgrade(run)["stack"] == {**run["stack"], "temperature": 0.0, **STACK_DEFAULTS}
+    typed = main_table_spec("default", **STACK_DEFAULTS)
+    assert typed.stack == main_table_spec("default").stack
+    resume(published_copy(tmp_path, "default"), typed)
+
+
+@pytest.mark.parametrize("other", [{"device": "cpu"}, {"allow_download": True},
+                                   {"image_max_side": 256}, {"image_format": "jpeg"}])
+def test_another_stack_value_than_a_format_1_run_meant_is_another_run(tmp_path, other):
+    folder = published_copy(tmp_path, "default")
+    with pytest.raises(EfficientEQAError, match="holds a run with another stack"):
+        resume(folder, main_table_spec("default", **other))
+
+
+@pytest.mark.parametrize("form", [{}, {"format": RUN_FORMAT}])
+def test_a_run_that_recorded_none_for_the_stacks_defaults_resumes(tmp_path, form):
+    """None as format 1 wrote it, and as format 2 was first written (before these four became
+    values): both meant the defaults, and resume with the command that made them."""
+    spec = main_table_spec("default")
+    run = {**manifest(spec, 48), **form}
+    run["stack"] = {**run["stack"], **dict.fromkeys(STACK_DEFAULTS)}
+    if not form:
+        run = {k: v for k, v in run.items() if k not in ("format", "preset", "preset_config")}
+    assert upgrade(run)["stack"] == asdict(spec.stack)
+    (tmp_path / RUN_FILE).write_text(json.dumps(run))
+    resume(tmp_path, spec)
+    with pytest.raises(EfficientEQAError, match="another stack"):
+        resume(tmp_path, main_table_spec("default", device="cpu"))
+
+
+def test_an_openai_run_recorded_before_the_image_settings_sent_png():
+    """Before the image settings existed an openai: server was sent PNG; today's "auto" sends
+    it JPEG, so such a run reads as PNG (typing --image-format png resumes it)."""
+    stack = {k: v for k, v in asdict(Stack(vlm="openai:gpt-4o", perception="rgb")).items()
+             if k not in STACK_DEFAULTS}
+    assert upgrade({"stack": stack})["stack"]["image_format"] == "png"
+    assert upgrade({"stack": {**stack, "image_format": None}})["stack"]["image_format"] == "auto"
+    local = {k: v for k, v in asdict(Stack()).items() if k not in STACK_DEFAULTS}
+    assert upgrade({"stack": local})["stack"]["image_format"] == "auto"  # PNG either way

@@ -222,9 +222,11 @@ def test_a_users_method_is_not_told_the_answer(tmp_path):
 
 def test_every_default_is_a_value_but_those_whose_none_is_one_of_its_own():
     """Typing a default is the same run (run.json records values, DESIGN 6): no setting is None
-    for "a default decided elsewhere". A None left is a value of its own: ``max_steps``, the
-    scene's budget; the model server's options and the relevancy weights' folder, not sent or
-    not given. A new setting gets a value; runs recorded before it are read by records.upgrade."""
+    for "a default decided elsewhere"; a default that follows something else is a named value
+    ("auto": the relevancy device, the image format of the server). A None left is a value of
+    its own: ``max_steps``, the scene's budget; the server's timeout, retries and key variable
+    and the image detail, not sent (the back-end's own); the relevancy weights' folder, not
+    given. A new setting gets a value; runs recorded before it are read by records.upgrade."""
     import dataclasses
 
     from efficienteqa.stop.rules import StopConfig
@@ -235,9 +237,8 @@ def test_every_default_is_a_value_but_those_whose_none_is_one_of_its_own():
 
     assert none_by_default(AgentConfig) == {"max_steps"}
     assert none_by_default(StopConfig) == set()
-    assert none_by_default(Stack) == {"timeout_s", "retries", "api_key_env", "image_format",
-                                      "image_max_side", "image_detail", "device",
-                                      "relevancy_weights", "allow_download"}
+    assert none_by_default(Stack) == {"timeout_s", "retries", "api_key_env", "image_detail",
+                                      "relevancy_weights"}
 
 
 def test_run_json_records_what_an_agent_methods_episodes_ran_with():

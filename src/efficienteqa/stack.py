@@ -20,7 +20,9 @@ from efficienteqa.explore.module import SemanticScorer
 from efficienteqa.explore.text_scorers import (
     LOGIT_WEIGHTS,
     DirectionScorer,
+    KeywordDirections,
     LogitDirections,
+    NearestDirections,
 )
 from efficienteqa.explore.vlm_scorer import VLMScorer
 from efficienteqa.models.backends import CHAT_BACKENDS, ChatBackend, build_chat_model
@@ -36,6 +38,9 @@ from efficienteqa.vc.grouping import Grouper, LLMGrouper, RuleGrouper
 from efficienteqa.vc.parse import M
 
 MINILM_KINDS = ("minilm", "minilm-match")
+# The image format that follows the server: ChatBackend's own per-kind choice (jpeg for openai:
+# servers, png for the local one).
+IMAGE_FORMAT_AUTO = "auto"
 
 
 @dataclass(frozen=True)
@@ -49,8 +54,9 @@ class Stack:
 
     The model server's options (None: ``ChatBackend``'s default; see its docstring):
     ``timeout_s`` and ``retries`` of each call, ``api_key_env`` (the variable whose key is sent,
-    or "none"), ``image_format`` (png | jpeg), ``image_max_side`` (px) and ``image_detail``
-    (auto | low | high). ``server_options()`` gives them as ``parse_vlm``'s keywords.
+    or "none"), ``image_format`` (``IMAGE_FORMAT_AUTO`` | png | jpeg; auto: jpeg for openai:
+    servers, png for the local one), ``image_max_side`` (px) and ``image_detail`` (auto | low |
+    high). ``server_options()`` gives them as ``parse_vlm``'s keywords.
 
     The relevancy model's (``build_relevancy``): ``device`` (auto | cpu | cuda | cuda:N; auto:
     the GPU torch sees, in float16, else the CPU), ``relevancy_weights`` (a local folder with
@@ -66,12 +72,12 @@ class Stack:
     timeout_s: float | None = None
     retries: int | None = None
     api_key_env: str | None = None
-    image_format: str | None = None
-    image_max_side: int | None = None
+    image_format: str = IMAGE_FORMAT_AUTO
+    image_max_side: int = 512
     image_detail: str | None = None
-    device: str | None = None  # None: "auto"
+    device: str = "auto"
     relevancy_weights: str | None = None
-    allow_download: bool | None = None  # None: False
+    allow_download: bool = False
 
     def server_options(self) -> dict[str, Any]:
         return {"timeout_s": self.timeout_s, "retries": self.retries,
@@ -84,8 +90,9 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
               retries: int | None = None, api_key_env: str | None = None,
               image_format: str | None = None, image_max_side: int | None = None,
               image_detail: str | None = None) -> ChatBackend:
-    """The back-end of a VLM spec and the server options (None: ``ChatBackend``'s default);
-    a bad value fails here, in one line, before anything is built."""
+    """The back-end of a VLM spec and the server options (None, and an ``image_format`` of
+    ``IMAGE_FORMAT_AUTO``: ``ChatBackend``'s default); a bad value fails here, in one line,
+    before anything is built."""
     kind, _, rest = spec.partition(":")
     model, _, url = rest.partition("@")
     if kind not in CHAT_BACKENDS or not model:
@@ -100,9 +107,12 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
                                 fix="use e.g. --timeout-s 60")
     if retries is not None and retries < 0:
         raise EfficientEQAError(f"retries {retries} is negative", fix="use --retries 0 or more")
+    if image_format == IMAGE_FORMAT_AUTO:
+        image_format = None
     if image_format is not None and image_format not in IMAGE_FORMATS:
+        choices = " | ".join((IMAGE_FORMAT_AUTO, *IMAGE_FORMATS))
         raise EfficientEQAError(f"unknown image format {image_format!r}",
-                                fix=f"use --image-format {' or '.join(IMAGE_FORMATS)}")
+                                fix=f"use --image-format {choices}")
     if image_detail is not None and image_detail not in IMAGE_DETAILS:
         raise EfficientEQAError(f"unknown image detail {image_detail!r}",
                                 fix=f"use --image-detail {', '.join(IMAGE_DETAILS)}")
@@ -155,7 +165,7 @@ def check_stack(stack: Stack) -> None:
     if stack.relevancy in IMAGE_RELEVANCY:  # a GPU that is not here: now, not per episode
         from efficienteqa.relevancy.base import resolve_device
 
-        resolve_device(stack.device or "auto")
+        resolve_device(stack.device)
     if stack.relevancy in TEXT_RELEVANCY and stack.perception == "rgb":
         raise EfficientEQAError(
             f"relevancy scorer {stack.relevancy!r} reads text, but --perception rgb gives images",
@@ -199,14 +209,18 @@ GROUPINGS.register("llm", lambda model, relevancy: LLMGrouper(
 
 # Semantic scorers of the explore module (DESIGN 3.3, 8). "vlm" is the paper's:
 # the agent's own model with verbalized confidence (or token probabilities when the config asks
-# for them). "direction-logit" reads the semantic perception's direction texts without a model;
-# the direction experiment (experiments/direction_bench.py) chose it for the offline stack, whose
-# 1.5B text model gives the same confidences at every step, over the baselines it keeps.
+# for them). The others read the semantic perception's direction texts without a model; the
+# direction benchmark (benchmarks/direction_bench.py) chose "direction-logit" for the offline
+# stack, whose 1.5B text model gives the same confidences at every step.
 EXPLORE_SCORERS: Registry[SemanticScorer] = Registry("explore scorer")
 EXPLORE_SCORERS.register("vlm", lambda model, perception, config: VLMScorer(
     model, perception, confidence=config.confidence))
 EXPLORE_SCORERS.register("direction-logit", lambda perception, **_: DirectionScorer(
     LogitDirections(LOGIT_WEIGHTS, name="direction-logit"), perception))
+EXPLORE_SCORERS.register("nearest", lambda perception, **_: DirectionScorer(
+    NearestDirections(), perception))
+EXPLORE_SCORERS.register("keyword", lambda perception, **_: DirectionScorer(
+    KeywordDirections(), perception))
 OFFLINE_EXPLORE_SCORER = "direction-logit"
 EXPLORE_SCORER_LABELS = {
     "direction-logit": "direction-logit (no model: features of the direction texts, weights "
@@ -351,8 +365,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
         from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
         relevancy = VLMMatchScorer(recorder, perception.modality)
-    relevancy = relevancy or build_relevancy(stack.relevancy, stack.device or "auto",
-                                             stack.relevancy_weights, bool(stack.allow_download))
+    relevancy = relevancy or build_relevancy(stack.relevancy, stack.device,
+                                             stack.relevancy_weights, stack.allow_download)
     scorer_name = explore_scorer_name(stack, perception, config)
     scorer = (EXPLORE_SCORERS.build(scorer_name, model=recorder, perception=perception,
                                     config=config) if config.explorer == "sfe" else None)

@@ -47,8 +47,11 @@ FORMAT_1_NONE = {"refusal_retries": 3, "stop_clearance_m": 0.45, "answer_every_s
 # Settings added while format 1 was written, and what a run that did not record them ran with:
 # no answerability gate, no steering by the question's target (DESIGN 9).
 FORMAT_1_MISSING = {"gate": "none", "steering": "none"}
-# The stack's None: each call's own temperature, 0 for every call of a run.
-FORMAT_1_STACK_NONE = {"temperature": 0.0}
+# The stack's None (or a setting it did not record yet): each call's own temperature, 0 for
+# every call of a run; the relevancy model on the GPU torch sees, else the CPU; no download of
+# its weights; images at 512 px, as JPEG for openai: servers and PNG for the local one ("auto").
+FORMAT_1_STACK_NONE = {"temperature": 0.0, "device": "auto", "allow_download": False,
+                       "image_max_side": 512, "image_format": "auto"}
 
 
 @dataclass
@@ -178,20 +181,24 @@ def _read_manifest(run_file: Path) -> dict[str, Any]:
 def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
     """``manifest`` in the current format (``RUN_FORMAT``); a format-1 run's None settings, and
     the ones it did not record yet, become the values it ran with (``FORMAT_1_*``). A run
-    without ``preset_config`` (format 1) is labelled against today's defaults."""
-    if manifest.get("format", 1) >= RUN_FORMAT:
-        return manifest
+    without ``preset_config`` (format 1) is labelled against today's defaults. The stack's
+    Nones are read so in any format: format 2 was first written with None for the relevancy
+    device, the download switch and the image settings, which meant what they mean in format 1."""
     out = dict(manifest)
+    stack = out.get("stack")
+    if isinstance(stack, dict):
+        if "image_format" not in stack and str(stack.get("vlm", "")).startswith("openai:"):
+            stack = {**stack, "image_format": "png"}  # recorded before JPEG became openai:'s
+        out["stack"] = {**stack, **{k: v for k, v in FORMAT_1_STACK_NONE.items()
+                                    if stack.get(k) is None}}
+    if manifest.get("format", 1) >= RUN_FORMAT:
+        return out
     for key in ("config", "method_config"):
         config = out.get(key)
         if isinstance(config, dict):
             config = {**FORMAT_1_MISSING, **config}
             config.update({k: v for k, v in FORMAT_1_NONE.items() if config.get(k) is None})
             out[key] = config
-    stack = out.get("stack")
-    if isinstance(stack, dict):
-        out["stack"] = {**stack, **{k: v for k, v in FORMAT_1_STACK_NONE.items()
-                                    if stack.get(k) is None}}
     out["format"] = RUN_FORMAT
     return out
 
