@@ -209,6 +209,7 @@ def load_frames(path: str | Path) -> list[Frame]:
 # name -> factory() -> object with ``letter_scores(DirectionFrame) -> (scores, info)``
 def _scorers() -> dict[str, Callable[[], object]]:
     from efficienteqa.explore import text_scorers as ts
+    from experiments import direction_scorers as ds
 
     def model() -> object:
         from efficienteqa.models.backends import ChatBackend, build_chat_model
@@ -221,12 +222,12 @@ def _scorers() -> dict[str, Callable[[], object]]:
         return lambda: vs.ELICITATIONS[kind](model())
 
     out: dict[str, Callable[[], object]] = {
-        "random": lambda: ts.RandomDirections(seed=0),
-        "nearest": ts.NearestDirections,
-        "keyword": ts.KeywordDirections,
-        "minilm": lambda: ts.EmbeddingDirections.from_package(),
-        "minilm-parts": lambda: ts.EmbeddingDirections.from_package(parts=True),
-        "minilm-parts-near": lambda: ts.EmbeddingDirections.from_package(parts=True,
+        "random": lambda: ds.RandomDirections(seed=0),
+        "nearest": ds.NearestDirections,
+        "keyword": ds.KeywordDirections,
+        "minilm": lambda: ds.EmbeddingDirections.from_package(),
+        "minilm-parts": lambda: ds.EmbeddingDirections.from_package(parts=True),
+        "minilm-parts-near": lambda: ds.EmbeddingDirections.from_package(parts=True,
                                                                          near_weight=1.0),
         "direction-logit": lambda: ts.LogitDirections(ts.LOGIT_WEIGHTS, name="direction-logit"),
     }

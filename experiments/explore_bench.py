@@ -55,14 +55,20 @@ STEERING_SCORERS: dict[str, ScorerFactory] = {
 
 
 def _text_scorer(name: str) -> ScorerFactory:
-    """A model-free direction scorer of the offline stack (stack.EXPLORE_SCORERS) over the
-    semantic perception's direction texts (DESIGN 8)."""
+    """A model-free direction scorer over the semantic perception's direction texts (DESIGN 8):
+    the offline stack's (stack.EXPLORE_SCORERS) or a baseline of the direction experiment."""
     def factory(env: SyntheticEnv, q: Question, distance_m: EvidenceDistance,
                 glimpsed: Callable[[np.ndarray], bool]) -> SemanticScorer:
+        from efficienteqa.explore.text_scorers import DirectionScorer
         from efficienteqa.perception.semantic import SemanticPerception
         from efficienteqa.stack import EXPLORE_SCORERS
+        from experiments.direction_scorers import KeywordDirections, NearestDirections
 
-        return EXPLORE_SCORERS.build(name, perception=SemanticPerception(env.scene_labels()))
+        perception = SemanticPerception(env.scene_labels())
+        baselines = {"nearest": NearestDirections, "keyword": KeywordDirections}
+        if name in baselines:
+            return DirectionScorer(baselines[name](), perception)
+        return EXPLORE_SCORERS.build(name, perception=perception)
     return factory
 
 

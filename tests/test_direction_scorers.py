@@ -1,5 +1,6 @@
 """Direction scorers (DESIGN 8): the model-free text scorers, the black-box elicitations
-with a stub model, the explore scorer a stack picks, and the direction benchmark's labelling."""
+with a stub model, the explore scorer a stack picks, and the direction experiment's baselines
+(experiments/direction_scorers.py) and labelling."""
 
 from __future__ import annotations
 
@@ -14,9 +15,7 @@ from efficienteqa.explore.text_scorers import (
     LOGIT_WEIGHTS,
     DirectionFrame,
     DirectionScorer,
-    KeywordDirections,
     LogitDirections,
-    NearestDirections,
     direction_features,
     direction_rooms,
 )
@@ -33,6 +32,7 @@ from efficienteqa.models.stub import StubChatModel
 from efficienteqa.observation import PromptPoint
 from efficienteqa.perception.base import ExploreRequest
 from efficienteqa.stack import Stack, explore_scorer_name
+from experiments.direction_scorers import KeywordDirections, NearestDirections
 
 QUESTION = "What is on the desk in the office?"
 TEXTS = {

@@ -24,6 +24,9 @@ app.add_typer(scenes, name="scenes")
 models = typer.Typer(no_args_is_help=True,
                      help="Local language models (gguf from PyPI) and the llama.cpp server.")
 app.add_typer(models, name="models")
+perception = typer.Typer(no_args_is_help=True,
+                         help="Pixel perception: render its training frames, train its network.")
+app.add_typer(perception, name="perception")
 console = Console()
 
 
@@ -167,7 +170,7 @@ AllowDownload = Annotated[bool | None, _option(BACKENDS,
 ExploreScorer = Annotated[str | None, _option(METHOD,
     help="Where the semantic values come from: auto (default: the VLM's verbalized confidence "
     "when it reads images or with token confidence, else direction-logit) | vlm | "
-    "direction-logit (no model: features of the direction texts) | nearest | keyword.",
+    "direction-logit (no model: features of the direction texts).",
     show_default=False)]
 Grouping = Annotated[str | None, _option(METHOD, help="How equivalent answers are grouped: llm "
                                               "(default) | rules.", show_default=False)]
@@ -691,6 +694,104 @@ def models_status() -> None:
                                            + ("" if info.healthy() else " not answering"))
         table.add_row(name, f"yes, {entry.size_mb} MB" if is_installed(name) else "no", server)
     console.print(table)
+
+@perception.command("dataset")
+def perception_dataset(
+    seeds: str = typer.Option(..., help="House seeds, e.g. 3000-3199 (within 3000-3999, the "
+                              "houses reserved for perception; 3900-3909 validate)."),
+    out: Path = typer.Option(..., help="Output folder (shards and meta.json; runs merge)."),
+    frames_per_house: int = typer.Option(20, "--frames-per-house", help="Views per house."),
+    seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
+    workers: int = typer.Option(2, help="Rendering processes."),
+) -> None:
+    """Render RGB-D frames with per-pixel category, colour and state labels at half size."""
+    from efficienteqa.perception.pixels.dataset import parse_seeds, render_dataset
+
+    houses = parse_seeds(seeds)
+    start = time.perf_counter()
+    meta = render_dataset(houses, out, frames_per_house, seed, workers=workers)
+    console.print(f"{len(houses)} houses, {len(houses) * frames_per_house} frames in "
+                  f"{(time.perf_counter() - start) / 60:.1f} min -> {out} ({meta['frames']} "
+                  "frames in all)", highlight=False, soft_wrap=True)
+
+
+@perception.command("train")
+def perception_train(
+    data: Path = typer.Option(..., help="A folder written by 'perception dataset'."),
+    out: Path = typer.Option(Path("src/efficienteqa/perception/pixels/weights/pixels.pt"),
+                             help="The weights file (.pt; its .json is written beside it)."),
+    steps: int = typer.Option(4000, help="Optimiser steps (fixes the result with --seed)."),
+    seed: int = typer.Option(0, help="Seed of initialisation and crops."),
+    batch: int = typer.Option(8, help="Crops per step."),
+    minutes: float = typer.Option(90.0, help="Stop early after this long (a guard; recorded)."),
+    threads: int = typer.Option(2, help="Torch CPU threads."),
+) -> None:
+    """Train the pixel network on rendered frames; validate on houses 3900-3909."""
+    from efficienteqa.perception.pixels.train import TrainConfig, check_data, check_writable, train
+
+    if steps < 1 or batch < 1 or threads < 1:
+        raise EfficientEQAError("--steps, --batch and --threads must be at least 1")
+    check_data(data)
+    check_writable(out)
+    command = " ".join(["efficienteqa", "perception", "train", "--data", str(data), "--out",
+                        str(out), "--steps", str(steps), "--seed", str(seed), "--batch",
+                        str(batch), "--minutes", f"{minutes:g}", "--threads", str(threads)])
+    record = train(data, out, TrainConfig(steps=steps, seed=seed, batch=batch, minutes=minutes,
+                                          threads=threads), command=command)
+    val = record["validation"] or {}
+    figures = ", ".join(f"{k} {val[k]}" for k in ("pixel_accuracy", "mean_iou", "colour_accuracy",
+                                                  "state_accuracy") if val.get(k) is not None)
+    console.print(f"{record['steps_done']} steps in {record['minutes']:.1f} min -> {out}"
+                  + (f"; validation: {figures}" if figures else ""), highlight=False,
+                  soft_wrap=True)
+
+
+@perception.command("evaluate")
+def perception_evaluate(
+    seeds: str = typer.Option("100-129", help="Houses to measure on, e.g. 100-129 (the "
+                              "evaluation split); never the network's training houses."),
+    frames_per_house: int = typer.Option(8, "--frames-per-house", help="Views per house."),
+    seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
+    weights: Path | None = typer.Option(None, help="Weights to measure (default: the "
+                                        "committed ones)."),
+    out: Path | None = typer.Option(None, help="Write the figures here as JSON."),
+) -> None:
+    """Measure pixel perception against the semantic sensor on held-out houses: objects in view
+    found and right per category, size and distance; colour, state and the floor's room type."""
+    from rich.progress import Progress
+
+    from efficienteqa.perception.pixels.backend import PixelPerception
+    from efficienteqa.perception.pixels.evaluate import (
+        evaluate,
+        heldout_frames,
+        markdown_table,
+        parse_houses,
+        write_scores,
+    )
+    from efficienteqa.records import check_writable
+
+    houses = parse_houses(seeds)
+    if frames_per_house < 1:
+        raise EfficientEQAError("--frames-per-house must be at least 1")
+    if out is not None:
+        check_writable(out.parent)
+    perception = PixelPerception.load(weights)
+    total = len(houses) * frames_per_house
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("frames", total=total)
+        scores = evaluate(heldout_frames(houses, frames_per_house, seed), perception,
+                          progress=lambda n: bar.update(task, completed=n))
+    figures = scores.to_json()
+    if out is not None:
+        write_scores(scores, out, {"houses": f"{houses.start}-{houses.stop - 1}",
+                                   "frames_per_house": frames_per_house, "seed": seed,
+                                   "weights": str(weights or "committed")})
+    console.print(markdown_table(figures), highlight=False, soft_wrap=True)
+    console.print(f"{figures['frames']} frames of houses {houses.start}-{houses.stop - 1}; "
+                  f"floor room type {figures['floor_room_type']}; median "
+                  f"{figures['median_ms']} ms a frame" + (f" -> {out}" if out else ""),
+                  highlight=False, soft_wrap=True)
+
 
 def main() -> None:
     """Entry point: user-fixable errors become one red line and exit code 1."""

@@ -20,9 +20,7 @@ from efficienteqa.explore.module import SemanticScorer
 from efficienteqa.explore.text_scorers import (
     LOGIT_WEIGHTS,
     DirectionScorer,
-    KeywordDirections,
     LogitDirections,
-    NearestDirections,
 )
 from efficienteqa.explore.vlm_scorer import VLMScorer
 from efficienteqa.models.backends import CHAT_BACKENDS, ChatBackend, build_chat_model
@@ -209,18 +207,14 @@ GROUPINGS.register("llm", lambda model, relevancy: LLMGrouper(
 
 # Semantic scorers of the explore module (DESIGN 3.3, 8). "vlm" is the paper's:
 # the agent's own model with verbalized confidence (or token probabilities when the config asks
-# for them). The others read the semantic perception's direction texts without a model; the
-# direction benchmark (benchmarks/direction_bench.py) chose "direction-logit" for the offline
-# stack, whose 1.5B text model gives the same confidences at every step.
+# for them). "direction-logit" reads the semantic perception's direction texts without a model;
+# the direction experiment (experiments/direction_bench.py) chose it for the offline stack, whose
+# 1.5B text model gives the same confidences at every step, over the baselines it keeps.
 EXPLORE_SCORERS: Registry[SemanticScorer] = Registry("explore scorer")
 EXPLORE_SCORERS.register("vlm", lambda model, perception, config: VLMScorer(
     model, perception, confidence=config.confidence))
 EXPLORE_SCORERS.register("direction-logit", lambda perception, **_: DirectionScorer(
     LogitDirections(LOGIT_WEIGHTS, name="direction-logit"), perception))
-EXPLORE_SCORERS.register("nearest", lambda perception, **_: DirectionScorer(
-    NearestDirections(), perception))
-EXPLORE_SCORERS.register("keyword", lambda perception, **_: DirectionScorer(
-    KeywordDirections(), perception))
 OFFLINE_EXPLORE_SCORER = "direction-logit"
 EXPLORE_SCORER_LABELS = {
     "direction-logit": "direction-logit (no model: features of the direction texts, weights "
