@@ -6,7 +6,9 @@ and the objects pixel perception would describe (at the describer's own threshol
 predictions. An object in view is *found* when the predicted regions of its category cover at
 least half of its pixels; a predicted object is *right* when at least half of its pixels lie on
 true objects of its category. Colour and state are scored on found objects (the predicted object
-that overlaps it most), the room type of the floor on the true floor pixels. Everything is split
+that overlaps it most), the room type of the floor on the true floor pixels. Colour is scored
+twice: the colour head's majority (what the perception says) and the palette name of the
+region's median pixel (the alternative it was measured against). Everything is split
 by category, by size (furniture and small objects) and by distance (under 2 m, 2-4 m, beyond).
 """
 
@@ -15,16 +17,20 @@ from __future__ import annotations
 import json
 import time
 from collections import defaultdict
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from efficienteqa.envs.base import SceneLabels
+from efficienteqa.envs.synthetic.colours import colour_name
+from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import backproject
 from efficienteqa.observation import Observation
 from efficienteqa.perception.pixels.backend import PixelPerception
+from efficienteqa.perception.pixels.dataset import room_type_of
 from efficienteqa.perception.pixels.segment import FLOOR_TOLERANCE_M
 from efficienteqa.perception.semantic import VisibleObject, scaled_min_pixels, visible_objects
 
@@ -32,13 +38,6 @@ ORACLE_PIXELS = 250  # at 640x480: the oracle's "in view" (an evidence object th
 COVER = 0.5  # a true object is found when its category's predicted pixels cover this share
 NEAR_M, FAR_M = 2.0, 4.0
 SMALL_WITHIN_M = 3.0  # the small-object target counts objects this close
-
-
-def room_type(name: str | None) -> str | None:
-    """A room's type: "guest bedroom" is a bedroom (pixels cannot tell whose it is)."""
-    if name is None:
-        return None
-    return name[len("guest "):] if name.startswith("guest ") else name
 
 
 @dataclass
@@ -51,6 +50,7 @@ class Tally:
     predicted: int = 0
     right: int = 0
     colour: list[int] = field(default_factory=lambda: [0, 0])
+    colour_from_pixels: list[int] = field(default_factory=lambda: [0, 0])
     state: list[int] = field(default_factory=lambda: [0, 0])
 
     def add(self, other: Tally) -> None:
@@ -58,7 +58,8 @@ class Tally:
         self.found += other.found
         self.predicted += other.predicted
         self.right += other.right
-        for a, b in ((self.colour, other.colour), (self.state, other.state)):
+        for a, b in ((self.colour, other.colour), (self.state, other.state),
+                     (self.colour_from_pixels, other.colour_from_pixels)):
             a[0] += b[0]
             a[1] += b[1]
 
@@ -70,6 +71,7 @@ class Tally:
                                                                            self.predicted),
                 "objects": self.true, "predicted": self.predicted,
                 "colour": share(*self.colour), "colour_n": self.colour[1],
+                "colour_from_pixels": share(*self.colour_from_pixels),
                 "state": share(*self.state), "state_n": self.state[1]}
 
 
@@ -131,9 +133,12 @@ def score_frame(obs: Observation, truth: SceneLabels, perception: PixelPerceptio
         if tally.found:
             ids, counts = np.unique(seen.instance[mask & (pred_category == o.label.category)],
                                     return_counts=True)
-            best = predicted_labels.label(int(ids[counts.argmax()]))
+            best_id = int(ids[counts.argmax()])
+            best = predicted_labels.label(best_id)
             if best is not None and o.label.colour is not None:
                 tally.colour = [int(best.colour == o.label.colour), 1]
+                hue = colour_name(np.median(obs.rgb[seen.instance == best_id], axis=0) / 255.0)
+                tally.colour_from_pixels = [int(hue == o.label.colour), 1]
             if best is not None and o.label.state is not None:
                 tally.state = [int(best.state == o.label.state), 1]
         for key in _slices(o, small):
@@ -157,15 +162,37 @@ def _score_floor(obs: Observation, truth: SceneLabels, seen: Observation,
     floor = ((obs.instance[::k, ::k] == 0) & (obs.depth_m[::k, ::k] > 0)
              & (np.abs(points[..., 2]) < FLOOR_TOLERANCE_M))
     for x, y in points[floor][:, :2]:
-        want = room_type(truth.room_at(float(x), float(y)))
-        if want is None:
+        room = truth.room_at(float(x), float(y))
+        if room is None:
             continue
+        want = room_type_of(room)  # "guest bedroom" is a bedroom: pixels cannot tell whose
         scores.floor[1] += 1
         scores.floor[0] += int(predicted.room_at(float(x), float(y)) == want)
 
 
+def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0
+                   ) -> Iterator[tuple[Observation, SceneLabels]]:
+    """Frames of houses the network never saw, posed as its training frames are (random views,
+    views of loaded surfaces and of doors), with the houses' true labels."""
+    from efficienteqa.envs.synthetic.env import SyntheticEnv
+    from efficienteqa.perception.pixels.dataset import TRAIN_SEEDS, house_poses
+
+    trained = [s for s in seeds if s in TRAIN_SEEDS]
+    if trained:
+        raise EfficientEQAError(f"house {trained[0]} is a training house of the pixel network",
+                                fix=f"evaluate on houses outside {TRAIN_SEEDS.start}-"
+                                    f"{TRAIN_SEEDS.stop - 1}, e.g. the evaluation split 100-129")
+    for house in seeds:
+        rng = np.random.default_rng([seed, house])
+        with SyntheticEnv.from_seed(house) as env:
+            labels = env.scene_labels()
+            for _, pose in house_poses(env, frames_per_house, rng):
+                yield env.observe(pose), labels
+
+
 def evaluate(frames: Iterable[tuple[Observation, SceneLabels]], perception: PixelPerception,
-             small: frozenset[str], progress: Callable[[int], None] | None = None) -> Scores:
+             small: frozenset[str] = SMALL_CATEGORIES,
+             progress: Callable[[int], None] | None = None) -> Scores:
     scores = Scores()
     for n, (obs, truth) in enumerate(frames, start=1):
         score_frame(obs, truth, perception, small, scores)
@@ -178,3 +205,39 @@ def write_scores(scores: Scores, path: Any, about: dict[str, Any]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps({**about, **scores.to_json()}, indent=1) + "\n")
 
+
+
+def parse_houses(text: str) -> range:
+    """ "100-129" (inclusive) or "105" -> a range of house seeds; one-line error otherwise."""
+    lo_text, _, hi_text = text.strip().partition("-")
+    try:
+        lo = int(lo_text)
+        hi = int(hi_text) if hi_text else lo
+    except ValueError:
+        raise EfficientEQAError(f"cannot read the house seeds {text!r}",
+                                fix="give a range such as 100-129") from None
+    if hi < lo or lo < 0:
+        raise EfficientEQAError(f"the house seeds {text!r} are empty",
+                                fix="give a range such as 100-129")
+    return range(lo, hi + 1)
+
+
+def _pct(value: float | None) -> str:
+    return "-" if value is None else f"{100 * value:.0f}"
+
+
+def markdown_table(figures: dict[str, Any], min_objects: int = 10) -> str:
+    """The figures as a markdown table: every slice but single categories, then the categories
+    with at least ``min_objects`` true objects, commonest first."""
+    slices = figures["slices"]
+    head = ["| slice | objects | recall % | precision % | colour % (head) | colour % (pixels) "
+            "| state % |", "|---|---:|---:|---:|---:|---:|---:|"]
+
+    def row(name: str, f: dict[str, Any]) -> str:
+        return (f"| {name} | {f['objects']} | {_pct(f['recall'])} | {_pct(f['precision'])} | "
+                f"{_pct(f['colour'])} | {_pct(f['colour_from_pixels'])} | {_pct(f['state'])} |")
+
+    general = [row(k, f) for k, f in slices.items() if not k.startswith("category:")]
+    categories = sorted(((k, f) for k, f in slices.items() if k.startswith("category:")
+                         and f["objects"] >= min_objects), key=lambda kf: -kf[1]["objects"])
+    return "\n".join(head + general + [row(k[len("category:"):], f) for k, f in categories])

@@ -33,7 +33,8 @@ ROOM_CELL_M = 0.1  # floor points vote for their room on this grid
 ROOM_REACH_M = 1.0  # a point's room: the predicted floor within this distance
 DEPTH_JUMP = 0.08  # neighbours whose depths differ by more than this share are two objects
 MIN_REGION_PIXELS = 6  # at half size: smaller regions are noise (the describer lists >= 150/4)
-DOOR_SIDE_M = 1.5  # the floor this far around a door names the rooms on its sides
+DOOR_BEYOND_M = (0.5, 1.0, 2.0, 3.0)  # a door's far side: the first other room's floor this
+# far beyond it, along the line from the camera
 
 
 @dataclass(frozen=True)
@@ -188,7 +189,7 @@ def _door_sides(xy: np.ndarray, camera_xy: np.ndarray, rooms: FrameLabels) -> Do
     norm = float(np.hypot(*toward))
     normal = toward / norm if norm > 1e-6 else np.array([1.0, 0.0])
     near = rooms.room_at(*(xy + 0.5 * normal))
-    far = rooms.room_at(*(xy - DOOR_SIDE_M * normal))
-    far = far if far != near else None
+    beyond = (rooms.room_at(*(xy - t * normal)) for t in DOOR_BEYOND_M)
+    far = next((r for r in beyond if r is not None and r != near), None)
     return DoorSides((near, far), float(xy[0]), float(xy[1]), (float(normal[0]),
                                                                 float(normal[1])))
