@@ -219,8 +219,6 @@ OFFLINE_EXPLORE_SCORER = "direction-logit"
 EXPLORE_SCORER_LABELS = {
     "direction-logit": "direction-logit (no model: features of the direction texts, weights "
                        "fitted on training houses)",
-    "nearest": "nearest (no model: the nearest prompted point)",
-    "keyword": "keyword (no model: question words in the direction texts)",
 }
 
 
