@@ -37,6 +37,17 @@ def test_missing_furniture_is_one_line_naming_the_fix(tmp_path):
     assert len(result.stdout.strip().splitlines()) == 1
 
 
+def test_models_install_refuses_an_unknown_model_before_anything_slow(tmp_path):
+    """Checked before the llama.cpp runtime is built or any weights are downloaded."""
+    import os
+
+    cache = tmp_path / "cache"
+    result = _run("models", "install", "no-such-model", env={**os.environ, "EFFICIENTEQA_CACHE": str(cache)})
+    assert result.returncode == 1 and "unknown local model 'no-such-model'" in result.stdout
+    assert "Traceback" not in result.stdout + result.stderr
+    assert not (cache / "wheels").exists() and not (cache / "models").exists()
+
+
 def test_ask_with_a_bad_scene_start_or_model_is_one_line():
     for args, message in ((["--scene", "hm3d:00800"], "needs Habitat-Sim"),
                           (["--scene", "mp3d:17DRP5sb8fy"], "unknown scene"),

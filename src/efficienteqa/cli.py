@@ -628,10 +628,17 @@ def models_install(
     names: list[str] = typer.Argument(None, help="Models to install (default: qwen2.5-coder-1.5b)."),
     all_models: bool = typer.Option(False, "--all", help="Install every registered model."),
 ) -> None:
-    """Download, assemble and verify model files into the cache (idempotent)."""
-    from efficienteqa.models.local import DEFAULT_MODEL, LOCAL_MODELS, install_model
+    """Download, assemble and verify model files into the cache, and make the llama.cpp
+    runtime that serves them importable (built once, 4-5 min, when no wheel is cached); idempotent."""
+    from efficienteqa.models.local import DEFAULT_MODEL, LOCAL_MODELS, ensure_llama_cpp, install_model
 
     chosen = list(LOCAL_MODELS) if all_models else (names or [DEFAULT_MODEL])
+    unknown = [name for name in chosen if name not in LOCAL_MODELS]
+    if unknown:  # before anything slow
+        raise EfficientEQAError(f"unknown local model {unknown[0]!r}",
+                                fix=f"choose one of: {', '.join(LOCAL_MODELS)}")
+    # The runtime first: a missing compiler is one line before a gigabyte is downloaded.
+    ensure_llama_cpp(progress=True)
     for name in chosen:
         start = time.perf_counter()
         path = install_model(name, progress=True)
