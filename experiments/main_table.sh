@@ -35,7 +35,9 @@ run frontier-only --preset frontier-only
 run random --preset random
 run blind --preset blind
 run paper --preset paper-offline
-RUNS=("$OUT/default" "$OUT/paper" "$OUT/explore-eqa" "$OUT/explore-eqa-blackbox"
+run pixels --preset pixels
+run paper-pixels --preset paper-offline-pixels
+RUNS=("$OUT/default" "$OUT/pixels" "$OUT/paper" "$OUT/paper-pixels" "$OUT/explore-eqa" "$OUT/explore-eqa-blackbox"
       "$OUT/explore-eqa-verbalized-prompt" "$OUT/explore-eqa-per-token" "$OUT/frontier-only"
       "$OUT/random" "$OUT/blind")
 "$EQA" report "${RUNS[@]}" --paired-against "$OUT/explore-eqa" --markdown || status=1

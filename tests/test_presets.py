@@ -122,6 +122,10 @@ MAIN_TABLE_ROWS = {
                       # the defaults the paper's algorithm also names
                       "z_th": 3.0, "top_k": 5, "grouping": "llm"},
 }
+# The rows with pixel perception: the default and paper rows, seeing through the network.
+MAIN_TABLE_ROWS["pixels"] = {**MAIN_TABLE_ROWS["default"], "perception": "pixels"}
+MAIN_TABLE_ROWS["paper-offline-pixels"] = {**MAIN_TABLE_ROWS["paper-offline"],
+                                           "perception": "pixels"}
 # What `--preset paper` sets besides the paper's algorithm: its back-ends and question set.
 PAPER_BACKENDS = {"dataset": "hm-eqa", "limit": 100, "env": "habitat",
                   "vlm": "openai:gpt-4o-2024-05-13", "temperature": 1.0, "perception": "rgb",
