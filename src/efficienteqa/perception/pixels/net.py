@@ -150,23 +150,32 @@ def half_size(rgb: np.ndarray, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndar
     block's lower-right pixel (the pixel ``[1::2, 1::2]`` that labels are read at)."""
     h, w = depth_m.shape
     h2, w2 = h // 2, w // 2
-    blocks = rgb[:2 * h2, :2 * w2].reshape(h2, 2, w2, 2, 3).astype(np.uint16).sum(axis=(1, 3))
-    return ((blocks + 2) // 4).astype(np.uint8), depth_m[1:2 * h2:2, 1:2 * w2:2]
+    blocks = rgb[0:2 * h2:2, 0:2 * w2:2].astype(np.uint16)
+    blocks += rgb[1:2 * h2:2, 0:2 * w2:2]
+    blocks += rgb[0:2 * h2:2, 1:2 * w2:2]
+    blocks += rgb[1:2 * h2:2, 1:2 * w2:2]
+    blocks += 2
+    blocks >>= 2
+    return blocks.astype(np.uint8), depth_m[1:2 * h2:2, 1:2 * w2:2]
 
 
 def to_input(rgb: np.ndarray, depth_m: np.ndarray) -> torch.Tensor:
     """(H, W, 3) uint8 and (H, W) metres (or a batch of each) -> (B, 4, H, W) float32."""
-    rgb_t = torch.from_numpy(np.ascontiguousarray(rgb)).float().div_(255.0)
-    depth_t = torch.from_numpy(np.ascontiguousarray(depth_m, dtype=np.float32))
-    depth_t = torch.nan_to_num(depth_t, nan=0.0, posinf=0.0).clamp_(min=0.0).div_(DEPTH_SCALE_M)
-    if rgb_t.ndim == 3:
-        rgb_t, depth_t = rgb_t[None], depth_t[None]
-    return torch.cat([rgb_t.permute(0, 3, 1, 2), depth_t[:, None]], 1)
+    if rgb.ndim == 3:
+        rgb, depth_m = rgb[None], depth_m[None]
+    b, h, w = depth_m.shape
+    x = np.empty((b, 4, h, w), np.float32)
+    np.multiply(rgb.transpose(0, 3, 1, 2), np.float32(1 / 255), out=x[:, :3], casting="unsafe")
+    depth = np.nan_to_num(np.asarray(depth_m, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+    np.multiply(np.maximum(depth, 0.0), np.float32(1 / DEPTH_SCALE_M), out=x[:, 3])
+    return torch.from_numpy(x)
 
 
 class Prediction(NamedTuple):
     """Per-pixel outputs at half the frame's size: category, colour and state indices (state 0 =
-    no state, k = ``states[k - 1]``) and the category's softmax probability."""
+    no state, k = ``states[k - 1]``) and the category's softmax probability. The category is the
+    argmax of the logits upsampled bilinearly; colour, state and confidence are read at the heads'
+    resolution (a quarter of the pixels) and repeated 2x2."""
 
     category: np.ndarray
     colour: np.ndarray
@@ -178,18 +187,20 @@ def predict(net: PixelNet, rgb: np.ndarray, depth_m: np.ndarray) -> Prediction:
     """Run the network on one full-size frame (H, W, 3 uint8; H, W metres)."""
     small_rgb, small_depth = half_size(rgb, depth_m)
     net.eval()
-    size = small_depth.shape
+    h, w = small_depth.shape
     with torch.inference_mode():
         cat_half, col, state = net.half_logits(to_input(small_rgb, small_depth))
         # channels-last makes the per-pixel max over ~100 categories a contiguous reduction
-        cat = _up(cat_half.contiguous(memory_format=torch.channels_last), size)
-        category = cat.max(1).indices[0]
-        # the confidence is read at the heads' resolution and upsampled (a quarter of the work)
-        prob = _up(torch.softmax(cat_half, 1).amax(1, keepdim=True), size)
-        return Prediction(category.numpy().astype(np.uint8),
-                          _up(col, size)[0].argmax(0).numpy().astype(np.uint8),
-                          _up(state, size)[0].argmax(0).numpy().astype(np.uint8),
-                          prob[0, 0].numpy().astype(np.float16))
+        cat = _up(cat_half.contiguous(memory_format=torch.channels_last), (h, w))
+        category = cat.max(1).indices[0].numpy().astype(np.uint8)
+        prob = torch.softmax(cat_half[0], 0).amax(0).numpy().astype(np.float16)
+        colour = col[0].argmax(0).numpy().astype(np.uint8)
+        states = state[0].argmax(0).numpy().astype(np.uint8)
+
+    def full(a: np.ndarray) -> np.ndarray:
+        return np.repeat(np.repeat(a, 2, 0), 2, 1)[:h, :w]
+
+    return Prediction(category, full(colour), full(states), full(prob))
 
 
 # -- weights on disk ----------------------------------------------------------------------------
