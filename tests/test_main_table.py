@@ -12,8 +12,9 @@ import pytest
 from conftest import needs_egl, needs_small_model
 
 ROOT = Path(__file__).resolve().parents[1]
-RUNS = ("default", "paper", "explore-eqa", "explore-eqa-blackbox", "explore-eqa-verbalized-prompt",
-        "explore-eqa-per-token", "frontier-only", "random", "blind")
+RUNS = ("default", "pixels", "paper", "paper-pixels", "explore-eqa", "explore-eqa-blackbox",
+        "explore-eqa-verbalized-prompt", "explore-eqa-per-token", "frontier-only", "random", "blind")
+PRESET_OF = {"paper": "paper-offline", "paper-pixels": "paper-offline-pixels"}  # the rest: own name
 
 
 @needs_egl
@@ -54,14 +55,15 @@ def test_the_main_table_runs_every_method_on_two_questions(tmp_path, small_model
 
 def test_every_row_is_a_shipped_configuration():
     """The rows name presets (configs/NAME.toml) instead of spelling out flag lists;
-    the paper row is the paper's algorithm on the offline stack."""
+    the paper row is the paper's algorithm on the offline stack, and each of the two has a row
+    seeing through the pixel network."""
     import re
 
     from efficienteqa.presets import preset_names
 
     script = (ROOT / "experiments" / "main_table.sh").read_text()
     rows = dict(re.findall(r"^run (\S+) --preset (\S+)$", script, flags=re.M))
-    assert set(rows) == set(RUNS) and rows["paper"] == "paper-offline"
-    assert all(preset == name for name, preset in rows.items() if name != "paper")
+    assert set(rows) == set(RUNS)
+    assert all(preset == PRESET_OF.get(name, name) for name, preset in rows.items())
     assert set(rows.values()) <= set(preset_names())
     assert not re.search(r"^run .*--(?!preset)", script, flags=re.M)  # no flag lists

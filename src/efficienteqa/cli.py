@@ -800,6 +800,24 @@ def perception_evaluate(
                   highlight=False, soft_wrap=True)
 
 
+@perception.command("table")
+def perception_table(
+    figures: Path = typer.Argument(..., help="A JSON file written by 'perception evaluate "
+                                   "--out'."),
+) -> None:
+    """Print the figures of a pixel-perception evaluation as the markdown table docs/perception.md
+    holds (a test checks the two agree)."""
+    import json
+
+    from efficienteqa.perception.pixels.evaluate import markdown_table
+
+    try:
+        data = json.loads(figures.read_text())
+    except (OSError, ValueError) as exc:
+        raise EfficientEQAError(f"cannot read {figures}: {exc}") from None
+    print(markdown_table(data))
+
+
 def main() -> None:
     """Entry point: user-fixable errors become one red line and exit code 1."""
     try:

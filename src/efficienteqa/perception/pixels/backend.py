@@ -48,9 +48,10 @@ class PixelPerception(SemanticPerception):
         net, vocabulary, _ = load_weights(weights or WEIGHTS)
 
         def classify(rgb: np.ndarray, depth_m: np.ndarray) -> PixelClasses:
-            category, colour, state = predict(net, rgb, depth_m)[:3]
+            category, colour, state, confidence = predict(net, rgb, depth_m)
             return PixelClasses(category, colour, state, vocabulary.categories,
-                                vocabulary.colours, vocabulary.states)
+                                vocabulary.colours, vocabulary.states,
+                                confidence.astype(np.float32))
 
         return cls(classify)
 
