@@ -42,12 +42,13 @@ from efficienteqa.envs.synthetic.layout import ROOM_PROGRAM, SECOND_NAMES
 from efficienteqa.envs.synthetic.vocabulary import SURFACE_CATEGORIES, VOCABULARY
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D, backproject
-from efficienteqa.perception.pixels.net import FLOOR_PREFIX, IGNORE, VOID, WALL, Vocabulary, half_size
+from efficienteqa.perception.pixels.net import IGNORE, VOID, WALL, Vocabulary, half_size
+from efficienteqa.perception.pixels.segment import FLOOR_PREFIX
+from efficienteqa.perception.semantic import FLOOR_TOLERANCE_M
 
 PERCEPTION_SEEDS = range(3000, 4000)  # every house perception may train or tune on
 TRAIN_SEEDS = range(3000, 3900)
 VALIDATION_SEEDS = range(3900, 3910)
-FLOOR_TOLERANCE_M = 0.05  # structure this close to z = 0 is floor (as perception.semantic)
 STATES = ("on", "off", "open", "closed")
 SHARD_HOUSES = 5
 SURFACE_RANGE_M = (0.8, 1.6)

@@ -31,8 +31,12 @@ from efficienteqa.geometry import backproject
 from efficienteqa.observation import Observation
 from efficienteqa.perception.pixels.backend import PixelPerception
 from efficienteqa.perception.pixels.dataset import room_type_of
-from efficienteqa.perception.pixels.segment import FLOOR_TOLERANCE_M
-from efficienteqa.perception.semantic import VisibleObject, scaled_min_pixels, visible_objects
+from efficienteqa.perception.semantic import (
+    FLOOR_TOLERANCE_M,
+    VisibleObject,
+    scaled_min_pixels,
+    visible_objects,
+)
 
 ORACLE_PIXELS = 250  # at 640x480: the oracle's "in view" (an evidence object this large)
 COVER = 0.5  # a true object is found when its category's predicted pixels cover this share

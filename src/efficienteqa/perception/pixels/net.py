@@ -30,10 +30,10 @@ import torch.nn.functional as F
 from torch import nn
 
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.perception.pixels.segment import FLOOR_PREFIX
 
 DEPTH_SCALE_M = 5.0  # depth channel = metres / this
 VOID, WALL = 0, 1  # category indices of "no surface" and non-floor structure
-FLOOR_PREFIX = "floor:"
 IGNORE = 255  # label value the losses skip
 DEFAULT_WIDTHS = (16, 32, 48, 64, 96)  # stem (1/1), 1/2, 1/4, 1/8, 1/16
 WEIGHTS_FORMAT = 1

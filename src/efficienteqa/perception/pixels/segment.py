@@ -27,10 +27,9 @@ from scipy.spatial import cKDTree
 
 from efficienteqa.envs.base import DoorSides, ObjectLabel
 from efficienteqa.geometry import backproject
+from efficienteqa.perception.semantic import FLOOR_TOLERANCE_M, ROOM_CELL_M  # as the describer
 
-FLOOR_PREFIX = "floor:"
-FLOOR_TOLERANCE_M = 0.05  # as the semantic describer: floor pixels lie this close to z = 0
-ROOM_CELL_M = 0.1  # floor points vote for their room on this grid
+FLOOR_PREFIX = "floor:"  # the network's floor categories: "floor:<room type>"
 ROOM_REACH_M = 1.0  # a point's room: the predicted floor within this distance
 DEPTH_JUMP = 0.15  # neighbours whose depths differ by more than this share are two objects
 MIN_CONFIDENCE = 0.6  # regions whose mean category probability is lower are dropped

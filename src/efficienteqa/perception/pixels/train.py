@@ -30,7 +30,6 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.perception.pixels.dataset import VALIDATION_SEEDS, code_version, load_shards
 from efficienteqa.perception.pixels.net import (
     DEFAULT_WIDTHS,
-    FLOOR_PREFIX,
     IGNORE,
     VOID,
     WALL,
@@ -39,6 +38,7 @@ from efficienteqa.perception.pixels.net import (
     save_weights,
     to_input,
 )
+from efficienteqa.perception.pixels.segment import FLOOR_PREFIX
 
 MAX_CLASS_WEIGHT = 10.0  # category weights are 1/sqrt(frequency), mean pixel weight 1, capped
 SMALL_SHARE = 0.5  # share of crops centred on a small object
