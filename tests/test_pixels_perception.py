@@ -136,3 +136,16 @@ def test_a_region_is_cut_where_depth_jumps(monkeypatch):
     ids = sorted(set(np.unique(instance).tolist()) - {0, -1})
     assert len(ids) == 2
     assert {labels.label(i).category for i in ids} == {"chair"}
+
+
+def test_evaluate_refuses_training_houses_and_unreadable_seeds_before_any_work():
+    from typer.testing import CliRunner
+
+    from efficienteqa import cli
+
+    for seeds, said in (("3000-3010", "training house"), ("1o0-129", "cannot read"),
+                        ("129-100", "empty")):
+        result = CliRunner().invoke(cli.app, ["perception", "evaluate", "--seeds", seeds,
+                                              "--frames-per-house", "1"])
+        assert result.exit_code != 0
+        assert said in str(result.exception) + result.output, seeds
