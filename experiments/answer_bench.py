@@ -26,6 +26,7 @@ Graded by the rule judge. Per question a JSONL row is cached in ``--out`` (runs 
     python -m experiments.answer_bench run --seeds training --variant paper --per-category 4
     python -m experiments.answer_bench run --seeds held-out --variant token --per-category 6
     python -m experiments.answer_bench table out/answer_bench/held-out-direct.jsonl
+    python -m experiments.answer_bench run --seeds held-out --perception pixels --out F.jsonl
 
 Develop on the training houses (0-20); report the held-out houses (2000 and up).
 """
@@ -49,6 +50,7 @@ from efficienteqa.envs.synthetic.questions import CATEGORIES, Question, evidence
 from efficienteqa.eval.llm_match_rules import MAX_SCORE
 from efficienteqa.eval.synthetic_judge import rule_judgement
 from efficienteqa.geometry import Pose2D
+from efficienteqa.perception.pixels.backend import PixelPerception
 from efficienteqa.perception.semantic import SemanticPerception
 from efficienteqa.scenes import synthetic_questions
 from experiments.common import auc, seed_set
@@ -200,6 +202,7 @@ def cmd_run(args: argparse.Namespace) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     done = {r["id"]: r for r in map(json.loads, out.open())} if out.exists() else {}
     answerer, _ = build_answerer(args.variant)
+    pixels = PixelPerception.load() if args.perception == "pixels" else None
     rows, left_out = [], []
     with out.open("a") as fh:
         for env, q in questions(seed_set(args.seeds), args.per_category, args.assets):
@@ -207,7 +210,7 @@ def cmd_run(args: argparse.Namespace) -> None:
                 rows.append(done[q.id])
                 continue
             rng = np.random.default_rng(q.house_seed * 100 + int(q.id.rsplit("-", 1)[1]))
-            perception = SemanticPerception(env.scene_labels())
+            perception = pixels or SemanticPerception(env.scene_labels())
             got = evidence_frames(env, perception, q, args.extra, rng)
             if got is None:
                 left_out.append(q.id)
@@ -242,6 +245,8 @@ def main() -> None:
     run.add_argument("--per-category", type=int, default=6)
     run.add_argument("--extra", type=int, default=0, help="other frames of the house")
     run.add_argument("--assets", default="sh3d")
+    run.add_argument("--perception", choices=("semantic", "pixels"), default="semantic",
+                     help="what describes the frames: the labels, or the pixel network")
     run.add_argument("--out", default=None)
     run.set_defaults(func=cmd_run)
     table = sub.add_parser("table")
