@@ -10,8 +10,9 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from efficienteqa import cli
+from efficienteqa.datasets.synthetic import parse_seeds
 from efficienteqa.perception.pixels.dataset import TRAIN_SEEDS
-from efficienteqa.perception.pixels.evaluate import markdown_table, parse_houses
+from efficienteqa.perception.pixels.evaluate import markdown_table
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "results" / "perception" / "heldout.json"
@@ -29,7 +30,7 @@ def test_the_docs_table_is_generated_from_the_published_figures():
 
 def test_the_figures_come_from_houses_the_network_never_trained_on():
     figures = json.loads(FIGURES.read_text())
-    houses = parse_houses(figures["houses"])
+    houses = parse_seeds(figures["houses"])
     assert not set(houses) & set(TRAIN_SEEDS)
     assert figures["frames"] == len(houses) * figures["frames_per_house"]
     assert figures["slices"]["all"]["objects"] > 0

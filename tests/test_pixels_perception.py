@@ -144,7 +144,7 @@ def test_evaluate_refuses_training_houses_and_unreadable_seeds_before_any_work()
     from efficienteqa import cli
 
     for seeds, said in (("3000-3010", "training house"), ("1o0-129", "cannot read"),
-                        ("129-100", "empty")):
+                        ("129-100", "cannot read")):
         result = CliRunner().invoke(cli.app, ["perception", "evaluate", "--seeds", seeds,
                                               "--frames-per-house", "1"])
         assert result.exit_code != 0

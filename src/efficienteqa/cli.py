@@ -740,7 +740,9 @@ def perception_train(
         raise EfficientEQAError("--steps, --batch and --threads must be at least 1")
     check_data(data)
     check_writable(out)
-    command = " ".join(["efficienteqa", "perception", "train", "--data", str(data), "--out",
+    # DATA: the folder 'perception dataset' wrote (its houses are in the record's "data"); a
+    # path on this machine would mean nothing on another
+    command = " ".join(["efficienteqa", "perception", "train", "--data", "DATA", "--out",
                         str(out), "--steps", str(steps), "--seed", str(seed), "--batch",
                         str(batch), "--minutes", f"{minutes:g}", "--threads", str(threads)])
     record = train(data, out, TrainConfig(steps=steps, seed=seed, batch=batch, minutes=minutes,
@@ -767,17 +769,23 @@ def perception_evaluate(
     found and right per category, size and distance; colour, state and the floor's room type."""
     from rich.progress import Progress
 
+    from efficienteqa.datasets.synthetic import parse_seeds
     from efficienteqa.perception.pixels.backend import PixelPerception
     from efficienteqa.perception.pixels.evaluate import (
+        check_heldout,
         evaluate,
         heldout_frames,
         markdown_table,
-        parse_houses,
         write_scores,
     )
     from efficienteqa.records import check_writable
 
-    houses = parse_houses(seeds)
+    try:
+        houses = parse_seeds(seeds)
+    except ValueError as exc:
+        raise EfficientEQAError(f"cannot read the house seeds {seeds!r} ({exc})",
+                                fix="give a range such as 100-129") from None
+    check_heldout(houses)
     if frames_per_house < 1:
         raise EfficientEQAError("--frames-per-house must be at least 1")
     if out is not None:
@@ -790,11 +798,11 @@ def perception_evaluate(
                           progress=lambda n: bar.update(task, completed=n))
     figures = scores.to_json()
     if out is not None:
-        write_scores(scores, out, {"houses": f"{houses.start}-{houses.stop - 1}",
+        write_scores(scores, out, {"houses": seeds,
                                    "frames_per_house": frames_per_house, "seed": seed,
                                    "weights": str(weights or "committed")})
     console.print(markdown_table(figures), highlight=False, soft_wrap=True)
-    console.print(f"{figures['frames']} frames of houses {houses.start}-{houses.stop - 1}; "
+    console.print(f"{figures['frames']} frames of houses {seeds}; "
                   f"floor room type {figures['floor_room_type']}; median "
                   f"{figures['median_ms']} ms a frame" + (f" -> {out}" if out else ""),
                   highlight=False, soft_wrap=True)

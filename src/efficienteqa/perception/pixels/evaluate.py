@@ -30,7 +30,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import backproject
 from efficienteqa.observation import Observation
 from efficienteqa.perception.pixels.backend import PixelPerception
-from efficienteqa.perception.pixels.dataset import room_type_of
+from efficienteqa.perception.pixels.dataset import TRAIN_SEEDS, room_type_of
 from efficienteqa.perception.semantic import (
     FLOOR_TOLERANCE_M,
     VisibleObject,
@@ -174,18 +174,23 @@ def _score_floor(obs: Observation, truth: SceneLabels, seen: Observation,
         scores.floor[0] += int(predicted.room_at(float(x), float(y)) == want)
 
 
-def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0
-                   ) -> Iterator[tuple[Observation, SceneLabels]]:
-    """Frames of houses the network never saw, posed as its training frames are (random views,
-    views of loaded surfaces and of doors), with the houses' true labels."""
-    from efficienteqa.envs.synthetic.env import SyntheticEnv
-    from efficienteqa.perception.pixels.dataset import TRAIN_SEEDS, house_poses
-
+def check_heldout(seeds: Sequence[int]) -> None:
+    """One line, before any work, when a house is one the network trained on."""
     trained = [s for s in seeds if s in TRAIN_SEEDS]
     if trained:
         raise EfficientEQAError(f"house {trained[0]} is a training house of the pixel network",
                                 fix=f"evaluate on houses outside {TRAIN_SEEDS.start}-"
                                     f"{TRAIN_SEEDS.stop - 1}, e.g. the evaluation split 100-129")
+
+
+def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0
+                   ) -> Iterator[tuple[Observation, SceneLabels]]:
+    """Frames of houses the network never saw, posed as its training frames are (random views,
+    views of loaded surfaces and of doors), with the houses' true labels."""
+    from efficienteqa.envs.synthetic.env import SyntheticEnv
+    from efficienteqa.perception.pixels.dataset import house_poses
+
+    check_heldout(seeds)
     for house in seeds:
         rng = np.random.default_rng([seed, house])
         with SyntheticEnv.from_seed(house) as env:
@@ -209,21 +214,6 @@ def write_scores(scores: Scores, path: Any, about: dict[str, Any]) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps({**about, **scores.to_json()}, indent=1) + "\n")
 
-
-
-def parse_houses(text: str) -> range:
-    """ "100-129" (inclusive) or "105" -> a range of house seeds; one-line error otherwise."""
-    lo_text, _, hi_text = text.strip().partition("-")
-    try:
-        lo = int(lo_text)
-        hi = int(hi_text) if hi_text else lo
-    except ValueError:
-        raise EfficientEQAError(f"cannot read the house seeds {text!r}",
-                                fix="give a range such as 100-129") from None
-    if hi < lo or lo < 0:
-        raise EfficientEQAError(f"the house seeds {text!r} are empty",
-                                fix="give a range such as 100-129")
-    return range(lo, hi + 1)
 
 
 def _pct(value: float | None) -> str:
