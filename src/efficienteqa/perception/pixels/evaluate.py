@@ -34,7 +34,6 @@ from efficienteqa.perception.pixels.dataset import TRAIN_SEEDS, room_type_of
 from efficienteqa.perception.semantic import (
     FLOOR_TOLERANCE_M,
     VisibleObject,
-    scaled_min_pixels,
     visible_objects,
 )
 
@@ -120,15 +119,16 @@ def score_frame(obs: Observation, truth: SceneLabels, perception: PixelPerceptio
     scores.seconds.append(time.perf_counter() - start)
     scores.frames += 1
     h, w = obs.depth_m.shape
-    true_objects = [o for o in visible_objects(obs, truth, scaled_min_pixels(h, w)) if
-                    o.pixels >= max(4, round(ORACLE_PIXELS * h * w / (640 * 480)))]
+    every = visible_objects(obs, truth, 1)
+    oracle = max(4, round(ORACLE_PIXELS * h * w / (640 * 480)))
+    true_objects = [o for o in every if o.pixels >= oracle]
     predicted = visible_objects(seen, predicted_labels)
     assert seen.instance is not None
     pred_category = np.full((h, w), "", dtype=object)
     for p in predicted:
         pred_category[seen.instance == p.instance_id] = p.label.category
     true_category = np.full((h, w), "", dtype=object)
-    for o in visible_objects(obs, truth, 1):
+    for o in every:
         true_category[obs.instance == o.instance_id] = o.label.category
     for o in true_objects:
         mask = obs.instance == o.instance_id
