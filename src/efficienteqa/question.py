@@ -52,6 +52,9 @@ class Target:
     object: str | None = None
     support: str | None = None
     rooms: tuple[str, ...] = ()
+    # (the question's words, a perception's category) pairs known to name the same thing,
+    # resolved once per episode by meaning ("couch" -> "sofa"); ``is_a`` reads them.
+    aliases: tuple[tuple[str, str], ...] = ()
 
     @property
     def room(self) -> str | None:
@@ -62,9 +65,23 @@ class Target:
         """The object categories a view must show: the object, then its support."""
         return tuple(t for t in (self.object, self.support) if t)
 
+    def is_a(self, thing: str | None, category: str) -> bool:
+        """Whether the question's words ``thing`` (its object or support) name a perceived
+        object of ``category``: by the words themselves (``names``) or by a resolved alias.
+        The one match the gate, the steering, the sightings and the hints all use."""
+        if not thing:
+            return False
+        if names(thing, category):
+            return True
+        pair = (thing.lower(), category.lower())
+        return any((a.lower(), b.lower()) == pair for a, b in self.aliases)
+
     def as_dict(self) -> dict[str, Any]:
-        return {"kind": self.kind, "object": self.object, "support": self.support,
-                "rooms": list(self.rooms)}
+        out: dict[str, Any] = {"kind": self.kind, "object": self.object,
+                               "support": self.support, "rooms": list(self.rooms)}
+        if self.aliases:
+            out["aliases"] = [list(a) for a in self.aliases]
+        return out
 
 
 def canonical_room(words: str) -> str | None:

@@ -38,7 +38,7 @@ from efficienteqa.geometry import Pose2D, wrap_angle
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState
 from efficienteqa.perception.base import Sighting, Sightings
-from efficienteqa.question import Target, names
+from efficienteqa.question import Target
 
 CAMERA_HEIGHT_M = 1.5
 CONNECTORS = frozenset({"hallway"})  # rooms that lead to others: never ruled out
@@ -134,7 +134,7 @@ class TargetExplorer:
             self._add_thing(s)
 
     def _add_thing(self, s: Sighting) -> None:
-        if (self.target.object and names(self.target.object, s.category)
+        if (self.target.is_a(self.target.object, s.category)
                 and (self.target.room is None or s.room == self.target.room)):
             self._object_seen = True  # in the named room, as the frame says
         xy = np.asarray(s.xy, float)
@@ -260,7 +260,7 @@ class TargetExplorer:
         key = t.support if t.kind in ("identification", "count") and t.support else t.object
         if key is None:
             return []
-        return [x for x in self._things if names(key, x.category)
+        return [x for x in self._things if t.is_a(key, x.category)
                 and (t.room is None or x.room in (None, t.room) or t.object == "door")]
 
     def _inspect_distance(self, thing: _Thing) -> float:

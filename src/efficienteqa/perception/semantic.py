@@ -45,7 +45,7 @@ import numpy as np
 from efficienteqa.envs.base import ObjectLabel, SceneLabels
 from efficienteqa.geometry import backproject
 from efficienteqa.perception.base import ExploreRequest, Modality, Sighting, Sightings
-from efficienteqa.question import Target, names
+from efficienteqa.question import Target
 
 if TYPE_CHECKING:
     from efficienteqa.observation import Observation, PromptPoint
@@ -548,7 +548,7 @@ def sightings(obs: Observation, labels: SceneLabels, target: Target,
         here = labels.room_at(obs.pose.x, obs.pose.y)
         camera_xy = (float(obs.cam_to_world[0, 3]), float(obs.cam_to_world[1, 3]))
         for o in visible_objects(obs, labels, glimpse, noise):
-            if not any(names(t, o.label.category) for t in wanted):
+            if not any(target.is_a(t, o.label.category) for t in wanted):
                 continue
             mask = (obs.instance == o.instance_id) & (obs.depth_m > 0)
             rows, cols = np.nonzero(mask)

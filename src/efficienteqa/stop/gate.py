@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
-from efficienteqa.question import Target, names
+from efficienteqa.question import Target
 
 if TYPE_CHECKING:
     import numpy as np
@@ -100,7 +100,7 @@ class RulesGate:
         shown = [o for o in d.objects if in_room(o.where)]
         if target.kind == "identification":
             surfaces = [o for o in shown
-                        if target.support and names(target.support, o.label.category)]
+                        if target.is_a(target.support, o.label.category)]
             items = [o for b in surfaces for o in d.objects
                      if (o.on and b.label.category.lower() in o.on.lower()) or _beside(o, b)]
             if not items:
@@ -111,17 +111,17 @@ class RulesGate:
                 return Verdict(False, f"what is on the {target.support} is too small")
             return Verdict(True, f"{target.support} with something on it")
         if target.kind == "count":
-            group = [o for o in shown if target.object and names(target.object, o.label.category)]
+            group = [o for o in shown if target.is_a(target.object, o.label.category)]
             if not group:
                 return Verdict(False, f"no {target.object} in view")
             if room is not None and d.room != room:  # a doorway cuts a group: count from inside
                 return Verdict(False, f"{target.object} seen from outside the {room}")
             if target.support:
                 seen = self.perception.sightings(obs, target)
-                support = [s for s in seen.things if names(target.support, s.category)]
+                support = [s for s in seen.things if target.is_a(target.support, s.category)]
                 if not support or any(s.cut for s in support):
                     return Verdict(False, f"{target.support} not wholly in view")
-                members = [s.xy for s in seen.things if names(target.object or "", s.category)
+                members = [s.xy for s in seen.things if target.is_a(target.object, s.category)
                            and any(_near(s.xy, b.xy, GROUP_M) for b in support)]
                 shown_now = _merge([], members)
                 self._members = _merge(self._members, members)
@@ -130,7 +130,7 @@ class RulesGate:
                                           f"{target.object} seen around the {target.support}")
             return Verdict(True, f"{len(group)} {target.object} in view")
         thing = target.object or target.support or ""
-        hits = [o for o in shown if names(thing, o.label.category)]
+        hits = [o for o in shown if target.is_a(thing, o.label.category)]
         return Verdict(bool(hits), f"{thing} {'in view' if hits else 'not in view'}")
 
 
