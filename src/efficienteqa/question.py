@@ -55,6 +55,9 @@ class Target:
     # (the question's words, a perception's category) pairs known to name the same thing,
     # resolved once per episode by meaning ("couch" -> "sofa"); ``is_a`` reads them.
     aliases: tuple[tuple[str, str], ...] = ()
+    # Where no room is named: the rooms such an object is usually in, most likely first (a
+    # prior from the language model, never from the generator's catalogue); () when unknown.
+    likely_rooms: tuple[str, ...] = ()
 
     @property
     def room(self) -> str | None:
@@ -81,6 +84,8 @@ class Target:
                                "support": self.support, "rooms": list(self.rooms)}
         if self.aliases:
             out["aliases"] = [list(a) for a in self.aliases]
+        if self.likely_rooms:
+            out["likely_rooms"] = list(self.likely_rooms)
         return out
 
 
