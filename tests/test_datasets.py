@@ -209,7 +209,7 @@ def test_hm_eqa_offline_is_one_clear_line(monkeypatch):
 
 # -- dataset names --------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", ["synthetic:x", "synthetic:", "synthetic:3-1", "synthetic:-3",
-                                  "hm-eqa:1", "habitat", ""])
+                                  "hm-eqa:1", "habitat", "", "synthetic-paraphrase:1"])
 def test_bad_names_name_the_valid_forms(name):
     with pytest.raises(EfficientEQAError) as err:
         load_dataset(name)
@@ -217,7 +217,7 @@ def test_bad_names_name_the_valid_forms(name):
 
 
 def test_names_and_flags():
-    assert set(DATASETS) == {"synthetic", "synthetic:SEEDS", "hm-eqa"}
+    assert set(DATASETS) == {"synthetic", "synthetic-paraphrase", "synthetic:SEEDS", "hm-eqa"}
     assert synthetic.parse_seeds("3") == [3]
     assert synthetic.parse_seeds("0-9") == list(range(10))
     assert synthetic.parse_seeds("1,4,7") == [1, 4, 7]

@@ -52,11 +52,12 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         config: AgentConfig | None = None, start: Pose2D | None = None,
         on_step: StepHook | None = None, model: ChatModel | None = None,
         relevancy: RelevancyScorer | None = None, assets: str = DEFAULT_ASSETS,
-        report: bool = True) -> AskResult:
+        report: bool = True, known_as: str | None = None) -> AskResult:
     """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
     ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``
     (left open for the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests
-    inject stubs)."""
+    inject stubs). ``known_as``: the wording of the scene's own question that ``question``
+    re-phrases (the paraphrase split), whose evidence and reference the record then carries."""
     stack, config = stack or Stack(), config or AgentConfig()
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
     try:
@@ -70,7 +71,7 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         perception = built.agent.perception
         describe = (lambda obs: str(perception.frame(obs))) if perception.modality == "text" else None
         frames = FrameCollector(describe=describe)
-        truth = known_question(opened.questions, question)
+        truth = known_question(opened.questions, known_as or question)
         # Ground truth for the record only: the hook notes frames, the agent never sees them.
         watch = EvidenceWatch(truth.evidence if truth is not None else None)
 

@@ -186,6 +186,7 @@ Preset = Annotated[str | None, _option(METHOD, help=PRESET_HELP, show_default=Fa
 ConfigFile = Annotated[Path | None, _option(METHOD, "--config", metavar="FILE", help=CONFIG_HELP,
                                                  show_default=False)]
 Dataset = Annotated[str | None, _option(QUESTION, help="synthetic (the fixed split; default) | "
+                                             "synthetic-paraphrase (its first 48 re-phrased) | "
                                              "synthetic:SEEDS (e.g. synthetic:0-9) | hm-eqa.",
                                              show_default=False)]
 ClosedSet = Annotated[bool, _option(QUESTION, "--closed-set", help="HM-EQA's four-choice mode (all 500 "
@@ -308,14 +309,14 @@ def ask_command(
     check_stack(stack)
     parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature,
               **stack.server_options())
-    start_pose, habitat_start, reference = _parse_start(start), None, None
+    start_pose, habitat_start, reference, known_as = _parse_start(start), None, None, None
     check_writable(out)  # before the episode, not after it
     if episode is not None:
         from efficienteqa.datasets import find_question, load_dataset
 
         q = find_question(load_dataset(o["dataset"] or DEFAULT_DATASET, path=o["hm_eqa_path"],
                                        assets=assets), episode)
-        question, scene, reference = q.question, q.scene, q.answer
+        question, scene, reference, known_as = q.question, q.scene, q.answer, q.original_question
         habitat_start = HabitatStart.from_source(q.source)
         start_pose = start_pose or (Pose2D(*q.start) if q.start is not None else None)
     if not question:
@@ -338,7 +339,7 @@ def ask_command(
                 progress.update(task, completed=record.step, info=info)
 
             done = ask(question, opened, out, stack=stack, config=config,
-                       start=start_pose, on_step=on_step)
+                       start=start_pose, on_step=on_step, known_as=known_as)
     finally:
         opened.env.close()
     r, rec = done.result, done.record

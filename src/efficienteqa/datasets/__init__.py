@@ -1,6 +1,8 @@
 """Evaluation datasets by name: every one is read into a list of ``EvalQuestion``.
 
 - ``synthetic``: the fixed, versioned split of synthetic houses (package data, instant).
+- ``synthetic-paraphrase``: the split's first 48 questions (the main table) re-phrased by hand
+  the way people speak; same episodes and references, pairs with ``synthetic`` by id.
 - ``synthetic:SEEDS``: the questions of any houses ("synthetic:3", "synthetic:0-9",
   "synthetic:1,4,7"), generated live once and cached.
 - ``hm-eqa``: ExploreEQA's HM-EQA questions (open-vocabulary; ``closed_set`` for the A-D mode).
@@ -16,10 +18,11 @@ from efficienteqa.errors import EfficientEQAError
 
 DATASETS = {
     "synthetic": "the fixed, versioned synthetic split (package data; seeds 100 and up)",
+    "synthetic-paraphrase": "the main table's 48 questions re-phrased by hand (same episodes)",
     "synthetic:SEEDS": "live questions of any houses: synthetic:3, synthetic:0-9, synthetic:1,4,7",
     "hm-eqa": "HM-EQA (500 questions on HM3D; needs the Habitat back-end to run)",
 }
-_FIX = "use one of: synthetic, synthetic:3, synthetic:0-9, synthetic:1,4,7, hm-eqa"
+_FIX = "use one of: synthetic, synthetic-paraphrase, synthetic:3, synthetic:0-9, synthetic:1,4,7, hm-eqa"
 
 __all__ = ["DATASETS", "EvalQuestion", "find_question", "load_dataset"]
 
@@ -50,6 +53,14 @@ def load_dataset(name: str, *, path: Path | None = None, limit: int | None = Non
                                     f"{synthetic.SPLIT_ASSETS!r}, not {assets!r}",
                                     fix="use synthetic:SEEDS with these assets")
         questions = synthetic.load_split()
+    elif kind == "synthetic-paraphrase" and not colon:
+        from efficienteqa.datasets import synthetic
+
+        if assets != synthetic.SPLIT_ASSETS:
+            raise EfficientEQAError(f"the paraphrase split is defined for assets "
+                                    f"{synthetic.SPLIT_ASSETS!r}, not {assets!r}",
+                                    fix=f"use --assets {synthetic.SPLIT_ASSETS}")
+        questions = synthetic.load_paraphrase_split()
     elif kind == "synthetic":
         from efficienteqa.datasets import synthetic
 

@@ -21,7 +21,7 @@ class EvalQuestion:
     dataset has them (HM-EQA), empty otherwise. ``accepted``: every form of the answer a grader
     must accept, where the dataset knows them (synthetic questions; graded by the ``rule``
     judge), empty otherwise. ``source``: dataset-specific fields kept for the record (e.g.
-    HM-EQA's floor and Habitat start pose).
+    HM-EQA's floor and Habitat start pose; a re-phrased question's ``original``).
     """
 
     id: str
@@ -36,6 +36,13 @@ class EvalQuestion:
     choices: tuple[str, ...] = ()
     accepted: tuple[str, ...] = ()
     source: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+
+    @property
+    def original_question(self) -> str:
+        """The wording the references were written for: a re-phrasing's original
+        (``source["original"]["question"]``, the paraphrase split), else the question itself."""
+        original = self.source.get("original")
+        return str(original["question"]) if isinstance(original, dict) else self.question
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -9,6 +9,13 @@ Loading it is a file read; rendering houses happens only in the runner, which ca
 ``check_question`` to make sure the generator still produces each question (a split is only
 meaningful while it does).
 
+The split ``synthetic-paraphrase`` v1 (``synthetic_paraphrase_v1.jsonl``, written by hand) asks
+the main table's questions (the split's first 48) the way people speak: everyday synonyms,
+conversational openings, typos, relations to nearby things. Each row keeps its original's id,
+house, start, references and evidence (checked against the split on loading), so a run pairs
+with the original's by id; ``source["original"]`` holds the original's id and wording (which
+``check_question`` looks up), ``source["paraphrase_style"]`` the kind of re-phrasing.
+
 Seed ranges: 0-20 belong to development benchmarks and >= 1000 to calibration, so the split
 draws from 100-999. ``synthetic:SEEDS`` generates any houses live (about 5 s each) and caches
 their questions per seed, keyed by a digest of the generator's source.
@@ -22,6 +29,7 @@ import logging
 import os
 from collections import Counter
 from collections.abc import Iterable, Sequence
+from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -44,6 +52,11 @@ SPLIT_ASSETS = DEFAULT_ASSETS
 SPLIT_SEEDS = range(100, 1000)  # 0-20: development benchmarks; >= 1000: calibration
 LIVE_DATASET = "synthetic"
 HEADER_FORMAT = "efficienteqa-synthetic-split"
+PARAPHRASE_DATASET = f"synthetic-paraphrase-{SPLIT_VERSION}"
+PARAPHRASE_FILE = f"synthetic_paraphrase_{SPLIT_VERSION}.jsonl"
+PARAPHRASE_FORMAT = "efficienteqa-paraphrase-split"
+PARAPHRASE_STYLES = ("synonyms", "conversational", "typos", "relations")
+_PARAPHRASE_KEYS = frozenset({"original", "paraphrase_style"})  # what a re-phrasing adds to source
 REBUILD = "rebuild the split with scripts/make_synthetic_split.py under a new version"
 # What decides a house and its questions: the generator, the question rules, the oracle.
 _GENERATOR_SOURCES = ("envs/synthetic", "scenes.py", "geometry.py", "mapping/navgrid.py")
@@ -143,11 +156,11 @@ def select_split(questions: Sequence[Question], per_category: int, existence_no:
 
 
 # -- the fixed split ---------------------------------------------------------------------------
-def _split_lines() -> list[str]:
+def _split_lines(name: str = SPLIT_FILE) -> list[str]:
     try:
-        text = resources.files("efficienteqa.datasets").joinpath(SPLIT_FILE).read_text()
+        text = resources.files("efficienteqa.datasets").joinpath(name).read_text()
     except FileNotFoundError:
-        raise EfficientEQAError(f"the package file {SPLIT_FILE} is missing",
+        raise EfficientEQAError(f"the package file {name} is missing",
                                 fix="reinstall efficienteqa (package data must include *.jsonl)") from None
     return [line for line in text.splitlines() if line.strip()]
 
@@ -166,6 +179,31 @@ def load_split() -> list[EvalQuestion]:
     return [EvalQuestion.from_dict(json.loads(line)) for line in lines[1:]]
 
 
+def load_paraphrase_split() -> list[EvalQuestion]:
+    """The main table's questions re-phrased by hand, in the split's order (module docstring).
+
+    Fails unless every row is its original but for the wording and the dataset: a re-phrasing
+    whose references drifted from the split would be graded against another question.
+    """
+    lines = _split_lines(PARAPHRASE_FILE)
+    header = json.loads(lines[0])
+    if header.get("format") != PARAPHRASE_FORMAT or header.get("of") != SPLIT_DATASET:
+        raise EfficientEQAError(f"{PARAPHRASE_FILE} does not re-phrase {SPLIT_DATASET}",
+                                fix="write the paraphrase split again for the current split")
+    originals = {q.id: q for q in load_split()}
+    questions = [EvalQuestion.from_dict(json.loads(line)) for line in lines[1:]]
+    for q in questions:
+        original = originals.get(q.source.get("original", {}).get("id", ""))
+        extra = {k: v for k, v in q.source.items() if k not in _PARAPHRASE_KEYS}
+        if original is None or original.id != q.id or original.question != q.original_question \
+                or replace(q, dataset=original.dataset, question=original.question) != original \
+                or extra != original.source:
+            raise EfficientEQAError(f"{q.id} of {PARAPHRASE_FILE} is no longer a re-phrasing of "
+                                    f"{SPLIT_DATASET}'s question with the same references",
+                                    fix="write the paraphrase split again for the current split")
+    return questions
+
+
 def write_split(questions: Sequence[Question], header: dict[str, Any], path: Path) -> None:
     """Header line plus one EvalQuestion per line (the package file the loader reads)."""
     rows = [to_eval_question(q, SPLIT_DATASET, SPLIT_ASSETS).to_dict() for q in questions]
@@ -179,6 +217,7 @@ def write_split(questions: Sequence[Question], header: dict[str, Any], path: Pat
 def check_question(scene: Scene, question: EvalQuestion) -> None:
     """Fail unless ``scene`` (``scenes.open_scene(question.scene)``) still generates the question
     with the same answer: a split from another generator asks things the house no longer has.
+    A re-phrased question is checked by its original wording.
 
     Oracle step counts may drift (a few pixels of rendering); that is logged, not fatal, where
     the scene was opened with them.
@@ -192,10 +231,11 @@ def check_question(scene: Scene, question: EvalQuestion) -> None:
     if seed is not None and scene.env.house.seed != seed:
         raise EfficientEQAError(f"{question.id} belongs to house {seed}, not {scene.name}",
                                 fix=f"open {question.scene}")
-    live = next((q for q in scene.questions if q.question == question.question), None)
+    wording = question.original_question  # a re-phrasing is not the generator's: its original is
+    live = next((q for q in scene.questions if q.question == wording), None)
     if live is None or live.answer != question.answer:
         now = "no longer asked" if live is None else f"now answered {live.answer!r}"
-        raise EfficientEQAError(f"{question.id}: {question.question!r} (answer {question.answer!r}) "
+        raise EfficientEQAError(f"{question.id}: {wording!r} (answer {question.answer!r}) "
                                 f"is {now} in {scene.name}: the house generator changed", fix=REBUILD)
     if live.oracle_steps is not None and live.oracle_steps != question.oracle_steps:
         log.warning("%s: oracle steps now %s, split says %s", question.id, live.oracle_steps,

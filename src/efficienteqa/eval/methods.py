@@ -160,7 +160,7 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
             check_question(scene, q)
         start = Pose2D(*q.start) if q.start is not None else None
         done = ask(q.question, scene, out, stack=spec.stack, config=config, start=start,
-                   assets=spec.assets, report=spec.reports)
+                   assets=spec.assets, report=spec.reports, known_as=q.original_question)
     finally:
         scene.env.close()
     r = done.result

@@ -66,7 +66,10 @@ def _rule(q: EvalQuestion, answer: str) -> dict[str, Any] | None:
 
     if not q.accepted or q.category not in RULE_CATEGORIES:
         return None
-    return rule_judgement(q.question, q.category, q.accepted, answer).to_dict()
+    # A re-phrased question is graded as its original (its yes/no frame first); the words of
+    # both wordings are the question's own, not answers ("the bookshelf next to the sofa").
+    wording = q.question if q.original_question == q.question else f"{q.original_question} {q.question}"
+    return rule_judgement(wording, q.category, q.accepted, answer).to_dict()
 
 
 def _choice(q: EvalQuestion, extra: dict[str, Any]) -> dict[str, Any] | None:
