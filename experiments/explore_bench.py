@@ -47,6 +47,10 @@ from experiments.reference_policies import run_policy
 # Semantic scorers for steering: name -> factory(env, question, evidence distance, glimpsed).
 # "oracle" is the ground truth; others (model-free text scorers, model elicitations) register
 # here. A steering method is "frontier-only" or "sfe:SCORER" ("sfe" alone is "sfe:oracle").
+# An explorer that finds nothing left to explore before this step failed (its map held no
+# frontier from the start); the benchmark reports it as a failure, not as a fast episode.
+EXPLORED_EARLY_STEP = 5
+
 ScorerFactory = Callable[[SyntheticEnv, Question, EvidenceDistance, Callable[[np.ndarray], bool]],
                          SemanticScorer]
 STEERING_SCORERS: dict[str, ScorerFactory] = {
@@ -250,7 +254,11 @@ def cmd_steering(args: argparse.Namespace) -> None:
               f"{refused}/{moves} ({refused / max(taken, 1):.1%} of {taken} steps; "
               f"{lost / max(taken, 1):.1%} of steps lost); 'explored' stops (no frontier left) "
               f"{f['explored_n']}/{f['episodes']}"
-              + (f" (questions {', '.join(f['explored_ids'])})" if f["explored_ids"] else ""))
+              + (f" (questions {', '.join(f['explored_ids'])})" if f["explored_ids"] else "")
+              + f"; FAILED, 'explored' before step {EXPLORED_EARLY_STEP}: "
+              f"{f['explored_early_n']}/{f['episodes']}"
+              + (f" (questions {', '.join(f['explored_early_ids'])})"
+                 if f["explored_early_ids"] else ""))
     explorers = [m for m in methods if not is_reference(m)]
     near = {m: np.mean([np.mean(r[m]["near"]) for r in rows]) for m in explorers}
     for m in explorers:
@@ -281,15 +289,23 @@ def method_summary(rows: list[dict], method: str, to_budget: bool = True) -> dic
     coverage at the episode's end, refused moves and prompted steps per step, and the explorer's
     "explored" stops (no frontier left; in runs recorded before they were counted: the
     episodes that ended before the budget without the evidence in view, or, in a ``to_budget``
-    run, before the budget at all)."""
+    run, before the budget at all). An "explored" stop before step ``EXPLORED_EARLY_STEP`` is a
+    failure (the map held no frontier from the start, e.g. a start pose against a door leaf),
+    counted apart (``explored_early_n``): such an episode is not a fast one."""
     steps = np.concatenate([_steps(r, method) for r in rows])
     taken = max(sum(sum(r[method]["steps"]) for r in rows), 1)
     cover = [c for r in rows for c in r[method].get("coverage", [])]
     never = [s is None for r in rows for s in r[method]["first_seen"]]
     explored_ids = []
     explored_n = 0
+    early_ids = []
+    early_n = 0
     for r in rows:
         got = r[method]
+        early = [e is not None and e < EXPLORED_EARLY_STEP for e in got.get("explored", [])]
+        early_n += sum(early)
+        if any(early):
+            early_ids.append(r["id"])
         if "explored" in got:
             stops = [e is not None for e in got["explored"]]
         elif "coverage" in got:  # an explorer's episode ends early only by the stop or a sight
@@ -307,7 +323,8 @@ def method_summary(rows: list[dict], method: str, to_budget: bool = True) -> dic
             "coverage": float(np.mean(cover)) if cover else float("nan"),
             "refused": sum(sum(r[method]["refused"]) for r in rows) / taken,
             "asked": sum(sum(r[method].get("asked", [0])) for r in rows) / taken,
-            "explored_n": explored_n, "explored_ids": explored_ids}
+            "explored_n": explored_n, "explored_ids": explored_ids,
+            "explored_early_n": early_n, "explored_early_ids": early_ids}
 
 
 def cmd_table(args: argparse.Namespace) -> None:
@@ -315,8 +332,9 @@ def cmd_table(args: argparse.Namespace) -> None:
     method, with the share of steps fewer than the run's frontier-only."""
     print("| run | method | steps to the evidence (x oracle) | never seen | floor explored | "
           "fewer steps than frontier-only | steps offering directions | refused moves / step | "
-          "first sight / oracle, per question | 'explored' stops |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "first sight / oracle, per question | 'explored' stops | failed: 'explored' before "
+          f"step {EXPLORED_EARLY_STEP} |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     notes: list[str] = []
     for name in args.files:
         run = json.loads(Path(name).read_text())
@@ -339,9 +357,10 @@ def cmd_table(args: argparse.Namespace) -> None:
             cover = ("" if ref else f"{f['coverage']:.1%}" if a["to_budget"]
                      else "(episodes end at first sight)")
             explored = "" if ref else f"{f['explored_n']}/{f['episodes']}"
+            early = "" if ref else f"{f['explored_early_n']}/{f['episodes']}"
             print(f"| {label} | {m} | {f['steps']:.2f} (x{f['x_oracle']:.2f}) | {f['never']:.1%} "
                   f"| {cover} | {fewer} | {asked} | {f['refused']:.1%} | x{f['x_oracle_q']:.2f} "
-                  f"| {explored} |")
+                  f"| {explored} | {early} |")
     print("\n" + "\n".join(notes))
 
 
