@@ -40,7 +40,7 @@ from efficienteqa.explore.registry import EXPLORATIONS
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stop.rules import env_step_budget
-from experiments.common import NEAR_M, evidence_distance, explore_episode, seed_set
+from experiments.common import NEAR_M, evidence_distance, explore_episode, idle_steps, seed_set
 from experiments.reference_policies import POLICIES as REFERENCE_POLICIES
 from experiments.reference_policies import run_policy
 
@@ -258,7 +258,9 @@ def cmd_steering(args: argparse.Namespace) -> None:
               + f"; FAILED, 'explored' before step {EXPLORED_EARLY_STEP}: "
               f"{f['explored_early_n']}/{f['episodes']}"
               + (f" (questions {', '.join(f['explored_early_ids'])})"
-                 if f["explored_early_ids"] else ""))
+                 if f["explored_early_ids"] else "")
+              + f"; idle steps (the step before's pose and view again) {f['idle']} in "
+              f"{f['idle_walks']} of {f['episodes']} walks")
     explorers = [m for m in methods if not is_reference(m)]
     near = {m: np.mean([np.mean(r[m]["near"]) for r in rows]) for m in explorers}
     for m in explorers:
@@ -291,7 +293,9 @@ def method_summary(rows: list[dict], method: str, to_budget: bool = True) -> dic
     episodes that ended before the budget without the evidence in view, or, in a ``to_budget``
     run, before the budget at all). An "explored" stop before step ``EXPLORED_EARLY_STEP`` is a
     failure (the map held no frontier from the start, e.g. a start pose against a door leaf),
-    counted apart (``explored_early_n``): such an episode is not a fast one."""
+    counted apart (``explored_early_n``): such an episode is not a fast one. ``idle``: steps
+    whose pose and view are the step before's again (``common.idle_steps``), in ``idle_walks``
+    episodes."""
     steps = np.concatenate([_steps(r, method) for r in rows])
     taken = max(sum(sum(r[method]["steps"]) for r in rows), 1)
     cover = [c for r in rows for c in r[method].get("coverage", [])]
@@ -324,7 +328,9 @@ def method_summary(rows: list[dict], method: str, to_budget: bool = True) -> dic
             "refused": sum(sum(r[method]["refused"]) for r in rows) / taken,
             "asked": sum(sum(r[method].get("asked", [0])) for r in rows) / taken,
             "explored_n": explored_n, "explored_ids": explored_ids,
-            "explored_early_n": early_n, "explored_early_ids": early_ids}
+            "explored_early_n": early_n, "explored_early_ids": early_ids,
+            "idle": sum(sum(r[method].get("idle", [])) for r in rows),
+            "idle_walks": sum(n > 0 for r in rows for n in r[method].get("idle", []))}
 
 
 def cmd_table(args: argparse.Namespace) -> None:
@@ -418,7 +424,7 @@ def _steer(env: SyntheticEnv, q: Question, config: AgentConfig, budget: int, see
                          steering="target" if steer else "none", max_steps=budget)
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
                                                 "moves", "refused", "lost", "asked", "points",
-                                                "off_floor", "uninformed", "explored")}
+                                                "off_floor", "uninformed", "explored", "idle")}
         for r in range(repeats):
             ep = explore_episode(env, replace(method, seed=seed * 1000 + r), q.question,
                                  scorer=scorer, seen=seen, near=distance_m, coverage=True,
@@ -431,6 +437,8 @@ def _steer(env: SyntheticEnv, q: Question, config: AgentConfig, budget: int, see
             for k in ("moves", "refused", "lost", "asked", "points", "off_floor", "uninformed",
                       "explored"):
                 got[k].append(getattr(ep, k))
+            # steps whose pose and view are the step before's again (refused moves included)
+            got["idle"].append(len(idle_steps([(p.x, p.y, p.yaw) for p in ep.poses])))
         row[name] = got
     return row
 

@@ -271,7 +271,7 @@ class ReferencePolicy:
             self._decide_rooms(here)
 
     def _decide_target(self, here: int | None) -> None:
-        if here in self.targets:
+        if here is not None and here in self.targets:
             if here not in self.searched:
                 self.searched.add(here)
                 self._look_around()
