@@ -11,6 +11,10 @@ direction scorer. Every episode is the agent's own loop (``experiments.common.ex
     python -m experiments.explore_bench steering  # steps to see the evidence, oracle SFE vs frontier-only
     python -m experiments.explore_bench steering --methods reference:target-room,reference:room-by-room
                                                  # the reference policies (reference_policies.py)
+    python -m experiments.explore_bench steering --seeds 2000-2009 --no-to-budget \
+        --methods target:direction-logit,reference:named-room
+                                                 # the default explorer against the yardstick
+                                                 # "knows the named room" (issue 33)
 
 House seeds: the development houses 0-20 (``--seeds training``) are the ones every earlier
 choice of the explorer was tuned on; the held-out houses 2000-2999 (``--seeds held-out``, the
