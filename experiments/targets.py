@@ -12,7 +12,8 @@ room", reference_policies.py; one deterministic episode). Never seen counts as b
 Rows: first sight / oracle; on the questions that name a room, the default's against the
 yardstick's on the same questions; never seen; location questions' first sight / oracle; idle
 steps (the step before's pose and view again); explorer "explored" stops before step 5
-(failures).
+(failures). Location questions are few among those, so the location row adds up to
+``--location`` more of the same houses' location questions (the houses in order).
 
 From an evaluation run folder (``--run``; its ``episodes.jsonl``): accuracy by the rule judge,
 steps / oracle (questions with evidence), count questions' first sight -> stop (the episodes
@@ -35,8 +36,13 @@ from typing import Any
 
 import numpy as np
 
+from efficienteqa.envs.synthetic.env import SyntheticEnv
+from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.records import code_version
+from efficienteqa.scenes import synthetic_questions
+from efficienteqa.stop.rules import env_step_budget
 from experiments import explore_bench as bench
+from experiments.common import seed_set
 from experiments.reference_policies import named_rooms
 
 DEFAULT = "target:direction-logit"  # the agent's default explorer, as the steering bench names it
@@ -58,20 +64,50 @@ def explore_rows(args: argparse.Namespace) -> list[dict[str, Any]]:
         if not row["reachable"]:
             print(f"{q.id}: no view of the evidence is reachable from the start; left out")
             continue
-        row["names_room"] = bool(named_rooms(q.question, env.house.layout.rooms))
-        rows.append(row)
-        print(f"{q.id} {q.category:14s} oracle {row['oracle']:2d}  "
-              + "  ".join(f"{m} {np.mean(bench._steps(row, m)):5.1f}" for m in (DEFAULT, YARDSTICK))
-              + f"  {q.question}", flush=True)
+        rows.append(_mark(row, q, env))
     return rows
 
 
-def explore_targets(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+def location_rows(args: argparse.Namespace, skip: set[str]) -> list[dict[str, Any]]:
+    """Rows of the location questions ("Where is the X?": no room named) of the same houses,
+    beyond those already run (``skip``): up to ``--location`` of them, the houses in order."""
+    ns = argparse.Namespace(stop_clearance=None, refusal_retries=None, exploration="default",
+                            prompts="default")
+    rows: list[dict[str, Any]] = []
+    for seed in seed_set(args.seeds):
+        if len(rows) >= args.location:
+            break
+        with SyntheticEnv.from_seed(seed, "sh3d") as env:
+            for q in synthetic_questions(env):
+                if q.category != "location" or not q.evidence or q.id in skip:
+                    continue
+                if len(rows) >= args.location:
+                    break
+                row = bench._steer(env, q, bench.agent_config(ns), env_step_budget(env), seed,
+                                   args.repeats, False, (DEFAULT, YARDSTICK))
+                if row["reachable"]:
+                    rows.append(_mark(row, q, env))
+    return rows
+
+
+def _mark(row: dict[str, Any], q: Question, env: SyntheticEnv) -> dict[str, Any]:
+    """The row marked with whether its question names a room, and printed."""
+    row["names_room"] = bool(named_rooms(q.question, env.house.layout.rooms))
+    print(f"{q.id} {q.category:14s} oracle {row['oracle']:2d}  "
+          + "  ".join(f"{m} {np.mean(bench._steps(row, m)):5.1f}" for m in (DEFAULT, YARDSTICK))
+          + f"  {q.question}", flush=True)
+    return row
+
+
+def explore_targets(rows: Sequence[dict[str, Any]], more_where: Sequence[dict[str, Any]] = ()
+                    ) -> dict[str, Any]:
+    """The exploration rows' figures; the location figure over ``rows``' location questions and
+    ``more_where`` (more location questions of the same houses)."""
     def x(sub: Sequence[dict[str, Any]], m: str) -> float | None:
         return bench.method_summary(list(sub), m, False)["x_oracle"] if sub else None
 
     naming = [r for r in rows if r["names_room"]]
-    where = [r for r in rows if r["category"] == "location"]
+    where = [r for r in rows if r["category"] == "location"] + list(more_where)
     f = bench.method_summary(list(rows), DEFAULT, False)
     slower = sum(np.mean(bench._steps(r, DEFAULT)) > np.mean(bench._steps(r, YARDSTICK))
                  for r in naming)
@@ -142,7 +178,8 @@ def table(explore: dict[str, Any] | None, run: dict[str, Any] | None,
             f"{e['naming_slower_than_yardstick']} of {e['naming_questions']}) | within 15% |",
             f"| never seen, {args.seeds}, stop off | {e['never_seen']:.1%} "
             f"({e['never_seen_n']}/{e['episodes']}) | 0 |",
-            f"| location questions ({e['location_questions']}), first sight / oracle | "
+            f"| location questions ({e['location_questions']}, {args.seeds}), first sight / "
+            "oracle | "
             f"{f(e['location_first_sight_x_oracle'])} (yardstick "
             f"{f(e['location_yardstick_x_oracle'])}) | <= 2.0x |",
             f"| idle steps (same pose and view again), exploration walks to first sight | "
@@ -184,6 +221,9 @@ def main() -> None:
     ap.add_argument("--questions", type=int, default=30)
     ap.add_argument("--per-house", type=int, default=3)
     ap.add_argument("--repeats", type=int, default=3, help="explorer seeds per question")
+    ap.add_argument("--location", type=int, default=10,
+                    help="location questions of the same houses beyond the --questions ones "
+                         "(their first sight / oracle only)")
     ap.add_argument("--no-explore", action="store_true", help="skip the exploration rows")
     ap.add_argument("--run", type=Path, default=None, help="an evaluation run folder")
     ap.add_argument("--audit", action=argparse.BooleanOptionalAction, default=True,
@@ -192,20 +232,23 @@ def main() -> None:
     args = ap.parse_args()
     from experiments import stop_audit
 
+    version = code_version()  # the code as the run starts
     rows = [] if args.no_explore else explore_rows(args)
-    explore = explore_targets(rows) if rows else None
+    where = location_rows(args, {r["id"] for r in rows}) if rows and args.location else []
+    explore = explore_targets(rows, where) if rows else None
     run = run_targets(args.run) if args.run else None
     walks = stop_audit.audit(args.run) if args.run and args.audit else []
     audit = stop_audit.summary(walks) if walks else None
-    print(f"\ncode {code_version()}; exploration: {args.questions} questions of houses "
+    print(f"\ncode {version}; exploration: {args.questions} questions of houses "
           f"{args.seeds} ({args.per_house} per house) x {args.repeats} explorer seeds, stop off, "
           f"default = {DEFAULT}, yardstick = {YARDSTICK}; run: {args.run}\n")
     print(table(explore, run, audit, args))
     if args.out:
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "targets.json").write_text(json.dumps(
-            {"code_version": code_version(), "args": {k: str(v) for k, v in vars(args).items()},
+            {"code_version": version, "args": {k: str(v) for k, v in vars(args).items()},
              "explore": explore, "run": run, "audit": audit, "explore_rows": rows,
+             "location_rows": where,
              "walks": walks}, indent=1))
         print(f"\n{args.out / 'targets.json'}")
 
