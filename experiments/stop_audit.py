@@ -1,4 +1,4 @@
-"""The stop-and-answer audit on the stop's frame (issue 33 item 6): does the frame a relevancy
+"""The stop-and-answer audit on the stop's frame (DESIGN 9): does the frame a relevancy
 stop tested show the evidence, at the oracle's 250 px rule and at 150 px?
 
 An evaluation run keeps no frames, so each of its synthetic episodes is walked again: the run's
@@ -9,7 +9,8 @@ same steps and stop reason); a walk that differs is listed and left out of the f
 
 Per episode it records the fewest pixels of any evidence object in the frame the stop tested
 (the stop's frame, or under look-back the earlier frame it stopped for), in pixels of a
-640 x 480 frame (``MIN_EVIDENCE_PIXELS`` scales the same way), and the idle steps (a step whose
+640 x 480 frame (``report.evidence.evidence_pixels``, as eval rows now record it in
+``evidence_stop_pixels``; ``MIN_EVIDENCE_PIXELS`` scales the same way), and the idle steps (a step whose
 pose and view are the previous step's again, ``idle_steps``). The gate's item threshold is then
 chosen by these counts, not by guess.
 
@@ -29,8 +30,6 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from efficienteqa.agent import AgentConfig, StepRecord
 from efficienteqa.datasets import load_dataset
 from efficienteqa.envs.synthetic.questions import MIN_EVIDENCE_PIXELS
@@ -38,19 +37,13 @@ from efficienteqa.eval.methods import method_config
 from efficienteqa.geometry import Pose2D
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.records import code_version
+from efficienteqa.report.evidence import evidence_pixels
 from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent
 from efficienteqa.stop.rules import StopConfig
 from experiments.common import idle_steps
 
 THRESHOLDS_PX = (MIN_EVIDENCE_PIXELS, 150)  # the oracle's rule, and the one measured beside it
-
-
-def evidence_pixels(instance: np.ndarray, evidence: Sequence[int]) -> float:
-    """The fewest pixels any evidence object covers in ``instance``, scaled to a 640 x 480
-    frame (0 when one is out of view)."""
-    counts = np.bincount(instance[instance > 0].ravel(), minlength=max(evidence) + 1)
-    return float(min(counts[e] for e in evidence)) * (640 * 480) / instance.size
 
 
 def recorded_config(run: dict[str, Any]) -> AgentConfig:

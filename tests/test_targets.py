@@ -1,16 +1,12 @@
-"""The instruments of issue 33's targets: idle steps (experiments.common.idle_steps), the stop
-frame's evidence pixels (experiments.stop_audit) and an eval run's target rows
-(experiments.targets.run_targets)."""
+"""The instruments of the steering and stop targets: idle steps (experiments.common.idle_steps) and an
+eval run's target rows (experiments.targets.run_targets)."""
 
 from __future__ import annotations
 
 import json
 import math
 
-import numpy as np
-
 from experiments.common import idle_steps
-from experiments.stop_audit import evidence_pixels
 from experiments.targets import run_targets
 
 
@@ -21,14 +17,6 @@ def test_an_idle_step_is_the_step_befores_pose_and_view_again():
              (1.0, 2.0, 0.0)]  # step 1's view again, but not the step before's
     assert idle_steps(poses) == [2, 5]
     assert idle_steps(poses[:1]) == []
-
-
-def test_evidence_pixels_are_the_fewest_of_any_object_in_a_640x480_frame():
-    inst = np.zeros((240, 320), np.int32)
-    inst.ravel()[:100] = 7
-    inst.ravel()[100:140] = 9
-    assert evidence_pixels(inst, [7, 9]) == 40 * 4  # a quarter of the pixels of 640 x 480
-    assert evidence_pixels(inst, [7, 12]) == 0.0
 
 
 def _row(qid: str, category: str, reference: str, steps: int, stop: str, first: int | None,
