@@ -14,7 +14,7 @@ direction scorer. Every episode is the agent's own loop (``experiments.common.ex
     python -m experiments.explore_bench steering --seeds 2000-2009 --no-to-budget \
         --methods target:direction-logit,reference:named-room
                                                  # the default explorer against the yardstick
-                                                 # "knows the named room" (issue 33)
+                                                 # "knows the named room" (DESIGN 9)
 
 House seeds: the development houses 0-20 (``--seeds training``) are the ones every earlier
 choice of the explorer was tuned on; the held-out houses 2000-2999 (``--seeds held-out``, the

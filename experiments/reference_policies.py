@@ -28,7 +28,7 @@ Policies (``POLICIES``):
   discovered doors it takes the one with the shortest path plus straight line on to the target
   room, and only when that brings it closer to the target room than it stands (else it looks
   around first); it enters a corridor facing the target room's side.
-- ``named-room`` ("knows the named room", the yardstick of issue 33): knows only the rooms the
+- ``named-room`` ("knows the named room", the explorers' yardstick): knows only the rooms the
   question names (``named_rooms``: the house's room names read in the question's words, not the
   evidence's room), then walks as ``target-room`` with those as its target rooms; where nothing
   is left to do in them (the evidence lies elsewhere) it goes on room by room. Where the

@@ -1,4 +1,4 @@
-"""Every target row of issue 33 for the code as it stands, in one command.
+"""The targets of question reading, reaching the evidence and answering (DESIGN 9), in one command.
 
     python -m experiments.targets --run results/main-heldout/default
     python -m experiments.targets --seeds 2000-2009 --questions 30 --repeats 3 --run RUN --out DIR

@@ -1,5 +1,5 @@
 """The steering benchmark's summary (experiments.explore_bench.method_summary): an explorer that
-ends "explored" before step 5 failed (issue 33 item 7), it is not a fast episode."""
+ends "explored" before step 5 failed (its map held no frontier), it is not a fast episode."""
 
 from __future__ import annotations
 
