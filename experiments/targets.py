@@ -18,9 +18,11 @@ steps (the step before's pose and view again); explorer "explored" stops before 
 From an evaluation run folder (``--run``; its ``episodes.jsonl``): accuracy by the rule judge,
 steps / oracle (questions with evidence), count questions' first sight -> stop (the episodes
 that saw the evidence before they stopped, whatever stopped them: the budget too), "no"
-existence questions answered "no", "explored" stops before step 5 (failures), and, by walking
-its episodes again (``experiments.stop_audit``; ``--no-audit`` skips it), relevancy stops whose
-tested frame shows the evidence at 250 px and at 150 px, and idle steps in those walks.
+existence questions answered "no", "explored" stops before step 5 (failures), relevancy
+stops whose tested frame shows the evidence at 250 px and at 150 px where the rows record it
+(``evidence_stop_pixels``), and, by walking its episodes again (``experiments.stop_audit``;
+``--no-audit`` skips it), the same for runs recorded before that field, and idle steps in those
+walks.
 
 Back-ends: synthetic houses (sh3d), semantic-sensor perception, no language model for the
 exploration rows (a stub answers); the run's rows are what its own back-ends recorded.
@@ -142,7 +144,12 @@ def run_targets(folder: Path) -> dict[str, Any]:
     no = [r for r in rows if r["category"] == "existence" and r["reference"].lower() == "no"]
     early = [r["id"] for r in rows if r["stop_reason"] == "explored"
              and r["steps"] < bench.EXPLORED_EARLY_STEP]
+    stops = [r for r in has if r["stop_reason"] == "relevancy"
+             and r.get("evidence_stop_pixels") is not None]  # runs that record the stop's frame
     return {"run": str(folder), "episodes": len(rows),
+            "recorded_stops": len(stops),
+            **{f"recorded_stops_showing_{px}px": sum(r["evidence_stop_pixels"] >= px
+                                                     for r in stops) for px in (250, 150)},
             "accuracy_rule": float(np.mean([right(r) for r in rows])),
             "right": sum(map(right, rows)),
             "steps_x_oracle": float(np.mean([r["steps"] for r in has])
@@ -201,6 +208,11 @@ def table(explore: dict[str, Any] | None, run: dict[str, Any] | None,
             f"{r['no_questions']} | all |",
             f"| 'explored' before step {bench.EXPLORED_EARLY_STEP} (failures), main table | "
             f"{len(r['explored_early'])} {' '.join(r['explored_early'])} | 0 |"]
+        if r["recorded_stops"]:
+            lines.append(
+                "| relevancy stops whose frame shows the evidence (250 px; 150 px), as the run "
+                f"recorded them | {r['recorded_stops_showing_250px']}/{r['recorded_stops']}; "
+                f"{r['recorded_stops_showing_150px']}/{r['recorded_stops']} | >= 95% |")
     if audit:
         a = audit
         lines += [

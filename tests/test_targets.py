@@ -33,6 +33,9 @@ def test_run_targets_reads_the_issues_rows_from_episodes(tmp_path):
             _row("d", "existence", "no", 3, "explored", None, 1, oracle=None),  # said "yes"
             _row("e", "existence", "no", 8, "searched", None, 5, oracle=None),
             _row("f", "colour", "red", 5, "relevancy", 5, 5)]
+    for r, px in zip(rows, (300.0, None, 160.0, None, None, 20.0)):
+        if px is not None:
+            r["evidence_stop_pixels"] = px
     (tmp_path / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     got = run_targets(tmp_path)
     assert got["count_sight_to_stop_mean"] == (6 + 18) / 2 and got["count_sight_to_stop_n"] == 2
@@ -41,3 +44,5 @@ def test_run_targets_reads_the_issues_rows_from_episodes(tmp_path):
     assert got["steps_x_oracle"] == (10 + 30 + 6 + 5) / 4 / 2
     assert got["never_seen_before_stop"] == 1 and got["with_evidence"] == 4
     assert got["explored_early"] == ["d"]  # "explored" at step 3: a failure
+    assert (got["recorded_stops"], got["recorded_stops_showing_250px"],
+            got["recorded_stops_showing_150px"]) == (3, 1, 2)
