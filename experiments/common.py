@@ -11,6 +11,7 @@ time a step takes) is read from the agent's per-step hook and its records.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -91,6 +92,15 @@ def truth_floor(env: SyntheticEnv, mapper: Mapper | None = None) -> np.ndarray:
 
 
 NEAR_M = 2.0  # "near the evidence": within this path distance
+IDLE_M, IDLE_RAD = 0.01, 1e-3  # a pose this close to the step before's is the same view again
+
+
+def idle_steps(poses: Sequence[tuple[float, float, float]]) -> list[int]:
+    """The steps (1-based; poses[0] is step 1) whose pose and view are the step before's again:
+    a move that ended where the robot stood, facing as it faced (refused moves included)."""
+    return [k + 1 for k in range(1, len(poses))
+            if math.dist(poses[k][:2], poses[k - 1][:2]) < IDLE_M
+            and abs(math.remainder(poses[k][2] - poses[k - 1][2], math.tau)) < IDLE_RAD]
 
 
 @dataclass

@@ -11,6 +11,10 @@ direction scorer. Every episode is the agent's own loop (``experiments.common.ex
     python -m experiments.explore_bench steering  # steps to see the evidence, oracle SFE vs frontier-only
     python -m experiments.explore_bench steering --methods reference:target-room,reference:room-by-room
                                                  # the reference policies (reference_policies.py)
+    python -m experiments.explore_bench steering --seeds 2000-2009 --no-to-budget \
+        --methods target:direction-logit,reference:named-room
+                                                 # the default explorer against the yardstick
+                                                 # "knows the named room" (DESIGN 9)
 
 House seeds: the development houses 0-20 (``--seeds training``) are the ones every earlier
 choice of the explorer was tuned on; the held-out houses 2000-2999 (``--seeds held-out``, the
@@ -40,13 +44,17 @@ from efficienteqa.explore.registry import EXPLORATIONS
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stop.rules import env_step_budget
-from experiments.common import NEAR_M, evidence_distance, explore_episode, seed_set
+from experiments.common import NEAR_M, evidence_distance, explore_episode, idle_steps, seed_set
 from experiments.reference_policies import POLICIES as REFERENCE_POLICIES
 from experiments.reference_policies import run_policy
 
 # Semantic scorers for steering: name -> factory(env, question, evidence distance, glimpsed).
 # "oracle" is the ground truth; others (model-free text scorers, model elicitations) register
 # here. A steering method is "frontier-only" or "sfe:SCORER" ("sfe" alone is "sfe:oracle").
+# An explorer that finds nothing left to explore before this step failed (its map held no
+# frontier from the start); the benchmark reports it as a failure, not as a fast episode.
+EXPLORED_EARLY_STEP = 5
+
 ScorerFactory = Callable[[SyntheticEnv, Question, EvidenceDistance, Callable[[np.ndarray], bool]],
                          SemanticScorer]
 STEERING_SCORERS: dict[str, ScorerFactory] = {
@@ -250,7 +258,13 @@ def cmd_steering(args: argparse.Namespace) -> None:
               f"{refused}/{moves} ({refused / max(taken, 1):.1%} of {taken} steps; "
               f"{lost / max(taken, 1):.1%} of steps lost); 'explored' stops (no frontier left) "
               f"{f['explored_n']}/{f['episodes']}"
-              + (f" (questions {', '.join(f['explored_ids'])})" if f["explored_ids"] else ""))
+              + (f" (questions {', '.join(f['explored_ids'])})" if f["explored_ids"] else "")
+              + f"; FAILED, 'explored' before step {EXPLORED_EARLY_STEP}: "
+              f"{f['explored_early_n']}/{f['episodes']}"
+              + (f" (questions {', '.join(f['explored_early_ids'])})"
+                 if f["explored_early_ids"] else "")
+              + f"; idle steps (the step before's pose and view again) {f['idle']} in "
+              f"{f['idle_walks']} of {f['episodes']} walks")
     explorers = [m for m in methods if not is_reference(m)]
     near = {m: np.mean([np.mean(r[m]["near"]) for r in rows]) for m in explorers}
     for m in explorers:
@@ -281,15 +295,25 @@ def method_summary(rows: list[dict], method: str, to_budget: bool = True) -> dic
     coverage at the episode's end, refused moves and prompted steps per step, and the explorer's
     "explored" stops (no frontier left; in runs recorded before they were counted: the
     episodes that ended before the budget without the evidence in view, or, in a ``to_budget``
-    run, before the budget at all)."""
+    run, before the budget at all). An "explored" stop before step ``EXPLORED_EARLY_STEP`` is a
+    failure (the map held no frontier from the start, e.g. a start pose against a door leaf),
+    counted apart (``explored_early_n``): such an episode is not a fast one. ``idle``: steps
+    whose pose and view are the step before's again (``common.idle_steps``), in ``idle_walks``
+    episodes."""
     steps = np.concatenate([_steps(r, method) for r in rows])
     taken = max(sum(sum(r[method]["steps"]) for r in rows), 1)
     cover = [c for r in rows for c in r[method].get("coverage", [])]
     never = [s is None for r in rows for s in r[method]["first_seen"]]
     explored_ids = []
     explored_n = 0
+    early_ids = []
+    early_n = 0
     for r in rows:
         got = r[method]
+        early = [e is not None and e < EXPLORED_EARLY_STEP for e in got.get("explored", [])]
+        early_n += sum(early)
+        if any(early):
+            early_ids.append(r["id"])
         if "explored" in got:
             stops = [e is not None for e in got["explored"]]
         elif "coverage" in got:  # an explorer's episode ends early only by the stop or a sight
@@ -307,7 +331,10 @@ def method_summary(rows: list[dict], method: str, to_budget: bool = True) -> dic
             "coverage": float(np.mean(cover)) if cover else float("nan"),
             "refused": sum(sum(r[method]["refused"]) for r in rows) / taken,
             "asked": sum(sum(r[method].get("asked", [0])) for r in rows) / taken,
-            "explored_n": explored_n, "explored_ids": explored_ids}
+            "explored_n": explored_n, "explored_ids": explored_ids,
+            "explored_early_n": early_n, "explored_early_ids": early_ids,
+            "idle": sum(sum(r[method].get("idle", [])) for r in rows),
+            "idle_walks": sum(n > 0 for r in rows for n in r[method].get("idle", []))}
 
 
 def cmd_table(args: argparse.Namespace) -> None:
@@ -315,8 +342,9 @@ def cmd_table(args: argparse.Namespace) -> None:
     method, with the share of steps fewer than the run's frontier-only."""
     print("| run | method | steps to the evidence (x oracle) | never seen | floor explored | "
           "fewer steps than frontier-only | steps offering directions | refused moves / step | "
-          "first sight / oracle, per question | 'explored' stops |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "first sight / oracle, per question | 'explored' stops | failed: 'explored' before "
+          f"step {EXPLORED_EARLY_STEP} |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     notes: list[str] = []
     for name in args.files:
         run = json.loads(Path(name).read_text())
@@ -339,9 +367,10 @@ def cmd_table(args: argparse.Namespace) -> None:
             cover = ("" if ref else f"{f['coverage']:.1%}" if a["to_budget"]
                      else "(episodes end at first sight)")
             explored = "" if ref else f"{f['explored_n']}/{f['episodes']}"
+            early = "" if ref else f"{f['explored_early_n']}/{f['episodes']}"
             print(f"| {label} | {m} | {f['steps']:.2f} (x{f['x_oracle']:.2f}) | {f['never']:.1%} "
                   f"| {cover} | {fewer} | {asked} | {f['refused']:.1%} | x{f['x_oracle_q']:.2f} "
-                  f"| {explored} |")
+                  f"| {explored} | {early} |")
     print("\n" + "\n".join(notes))
 
 
@@ -399,7 +428,7 @@ def _steer(env: SyntheticEnv, q: Question, config: AgentConfig, budget: int, see
                          steering="target" if steer else "none", max_steps=budget)
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
                                                 "moves", "refused", "lost", "asked", "points",
-                                                "off_floor", "uninformed", "explored")}
+                                                "off_floor", "uninformed", "explored", "idle")}
         for r in range(repeats):
             ep = explore_episode(env, replace(method, seed=seed * 1000 + r), q.question,
                                  scorer=scorer, seen=seen, near=distance_m, coverage=True,
@@ -412,6 +441,8 @@ def _steer(env: SyntheticEnv, q: Question, config: AgentConfig, budget: int, see
             for k in ("moves", "refused", "lost", "asked", "points", "off_floor", "uninformed",
                       "explored"):
                 got[k].append(getattr(ep, k))
+            # steps whose pose and view are the step before's again (refused moves included)
+            got["idle"].append(len(idle_steps([(p.x, p.y, p.yaw) for p in ep.poses])))
         row[name] = got
     return row
 

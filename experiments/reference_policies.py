@@ -28,6 +28,11 @@ Policies (``POLICIES``):
   discovered doors it takes the one with the shortest path plus straight line on to the target
   room, and only when that brings it closer to the target room than it stands (else it looks
   around first); it enters a corridor facing the target room's side.
+- ``named-room`` ("knows the named room", the explorers' yardstick): knows only the rooms the
+  question names (``named_rooms``: the house's room names read in the question's words, not the
+  evidence's room), then walks as ``target-room`` with those as its target rooms; where nothing
+  is left to do in them (the evidence lies elsewhere) it goes on room by room. Where the
+  question names no room (a location question) it searches room by room from the start.
 - ``room-by-room``: knows nothing of the target. It looks around in the room it stands in, then
   goes into the nearest discovered room it has not searched, looks around there, and so on; when
   every discovered room is searched it visits the rooms' viewpoints, looking around.
@@ -46,6 +51,7 @@ first; the benchmark counts it as budget + 1).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -81,6 +87,7 @@ class PolicySpec:
     target_room: bool  # knows which room holds the evidence
     closer: bool  # goes closer on a glimpse
     aim: bool = False  # (target_room) knows where that room lies too, and heads for it
+    named: bool = False  # (target_room) its target rooms are the ones the question names
 
 
 POLICIES: dict[str, PolicySpec] = {
@@ -89,7 +96,23 @@ POLICIES: dict[str, PolicySpec] = {
     "target-room-no-closer": PolicySpec(target_room=True, closer=False),
     "room-by-room-no-closer": PolicySpec(target_room=False, closer=False),
     "target-room-aimed": PolicySpec(target_room=True, closer=True, aim=True),
+    "named-room": PolicySpec(target_room=True, closer=True, named=True),
 }
+
+
+def named_rooms(text: str, rooms: Sequence[Room]) -> set[int]:
+    """The ids of the rooms whose name the question says, as whole words; a longer name wins
+    where names overlap ("guest bedroom" is not also "bedroom")."""
+    words = re.sub(r"[^a-z0-9]+", " ", text.lower()).split()
+    taken = [False] * len(words)
+    out: set[int] = set()
+    for room in sorted(rooms, key=lambda r: -len(r.name.split())):
+        name = room.name.lower().split()
+        for i in range(len(words) - len(name) + 1):
+            if words[i:i + len(name)] == name and not any(taken[i:i + len(name)]):
+                taken[i:i + len(name)] = [True] * len(name)
+                out.add(room.id)
+    return out
 
 
 @dataclass
@@ -133,7 +156,11 @@ class ReferencePolicy:
         self.grid = env.grid
         self.layout = env.house.layout
         self.near, self.near_m = near, near_m
-        self.targets = {self.house.object(e).room_id for e in question.evidence}
+        # The evidence's rooms (where a glimpse's approach poses lie) and the rooms it steers
+        # to: the same, or for ``named`` the rooms the question names.
+        self.evidence_rooms = {self.house.object(e).room_id for e in question.evidence}
+        self.targets = (named_rooms(question.question, self.layout.rooms) if spec.named
+                        else set(self.evidence_rooms))
         self.panels = {int(k): v for k, v in self.house.meta.get("door_objects", {}).items()}
         self.known_doors: set[int] = set()
         self.entered: set[int] = set()
@@ -235,13 +262,16 @@ class ReferencePolicy:
 
     def _decide(self) -> None:
         here = self._room_at(self.pose.x, self.pose.y)
-        if self.spec.target_room:
+        if self.spec.target_room and self.targets:
             self._decide_target(here)
+            if not self.queue and self.spec.named:  # nothing left in the named rooms: from
+                self.targets = set()  # now on, room by room
+                self._decide_rooms(here)
         else:
             self._decide_rooms(here)
 
     def _decide_target(self, here: int | None) -> None:
-        if here in self.targets:
+        if here is not None and here in self.targets:
             if here not in self.searched:
                 self.searched.add(here)
                 self._look_around()
@@ -474,7 +504,8 @@ class ReferencePolicy:
             for a in range(n):
                 angle = front + 2 * math.pi * a / n
                 x, y = centre[0] + r * math.cos(angle), centre[1] + r * math.sin(angle)
-                if not self.env.is_navigable(x, y) or self._room_at(x, y) not in self.targets:
+                if (not self.env.is_navigable(x, y)
+                        or self._room_at(x, y) not in self.evidence_rooms):
                     continue
                 i, j = self.grid.spec.world_to_cell((x, y))
                 d = field_m[int(i), int(j)]

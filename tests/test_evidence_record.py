@@ -16,7 +16,7 @@ from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.envs.synthetic.questions import MIN_EVIDENCE_PIXELS, evidence_visible
 from efficienteqa.geometry import CameraSpec, Pose2D
 from efficienteqa.observation import Observation
-from efficienteqa.report.evidence import FIELDS, EvidenceWatch
+from efficienteqa.report.evidence import FIELDS, EvidenceWatch, evidence_pixels
 from efficienteqa.scenes import Scene, synthetic_questions
 from efficienteqa.stack import Stack
 
@@ -46,14 +46,27 @@ def test_first_seen_needs_every_evidence_object_at_the_oracles_pixel_threshold()
               _frame({9: 500}), _frame({7: need + 3, 9: need})]
     watch = _watch([7, 9], frames)
     assert watch.fields([(4, 0.9), (1, 0.5)]) == {
-        "evidence_first_seen_step": 3, "evidence_in_top_k": False, "evidence_seen_steps": [3, 5]}
+        "evidence_first_seen_step": 3, "evidence_in_top_k": False, "evidence_seen_steps": [3, 5],
+        "evidence_stop_pixels": None}
     assert watch.fields([(5, 0.9), (1, 0.5)])["evidence_in_top_k"] is True
+
+
+def test_a_relevancy_stops_frame_records_its_fewest_evidence_pixels_at_640x480():
+    """The stop's tested frame, audited at 250 px and at any other rule."""
+    need = max(4, round(MIN_EVIDENCE_PIXELS * 64 * 64 / (640 * 480)))
+    frames = [_frame({7: need, 9: need}), _frame({7: 30, 9: 2}), _frame({9: 40})]
+    watch = _watch([7, 9], frames)
+    scale = 640 * 480 / (64 * 64)
+    assert watch.fields([(1, 0.9)], stop_step=2)["evidence_stop_pixels"] == 2 * scale
+    assert watch.fields([(1, 0.9)], stop_step=1)["evidence_stop_pixels"] == need * scale >= 250
+    assert watch.fields([(1, 0.9)], stop_step=3)["evidence_stop_pixels"] == 0.0  # 7 not in view
+    assert watch.fields([(1, 0.9)])["evidence_stop_pixels"] is None  # no relevancy stop
 
 
 def test_never_seen_is_not_unknown():
     never = _watch([7], [_frame({}), _frame({3: 900})]).fields([(2, 0.4)])
     assert never == {"evidence_first_seen_step": None, "evidence_in_top_k": False,
-                     "evidence_seen_steps": []}
+                     "evidence_seen_steps": [], "evidence_stop_pixels": None}
     # No ground truth (a free question, HM-EQA, an existence question answered "no"): None.
     assert _watch([], [_frame({7: 900})]).fields([(1, 0.9)]) == dict.fromkeys(FIELDS)
     assert _watch(None, [_frame({7: 900})]).fields([(1, 0.9)]) == dict.fromkeys(FIELDS)
@@ -90,6 +103,13 @@ def test_episode_json_records_when_the_evidence_was_in_view(house4, tmp_path):
     retrieved = {r["step"] for r in record["retrieved"]}
     assert record["evidence_in_top_k"] == bool(retrieved & set(shown))
     assert record["oracle_steps"] == q.oracle_steps
+    if record["stop_reason"] == "relevancy":  # the tested frame's pixels, rendered again
+        last = record["per_step"][-1]
+        tested = record["per_step"][(last["tested_step"] or last["step"]) - 1]
+        frame = scene.env.observe(Pose2D(*tested["pose"])).instance
+        assert record["evidence_stop_pixels"] == round(evidence_pixels(frame, q.evidence), 1)
+    else:
+        assert record["evidence_stop_pixels"] is None
 
 
 @needs_egl
@@ -125,6 +145,7 @@ def test_eval_rows_carry_the_evidence_record_refused_moves_and_oracle_steps(tmp_
     assert row["status"] == "done", row.get("error")
     record = json.loads(next((tmp_path / "episodes").rglob("episode.json")).read_text())
     assert row["oracle_steps"] == q.oracle_steps
-    for key in ("evidence_first_seen_step", "evidence_in_top_k", "refused_moves"):
+    for key in ("evidence_first_seen_step", "evidence_in_top_k", "evidence_stop_pixels",
+                "refused_moves"):
         assert row[key] == record[key]
     assert isinstance(row["evidence_in_top_k"], bool) and isinstance(row["refused_moves"], int)

@@ -4,6 +4,7 @@ items 5-6) on one small built-in house: they reach the evidence, a random walk d
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -81,3 +82,35 @@ def test_room_by_room_searches_rooms_and_is_slower_than_knowing_the_target(ref, 
     assert rooms.approaches >= 1 and rooms.trace[rooms.first_seen - 1][3] == "approach"
     far = ref.run_policy(env, q, "room-by-room-no-closer", budget)
     assert far.approaches == 0 and (far.first_seen is None or far.first_seen > rooms.first_seen)
+
+
+def test_named_room_knows_only_the_room_the_question_names(ref, house):
+    """The yardstick "knows the named room": where the question names the evidence's room it
+    walks as target-room; a location question names no room, so it is not told where the
+    evidence is (target-room is) and searches room by room."""
+    env, q, budget = house
+    named = ref.run_policy(env, q, "named-room", budget)
+    assert named.trace == ref.run_policy(env, q, "target-room", budget).trace
+    where = replace(q, question="Where is the bookshelf?", category="location")
+    told = ref.run_policy(env, where, "target-room", budget)
+    named = ref.run_policy(env, where, "named-room", budget)
+    rooms = ref.run_policy(env, where, "room-by-room", budget)
+    assert named.first_seen is not None and named.first_seen > 2 * told.first_seen
+    assert named.trace == rooms.trace
+
+
+def test_named_room_searches_on_room_by_room_when_the_named_room_is_empty(ref, house):
+    """A question naming another room than the evidence's: the named room first (its
+    viewpoints looked around at), then on to the other rooms, never back and forth."""
+    env, q, budget = house
+    bedroom = next(r.id for r in env.house.layout.rooms if r.name == "bedroom")
+    wrong = replace(q, question="What is on the bookshelf in the bedroom?")
+    ep = ref.run_policy(env, wrong, "named-room", budget)
+    rooms = [env.house.layout.room_at(x, y) for x, y, *_ in ep.trace]
+    ids = [r.id if r is not None else None for r in rooms]
+    first = ids.index(bedroom)
+    assert ids[:first].count(bedroom) == 0
+    left = max(k for k, i in enumerate(ids) if i == bedroom)
+    assert left > first + 4  # looked around at more than one viewpoint in the bedroom
+    assert bedroom not in ids[left + 1:]  # never back into it
+    assert ep.rooms_entered >= 5  # went on to other rooms

@@ -100,9 +100,14 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
                          "alternatives": truth.alternatives, "category": truth.category}
             if start is None:  # oracle step counts are from the scene's own start pose
                 reference["oracle_steps"] = truth.oracle_steps
+        last = result.records[-1] if result.records else None
+        stop_step = (last.check.tested_step or last.step
+                     if result.stop_reason == "relevancy" and last is not None
+                     and last.check is not None else None)
         record = episode_record(result, config=config, backends=built.backends,
                                 scene=opened.name, exchanges=built.model.exchanges,
-                                reference=reference, evidence=watch.fields(result.retrieved))
+                                reference=reference,
+                                evidence=watch.fields(result.retrieved, stop_step))
         episode_json = write_json(out / "episode.json", record)
         html = (write_report(out / "report.html", record, map_url(result), frames.frames,
                              frames.descriptions) if report else None)

@@ -98,6 +98,8 @@ class Outcome:
     # From the ground truth after the episode (report.evidence); None where unknown.
     evidence_first_seen_step: int | None = None
     evidence_in_top_k: bool | None = None
+    # a relevancy stop's tested frame: its fewest evidence pixels at 640 x 480 (report.evidence)
+    evidence_stop_pixels: float | None = None
     refused_moves: int | None = None  # moves the environment refused (agent methods)
 
 
@@ -175,6 +177,7 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
                           "valid_frames": sum(s["valid"] for s in record["per_step"])},
                    evidence_first_seen_step=record["evidence_first_seen_step"],
                    evidence_in_top_k=record["evidence_in_top_k"],
+                   evidence_stop_pixels=record.get("evidence_stop_pixels"),
                    refused_moves=record.get("refused_moves"))
 
 

@@ -132,6 +132,7 @@ def run_episode(spec: RunSpec, q: EvalQuestion, out: Path) -> dict[str, Any]:
                    usage=outcome.usage, backends=outcome.backends, extra=outcome.extra,
                    evidence_first_seen_step=outcome.evidence_first_seen_step,
                    evidence_in_top_k=outcome.evidence_in_top_k,
+                   evidence_stop_pixels=outcome.evidence_stop_pixels,
                    refused_moves=outcome.refused_moves)
         row["rule"] = _rule(q, outcome.answer)
         row["choice"] = _choice(q, outcome.extra)
