@@ -219,9 +219,13 @@ _FUNCTION = frozenset(_words(
 ) + _DETERMINERS + _PRONOUNS)
 
 
+def mend(text: str) -> str:
+    """``text`` in lower case with its known typos and contractions mended (``_TYPOS``)."""
+    return _TYPO_RE.sub(lambda m: _TYPOS[m.group(1)], " ".join(text.lower().split()))
+
+
 def _normalise(question: str) -> str:
-    q = " ".join(question.lower().replace("\u2019", "'").replace(",", " , ").split())
-    q = _TYPO_RE.sub(lambda m: _TYPOS[m.group(1)], q)
+    q = mend(question.replace("\u2019", "'").replace(",", " , "))
     q = re.sub(rf"\b({_COLOURS}) (and|or) ({_COLOURS})\b", r"\1_\2_\3", q)  # one thing
     q = re.sub(r"\b(trash|garbage|waste|watering) can\b", r"\1_can", q)
     q = _HAS_RE.sub(r"is there \2 on \1", q)
