@@ -20,7 +20,7 @@ from efficienteqa.reading.target import TargetReading
 
 
 def _reader(**said) -> tuple[ModelReader, StubChatModel]:
-    reply = {"kind": "other", "object": None, "support": None, "rooms": [], "likely_rooms": [],
+    reply = {"kind": "other", "object": None, "support": None, "rooms": [], "usual_rooms": [],
              **said}
     model = StubChatModel([f"Sure:\n```json\n{json.dumps(reply)}\n```"])
     return ModelReader(model), model
@@ -28,7 +28,7 @@ def _reader(**said) -> tuple[ModelReader, StubChatModel]:
 
 def test_the_models_fields_are_kept_when_they_are_words_of_the_question():
     reader, model = _reader(kind="existence", object="Towel", support="bathtub",
-                            likely_rooms=["bathroom", "washroom", "attic", "guest bathroom"])
+                            usual_rooms=["bathroom", "washroom", "attic", "guest bathroom"])
     t = reader.read("Is there a towel on the bathrub already? I wanna shower now.")
     # a typo-tolerant match ("bathtub" for "bathrub"); "washroom" is the bathroom, "attic" no room
     assert (t.kind, t.object, t.support) == ("existence", "towel", "bathtub")
@@ -47,7 +47,7 @@ def test_a_field_that_is_not_in_the_question_falls_back_to_the_rules():
 
 def test_a_room_is_no_support_and_named_rooms_stay_the_questions():
     reader, _ = _reader(kind="state", object="tv", support="guest bedroom",
-                        rooms=["kitchen"], likely_rooms=["living room"])
+                        rooms=["kitchen"], usual_rooms=["living room"])
     t = reader.read("Is the tv in the guest bedroom on?")
     assert (t.kind, t.object, t.support, t.rooms) == ("state", "tv", None, ("guest bedroom",))
     assert t.likely_rooms == ()  # a room is named: no prior
@@ -155,7 +155,7 @@ def test_an_agent_asked_to_read_by_model_needs_the_reading():
 
 
 def test_rules_plus_rooms_keeps_the_rules_target_and_adds_the_models_rooms():
-    reader, model = _reader(kind="existence", object="chair", likely_rooms=["bedroom"])
+    reader, model = _reader(kind="existence", object="chair", usual_rooms=["bedroom"])
     reading = TargetReading("rules+rooms", "words", reader)
     question = "Where id the small wooden stool?"
     t = reading.target(question)
@@ -174,7 +174,7 @@ def test_an_episode_reads_its_question_once_and_records_the_target(env_seed3):
         if "Say what the robot must look for" in messages[-1].text:
             reads.append(messages[-1].text)
             return json.dumps({"kind": "location", "object": "stool", "support": None,
-                               "rooms": [], "likely_rooms": ["kitchen", "dining room"]})
+                               "rooms": [], "usual_rooms": ["kitchen", "dining room"]})
         return averse._reply(messages)
 
     model = StubChatModel(reply, name="reader-stub")

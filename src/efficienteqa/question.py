@@ -5,9 +5,13 @@ what that object stands on or around, and the kind of question.
 robot must find), support "nightstand", room "bedroom". "How many chairs are around the table in
 the dining room?" -> kind "count", object "chair", support "table", room "dining room".
 
-The parse is rules over the question's words, so it reads any question in any configuration
-(text or images); where it finds nothing, the target is empty and every mechanism that reads it
-falls back to the paper's behaviour. Room names are canonical (``ROOMS``; "study" -> "office").
+The parse is rules over the question's words, written for the generator's forms and for the
+way people ask (HM-EQA: typos, several sentences, "I'm looking for my X. Where is it?", room
+words as modifiers). It reads the question alone, never a frame, so it serves every perception
+alike (labels as text, pixels, a VLM over images); where it finds nothing, the target is empty
+and every mechanism that reads it falls back to the paper's behaviour. Room names are canonical
+(``ROOMS``; "study" -> "office"). ``reading/`` holds the model's reading, checked against these
+rules, and the match of the target's words to what a perception names.
 """
 
 from __future__ import annotations

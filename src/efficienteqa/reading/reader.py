@@ -44,9 +44,9 @@ SCHEMA: dict[str, Any] = {
         "object": {"type": ["string", "null"]},
         "support": {"type": ["string", "null"]},
         "rooms": {"type": "array", "items": {"type": "string"}},
-        "likely_rooms": {"type": "array", "items": {"type": "string"}},
+        "usual_rooms": {"type": "array", "items": {"type": "string"}},
     },
-    "required": ["kind", "object", "support", "rooms", "likely_rooms"],
+    "required": ["kind", "object", "support", "rooms", "usual_rooms"],
 }
 _LEADING = re.compile(r"^(?:the|a|an|my|any|some|your|our)\s+")
 
@@ -96,7 +96,9 @@ class ModelReader:
             obj, support = None, obj  # "what is on the X": X is where to look
         if kind == "count" and obj is not None:
             obj = singular(obj)
-        likely = () if rules.rooms else _rooms(said.get("likely_rooms"))
+        # the rooms such a thing usually is in, asked always (a 1.5B model leaves an optional
+        # list empty), used only where the question names none
+        likely = () if rules.rooms else _rooms(said.get("usual_rooms", said.get("likely_rooms")))
         return replace(rules, kind=kind, object=obj, support=support, likely_rooms=likely)
 
 
