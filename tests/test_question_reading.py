@@ -53,6 +53,12 @@ def test_a_room_is_no_support_and_named_rooms_stay_the_questions():
     assert t.likely_rooms == ()  # a room is named: no prior
 
 
+def test_a_things_name_is_cut_from_the_relations_the_model_keeps_with_it():
+    reader, _ = _reader(kind="count", object="pillows", support="bed with green floral bedding")
+    t = reader.read("How many pillows did I leave on the bed with green floral bedding?")
+    assert (t.object, t.support) == ("pillow", "bed")  # "bed with ..." would name no bed
+
+
 def test_an_unreadable_reply_is_the_rules_target():
     model = StubChatModel(["I think it is a stool."])
     reader = ModelReader(model)

@@ -238,6 +238,13 @@ def _normalise(question: str) -> str:
                   else m.group(0) + "_", q)  # a closet is a room only where one goes in
 
 
+def thing_name(phrase: str) -> str | None:
+    """The name of the first thing in ``phrase``, as the rules read one: "the bed with green
+    bedding" -> "bed", "window next to dining table" -> "window"; None when it names none."""
+    obj, support = _things(_normalise(phrase), "other")
+    return obj or support
+
+
 def _sentences(text: str) -> list[tuple[str, bool]]:
     """The sentences of ``text`` without their end mark, each with whether it asks ("?")."""
     parts = re.findall(r"[^.?!]+[.?!]*", text)

@@ -27,9 +27,9 @@ from efficienteqa.question import (
     ROOMS,
     Target,
     canonical_room,
-    mend,
     parse_question,
     singular,
+    thing_name,
 )
 from efficienteqa.vc.prompts import load_prompt
 
@@ -86,10 +86,10 @@ class ModelReader:
                 kept = None
             elif (words := words_of(value, question)) is None:
                 self.problems.append(f"{name} {value!r} is not in the question: the rules' {kept!r}")
-            elif canonical_room(words) is not None:
-                self.problems.append(f"{name} {value!r} is a room: the rules' {kept!r}")
-            else:
-                kept = mend(words)
+            elif canonical_room(words) is not None or thing_name(words) is None:
+                self.problems.append(f"{name} {value!r} names no thing: the rules' {kept!r}")
+            else:  # its thing's name only: "bed with green bedding" -> "bed"
+                kept = thing_name(words)
             things.append(kept)
         obj, support = things
         if kind == "identification" and obj is not None and support is None:
