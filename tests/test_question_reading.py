@@ -119,6 +119,14 @@ def test_words_that_already_name_a_category_are_not_resolved():
     assert resolver.aliases(Target("count", "chair", "table"), ["chair", "table"]) == ()
 
 
+def test_a_category_the_words_already_name_is_not_asked():
+    model = StubChatModel(["1 yes"])
+    resolver = AliasResolver(_embed, model, clear=0.99, unsure=0.2)
+    aliases = resolver.aliases(Target("location", "bedside table"), ["table", "nightstand"])
+    assert aliases == (("bedside table", "nightstand"),)
+    assert '"table"' not in model.requests[0].messages[0].text  # a table by its words already
+
+
 def test_without_a_model_only_the_clear_pairs_are_kept():
     resolver = AliasResolver(_embed, None, clear=0.95, unsure=0.2)
     aliases = resolver.aliases(Target("location", "couch", "bedside table"),

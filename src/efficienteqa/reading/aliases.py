@@ -29,7 +29,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from efficienteqa.models.base import ChatModel, Message
-from efficienteqa.question import Target, singular
+from efficienteqa.question import Target, names, singular
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.reading"  # reading/prompts/same.txt
@@ -65,7 +65,9 @@ class AliasResolver:
         clear: list[tuple[str, str]] = []
         unsure: list[tuple[str, str]] = []
         for i, word in enumerate(words):
-            order = np.argsort(-sims[i], kind="stable")
+            # a category its words already name needs no alias ("wooden chair" is a "chair")
+            order = [j for j in np.argsort(-sims[i], kind="stable")
+                     if not names(word, categories[j])]
             sure = [(word, categories[j]) for j in order if sims[i, j] >= self.clear]
             clear += sure
             if not sure:
