@@ -6,7 +6,9 @@
 
 - rules: the share of HM-EQA's questions with a non-empty target (an object or a support), all
   of them; the hand check of 60 of them (seeded sample ``random.Random(0).sample(range(500),
-  60)``; verdicts by question row in experiments/question_check_hm_eqa.csv, no question text);
+  60)``; verdicts by question row in experiments/question_check_hm_eqa.csv, no question text;
+  ``model_verdict`` for the rows the model read, judged the same way: object, support, rooms
+  and a kind that does not change what the robot must see);
 - model (``--model-sample``): the same share over the 60 hand-checked rows and then rows drawn
   with ``--seed`` up to the sample's size, how often its fields fell back to the rules', how
   often it gave likely rooms where none is named, and where it agrees with the rules;
@@ -78,6 +80,10 @@ def main() -> None:
     with CHECK.open(newline="") as f:
         verdicts = list(csv.DictReader(f))
     print(f"rules, hand check: {sum(v['verdict'] == 'right' for v in verdicts)}/{len(verdicts)} right")
+    judged = [v for v in verdicts if v.get("model_verdict")]
+    print(f"model, hand check of the rows it read: "
+          f"{sum(v['model_verdict'] == 'right' for v in judged)}/{len(judged)} right (rules on "
+          f"those rows: {sum(v['verdict'] == 'right' for v in judged)}/{len(judged)})")
     if not args.model_sample and not args.training:
         return
     from efficienteqa.models.backends import build_chat_model
