@@ -54,6 +54,9 @@ from efficienteqa.mapping.tsdf import VolumeSpec
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
 from efficienteqa.question import Target, parse_question
+from efficienteqa.reading.aliases import MATCHINGS
+from efficienteqa.reading.reader import READINGS
+from efficienteqa.reading.target import TargetReading
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
 from efficienteqa.stop.gate import GATES, AnswerGate
 from efficienteqa.stop.rules import (
@@ -133,6 +136,12 @@ class AgentConfig:
     # Beyond the paper (DESIGN 9): "target" wraps the frontier explorer in explore.target's
     # steering by the question's target (go to the named room, inspect, look around); "none".
     steering: str = "target"
+    # Beyond the paper (issue 33): how the question's target is read, "rules" (no call),
+    # "model" (one call, checked against the question's words) or "rules+rooms" (the rules'
+    # target, the model's likely rooms); how its words match the perception's categories,
+    # "words" or "meaning" (aliases by embeddings and one yes/no call). See reading/.
+    reading: str = "rules"
+    matching: str = "words"
 
     def __post_init__(self) -> None:
         if self.top_k < 1:
@@ -163,6 +172,10 @@ class AgentConfig:
         if self.token_answer not in TOKEN_ANSWERS:
             raise ValueError(f"token_answer must be one of {TOKEN_ANSWERS}, "
                              f"not {self.token_answer!r}")
+        if self.reading not in READINGS:
+            raise ValueError(f"reading must be one of {READINGS}, not {self.reading!r}")
+        if self.matching not in MATCHINGS:
+            raise ValueError(f"matching must be one of {MATCHINGS}, not {self.matching!r}")
         if self.answer_at not in ANSWER_AT:
             raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
 
@@ -258,7 +271,7 @@ class Agent:
                  relevancy: RelevancyScorer, answerer: RagAnswerer,
                  config: AgentConfig | None = None,
                  exchanges: RecordingChatModel | None = None,
-                 gate: AnswerGate | None = None) -> None:
+                 gate: AnswerGate | None = None, reading: TargetReading | None = None) -> None:
         if relevancy.modality == "text" and perception.modality != "text":
             raise ValueError(f"relevancy scorer {relevancy.name!r} reads text, but perception "
                              f"{perception.name!r} gives images")
@@ -269,6 +282,12 @@ class Agent:
         self.gate = gate
         if self.config.gate in ("rules", "model") and gate is None:
             raise ValueError(f"config asks for the {self.config.gate!r} gate, and none was given")
+        self.reading = reading
+        if (self.config.reading, self.config.matching) != ("rules", "words") and (
+                reading is None or (reading.reading, reading.matching)
+                != (self.config.reading, self.config.matching)):
+            raise ValueError(f"config asks for the {self.config.reading!r} reading and "
+                             f"{self.config.matching!r} matching, and no such reading was given")
 
     def _phase(self, name: str) -> AbstractContextManager[None]:
         return self.exchanges.in_phase(name) if self.exchanges is not None else nullcontext()
@@ -301,7 +320,9 @@ class Agent:
         explorer = make_explorer(cfg.explorer, **options)
         if cfg.steering == "target" and isinstance(explorer, FrontierExplorer):
             explorer = TargetExplorer(explorer)
-        target = parse_question(question)
+        with self._phase("question"):
+            target = (self.reading.target(question) if self.reading is not None
+                      else parse_question(question))
         prompts = PROMPT_CONFIGS[cfg.prompts]
         if self.perception.modality == "text":  # no circles are drawn: none can overlap
             prompts = replace(prompts, min_px=0.0)

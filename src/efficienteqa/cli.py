@@ -104,6 +104,14 @@ Gate = Annotated[str | None, _option(BEYOND,
 Steering = Annotated[str | None, _option(BEYOND,
     help="target (default: go to the room the question names, inspect what it asks about, "
     "look around on entering) or none (the paper's exploration).", show_default=False)]
+Reading = Annotated[str | None, _option(BEYOND,
+    help="How the question's target is read: rules (default, no call), model (one call to the "
+    "VLM, checked against the question's words) or rules+rooms (the rules' target, the VLM's "
+    "likely rooms).", show_default=False)]
+Matching = Annotated[str | None, _option(BEYOND,
+    help="How the question's words match the perception's categories: words (default) or "
+    "meaning (embeddings, and one yes/no call to the VLM for unsure pairs).",
+    show_default=False)]
 DistinctViews = Annotated[bool | None, _option(BEYOND,
     "--distinct-views/--repeated-views", help="Retrieve K different views (default), or the K "
     "most relevant frames even when they repeat one view (DESIGN 3.5).", show_default=False)]
@@ -286,6 +294,8 @@ def ask_command(
     exploration: Exploration = None,
     gate: Gate = None,
     steering: Steering = None,
+    reading: Reading = None,
+    matching: Matching = None,
     out: Path = _option(OUTPUT, Path("out/ask"), help="Folder for episode.json and report.html."),
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
@@ -450,6 +460,8 @@ def eval_command(
     exploration: Exploration = None,
     gate: Gate = None,
     steering: Steering = None,
+    reading: Reading = None,
+    matching: Matching = None,
     out: Path = _option(OUTPUT, ..., help="Run folder: run.json, episodes.jsonl, episodes/ (resumed "
                              "when it exists)."),
     reports: bool = _option(OUTPUT, False, "--reports", help="Also write each episode's report.html."),

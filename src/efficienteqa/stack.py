@@ -29,6 +29,9 @@ from efficienteqa.models.client import IMAGE_DETAILS, IMAGE_FORMATS
 from efficienteqa.models.local.weights import DEFAULT_MODEL
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
+from efficienteqa.reading.aliases import AliasResolver
+from efficienteqa.reading.reader import ModelReader
+from efficienteqa.reading.target import TargetReading
 from efficienteqa.registry import Registry
 from efficienteqa.relevancy.base import SCORERS, RelevancyScorer, make_scorer
 from efficienteqa.stop.gate import AnswerGate, ModelGate, RulesGate
@@ -330,6 +333,40 @@ def build_relevancy(kind: str, device: str = "auto", weights: str | None = None,
     return make_scorer(kind)
 
 
+def perception_vocabulary(perception: Perception) -> tuple[str, ...]:
+    """The object categories ``perception`` can name (reading.aliases): the pixel network's
+    classes (its weights' vocabulary, less void, wall and floors), else the scene's labels'
+    categories (``categories()`` where the labels give it, else their id -> label table)."""
+    if perception.name == "pixels":
+        import json
+
+        from efficienteqa.perception.pixels.backend import WEIGHTS
+        from efficienteqa.perception.pixels.net import metadata_path
+
+        names = json.loads(metadata_path(WEIGHTS).read_text())["vocabulary"]["categories"]
+        return tuple(c for c in names if c not in ("void", "wall") and ":" not in c)
+    labels = getattr(perception, "labels", None)
+    if callable(getattr(labels, "categories", None)):
+        return tuple(labels.categories())  # type: ignore[union-attr]
+    table = getattr(labels, "_labels", None)  # HouseLabels, HabitatLabels: id -> ObjectLabel
+    return tuple(sorted({o.category for o in table.values()})) if isinstance(table, dict) else ()
+
+
+def build_reading(config: AgentConfig, perception: Perception, model: ChatModel,
+                  relevancy: RelevancyScorer) -> TargetReading | None:
+    """How the agent reads the question's target (``AgentConfig.reading``/``matching``); None
+    for the rules and the words alone (no call, nothing to load)."""
+    if (config.reading, config.matching) == ("rules", "words"):
+        return None
+    reader = ModelReader(model) if config.reading != "rules" else None
+    resolver = None
+    if config.matching == "meaning":  # MiniLM's sentence embeddings, loaded offline
+        embed = getattr(relevancy, "embed", None) or build_relevancy("minilm").embed  # type: ignore[attr-defined]
+        resolver = AliasResolver(embed, model)
+    return TargetReading(config.reading, config.matching, reader, resolver,
+                         perception_vocabulary(perception))
+
+
 @dataclass
 class BuiltAgent:
     agent: Agent
@@ -374,7 +411,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                            probability=config.answer_probability,
                            token_prompt=config.token_answer)
     gate = build_gate(config.gate, perception, recorder)
-    agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder, gate=gate)
+    agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder, gate=gate,
+                  reading=build_reading(config, perception, recorder, relevancy))
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,
                 "vlm_backend": vlm_backend,
                 "relevancy": relevancy.name, "grouping": stack.grouping,

@@ -47,6 +47,9 @@ FORMAT_1_NONE = {"refusal_retries": 3, "stop_clearance_m": 0.45, "answer_every_s
 # Settings added while format 1 was written, and what a run that did not record them ran with:
 # no answerability gate, no steering by the question's target (DESIGN 9).
 FORMAT_1_MISSING = {"gate": "none", "steering": "none"}
+# AgentConfig settings added after format 2, in any format: what a run that did not record them
+# ran with (the question read by rules, its words matched as words; issue 33).
+ADDED_SETTINGS = {"reading": "rules", "matching": "words"}
 # The stack's None (or a setting it did not record yet): each call's own temperature, 0 for
 # every call of a run; the relevancy model on the GPU torch sees, else the CPU; no download of
 # its weights; images at 512 px, as JPEG for openai: servers and PNG for the local one ("auto").
@@ -191,6 +194,9 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
             stack = {**stack, "image_format": "png"}  # recorded before JPEG became openai:'s
         out["stack"] = {**stack, **{k: v for k, v in FORMAT_1_STACK_NONE.items()
                                     if stack.get(k) is None}}
+    for key in ("config", "method_config"):
+        if isinstance(out.get(key), dict):
+            out[key] = {**ADDED_SETTINGS, **out[key]}
     if manifest.get("format", 1) >= RUN_FORMAT:
         return out
     for key in ("config", "method_config"):

@@ -1,0 +1,201 @@
+"""The model's reading of the question (reading.reader), the match of its words by meaning
+(reading.aliases) and how the agent gets both (AgentConfig.reading / matching): with stub
+models and a stub embedder, so every verdict is deterministic."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import needs_egl
+from efficienteqa.agent import PAPER_CONFIG, Agent, AgentConfig
+from efficienteqa.models.base import Capabilities, Message
+from efficienteqa.models.stub import StubChatModel
+from efficienteqa.question import Target, parse_question
+from efficienteqa.reading.aliases import AliasResolver
+from efficienteqa.reading.reader import ModelReader, words_of
+from efficienteqa.reading.target import TargetReading
+
+
+def _reader(**said) -> tuple[ModelReader, StubChatModel]:
+    reply = {"kind": "other", "object": None, "support": None, "rooms": [], "usual_rooms": [],
+             **said}
+    model = StubChatModel([f"Sure:\n```json\n{json.dumps(reply)}\n```"])
+    return ModelReader(model), model
+
+
+def test_the_models_fields_are_kept_when_they_are_words_of_the_question():
+    reader, model = _reader(kind="existence", object="Towel", support="bathtub",
+                            usual_rooms=["bathroom", "washroom", "attic", "guest bathroom"])
+    t = reader.read("Is there a towel on the bathrub already? I wanna shower now.")
+    # a typo-tolerant match ("bathtub" for "bathrub"); "washroom" is the bathroom, "attic" no room
+    assert (t.kind, t.object, t.support) == ("existence", "towel", "bathtub")
+    assert t.likely_rooms == ("bathroom", "guest bathroom") and t.rooms == ()
+    assert len(model.requests) == 1 and reader.problems == []
+
+
+def test_a_field_that_is_not_in_the_question_falls_back_to_the_rules():
+    question = "Where id the small wooden stool?"
+    reader, _ = _reader(kind="location", object="chair", support="kitchen")
+    t = reader.read(question)
+    assert t.object == parse_question(question).object == "small wooden stool"
+    assert t.support is None  # "kitchen" is not in the question
+    assert len(reader.problems) == 2
+
+
+def test_a_room_is_no_support_and_named_rooms_stay_the_questions():
+    reader, _ = _reader(kind="state", object="tv", support="guest bedroom",
+                        rooms=["kitchen"], usual_rooms=["living room"])
+    t = reader.read("Is the tv in the guest bedroom on?")
+    assert (t.kind, t.object, t.support, t.rooms) == ("state", "tv", None, ("guest bedroom",))
+    assert t.likely_rooms == ()  # a room is named: no prior
+
+
+def test_a_things_name_is_cut_from_the_relations_the_model_keeps_with_it():
+    reader, _ = _reader(kind="count", object="pillows", support="bed with green floral bedding")
+    t = reader.read("How many pillows did I leave on the bed with green floral bedding?")
+    assert (t.object, t.support) == ("pillow", "bed")  # "bed with ..." would name no bed
+
+
+def test_an_unreadable_reply_is_the_rules_target():
+    model = StubChatModel(["I think it is a stool."])
+    reader = ModelReader(model)
+    question = "How many stools are available at the kitchen island?"
+    assert reader.read(question) == parse_question(question)
+    assert reader.problems and "no JSON" in reader.problems[0]
+
+
+def test_the_count_object_is_singular_and_identification_looks_at_its_support():
+    reader, _ = _reader(kind="count", object="chairs", support="table")
+    assert reader.read("How many chairs are around the table?").object == "chair"
+    reader, _ = _reader(kind="identification", object="nightstand")
+    t = reader.read("What is on the nightstand?")
+    assert (t.object, t.support) == (None, "nightstand")
+
+
+def test_the_schema_is_sent_where_the_server_takes_one():
+    reader, model = _reader(kind="location", object="stool")
+    reader.read("Where is the stool?")
+    assert model.requests[0].json_schema is not None
+    plain = StubChatModel(['{"kind": "location"}'], capabilities=Capabilities())
+    ModelReader(plain).read("Where is the stool?")
+    assert plain.requests[0].json_schema is None
+
+
+def test_words_of_the_question():
+    assert words_of("The Coffee Machines", "Where is the coffee machine?") == "coffee machines"
+    assert words_of("bathtub", "a towel on the bathrub") == "bathtub"
+    assert words_of("bath", "a towel on the bathrub") is None  # short words must match exactly
+    assert words_of("sofa", "Where is the couch?") is None
+
+
+# ----- matching by meaning ----------------------------------------------------------------
+_VECTORS = {"couch": [1, 0, 0], "sofa": [0.9, 0.1, 0], "bedside table": [0, 1, 0.3],
+            "nightstand": [0, 1, 0.8], "table": [0, 0.2, 1], "chair": [0.2, 0.2, 0.2]}
+
+
+def _embed(texts):
+    rows = np.array([_VECTORS.get(t, [0.1, 0.1, 0.1]) for t in texts], dtype=float)
+    return rows / np.linalg.norm(rows, axis=1, keepdims=True)
+
+
+def test_clear_pairs_are_aliases_and_unsure_ones_are_asked_in_one_call():
+    model = StubChatModel(['1. "bedside table" and "nightstand": yes\n2 no\n3 no'])
+    resolver = AliasResolver(_embed, model, clear=0.95, unsure=0.2)
+    target = Target("location", "couch", "bedside table")
+    aliases = resolver.aliases(target, ["Sofa", "nightstand", "table", "chair"])
+    assert ("couch", "sofa") in aliases and ("bedside table", "nightstand") in aliases
+    assert ("bedside table", "table") not in aliases  # asked, and the model said no
+    assert len(model.requests) == 1
+    with_aliases = Target("location", "couch", "bedside table", aliases=aliases)
+    assert with_aliases.is_a("couch", "sofa") and not with_aliases.is_a("couch", "table")
+
+
+def test_words_that_already_name_a_category_are_not_resolved():
+    model = StubChatModel([])  # any call would fail the test
+    resolver = AliasResolver(_embed, model)
+    assert resolver.aliases(Target("count", "chair", "table"), ["chair", "table"]) == ()
+
+
+def test_a_category_the_words_already_name_is_not_asked():
+    model = StubChatModel(["1 yes"])
+    resolver = AliasResolver(_embed, model, clear=0.99, unsure=0.2)
+    aliases = resolver.aliases(Target("location", "bedside table"), ["table", "nightstand"])
+    assert aliases == (("bedside table", "nightstand"),)
+    assert '"table"' not in model.requests[0].messages[0].text  # a table by its words already
+
+
+def test_without_a_model_only_the_clear_pairs_are_kept():
+    resolver = AliasResolver(_embed, None, clear=0.95, unsure=0.2)
+    aliases = resolver.aliases(Target("location", "couch", "bedside table"),
+                               ["sofa", "nightstand"])
+    assert aliases == (("couch", "sofa"),)
+
+
+def test_an_unanswered_pair_is_no_alias():
+    model = StubChatModel(["maybe"])
+    resolver = AliasResolver(_embed, model, clear=0.99, unsure=0.2)
+    assert resolver.aliases(Target("location", "bedside table"), ["nightstand"]) == ()
+    assert resolver.problems
+
+
+# ----- the agent's options ----------------------------------------------------------------
+def test_the_reading_options_are_checked_and_the_paper_reads_by_rules():
+    with pytest.raises(ValueError, match="reading"):
+        AgentConfig(reading="guess")
+    with pytest.raises(ValueError, match="matching"):
+        AgentConfig(matching="sound")
+    assert (PAPER_CONFIG.reading, PAPER_CONFIG.matching) == ("rules", "words")
+    assert (AgentConfig().reading, AgentConfig().matching) == ("rules", "words")
+
+
+def test_the_paper_configuration_builds_no_reading(monkeypatch):
+    from efficienteqa.stack import build_reading
+
+    assert build_reading(PAPER_CONFIG, None, None, None) is None  # type: ignore[arg-type]
+
+
+def test_an_agent_asked_to_read_by_model_needs_the_reading():
+    from agent_stubs import MentionScorer
+
+    class Text:
+        modality = "text"
+
+    with pytest.raises(ValueError, match="reading"):
+        Agent(Text(), None, MentionScorer("x"), None,  # type: ignore[arg-type]
+              AgentConfig(reading="model"))
+
+
+def test_rules_plus_rooms_keeps_the_rules_target_and_adds_the_models_rooms():
+    reader, model = _reader(kind="existence", object="chair", usual_rooms=["bedroom"])
+    reading = TargetReading("rules+rooms", "words", reader)
+    question = "Where id the small wooden stool?"
+    t = reading.target(question)
+    assert t.object == "small wooden stool" and t.likely_rooms == ("bedroom",)
+
+
+@needs_egl
+def test_an_episode_reads_its_question_once_and_records_the_target(env_seed3):
+    from agent_stubs import averse_model
+    from efficienteqa.stack import Stack, build_agent
+
+    averse = averse_model("none", "none")
+    reads: list[str] = []
+
+    def reply(messages: list[Message]) -> str:
+        if "Say what the robot must look for" in messages[-1].text:
+            reads.append(messages[-1].text)
+            return json.dumps({"kind": "location", "object": "stool", "support": None,
+                               "rooms": [], "usual_rooms": ["kitchen", "dining room"]})
+        return averse._reply(messages)
+
+    model = StubChatModel(reply, name="reader-stub")
+    config = AgentConfig(max_steps=2, reading="model")
+    built = build_agent(env_seed3, Stack(grouping="rules", explore_scorer="direction-logit"),
+                        config, "synthetic", model=model)
+    result = built.agent.run(env_seed3, "Where id the stool?")
+    assert len(reads) == 1
+    assert result.target.object == "stool"
+    assert result.target.likely_rooms == ("kitchen", "dining room")
