@@ -73,9 +73,11 @@ def test_under_the_papers_rule_an_ineligible_outlier_does_not_stop():
 
 # ----- the rules gate ------------------------------------------------------------------------
 def _seen(category: str, where: str | None = None, carries: str | None = None,
-          iid: int = 1, pixels: int = 5000, on: str | None = None) -> VisibleObject:
+          iid: int = 1, pixels: int = 5000, on: str | None = None,
+          support_id: int | None = None) -> VisibleObject:
     return VisibleObject(iid, ObjectLabel(category, "brown", None, None), pixels, (320.0, 240.0),
-                         0.0, "ahead", 2.0, where=where, on=on, carries=carries)
+                         0.0, "ahead", 2.0, where=where, on=on, carries=carries,
+                         support_id=support_id)
 
 
 class _Frame:  # what the gate reads of an observation: its size
@@ -102,10 +104,14 @@ def _gate(question, objects, things=(), room=None):
 def test_the_gate_wants_what_stands_on_the_surface_not_the_surface():
     q = "What is on the nightstand in the bedroom?"
     stand = _seen("nightstand", "in the bedroom", carries="a desk lamp")
-    lamp = _seen("desk lamp", "in the bedroom", iid=2, pixels=400, on="the brown nightstand")
+    lamp = _seen("desk lamp", "in the bedroom", iid=2, pixels=400, on="the brown nightstand",
+                 support_id=1)
     assert not _gate(q, [_seen("nightstand", "in the bedroom")]).ok
     assert _gate(q, [stand, lamp]).ok
-    assert not _gate(q, [stand, replace(lamp, pixels=100)]).ok  # too small to name: go closer
+    # what the text says stands on it passes, whatever its size (the text lists it at 150 px)
+    assert _gate(q, [stand, replace(lamp, pixels=160)]).ok
+    # an item near the surface that the text does not put on it does not (a ceiling lamp above)
+    assert not _gate(q, [stand, replace(lamp, on=None, support_id=None)]).ok
     assert not _gate(q, [replace(stand, where="in the office"), lamp]).ok
 
 
