@@ -3,7 +3,14 @@
 The answer with its confidence (DESIGN 3.5, 3.6): the prompt with its hint for the question's
 form, then M guesses with verbalized confidences -> normalise -> group -> argmax, or, for the
 white-box baseline, one greedy answer whose confidence is its token probability. ``evidence``
-is the top-K frame descriptions (best first) or the top-K RGB frames."""
+is the top-K frame descriptions (best first) or the top-K RGB frames.
+
+The direct answer reads text views cut to what the question names (``focus_views``: one view
+for a count, the views that show the object for a location, the object's own colour) and, for
+an existence question no view answers, a sentence saying so (``absence_note``). Both read the
+frame text of ``perception.semantic``, which the labels and the pixel perception share. A VLM
+over images gets the image hints instead (count each object once, the colour of that object):
+the views are pictures, and the VLM does the focusing itself."""
 
 from __future__ import annotations
 
@@ -225,20 +232,29 @@ def focus_views(question: str, views: Sequence[str], target: Target | None = Non
 
 
 def absence_note(question: str, views: Sequence[str], target: Target | None = None) -> str:
-    """For an existence question whose object no view lists, a plain sentence that says so
-    ("The robot looked in the living room and saw no armchair there."), so that a small model
-    answers "no" (it said "Yes" to a prompt listing the room without the object); "" otherwise.
-    ``target`` as in ``focus_views``."""
+    """For an existence question whose object no view lists in the room it names (or in any
+    room, when it names none), a plain sentence that says so ("The robot looked in the living
+    room and saw no armchair there: the answer is no."), so that a small model answers "no" (it
+    said "Yes" to a prompt listing the room without the object, and to one listing a sofa of
+    the room next door); "" otherwise. When the views never show the named room, the sentence
+    says that instead and leaves the answer to the model. ``target`` as in ``focus_views``."""
     target = target or parse_question(question)
-    if target.kind != "existence" or not target.object or focus_views(question, views,
-                                                                        target) != list(views):
+    if target.kind != "existence" or not target.object or len(target.rooms) > 1:
         return ""
-    rooms = {_robot_room(v.partition(". ")[0]) for v in views}
-    rooms |= {parse_entry(e).room for v in views for e in v.partition(". ")[2].split("; ")}
-    if target.room and target.room in rooms:
-        return (f"The robot looked in the {target.room} and saw no {target.object} there: "
+    entries = [parse_entry(e, _robot_room(head)) for head, _, rest in
+               (v.partition(". ") for v in views)
+               for e in rest.split(". ")[0].removeprefix("Visible: ").split("; ") if e]
+    room = target.room
+    if any(target.is_a(target.object, e.noun) and (room is None or e.room == room)
+           for e in entries):
+        return ""
+    if room is None:
+        return f"The robot saw no {target.object}: the answer is no."
+    seen = {_robot_room(v.partition(". ")[0]) for v in views} | {e.room for e in entries}
+    if room in seen:
+        return (f"The robot looked in the {room} and saw no {target.object} there: "
                 f"the answer is no.")
-    return f"The robot saw no {target.object}: the answer is no."
+    return f"The views do not show the {room}, and no {target.object} in it."
 
 
 def evidence_text(evidence: Sequence[str | np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
