@@ -14,6 +14,7 @@ from efficienteqa.answer.calls import (
     answer_example,
     answer_token_probability,
     answer_with_confidence,
+    count_note,
     focus_views,
     question_hint,
 )
@@ -397,3 +398,21 @@ def test_an_object_of_the_room_next_door_does_not_answer_is_there_one_in_this_ro
     assert absence_note("Is there a sofa in the living room?", views) == ""
     assert absence_note("Is there a sofa in the office?", views) == (
         "The views do not show the office, and no sofa in it.")
+
+
+def test_a_count_question_is_told_the_count_of_its_one_view_as_a_number():
+    # syn-107-02 and syn-101-02: the model answered "4" to "five blue chairs" and "2" to "a grey
+    # chair", each the only view it read
+    five = ["You are in the dining room. Visible: five blue chairs on the left to slightly "
+            "left, 1.2-3.1 m; a beige table on the left, 1.6 m."]
+    q = "How many chairs are around the table in the dining room?"
+    assert count_note(q, five) == "The view lists 5 chairs: the answer is 5."
+    one = ["You are in the hallway. Visible: a red table ahead, 2.6 m, in the dining room; a "
+           "grey chair ahead, 3.3 m, in the dining room; two grey chairs ahead, 4.0 m, in the "
+           "kitchen."]
+    assert count_note(q, one) == "The view lists 1 chair: the answer is 1."
+    stub = StubChatModel(["1"], logprob_fn=lambda text, top: [TokenLogprob("1", 0.0)])
+    answer_token_probability(stub, q, one, hinted=True)
+    assert "The view lists 1 chair" in stub.requests[0].messages[0].text
+    assert count_note(q, ["You are in the office. Visible: a desk ahead, 1.0 m."]) == ""
+    assert count_note("What colour is the chair?", five) == ""

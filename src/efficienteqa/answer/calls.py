@@ -257,6 +257,31 @@ def absence_note(question: str, views: Sequence[str], target: Target | None = No
     return f"The views do not show the {room}, and no {target.object} in it."
 
 
+def count_note(question: str, views: Sequence[str], target: Target | None = None) -> str:
+    """For a count question, the count its one focused view lists, said as a number ("The
+    view lists 5 chairs: the answer is 5."): the 1.5B model read "five blue chairs" as 4 and
+    "a grey chair" as 2 (syn-107-02, syn-101-02). Entries in the named room only, when the
+    question names one; "" when the views list none. ``target`` as in ``focus_views``."""
+    target = target or parse_question(question)
+    if target.kind != "count" or not target.object:
+        return ""
+    focused = focus_views(question, views, target)
+    if len(focused) != 1:  # nothing matched: the views were left alone
+        return ""
+    head, _, rest = focused[0].partition(". ")
+    entries = [parse_entry(e, _robot_room(head))
+               for e in rest.removeprefix("Seen: ").rstrip(".").split("; ") if e]
+    room = target.room if len(target.rooms) == 1 else None
+    n = sum(e.count for e in entries if target.is_a(target.object, e.noun)
+            and (room is None or e.room in (room, None)))
+    if not n:
+        return ""
+    noun = target.object
+    if n > 1:
+        noun += "es" if noun.endswith(("s", "sh", "ch", "x")) else "s"
+    return f"The view lists {n} {noun}: the answer is {n}."
+
+
 def evidence_text(evidence: Sequence[str | np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
     """The evidence as prompt text, and the images to attach (for VLMs)."""
     items = list(evidence)
@@ -326,7 +351,7 @@ def answer_token_probability(model: ChatModel, question: str,
     note = ""
     if hinted and evidence and all(isinstance(e, str) for e in evidence):
         views = [str(e) for e in evidence]
-        note = absence_note(question, views)
+        note = absence_note(question, views) or count_note(question, views)
         evidence = focus_views(question, views)
     text, images = evidence_text(evidence)
     template = load_prompt("answer_direct" if hinted else "answer_token", PROMPTS)
