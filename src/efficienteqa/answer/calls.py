@@ -7,7 +7,8 @@ is the top-K frame descriptions (best first) or the top-K RGB frames.
 
 The direct answer reads text views cut to what the question names (``focus_views``: one view
 for a count, the views that show the object for a location, the object's own colour) and, for
-an existence question no view answers, a sentence saying so (``absence_note``). Both read the
+an existence question no view answers, a sentence saying so (``absence_note``); a count
+question is told its view's count as a number (``count_note``). All read the
 frame text of ``perception.semantic``, which the labels and the pixel perception share. A VLM
 over images gets the image hints instead (count each object once, the colour of that object):
 the views are pictures, and the VLM does the focusing itself."""
