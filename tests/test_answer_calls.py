@@ -10,9 +10,11 @@ import pytest
 
 from efficienteqa.answer.blind import blind_answer
 from efficienteqa.answer.calls import (
+    absence_note,
     answer_example,
     answer_token_probability,
     answer_with_confidence,
+    count_note,
     focus_views,
     question_hint,
 )
@@ -318,3 +320,99 @@ def test_a_preambles_tokens_do_not_count_in_the_answers_probability():
     result = answer_token_probability(stub, "What is on the desk?", frames, hinted=True)
     assert result.answer == "a lamp" and result.confidence == pytest.approx(0.72)
     assert stub.requests[0].max_tokens >= 96  # room for the preamble over images
+
+
+# Issue 33, defect 5: the hints of the main table's wrong answers (views as the agent gave them).
+def test_a_colour_question_reads_the_colour_of_the_object_asked_about():
+    # syn-105-10: "grey" came from the fan standing on the cabinet, the first colour word
+    views = ["You are in the hallway. Visible: a grey fan on the white cabinet, on the right, "
+             "2.0 m, in the dining room; a white cabinet on the right, 2.3 m, in the dining room, "
+             "with a grey fan on it.",
+             "You are in the hallway. Visible: a brown kitchen cabinet slightly left, 3.0 m, in "
+             "the kitchen, with a grey stove on it."]
+    focused = focus_views("What colour is the cabinet in the dining room?", views)
+    assert focused[0] == ("You are in the hallway. Seen: a white cabinet on the right, 2.3 m, "
+                          "in the dining room.")
+    assert "grey" not in " ".join(focused) and "brown" not in " ".join(focused)
+
+
+def test_a_location_answer_reads_the_views_that_show_the_object():
+    # syn-104-07: four views of the living room outvoted the one view of the wall lamp
+    views = ["You are in the hallway. Visible: a white wall lamp (on) on the left, 3.6 m.",
+             "You are in the living room. Visible: a brown door (open) ahead, 1.5 m.",
+             "You are in the living room. Visible: a grey sofa ahead, 2.0 m."]
+    assert focus_views("Where is the wall lamp?", views) == [
+        "You are in the hallway. Seen: a white wall lamp (on) on the left, 3.6 m."]
+
+
+def test_a_count_answer_reads_one_view_not_the_sum_of_views():
+    # syn-107-02: five chairs seen whole in three views were answered "4"; syn-101-02: one chair
+    # seen in three views was answered "3"
+    views = ["You are in the dining room. Visible: five blue chairs on the left to slightly "
+             "left, 1.2-3.1 m; a beige table on the left, 1.6 m.",
+             "You are in the dining room. Visible: two blue chairs ahead, 1.5-1.8 m; a blue "
+             "chair on the right, 2.0 m; a beige table ahead, 1.6 m.",
+             "You are in the dining room. Visible: five blue chairs ahead to on the right, "
+             "1.4-2.9 m; a beige table ahead, 1.9 m."]
+    assert focus_views("How many chairs are around the table in the dining room?", views) == [
+        "You are in the dining room. Seen: five blue chairs on the left to slightly left, "
+        "1.2-3.1 m; a beige table on the left, 1.6 m."]
+
+
+def test_an_existence_question_whose_room_shows_no_such_object_is_told_so():
+    # syn-126-02: the room was searched without an armchair, and the model said "Yes"
+    views = ["You are in the living room. Visible: a white bookshelf on the right, 0.8 m; a "
+             "grey sofa ahead, 2.8 m.",
+             "You are in the living room. Visible: a pink refrigerator ahead, 5.3 m, in the "
+             "kitchen."]
+    note = absence_note("Is there a armchair in the living room?", views)
+    assert note == ("The robot looked in the living room and saw no armchair there: "
+                    "the answer is no.")
+    stub = StubChatModel(["no"], logprob_fn=lambda text, top: [TokenLogprob("no", 0.0)])
+    answer_token_probability(stub, "Is there a armchair in the living room?", views, hinted=True)
+    assert note in stub.requests[0].messages[0].text
+    seen = views + ["You are in the living room. Visible: a green armchair ahead, 1.0 m."]
+    assert absence_note("Is there a armchair in the living room?", seen) == ""
+    assert absence_note("Is there a armchair in the office?", views) == (
+        "The views do not show the office, and no armchair in it.")
+    assert absence_note("Is there a armchair?", views) == (
+        "The robot saw no armchair: the answer is no.")
+    assert absence_note("What colour is the armchair?", views) == ""
+
+
+def test_what_stands_in_a_bookshelf_answers_what_is_on_it():
+    views = ["You are in the living room. Visible: a white bookshelf ahead, 1.1 m, with a grey "
+             "coffee maker in it; a grey coffee maker in the white bookshelf, ahead, 1.2 m."]
+    assert focus_views("What is on the bookshelf in the living room?", views) == [
+        "You are in the living room. Seen: a grey coffee maker in the white bookshelf, ahead, "
+        "1.2 m."]
+
+
+def test_an_object_of_the_room_next_door_does_not_answer_is_there_one_in_this_room():
+    # syn-0-04 (training): a sofa seen through the doorway in the living room, and the model
+    # said "Yes" to "Is there a sofa in the dining room?" after the dining room was searched
+    views = ["You are in the dining room. Visible: a beige table ahead, 1.6 m; a grey sofa "
+             "slightly left, 4.0 m, in the living room."]
+    assert absence_note("Is there a sofa in the dining room?", views) == (
+        "The robot looked in the dining room and saw no sofa there: the answer is no.")
+    assert absence_note("Is there a sofa in the living room?", views) == ""
+    assert absence_note("Is there a sofa in the office?", views) == (
+        "The views do not show the office, and no sofa in it.")
+
+
+def test_a_count_question_is_told_the_count_of_its_one_view_as_a_number():
+    # syn-107-02 and syn-101-02: the model answered "4" to "five blue chairs" and "2" to "a grey
+    # chair", each the only view it read
+    five = ["You are in the dining room. Visible: five blue chairs on the left to slightly "
+            "left, 1.2-3.1 m; a beige table on the left, 1.6 m."]
+    q = "How many chairs are around the table in the dining room?"
+    assert count_note(q, five) == "The view lists 5 chairs: the answer is 5."
+    one = ["You are in the hallway. Visible: a red table ahead, 2.6 m, in the dining room; a "
+           "grey chair ahead, 3.3 m, in the dining room; two grey chairs ahead, 4.0 m, in the "
+           "kitchen."]
+    assert count_note(q, one) == "The view lists 1 chair: the answer is 1."
+    stub = StubChatModel(["1"], logprob_fn=lambda text, top: [TokenLogprob("1", 0.0)])
+    answer_token_probability(stub, q, one, hinted=True)
+    assert "The view lists 1 chair" in stub.requests[0].messages[0].text
+    assert count_note(q, ["You are in the office. Visible: a desk ahead, 1.0 m."]) == ""
+    assert count_note("What colour is the chair?", five) == ""

@@ -133,6 +133,10 @@ class AgentConfig:
     # The gate itself is injected (stack.build_gate); an Agent given none under "auto" runs
     # without one.
     gate: str = "auto"
+    # Beyond the paper (issue 33): a gate verdict that the frame answers outright (a count
+    # group wholly in view, ``stop.gate.Verdict.final``) stops the robot without waiting for a
+    # relevancy outlier, which such frames never make (every view of the table scores alike).
+    gate_final: bool = True
     # Beyond the paper (DESIGN 9): "target" wraps the frontier explorer in explore.target's
     # steering by the question's target (go to the named room, inspect, look around); "none".
     steering: str = "target"
@@ -363,6 +367,10 @@ class Agent:
                     record.gate = {"ok": verdict.ok, "why": verdict.why}
                     eligible = verdict.ok
                 record.check = stopper.check(step, sim, eligible)
+                if (cfg.gate_final and gate is not None and gate.eager and record.gate
+                        and verdict.final and cfg.stop.enabled and step >= cfg.stop.min_step):
+                    record.gate["final"] = True
+                    record.check = replace(record.check, stop=True, tested_step=step)
                 view = (View(obs.pose.x, obs.pose.y, obs.pose.yaw,
                              frame if isinstance(frame, str) else None)
                         if cfg.distinct_views else None)

@@ -3,7 +3,15 @@
 The answer with its confidence (DESIGN 3.5, 3.6): the prompt with its hint for the question's
 form, then M guesses with verbalized confidences -> normalise -> group -> argmax, or, for the
 white-box baseline, one greedy answer whose confidence is its token probability. ``evidence``
-is the top-K frame descriptions (best first) or the top-K RGB frames."""
+is the top-K frame descriptions (best first) or the top-K RGB frames.
+
+The direct answer reads text views cut to what the question names (``focus_views``: one view
+for a count, the views that show the object for a location, the object's own colour) and, for
+an existence question no view answers, a sentence saying so (``absence_note``); a count
+question is told its view's count as a number (``count_note``). All read the
+frame text of ``perception.semantic``, which the labels and the pixel perception share. A VLM
+over images gets the image hints instead (count each object once, the colour of that object):
+the views are pictures, and the VLM does the focusing itself."""
 
 from __future__ import annotations
 
@@ -11,12 +19,12 @@ import json
 import math
 import re
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from efficienteqa.models.base import ChatModel, ChatResponse, Message
-from efficienteqa.question import singular
+from efficienteqa.question import Target, parse_question, singular
 from efficienteqa.vc.grouping import Grouper, argmax, group_answers, normalise
 from efficienteqa.vc.logprobs import require_logprobs
 from efficienteqa.vc.parse import (
@@ -63,8 +71,9 @@ _HINTS = (
                      "otherwise no."),
     (r"^(is|are)\b", "Answer yes or no from the state in brackets after that object: (on) or "
                      "(open) means yes, (off) or (closed) means no."),
-    (r"^what is on\b", "Find \"on the\" and that furniture in what it saw, and answer with the "
-                       "object written just before those words, never the furniture itself."),
+    (r"^what is on\b", "Find \"on the\" or \"in the\" and that furniture in what it saw, and "
+                       "answer with the object written just before those words, never the "
+                       "furniture itself."),
 )
 
 
@@ -118,38 +127,160 @@ def _words(text: str) -> set[str]:
 
 
 def _stands_on(entry: str, surface: str) -> bool:
-    """Whether a view entry is something standing on ``surface`` ("a lamp on the brown desk,
-    ahead, 1.2 m"), not the surface's own entry ("a brown desk, ..., with a lamp on it")."""
-    head = entry.split(",")[0]
-    return any(_words(surface) & _words(m.group(1))
-               for m in re.finditer(r"\bon the ([a-z ]+)", head.lower()))
+    """Whether a view entry is something standing on or in ``surface`` ("a lamp on the brown
+    desk, ahead, 1.2 m", "a vase in the white bookshelf, ..."), not the surface's own entry
+    ("a brown desk, ..., with a lamp on it")."""
+    support = parse_entry(entry).support
+    return support is not None and bool(_words(surface) & _words(support))
 
 
-def focus_views(question: str, views: Sequence[str]) -> list[str]:
+_BEARING = r"(?:ahead|slightly left|slightly right|on the left|on the right)"
+_NUMBERS = {w: n for n, w in enumerate(("zero", "one", "two", "three", "four", "five", "six",
+                                        "seven", "eight", "nine"))} | {"a": 1, "an": 1}
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One "; "-separated entry of a frame text (``perception.semantic``'s format): ``noun`` the
+    object's own words without count, article or state ("white cabinet"), ``count`` the number
+    before it, ``support`` what it stands on or in, ``room`` the room it is in (the robot's
+    when it names none), ``text`` the entry without its "with ... on it" clause."""
+
+    noun: str
+    count: int
+    support: str | None
+    room: str | None
+    text: str
+
+
+def parse_entry(entry: str, robot_room: str | None = None) -> Entry:
+    parts = entry.strip().rstrip(".").split(", ")
+    head, support = parts[0], None
+    bearing = re.search(rf" {_BEARING}(?: to {_BEARING})?$", head)
+    if bearing:
+        head = head[:bearing.start()]
+    else:  # "a cup on the brown table, ahead, ...": the bearing follows the support
+        rel = re.search(r" (?:on|in) the ([a-z' ]+)$", head)
+        if rel:
+            support, head = rel.group(1), head[:rel.start()]
+    head = re.sub(r" \((?:on|off|open|closed)\)$", "", head)
+    first, _, rest = head.partition(" ")
+    counted = first.lower() in _NUMBERS or first.isdigit()
+    count = _NUMBERS.get(first.lower(), int(first) if first.isdigit() else 1)
+    rooms = [p[len("in the "):] for p in parts[1:] if p.startswith("in the ")]
+    return Entry(rest if counted else head, count, support, rooms[0] if rooms else robot_room,
+                 ", ".join(p for p in parts if not p.startswith("with ")))
+
+
+def _robot_room(head: str) -> str | None:
+    m = re.match(r"you are in the ([a-z ]+)\.?$", head.strip().lower())
+    return m.group(1) if m else None
+
+
+def focus_views(question: str, views: Sequence[str], target: Target | None = None) -> list[str]:
     """Each text view cut to what the question names: its first sentence (where the robot is)
-    and the "; "-separated entries that share a word with the question's object words (the
-    question without function and room words). A small model reads a long list of objects
-    badly ("a yellow refrigerator" among twelve entries is answered "grey"). For "What is on the
-    X?" only entries of things standing on X are kept. Views are returned unchanged when no
-    entry of any view matches, or the question names no object."""
+    and the "; "-separated entries whose own object the question names (``Target.is_a`` on
+    the entry's words, not the furniture it stands on nor what stands on it), without their
+    "with ... on it" clause, so the colour word before the object's name is its own. A small
+    model reads a long list of objects badly ("a yellow refrigerator" among twelve entries is
+    answered "grey"). Beyond the entries:
+
+    - a question that names a room keeps the entries in that room when any is;
+    - "What is on the X?": only entries of things standing on or in X;
+    - "Where is X?": only the views that show X (one view of the lamp is not outvoted by four
+      views of the room the robot stood in);
+    - "How many X?": only the view that shows the most X (the same chairs are seen again from
+      every pose; adding views up counts them twice).
+
+    Views are returned unchanged when no entry of any view matches, or the question names no
+    object (an existence question then gets ``absence_note``). ``target``: the question's
+    target (default: ``parse_question``; an agent passes its own, with resolved aliases)."""
+    target = target or parse_question(question)
     wanted = _words(question) - {singular(w) for w in _FUNCTION_WORDS | _ROOM_WORDS}
-    if not wanted:
+    things = target.things or tuple(sorted(wanted))
+    if not wanted and not target.things:
         return list(views)
-    surface = re.match(r"what (?:is|are) on (?:the |a |an )?(.+?)(?: in the .*)?\??$",
-                       question.strip().lower())
-    out, hits = [], 0
+    q = question.strip().lower()
+    surface = target.support if target.kind == "identification" else None
+    room = target.room if len(target.rooms) == 1 else None
+    kept: list[tuple[str, list[Entry]]] = []
     for view in views:
         head, _, rest = view.partition(". ")
         listed = rest.split(". ")[0]  # not "Through a doorway: ..."
         listed = listed.removeprefix("Visible: ").removeprefix("Seen: ")  # focused already
-        entries = [e for e in listed.split("; ") if wanted & _words(e)]
-        if surface:  # "What is on the X?": what stands on X, not X itself (a small model
-            # names the furniture it reads first)
-            entries = [e for e in entries if _stands_on(e, surface.group(1))]
-        hits += len(entries)
-        out.append(head + "." + (" Seen: " + "; ".join(e.rstrip(".") for e in entries) + "."
-                                 if entries else " Nothing the question names."))
-    return out if hits else list(views)
+        entries = [parse_entry(e, _robot_room(head)) for e in listed.split("; ") if e]
+        if surface:  # what stands on X, not X itself (a small model names the furniture)
+            entries = [e for e in entries if e.support is not None
+                       and (target.is_a(surface, e.support) or bool(_words(surface)
+                                                                    & _words(e.support)))]
+        else:
+            entries = [e for e in entries if any(target.is_a(t, e.noun) for t in things)
+                       or (not target.things and wanted & _words(e.noun))]
+        kept.append((head, entries))
+    if room is not None and any(e.room == room for _, es in kept for e in es):
+        kept = [(h, [e for e in es if e.room in (room, None)]) for h, es in kept]
+    if not any(es for _, es in kept):
+        return list(views)
+    if re.match(r"^where\b", q):
+        kept = [(h, es) for h, es in kept if es]
+    elif re.match(r"^how many\b", q) and target.object:
+        def counted(es: list[Entry]) -> int:
+            return sum(e.count for e in es if target.is_a(target.object, e.noun))
+        best = max(range(len(kept)), key=lambda i: (counted(kept[i][1]), -i))
+        kept = [kept[best]]
+    return [head + "." + (" Seen: " + "; ".join(e.text for e in es) + "." if es
+                          else " Nothing the question names.") for head, es in kept]
+
+
+def absence_note(question: str, views: Sequence[str], target: Target | None = None) -> str:
+    """For an existence question whose object no view lists in the room it names (or in any
+    room, when it names none), a plain sentence that says so ("The robot looked in the living
+    room and saw no armchair there: the answer is no."), so that a small model answers "no" (it
+    said "Yes" to a prompt listing the room without the object, and to one listing a sofa of
+    the room next door); "" otherwise. When the views never show the named room, the sentence
+    says that instead and leaves the answer to the model. ``target`` as in ``focus_views``."""
+    target = target or parse_question(question)
+    if target.kind != "existence" or not target.object or len(target.rooms) > 1:
+        return ""
+    entries = [parse_entry(e, _robot_room(head)) for head, _, rest in
+               (v.partition(". ") for v in views)
+               for e in rest.split(". ")[0].removeprefix("Visible: ").split("; ") if e]
+    room = target.room
+    if any(target.is_a(target.object, e.noun) and (room is None or e.room == room)
+           for e in entries):
+        return ""
+    if room is None:
+        return f"The robot saw no {target.object}: the answer is no."
+    seen = {_robot_room(v.partition(". ")[0]) for v in views} | {e.room for e in entries}
+    if room in seen:
+        return (f"The robot looked in the {room} and saw no {target.object} there: "
+                f"the answer is no.")
+    return f"The views do not show the {room}, and no {target.object} in it."
+
+
+def count_note(question: str, views: Sequence[str], target: Target | None = None) -> str:
+    """For a count question, the count its one focused view lists, said as a number ("The
+    view lists 5 chairs: the answer is 5."): the 1.5B model read "five blue chairs" as 4 and
+    "a grey chair" as 2 (syn-107-02, syn-101-02). Entries in the named room only, when the
+    question names one; "" when the views list none. ``target`` as in ``focus_views``."""
+    target = target or parse_question(question)
+    if target.kind != "count" or not target.object:
+        return ""
+    focused = focus_views(question, views, target)
+    if len(focused) != 1:  # nothing matched: the views were left alone
+        return ""
+    head, _, rest = focused[0].partition(". ")
+    entries = [parse_entry(e, _robot_room(head))
+               for e in rest.removeprefix("Seen: ").rstrip(".").split("; ") if e]
+    room = target.room if len(target.rooms) == 1 else None
+    n = sum(e.count for e in entries if target.is_a(target.object, e.noun)
+            and (room is None or e.room in (room, None)))
+    if not n:
+        return ""
+    noun = target.object
+    if n > 1:
+        noun += "es" if noun.endswith(("s", "sh", "ch", "x")) else "s"
+    return f"The view lists {n} {noun}: the answer is {n}."
 
 
 def evidence_text(evidence: Sequence[str | np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
@@ -218,12 +349,16 @@ def answer_token_probability(model: ChatModel, question: str,
     (``focus_views``)."""
     _check_how(how)
     require_logprobs(model)
+    note = ""
     if hinted and evidence and all(isinstance(e, str) for e in evidence):
-        evidence = focus_views(question, [str(e) for e in evidence])
+        views = [str(e) for e in evidence]
+        note = absence_note(question, views) or count_note(question, views)
+        evidence = focus_views(question, views)
     text, images = evidence_text(evidence)
     template = load_prompt("answer_direct" if hinted else "answer_token", PROMPTS)
+    hint = question_hint(question, "image" if images else "text")
     prompt = template.format(question=question, evidence=text,
-                             hint=question_hint(question, "image" if images else "text"))
+                             hint=f"{note}\n{hint}" if note else hint)
     if images:  # a VLM server may write a sentence or a code fence before the answer
         max_tokens = max(max_tokens, IMAGE_ANSWER_TOKENS)
     resp = model.chat([Message("user", prompt, images)], max_tokens=max_tokens, temperature=0.0,
