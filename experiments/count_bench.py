@@ -1,4 +1,4 @@
-"""Count bench (issue 33, defect 4): how long count questions wait after first sight, and the
+"""Count bench (DESIGN 9, defect 4 of the walks): how long count questions wait after first sight, and the
 count the direct answer's one focused view states, without a language model.
 
 Each count question of the given houses is walked by the default agent with a stub answer

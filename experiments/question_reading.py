@@ -1,4 +1,4 @@
-"""The question's target as the rules and as the model read it (issue 33, scope item 1).
+"""The question's target as the rules and as the model read it (DESIGN 9, the user's words).
 
     python -m experiments.question_reading --hm-eqa ../shared/datasets/hm-eqa/questions.csv \
         [--model-sample 60 --seed 1] [--training 0-20 --training-sample 40]

@@ -1,4 +1,4 @@
-"""Relation bench (issue 33, defect 3): how right the frame text's "on"/"in" is, by item size.
+"""Relation bench (DESIGN 9, defect 3 of the walks): how right the frame text's "on"/"in" is, by item size.
 
 On random poses of synthetic houses, every relation the text states ("a cup on the brown table",
 "a coffee maker in the white bookshelf") is checked against the house's own record of what the

@@ -322,7 +322,7 @@ def test_a_preambles_tokens_do_not_count_in_the_answers_probability():
     assert stub.requests[0].max_tokens >= 96  # room for the preamble over images
 
 
-# Issue 33, defect 5: the hints of the main table's wrong answers (views as the agent gave them).
+# DESIGN 9, defect 5 of the walks: the hints of the main table's wrong answers (views as the agent gave them).
 def test_a_colour_question_reads_the_colour_of_the_object_asked_about():
     # syn-105-10: "grey" came from the fan standing on the cabinet, the first colour word
     views = ["You are in the hallway. Visible: a grey fan on the white cabinet, on the right, "

@@ -1,4 +1,4 @@
-"""Count questions stop at the frame that shows the whole group (issue 33, defect 4): the gate's
+"""Count questions stop at the frame that shows the whole group (DESIGN 9, defect 4 of the walks): the gate's
 final verdict, not a relevancy outlier that such frames never make. Training house 1."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""One description of "on" and "in" for the frame's text and the answerability gate (issue 33,
-defect 3): the gate passes exactly what the model is told. Frames of the main table's episodes
+"""One description of "on" and "in" for the frame's text and the answerability gate (DESIGN 9,
+defect 3 of the walks): the gate passes exactly what the model is told. Frames of the main table's episodes
 (houses 101, 107, 113, 121 of the synthetic split; reproduction only, nothing is tuned on them),
 rendered at the poses where the old gate disagreed with the text."""
 

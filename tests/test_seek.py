@@ -40,7 +40,7 @@ def test_questions_parse_into_their_target(question, kind, obj, support, rooms):
 
 
 def test_a_question_of_another_form_still_names_its_target():
-    # this form once parsed to an empty target (issue 33); its words name the lamp by the bed
+    # this form once parsed to an empty target (DESIGN 9); its words name the lamp by the bed
     t = parse_question("What's the status of the lamp next to the bed?")
     assert (t.kind, t.object, t.support, t.room) == ("state", "lamp", "bed", None)
 
@@ -279,7 +279,7 @@ def test_in_a_hallway_with_the_named_room_unseen_the_robot_looks_down_it(scan):
 
 
 def test_a_member_seen_from_two_poses_is_one_member_and_two_seen_together_are_two():
-    # issue 33, defect 4: a chair's place (the median of its visible points) moves by up to
+    # DESIGN 9, defect 4 of the walks: a chair's place (the median of its visible points) moves by up to
     # half a metre between views; merged by 0.4 m, five chairs became seven and no frame passed
     q = "How many chairs are around the table in the dining room?"
     table = Sighting("table", (0.0, 0.0), 0.8, 4000, False, "dining room")

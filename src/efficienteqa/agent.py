@@ -133,14 +133,14 @@ class AgentConfig:
     # The gate itself is injected (stack.build_gate); an Agent given none under "auto" runs
     # without one.
     gate: str = "auto"
-    # Beyond the paper (issue 33): a gate verdict that the frame answers outright (a count
+    # Beyond the paper (DESIGN 9): a gate verdict that the frame answers outright (a count
     # group wholly in view, ``stop.gate.Verdict.final``) stops the robot without waiting for a
     # relevancy outlier, which such frames never make (every view of the table scores alike).
     gate_final: bool = True
     # Beyond the paper (DESIGN 9): "target" wraps the frontier explorer in explore.target's
     # steering by the question's target (go to the named room, inspect, look around); "none".
     steering: str = "target"
-    # Beyond the paper (issue 33): how the question's target is read, "rules" (no call),
+    # Beyond the paper (DESIGN 9): how the question's target is read, "rules" (no call),
     # "model" (one call, checked against the question's words) or "rules+rooms" (the rules'
     # target, the model's likely rooms); how its words match the perception's categories,
     # "words" or "meaning" (aliases by embeddings and one yes/no call). See reading/.
