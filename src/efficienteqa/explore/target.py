@@ -19,6 +19,11 @@ takes these steps before any frontier, first that applies:
 4. **search ends**: for "Is there an X in the R?", the named room searched without the X in
    view: ``done`` with reason "searched" (the robot answers from what it saw).
 
+No move is returned that would take the view the robot already holds (``_new_view``, one
+idle check for every move above and the frontier explorer's): such a move is dropped and the
+next rule decides; a way to the named room that ends where the robot stands rests the room
+for ``room_rest`` steps, and a frontier choice that stays turns the robot by 120 degrees.
+
 Otherwise the wrapped frontier explorer decides, its frontiers weighted by their room
 (``room_prior``): x1e-6 in a room the question rules out, x100 in the named one. Whenever the
 perception gives no sightings (a VLM reading images), the semantic values of
@@ -193,19 +198,17 @@ class TargetExplorer:
                 middle = self._middle(state, room)
                 if np.linalg.norm(middle - pose.xy) > 1.0:
                     goal = self._stand_near(state, pose, middle, 0.0, room)
-                    decision = None if goal is None else self._move(state, pose, goal, middle,
-                                                                     "into the " + room)
+                    decision = None if goal is None else self._new_view(
+                        self._move(state, pose, goal, middle, "into the " + room), pose)
                     if decision is not None:
                         return decision
             if cfg.look_around and not self._looks:
                 self._looks = [pose.yaw + math.radians(120), pose.yaw + math.radians(240)]
-            if self._looks:
-                yaw = float(wrap_angle(self._looks.pop(0)))
-                if not self._looks:
-                    self._searched.add(room)
-                return Decision(Pose2D(pose.x, pose.y, yaw), pose.xy[None, :].copy(),
-                                reason="look around")
-            self._searched.add(room)
+            decision = self._look(pose)
+            if not self._looks:
+                self._searched.add(room)
+            if decision is not None:
+                return decision
         if (cfg.scan_connectors and room is not None and here in CONNECTORS
                 and self._room_cells(room) < cfg.min_room_cells
                 and all(np.linalg.norm(pose.xy - p) > cfg.scan_apart_m for p in self._scans)):
@@ -215,9 +218,9 @@ class TargetExplorer:
                 and self._room_cells(room) >= cfg.min_room_cells):
             self._looks = []  # the named room came into view: no need to look further
         if self._looks and here != room:
-            yaw = float(wrap_angle(self._looks.pop(0)))
-            return Decision(Pose2D(pose.x, pose.y, yaw), pose.xy[None, :].copy(),
-                            reason="look around")
+            decision = self._look(pose)
+            if decision is not None:
+                return decision
         if (cfg.end_search and room is not None and room in self._searched
                 and self.target.kind == "existence" and not self._object_seen):
             return Decision(pose, pose.xy[None, :].copy(), reason="searched", done=True)
@@ -226,7 +229,32 @@ class TargetExplorer:
             decision = self._to_room(state, pose, room, step)
             if decision is not None:
                 return decision
-        return self.frontier.decide(state, pose, values, step)
+        decision = self.frontier.decide(state, pose, values, step)
+        if decision.done or self._new_view(decision, pose) is not None:
+            return decision
+        # The frontiers offer only the view the robot holds (every retry idle): turn instead.
+        yaw = float(wrap_angle(pose.yaw + math.radians(120)))
+        return Decision(Pose2D(pose.x, pose.y, yaw), pose.xy[None, :].copy(),
+                        frontiers=decision.frontiers, weights=decision.weights, reason="turn")
+
+    def _new_view(self, decision: Decision | None, pose: Pose2D) -> Decision | None:
+        """``decision`` unless it would take the view the robot holds (within the frontier
+        explorer's ``reached_m`` and ``idle_turn_deg``): the one idle check of every move."""
+        fr = self.frontier.config
+        if decision is None or idle(decision.pose, pose, fr.reached_m, fr.idle_turn_deg):
+            return None
+        return decision
+
+    def _look(self, pose: Pose2D) -> Decision | None:
+        """The next turn of a look-around that shows a new view (the others are dropped)."""
+        while self._looks:
+            yaw = float(wrap_angle(self._looks.pop(0)))
+            decision = self._new_view(Decision(Pose2D(pose.x, pose.y, yaw),
+                                               pose.xy[None, :].copy(), reason="look around"),
+                                      pose)
+            if decision is not None:
+                return decision
+        return None
 
     def _inspect(self, state: MapState, pose: Pose2D) -> Decision | None:
         wanted = self._inspected_things()
@@ -246,8 +274,9 @@ class TargetExplorer:
                 thing.inspected = True
                 continue
             thing.tries += 1
-            decision = self._move(state, pose, goal, thing.xy, "inspect " + thing.category)
-            if decision is None or idle(decision.pose, pose, self.config.reached_m, 20.0):
+            decision = self._new_view(
+                self._move(state, pose, goal, thing.xy, "inspect " + thing.category), pose)
+            if decision is None:
                 thing.inspected = True  # this view again: nothing more to see from here
                 continue
             return decision
@@ -288,9 +317,12 @@ class TargetExplorer:
             return None
         middle = self._middle(state, room)
         goal = self._stand_near(state, pose, middle, 0.0, room)
-        if goal is None:
-            return None
-        return self._move(state, pose, goal, middle, "to the " + room)
+        decision = None if goal is None else self._new_view(
+            self._move(state, pose, goal, middle, "to the " + room), pose)
+        if decision is None:  # no way in from here: rest, so the frontiers take it elsewhere
+            self._room_steps = 0
+            self._room_rest_until = step + self.config.room_rest
+        return decision
 
     def _stand_near(self, state: MapState, pose: Pose2D, xy: np.ndarray, distance_m: float,
                     room: str | None) -> np.ndarray | None:
