@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from efficienteqa.explore.sfe import FrontierExplorer, idle
-from efficienteqa.explore.target import TargetExplorer
+from efficienteqa.explore.target import TargetConfig, TargetExplorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState
@@ -62,7 +62,60 @@ def test_a_look_around_that_would_face_the_way_the_robot_already_looks_is_skippe
     ex.see(SPEC, Sightings({"office": _box(2.0, 1.0, 5.0, 3.0)}))
     island = _mask(_box(2.0, 1.0, 5.0, 3.0))
     pose = Pose2D(3.5, 2.0, 0.0)
-    ex._centred = True
+    ex._centred.add("office")
+    ex._looked_around.add("office")
     ex._looks = [math.radians(10.0), math.radians(120.0)]  # the first is this view again
     decision = ex.decide(_state(island, island.copy(), (pose.x, pose.y)), pose, None, 3)
     assert _not_idle(decision, pose)
+
+
+def _search_walk(explored_box: tuple[float, float, float, float], coverage: float,
+                 steps: int = 4) -> list[str]:
+    """The reasons of the first decisions of an existence search in a long office, the robot
+    at its middle turning as told and the map's explored floor fixed to ``explored_box``."""
+    ex = TargetExplorer(FrontierExplorer(), TargetConfig(search_coverage=coverage))
+    ex.set_target(Target("existence", "desk", None, ("office",)))
+    office = _box(1.0, 1.0, 9.0, 3.0)
+    ex.see(SPEC, Sightings({"office": office}))
+    island = _mask(office)
+    explored = _mask(_box(*explored_box))
+    pose = Pose2D(5.0, 2.0, 0.0)
+    reasons = []
+    for step in range(2, 2 + steps):
+        decision = ex.decide(_state(island, explored, (pose.x, pose.y)), pose, None, step)
+        reasons.append(decision.reason)
+        if decision.done:
+            break
+        pose = decision.pose
+    return reasons
+
+
+def test_a_room_is_searched_only_once_its_views_covered_its_floor():
+    # One look-around from the middle explored the middle fifth of the office's floor.
+    narrow = _search_walk((4.0, 1.0, 6.0, 3.0), coverage=0.7, steps=3)
+    assert narrow == ["look around", "look around", "search the office"]
+    # Its floor covered: searched after the look-around, as is a search without coverage.
+    assert _search_walk((1.0, 1.0, 9.0, 3.0), coverage=0.7)[2] == "searched"
+    assert _search_walk((4.0, 1.0, 6.0, 3.0), coverage=0.0)[2] == "searched"
+
+
+def test_a_question_naming_no_room_searches_its_likely_rooms_in_their_order():
+    ex = TargetExplorer(FrontierExplorer())
+    ex.set_target(Target("location", "stool", None, (),
+                         likely_rooms=("kitchen", "bathroom", "office")))
+    ex.see(SPEC, Sightings({"office": _box(1.0, 1.0, 3.0, 3.0),
+                            "kitchen": _box(7.0, 1.0, 9.0, 3.0),
+                            "hallway": _box(3.5, 1.5, 6.5, 2.5)}))
+    island = _mask(_box(1.0, 1.0, 9.0, 3.0))
+    pose = Pose2D(5.0, 2.0, math.pi / 2)
+    state = _state(island, island.copy(), (pose.x, pose.y))
+    assert ex.goal_room() == "kitchen"  # the most likely room a frame showed
+    assert ex.decide(state, pose, None, 2).reason == "to the kitchen"
+    ex._searched.add("kitchen")  # the bathroom was never seen: the office is next
+    assert ex.goal_room() == "office"
+    assert ex.decide(state, pose, None, 3).reason == "to the office"
+    ex._searched.add("office")
+    assert ex.goal_room() == "bathroom"
+    plain = TargetExplorer(FrontierExplorer(), TargetConfig(likely_rooms=False))
+    plain.set_target(ex.target)
+    assert plain.goal_room() is None

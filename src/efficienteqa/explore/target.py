@@ -11,7 +11,10 @@ takes these steps before any frontier, first that applies:
    ``inspect_m`` from it (further for count groups, and for things above the tilted view) and
    face it; once.
 2. **look around**: on entering the named room (after one move towards its middle), turn twice
-   by 120 degrees (a step each), so the room is seen whole; the room is then searched. While
+   by 120 degrees (a step each); then, until the views have covered ``search_coverage`` of the
+   room's seen floor (the map's explored cells among the cells frames showed as its floor),
+   go to further viewpoints facing the floor not yet covered (``search_moves`` at most); the
+   room is then searched. While
    the named room is unseen, the robot also looks around in a hallway (``CONNECTORS``), at
    points ``scan_apart_m`` apart: doorways along it show the rooms they lead to.
 3. **go to the room**: the named room's floor seen (through a doorway, past a hallway) and the
@@ -24,10 +27,16 @@ idle check for every move above and the frontier explorer's): such a move is dro
 next rule decides; a way to the named room that ends where the robot stands rests the room
 for ``room_rest`` steps, and a frontier choice that stays turns the robot by 120 degrees.
 
+Where the question names no room, the rooms of ``Target.likely_rooms`` (a prior from the
+language model) are searched one by one as a named room is (``goal_room``): the most likely one
+a frame has shown first; their frontiers weigh more, but no room is ruled out.
+
 Otherwise the wrapped frontier explorer decides, its frontiers weighted by their room
 (``room_prior``): x1e-6 in a room the question rules out, x100 in the named one. Whenever the
-perception gives no sightings (a VLM reading images), the semantic values of
-its verbalized confidence steer the frontier explorer alone.
+perception gives no sightings, the semantic values of its verbalized confidence steer the
+frontier explorer alone. A VLM over images supplies the same ``Sightings`` by naming the room
+and the target's things in a frame and back-projecting their pixels with the depth (the pixel
+perception does so today); the coverage of a room then reads the map alone.
 """
 
 from __future__ import annotations
@@ -82,6 +91,15 @@ class TargetConfig:
     # least scan_apart_m apart: doorways along it show the rooms they lead to.
     scan_connectors: bool = True
     scan_apart_m: float = 4.0
+    # A room is searched once its views covered search_coverage of its seen floor (the map's
+    # explored cells; 0: after one look-around, as before), or after search_moves further
+    # viewpoints, each search_view_m from the centre of the floor not yet covered.
+    search_coverage: float = 0.7
+    search_moves: int = 3
+    search_view_m: float = 1.5
+    # Where the question names no room: search the rooms of Target.likely_rooms in their order
+    # (``goal_room``) as a named room is searched (False: the frontiers alone).
+    likely_rooms: bool = True
 
 
 @dataclass
@@ -117,7 +135,9 @@ class TargetExplorer:
         self._room_steps = 0
         self._room_rest_until = 0
         self._object_seen = False
-        self._centred = False
+        self._centred: set[str] = set()  # rooms entered with a move towards their middle
+        self._looked_around: set[str] = set()  # rooms looked around in
+        self._search_moves: dict[str, int] = {}  # room -> further viewpoints taken in it
         self._scans: list[np.ndarray] = []  # where the robot looked around in a hallway
 
     def set_target(self, target: Target) -> None:
@@ -165,17 +185,31 @@ class TargetExplorer:
         best = max(counts, key=lambda k: counts[k], default=None)
         return best if best is not None and counts[best] > 0 else None
 
+    def goal_room(self) -> str | None:
+        """The room to search now: the named one; where none is named (``likely_rooms``), the
+        most likely room not yet searched among those a frame showed, else the most likely
+        one not searched (its frontiers weigh more until it is seen); None when none is left."""
+        if self.target.room is not None or not self.config.likely_rooms:
+            return self.target.room
+        left = [r for r in self.target.likely_rooms if r not in self._searched]
+        seen = [r for r in left if self._room_cells(r) >= self.config.min_room_cells]
+        order = seen or left
+        return order[0] if order else None
+
     def _room_prior(self, frontiers: list[Frontier]) -> np.ndarray:
-        """Each frontier's weight factor by its room (``TargetConfig.room_prior``)."""
-        room, cfg = self.target.room, self.config
+        """Each frontier's weight factor by its room (``TargetConfig.room_prior``): a room the
+        question names rules the others out; a likely room does not."""
+        room, cfg = self.goal_room(), self.config
         out = np.ones(len(frontiers))
         if room is None:
             return out
+        named = self.target.room is not None
         for k, f in enumerate(frontiers):
             here = self.room_at(f.xy, cfg.frontier_room_m)
             if here == room:
                 out[k] = cfg.in_target
-            elif here is not None and here not in CONNECTORS and here not in self.target.rooms:
+            elif (named and here is not None and here not in CONNECTORS
+                  and here not in self.target.rooms):
                 out[k] = cfg.elsewhere
         return out
 
@@ -186,29 +220,17 @@ class TargetExplorer:
     # ----- deciding -----------------------------------------------------------------------------
     def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
                step: int) -> Decision:
-        cfg, room = self.config, self.target.room
+        cfg, room = self.config, self.goal_room()
         here = self.room_at((pose.x, pose.y), cfg.here_m)
         if cfg.inspect:
             decision = self._inspect(state, pose)
             if decision is not None:
                 return decision
         if room is not None and here == room and room not in self._searched:
-            if not self._centred:  # one move towards the middle of the room, then look around
-                self._centred = True
-                middle = self._middle(state, room)
-                if np.linalg.norm(middle - pose.xy) > 1.0:
-                    goal = self._stand_near(state, pose, middle, 0.0, room)
-                    decision = None if goal is None else self._new_view(
-                        self._move(state, pose, goal, middle, "into the " + room), pose)
-                    if decision is not None:
-                        return decision
-            if cfg.look_around and not self._looks:
-                self._looks = [pose.yaw + math.radians(120), pose.yaw + math.radians(240)]
-            decision = self._look(pose)
-            if not self._looks:
-                self._searched.add(room)
+            decision = self._search(state, pose, room)
             if decision is not None:
                 return decision
+            self._searched.add(room)
         if (cfg.scan_connectors and room is not None and here in CONNECTORS
                 and self._room_cells(room) < cfg.min_room_cells
                 and all(np.linalg.norm(pose.xy - p) > cfg.scan_apart_m for p in self._scans)):
@@ -221,7 +243,7 @@ class TargetExplorer:
             decision = self._look(pose)
             if decision is not None:
                 return decision
-        if (cfg.end_search and room is not None and room in self._searched
+        if (cfg.end_search and self.target.room is not None and room in self._searched
                 and self.target.kind == "existence" and not self._object_seen):
             return Decision(pose, pose.xy[None, :].copy(), reason="searched", done=True)
         if (cfg.go_to_room and room is not None and here != room and room not in self._searched
@@ -236,6 +258,49 @@ class TargetExplorer:
         yaw = float(wrap_angle(pose.yaw + math.radians(120)))
         return Decision(Pose2D(pose.x, pose.y, yaw), pose.xy[None, :].copy(),
                         frontiers=decision.frontiers, weights=decision.weights, reason="turn")
+
+    def _search(self, state: MapState, pose: Pose2D, room: str) -> Decision | None:
+        """The next move of searching ``room``, where the robot stands; None once searched: one
+        move towards its middle, a look-around, then (``search_coverage``) views from further
+        points, each facing the room's floor not yet covered, until that share is covered."""
+        cfg = self.config
+        if room not in self._centred:  # one move towards the middle of the room
+            self._centred.add(room)
+            middle = self._middle(state, room)
+            if np.linalg.norm(middle - pose.xy) > 1.0:
+                goal = self._stand_near(state, pose, middle, 0.0, room)
+                decision = None if goal is None else self._new_view(
+                    self._move(state, pose, goal, middle, "into the " + room), pose)
+                if decision is not None:
+                    return decision
+        if cfg.look_around and room not in self._looked_around:
+            self._looked_around.add(room)
+            self._looks = [pose.yaw + math.radians(120), pose.yaw + math.radians(240)]
+        decision = self._look(pose)
+        if decision is not None or cfg.search_coverage <= 0:
+            return decision
+        moves = self._search_moves.get(room, 0)
+        if moves >= cfg.search_moves or self.coverage(state, room) >= cfg.search_coverage:
+            return None
+        self._search_moves[room] = moves + 1
+        uncovered = self._rooms[room] & ~state.explored
+        gap = state.spec.cell_to_world(np.argwhere(uncovered)).mean(axis=0)
+        goal = self._stand_near(state, pose, gap, cfg.search_view_m, room)
+        decision = None if goal is None else self._new_view(
+            self._move(state, pose, goal, gap, "search the " + room), pose)
+        if decision is None:  # no closer point: turn to the floor not yet covered
+            yaw = math.atan2(gap[1] - pose.y, gap[0] - pose.x)
+            decision = self._new_view(Decision(Pose2D(pose.x, pose.y, yaw),
+                                               pose.xy[None, :].copy(),
+                                               reason="search the " + room), pose)
+        return decision
+
+    def coverage(self, state: MapState, room: str) -> float:
+        """The share of ``room``'s seen floor that the map has explored (seen in the bottom
+        centre of some frame, ``MapState.explored``): how well its views covered the room."""
+        cells = self._rooms.get(room)
+        total = 0 if cells is None else int(cells.sum())
+        return float((cells & state.explored).sum() / total) if cells is not None and total else 0.0
 
     def _new_view(self, decision: Decision | None, pose: Pose2D) -> Decision | None:
         """``decision`` unless it would take the view the robot holds (within the frontier
