@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from efficienteqa.explore.base import Decision
 from efficienteqa.explore.sfe import FrontierExplorer, idle
 from efficienteqa.explore.target import TargetConfig, TargetExplorer
 from efficienteqa.geometry import Pose2D
@@ -119,3 +120,24 @@ def test_a_question_naming_no_room_searches_its_likely_rooms_in_their_order():
     plain = TargetExplorer(FrontierExplorer(), TargetConfig(likely_rooms=False))
     plain.set_target(ex.target)
     assert plain.goal_room() is None
+
+
+def test_a_ceiling_lamp_is_looked_for_from_far_enough_back_to_have_it_in_view():
+    def into_room(obj: str, look_up: bool = True) -> Decision:
+        ex = TargetExplorer(FrontierExplorer(), TargetConfig(look_up=look_up))
+        ex.set_target(Target("state", obj, None, ("office",)))
+        office = _box(1.0, 0.5, 9.0, 3.5)
+        ex.see(SPEC, Sightings({"office": office}))
+        island = _mask(office)
+        pose = Pose2D(5.5, 2.0, 0.0)
+        return ex.decide(_state(island, island.copy(), (pose.x, pose.y)), pose, None, 2)
+
+    lamp = into_room("ceiling lamp")
+    middle = np.array([5.0, 2.0])
+    gap = float(np.linalg.norm(np.array([lamp.pose.x, lamp.pose.y]) - middle))
+    assert lamp.reason == "into the office" and abs(gap - 2.8) < 0.4
+    towards = math.atan2(middle[1] - lamp.pose.y, middle[0] - lamp.pose.x)
+    assert abs(math.remainder(lamp.pose.yaw - towards, 2 * math.pi)) < math.radians(20)
+    # a thing on the floor, or without looking up: the robot near the middle stays there
+    assert into_room("armchair").reason == "look around"
+    assert into_room("ceiling lamp", look_up=False).reason == "look around"

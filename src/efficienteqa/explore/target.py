@@ -57,6 +57,7 @@ from efficienteqa.question import Target
 CAMERA_HEIGHT_M = 1.5
 CONNECTORS = frozenset({"hallway"})  # rooms that lead to others: never ruled out
 TOP_OF_VIEW_DEG = 22.0  # 30 deg down, half the 104 deg vertical field of view up
+OVERHEAD_WORDS = ("ceiling", "chandelier", "pendant")  # words of things hung from the ceiling
 
 
 @dataclass(frozen=True)
@@ -100,6 +101,14 @@ class TargetConfig:
     # Where the question names no room: search the rooms of Target.likely_rooms in their order
     # (``goal_room``) as a named room is searched (False: the frontiers alone).
     likely_rooms: bool = True
+    # Look up (no tilt in this environment: from further back): for a thing hung from the
+    # ceiling the move into the named room ends overhead_view_m from its middle, facing it,
+    # where the top of the view (TOP_OF_VIEW_DEG) reaches a ceiling 1.1 m above the camera.
+    look_up: bool = True
+    overhead_view_m: float = 2.8
+    # After a move of the steering's own, the frontier explorer chooses afresh instead of
+    # keeping the frontier it committed to before (False: it keeps it, as before).
+    fresh_frontier: bool = True
 
 
 @dataclass
@@ -220,6 +229,13 @@ class TargetExplorer:
     # ----- deciding -----------------------------------------------------------------------------
     def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
                step: int) -> Decision:
+        decision = self._steer(state, pose, values, step)
+        if self.config.fresh_frontier and decision.frontier is None and not decision.done:
+            self.frontier.forget()  # a move of its own: the next frontier is chosen afresh
+        return decision
+
+    def _steer(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
+               step: int) -> Decision:
         cfg, room = self.config, self.goal_room()
         here = self.room_at((pose.x, pose.y), cfg.here_m)
         if cfg.inspect:
@@ -267,8 +283,10 @@ class TargetExplorer:
         if room not in self._centred:  # one move towards the middle of the room
             self._centred.add(room)
             middle = self._middle(state, room)
-            if np.linalg.norm(middle - pose.xy) > 1.0:
-                goal = self._stand_near(state, pose, middle, 0.0, room)
+            # a thing on the ceiling (at its middle, as a rule) is above the view from near it
+            back_m = cfg.overhead_view_m if cfg.look_up and self._overhead() else 0.0
+            if abs(np.linalg.norm(middle - pose.xy) - back_m) > 1.0 or back_m > 0:
+                goal = self._stand_near(state, pose, middle, back_m, room)
                 decision = None if goal is None else self._new_view(
                     self._move(state, pose, goal, middle, "into the " + room), pose)
                 if decision is not None:
@@ -294,6 +312,17 @@ class TargetExplorer:
                                                pose.xy[None, :].copy(),
                                                reason="search the " + room), pose)
         return decision
+
+    def _overhead(self) -> bool:
+        """Whether the question's object hangs from the ceiling: by its words ("ceiling lamp"),
+        or a sighting of it whose top is above the camera."""
+        obj = self.target.object
+        if obj is None:
+            return False
+        if any(w in obj.lower().split() for w in OVERHEAD_WORDS):
+            return True
+        return any(self.target.is_a(obj, t.category) and t.top_m > CAMERA_HEIGHT_M
+                   for t in self._things)
 
     def coverage(self, state: MapState, room: str) -> float:
         """The share of ``room``'s seen floor that the map has explored (seen in the bottom
