@@ -141,3 +141,19 @@ def test_a_ceiling_lamp_is_looked_for_from_far_enough_back_to_have_it_in_view():
     # a thing on the floor, or without looking up: the robot near the middle stays there
     assert into_room("armchair").reason == "look around"
     assert into_room("ceiling lamp", look_up=False).reason == "look around"
+
+
+def test_a_doorway_out_of_a_room_seen_keeps_its_weight_where_a_corner_of_it_does_not():
+    from efficienteqa.explore.base import Frontier
+
+    def prior(ahead_m: float) -> np.ndarray:
+        ex = TargetExplorer(FrontierExplorer(), TargetConfig(ahead_m=ahead_m))
+        ex.set_target(Target("existence", "desk", None, ("office",)))
+        ex.see(SPEC, Sightings({"bathroom": _box(1.0, 1.0, 4.0, 3.0)}))
+        corner = Frontier((0, 0), (2.0, 2.0), (1.0, 0.0), 5)  # more bathroom beyond it
+        doorway = Frontier((0, 0), (3.9, 2.0), (1.0, 0.0), 5)  # nothing seen beyond it
+        return ex.frontier.prior([corner, doorway])  # type: ignore[misc]
+
+    corner, doorway = prior(1.0)
+    assert corner < 1e-3 and doorway == 1.0
+    assert list(prior(0.0)) == [1e-6, 1e-6]  # by the room they lie in alone: both ruled out

@@ -49,6 +49,7 @@ import numpy as np
 from efficienteqa.explore.base import Decision, Frontier
 from efficienteqa.explore.sfe import FrontierExplorer, cut_path, idle, settle
 from efficienteqa.geometry import Pose2D, wrap_angle
+from efficienteqa.mapping.coverage import hull_mask, room_coverage
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState
 from efficienteqa.perception.base import Sighting, Sightings
@@ -87,6 +88,10 @@ class TargetConfig:
     in_target: float = 100.0
     elsewhere: float = 1e-6
     frontier_room_m: float = 0.5  # a frontier's room: the most seen floor this close
+    # A frontier also has the room ahead_m beyond it on its unexplored side: none seen there
+    # (a doorway into unseen rooms) keeps its weight where one inside a room seen is ruled
+    # out (0: by the room it lies in alone, as before).
+    ahead_m: float = 0.0
     here_m: float = 1.0  # the robot's room: the most seen floor this close (none under it)
     # While the named room is unseen, look around in a hallway (CONNECTORS), at points at
     # least scan_apart_m apart: doorways along it show the rooms they lead to.
@@ -215,10 +220,14 @@ class TargetExplorer:
         named = self.target.room is not None
         for k, f in enumerate(frontiers):
             here = self.room_at(f.xy, cfg.frontier_room_m)
-            if here == room:
+            ahead = here
+            if cfg.ahead_m > 0:  # the room on the unexplored side, None where no frame showed one
+                ahead = self.room_at((f.xy[0] + cfg.ahead_m * f.normal[0],
+                                      f.xy[1] + cfg.ahead_m * f.normal[1]), cfg.frontier_room_m)
+            if room in (here, ahead):
                 out[k] = cfg.in_target
-            elif (named and here is not None and here not in CONNECTORS
-                  and here not in self.target.rooms):
+            elif (named and here is not None and ahead is not None
+                  and here not in CONNECTORS and here not in self.target.rooms):
                 out[k] = cfg.elsewhere
         return out
 
@@ -301,7 +310,7 @@ class TargetExplorer:
         if moves >= cfg.search_moves or self.coverage(state, room) >= cfg.search_coverage:
             return None
         self._search_moves[room] = moves + 1
-        uncovered = self._rooms[room] & ~state.explored
+        uncovered = hull_mask(self._rooms[room]) & ~state.explored & ~state.occupied
         gap = state.spec.cell_to_world(np.argwhere(uncovered)).mean(axis=0)
         goal = self._stand_near(state, pose, gap, cfg.search_view_m, room)
         decision = None if goal is None else self._new_view(
@@ -325,11 +334,10 @@ class TargetExplorer:
                    for t in self._things)
 
     def coverage(self, state: MapState, room: str) -> float:
-        """The share of ``room``'s seen floor that the map has explored (seen in the bottom
-        centre of some frame, ``MapState.explored``): how well its views covered the room."""
+        """How much of ``room`` its views covered (``mapping.coverage.room_coverage``: the
+        explored share of the hull of its floor seen so far)."""
         cells = self._rooms.get(room)
-        total = 0 if cells is None else int(cells.sum())
-        return float((cells & state.explored).sum() / total) if cells is not None and total else 0.0
+        return 0.0 if cells is None else room_coverage(cells, state.explored, state.occupied)
 
     def _new_view(self, decision: Decision | None, pose: Pose2D) -> Decision | None:
         """``decision`` unless it would take the view the robot holds (within the frontier
