@@ -95,6 +95,8 @@ def test_a_room_is_searched_only_once_its_views_covered_its_floor():
     # One look-around from the middle explored the middle fifth of the office's floor.
     narrow = _search_walk((4.0, 1.0, 6.0, 3.0), coverage=0.7, steps=3)
     assert narrow == ["look around", "look around", "search the office"]
+    # that viewpoint added nothing (the map here stays as it was): the room is searched
+    assert _search_walk((4.0, 1.0, 6.0, 3.0), coverage=0.7, steps=4)[3] == "searched"
     # Its floor covered: searched after the look-around, as is a search without coverage.
     assert _search_walk((1.0, 1.0, 9.0, 3.0), coverage=0.7)[2] == "searched"
     assert _search_walk((4.0, 1.0, 6.0, 3.0), coverage=0.0)[2] == "searched"

@@ -97,12 +97,17 @@ class TargetConfig:
     # least scan_apart_m apart: doorways along it show the rooms they lead to.
     scan_connectors: bool = True
     scan_apart_m: float = 4.0
-    # A room is searched once its views covered search_coverage of its seen floor (the map's
-    # explored cells; 0: after one look-around, as before), or after search_moves further
-    # viewpoints, each search_view_m from the centre of the floor not yet covered.
-    search_coverage: float = 0.7
+    # A room is searched once its views covered search_coverage of it (mapping.coverage: the
+    # explored share of the hull of its seen floor; 0: after one look-around, as before), or
+    # after search_moves further viewpoints, each search_view_m from the centre of the part
+    # not yet covered; a viewpoint that raised the coverage by less than search_gain ends it
+    # (the rest is out of sight, behind a bathtub). Training houses 0-20, 21 "no" existence
+    # questions: one look-around covers 0.74-0.97 (median 0.87); 0.85 sends the rooms below
+    # it to further viewpoints (mean steps 11.1 -> 11.9 before the gain rule).
+    search_coverage: float = 0.85
     search_moves: int = 3
     search_view_m: float = 1.5
+    search_gain: float = 0.02
     # Where the question names no room: search the rooms of Target.likely_rooms in their order
     # (``goal_room``) as a named room is searched (False: the frontiers alone).
     likely_rooms: bool = True
@@ -152,6 +157,7 @@ class TargetExplorer:
         self._centred: set[str] = set()  # rooms entered with a move towards their middle
         self._looked_around: set[str] = set()  # rooms looked around in
         self._search_moves: dict[str, int] = {}  # room -> further viewpoints taken in it
+        self._search_covered: dict[str, float] = {}  # room -> its coverage at the last one
         self._scans: list[np.ndarray] = []  # where the robot looked around in a hallway
 
     def set_target(self, target: Target) -> None:
@@ -307,9 +313,13 @@ class TargetExplorer:
         if decision is not None or cfg.search_coverage <= 0:
             return decision
         moves = self._search_moves.get(room, 0)
-        if moves >= cfg.search_moves or self.coverage(state, room) >= cfg.search_coverage:
+        covered = self.coverage(state, room)
+        before = self._search_covered.get(room, -1.0)
+        if (moves >= cfg.search_moves or covered >= cfg.search_coverage
+                or covered - before < cfg.search_gain):  # the last viewpoint added nothing
             return None
         self._search_moves[room] = moves + 1
+        self._search_covered[room] = covered
         uncovered = hull_mask(self._rooms[room]) & ~state.explored & ~state.occupied
         gap = state.spec.cell_to_world(np.argwhere(uncovered)).mean(axis=0)
         goal = self._stand_near(state, pose, gap, cfg.search_view_m, room)
