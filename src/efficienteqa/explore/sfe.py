@@ -115,6 +115,10 @@ class FrontierExplorer:
         self._target: _Target | None = None
         self._looked: list[list] = []  # [frontier xy, times reached and looked at]
 
+    def forget(self) -> None:
+        """Drop the committed target: the next decision chooses among the frontiers afresh."""
+        self._target = None
+
     def decide(self, state: MapState, pose: Pose2D, values: np.ndarray | None,
                step: int) -> Decision:
         """The next pose (see the module docstring); ``done`` when no frontier is reachable.

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from scipy import ndimage
 
 from efficienteqa.envs.synthetic.build import build_geometry
 from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog
@@ -15,6 +16,7 @@ from efficienteqa.envs.synthetic.primitives import builtin_catalog
 from efficienteqa.envs.synthetic.render import Renderer
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
+from efficienteqa.mapping.navgrid import OccupancyGrid
 from efficienteqa.observation import Observation
 
 if TYPE_CHECKING:
@@ -45,7 +47,8 @@ class SyntheticEnv:
         self.grid = navigation_grid(house)
         self.renderer = renderer or Renderer(self.camera)
         self.renderer.set_scene(build_geometry(house, catalog))
-        self.pose = house.start
+        self.start = start_clear_of_doors(house, self.grid)
+        self.pose = self.start
         self.steps = 0
 
     @classmethod
@@ -57,9 +60,10 @@ class SyntheticEnv:
     # -- the contract --------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
               ) -> tuple[Observation, dict[str, Any]]:
-        """Back to the start pose (or ``options["start"]``, a Pose2D). The house is fixed by
-        construction; ``seed`` is accepted for the contract and does not change it."""
-        start = (options or {}).get("start", self.house.start)
+        """Back to the start pose (``start``: the house's, off any open door's leaf; or
+        ``options["start"]``, a Pose2D). The house is fixed by construction; ``seed`` is
+        accepted for the contract and does not change it."""
+        start = (options or {}).get("start", self.start)
         if not self.is_navigable(start.x, start.y):
             raise ValueError(f"start pose {start} is not navigable")
         self.pose, self.steps = start, 0
@@ -110,3 +114,37 @@ class SyntheticEnv:
     def _info(self, blocked: bool) -> dict[str, Any]:
         return {"step": self.steps, "pose": self.pose, "blocked": blocked,
                 "floor_area_m2": self.floor_area_m2}
+
+
+def start_clear_of_doors(house: House, grid: OccupancyGrid) -> Pose2D:
+    """The house's start pose; where open doors' leaves (which the navigation grid does not
+    hold, but the robot's map does) wall it into a pocket apart from the house's largest
+    navigable region (house 129), the navigable cell of that region nearest by path, facing the
+    same way. The generated questions keep ``house.start`` (their oracle steps count from it)."""
+    start = house.start
+    leaves = [o for o in house.objects if o.category == "door"]
+    if not leaves:
+        return start
+    shape = grid.spec.shape
+    centres = grid.spec.cell_to_world(np.argwhere(np.ones(shape, bool))).reshape(*shape, 2)
+    gap = np.full(shape, np.inf)  # metres from each cell centre to the nearest leaf
+    for o in leaves:
+        c, s = np.cos(o.yaw), np.sin(o.yaw)
+        d = centres - (o.x, o.y)
+        u, v = d[..., 0] * c + d[..., 1] * s, -d[..., 0] * s + d[..., 1] * c
+        gap = np.minimum(gap, np.hypot(np.maximum(np.abs(u) - o.size_m[0] / 2, 0),
+                                       np.maximum(np.abs(v) - o.size_m[1] / 2, 0)))
+    open_ = grid.navigable(ROBOT_RADIUS_M) & (gap >= ROBOT_RADIUS_M)
+    labels, n = ndimage.label(open_, structure=np.ones((3, 3), bool))
+    if n == 0:
+        return start
+    largest = 1 + int(np.argmax(np.bincount(labels.ravel())[1:]))
+    i, j = grid.spec.world_to_cell((start.x, start.y))
+    if labels[int(i), int(j)] == largest:
+        return start
+    path_m = grid.distance_field((start.x, start.y), ROBOT_RADIUS_M)
+    ok = (labels == largest) & np.isfinite(path_m)
+    if not ok.any():
+        return start
+    k = np.unravel_index(np.argmin(np.where(ok, path_m, np.inf)), shape)
+    return Pose2D(float(centres[k][0]), float(centres[k][1]), start.yaw)
