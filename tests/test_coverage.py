@@ -1,4 +1,4 @@
-"""mapping.coverage: how much of a room its views covered (issue 33 defect 2)."""
+"""mapping.coverage: how much of a room its views covered (DESIGN 9, defect 2 of the walks)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The synthetic environment's start pose (issue 33 defect 8): a start that open doors' leaves
+"""The synthetic environment's start pose (DESIGN 9, defect 8 of the walks): a start that open doors' leaves
 wall into a pocket (house 129) is moved to the house's main navigable region."""
 
 from __future__ import annotations

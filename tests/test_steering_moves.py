@@ -1,5 +1,5 @@
 """The target steering's moves (explore.target): no move repeats the view the robot holds
-(defect 1 of issue 33), a room counts as searched by the floor its views covered (defect 2)."""
+(DESIGN 9, defect 1 of the walks), a room counts as searched by the floor its views covered (defect 2)."""
 
 from __future__ import annotations
 
