@@ -31,7 +31,8 @@ LEFT_OUT = dict.fromkeys(["z_th", "min_stop_step", "stop_rule", "top_k", "max_st
                           "answer", "answer_probability", "token_answer", "refusal_retries",
                           "stop_clearance_m", "prompts", "distinct_views", "exploration", "gate",
                           "steering", "explorer", "vlm", "temperature", "perception",
-                          "relevancy", "grouping", "explore_scorer", "cache", "method"])
+                          "relevancy", "grouping", "explore_scorer", "cache", "method", "reading", "gate_final",
+                          "matching"])
 # The settings whose default format 1 recorded as None, each typed as its documented default.
 TYPED_DEFAULTS = {"answer_every_step": False, "answer_probability": "product",
                   "token_answer": "short", "refusal_retries": 3, "stop_clearance_m": 0.45}
@@ -55,37 +56,44 @@ def main_table_spec(row: str, **config: object) -> RunSpec:
                    preset_config=build_config(values))
 
 
+def published_spec(**config: object) -> RunSpec:
+    """The command that made the published previous default (results/main-heldout/default-v2):
+    the default row as it was, its question read by rules and matched as words."""
+    return main_table_spec("default", reading="rules", matching="words", gate_final=False,
+                           **config)
+
+
 def resume(folder: Path, spec: RunSpec) -> None:
     open_run(folder, manifest(spec, 48))
 
 
 def test_the_published_format_1_run_is_none_where_a_default_was_meant():
     """The premise: results/ holds format-1 runs that record None for these settings."""
-    run = json.loads((PUBLISHED / "default" / RUN_FILE).read_text())
+    run = json.loads((PUBLISHED / "default-v2" / RUN_FILE).read_text())
     assert "format" not in run and run["stack"]["temperature"] is None
     assert all(run["config"][k] is None for k in TYPED_DEFAULTS)
 
 
 def test_a_published_format_1_run_resumes_with_the_same_command(tmp_path):
-    folder = published_copy(tmp_path, "default")
-    resume(folder, main_table_spec("default"))
+    folder = published_copy(tmp_path, "default-v2")
+    resume(folder, published_spec())
     assert "format" not in json.loads((folder / RUN_FILE).read_text())  # left as it was
 
 
 def test_typing_the_documented_defaults_is_the_same_run(tmp_path):
-    folder = published_copy(tmp_path, "default")
-    typed = main_table_spec("default", **TYPED_DEFAULTS, temperature=0.0)
-    assert typed.config == main_table_spec("default").config
-    assert typed.stack == main_table_spec("default").stack
+    folder = published_copy(tmp_path, "default-v2")
+    typed = published_spec(**TYPED_DEFAULTS, temperature=0.0)
+    assert typed.config == published_spec().config
+    assert typed.stack == published_spec().stack
     resume(folder, typed)
 
 
 @pytest.mark.parametrize("other", [{"answer_probability": "per-token"}, {"refusal_retries": 0},
                                    {"answer_every_step": True}, {"temperature": 1.0}])
 def test_another_value_than_the_one_a_format_1_run_meant_is_another_run(tmp_path, other):
-    folder = published_copy(tmp_path, "default")
+    folder = published_copy(tmp_path, "default-v2")
     with pytest.raises(EfficientEQAError, match="holds a run with another (config|stack)"):
-        resume(folder, main_table_spec("default", **other))
+        resume(folder, published_spec(**other))
 
 
 def test_a_format_1_run_reads_as_the_values_it_ran_with():
@@ -102,12 +110,12 @@ def test_a_format_1_run_reads_as_the_values_it_ran_with():
 
 def test_a_judge_mode_counts_only_with_a_judge(tmp_path):
     """A run without a judge model resumes whatever mode was recorded beside no judge."""
-    folder = published_copy(tmp_path, "default")
+    folder = published_copy(tmp_path, "default-v2")
     run = json.loads((folder / RUN_FILE).read_text())
     (folder / RUN_FILE).write_text(json.dumps({**run, "judge": None, "judge_mode": "grade"}))
-    resume(folder, replace(main_table_spec("default"), judge=None))
+    resume(folder, replace(published_spec(), judge=None))
     with pytest.raises(EfficientEQAError, match="another judge"):
-        resume(folder, main_table_spec("default"))
+        resume(folder, published_spec())
 
 
 def test_a_new_run_records_its_format_and_its_named_configuration(tmp_path):
@@ -197,20 +205,20 @@ def test_the_stacks_defaults_are_values_a_user_can_type():
 
 
 def test_a_format_1_run_that_did_not_record_the_stacks_defaults_reads_as_them(tmp_path):
-    run = json.loads((PUBLISHED / "default" / RUN_FILE).read_text())
+    run = json.loads((PUBLISHED / "default-v2" / RUN_FILE).read_text())
     assert not set(STACK_DEFAULTS) & set(run["stack"])  # the premise: recorded before they existed
     assert upgrade(run)["stack"] == {**run["stack"], "temperature": 0.0, **STACK_DEFAULTS}
-    typed = main_table_spec("default", **STACK_DEFAULTS)
-    assert typed.stack == main_table_spec("default").stack
-    resume(published_copy(tmp_path, "default"), typed)
+    typed = published_spec(**STACK_DEFAULTS)
+    assert typed.stack == published_spec().stack
+    resume(published_copy(tmp_path, "default-v2"), typed)
 
 
 @pytest.mark.parametrize("other", [{"device": "cpu"}, {"allow_download": True},
                                    {"image_max_side": 256}, {"image_format": "jpeg"}])
 def test_another_stack_value_than_a_format_1_run_meant_is_another_run(tmp_path, other):
-    folder = published_copy(tmp_path, "default")
+    folder = published_copy(tmp_path, "default-v2")
     with pytest.raises(EfficientEQAError, match="holds a run with another stack"):
-        resume(folder, main_table_spec("default", **other))
+        resume(folder, published_spec(**other))
 
 
 @pytest.mark.parametrize("form", [{}, {"format": RUN_FORMAT}])

@@ -20,7 +20,8 @@ NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "t
                  "judge_mode": None, "refusal_retries": None, "stop_clearance_m": None,
                  "prompts": None, "exploration": None, "distinct_views": None, "answer": None,
                  "answer_probability": None, "token_answer": None, "gate": None,
-                 "steering": None}
+                 "steering": None, "reading": None, "matching": None,
+                 "gate_final": None}
 
 
 def test_options_left_out_take_the_dataclass_defaults():
@@ -119,6 +120,7 @@ MAIN_TABLE_ROWS = {
                       "answer": "paper", "prompts": "paper", "exploration": "paper",
                       "refusal_retries": 0, "stop_clearance_m": 0.0, "distinct_views": False,
                       "gate": "none", "steering": "none", "min_stop_step": 10,
+                      "reading": "rules", "matching": "words",
                       # the defaults the paper's algorithm also names
                       "z_th": 3.0, "top_k": 5, "grouping": "llm"},
 }

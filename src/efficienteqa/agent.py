@@ -143,9 +143,10 @@ class AgentConfig:
     # Beyond the paper (DESIGN 9): how the question's target is read, "rules" (no call),
     # "model" (one call, checked against the question's words) or "rules+rooms" (the rules'
     # target, the model's likely rooms); how its words match the perception's categories,
-    # "words" or "meaning" (aliases by embeddings and one yes/no call). See reading/.
-    reading: str = "rules"
-    matching: str = "words"
+    # "words" or "meaning" (aliases by embeddings and one yes/no call). See reading/. Read
+    # only where something reads the target (steering or a gate): else by rules, no call.
+    reading: str = "rules+rooms"
+    matching: str = "meaning"
 
     def __post_init__(self) -> None:
         if self.top_k < 1:
@@ -195,7 +196,7 @@ class AgentConfig:
 PAPER_CONFIG = AgentConfig(stop=StopConfig(rule="paper", min_step=PAPER_MIN_STEP),
                            refusal_retries=0, stop_clearance_m=0.0, prompts="paper",
                            distinct_views=False, exploration="paper", answer="paper",
-                           gate="none", steering="none")
+                           gate="none", steering="none", reading="rules", matching="words")
 
 
 @dataclass
@@ -325,8 +326,9 @@ class Agent:
         if cfg.steering == "target" and isinstance(explorer, FrontierExplorer):
             explorer = TargetExplorer(explorer)
         with self._phase("question"):
-            target = (self.reading.target(question) if self.reading is not None
-                      else parse_question(question))
+            reads_target = cfg.steering != "none" or cfg.gate != "none"
+            target = (self.reading.target(question)
+                      if self.reading is not None and reads_target else parse_question(question))
         prompts = PROMPT_CONFIGS[cfg.prompts]
         if self.perception.modality == "text":  # no circles are drawn: none can overlap
             prompts = replace(prompts, min_px=0.0)

@@ -105,16 +105,21 @@ Steering = Annotated[str | None, _option(BEYOND,
     help="target (default: go to the room the question names, inspect what it asks about, "
     "look around on entering) or none (the paper's exploration).", show_default=False)]
 Reading = Annotated[str | None, _option(BEYOND,
-    help="How the question's target is read: rules (default, no call), model (one call to the "
-    "VLM, checked against the question's words) or rules+rooms (the rules' target, the VLM's "
-    "likely rooms).", show_default=False)]
+    help="How the question's target is read: rules (no call), model (one call to the VLM, "
+    "checked against the question's words) or rules+rooms (default: the rules' target, the "
+    "VLM's likely rooms for a question naming none; one call). Read only where the steering or "
+    "a gate reads it.", show_default=False)]
 Matching = Annotated[str | None, _option(BEYOND,
-    help="How the question's words match the perception's categories: words (default) or "
-    "meaning (embeddings, and one yes/no call to the VLM for unsure pairs).",
+    help="How the question's words match the perception's categories: words or meaning "
+    "(default: embeddings, and one yes/no call to the VLM for unsure pairs).",
     show_default=False)]
 DistinctViews = Annotated[bool | None, _option(BEYOND,
     "--distinct-views/--repeated-views", help="Retrieve K different views (default), or the K "
     "most relevant frames even when they repeat one view (DESIGN 3.5).", show_default=False)]
+GateFinal = Annotated[bool | None, _option(BEYOND,
+    "--gate-final/--no-gate-final", help="Stop at a frame the rules gate finds answers outright "
+    "(a count group wholly in view) without waiting for a relevancy outlier (default), or only "
+    "at outliers.", show_default=False)]
 AnswerOpt = Annotated[str | None, _option(METHOD,
     "--answer", help="How the retrieved frames are answered: auto (default: direct when the model "
     "gives logprobs), direct (one answer with a hint for the question's form, confidence its token "
@@ -293,6 +298,7 @@ def ask_command(
     distinct_views: DistinctViews = None,
     exploration: Exploration = None,
     gate: Gate = None,
+    gate_final: GateFinal = None,
     steering: Steering = None,
     reading: Reading = None,
     matching: Matching = None,
@@ -459,6 +465,7 @@ def eval_command(
     distinct_views: DistinctViews = None,
     exploration: Exploration = None,
     gate: Gate = None,
+    gate_final: GateFinal = None,
     steering: Steering = None,
     reading: Reading = None,
     matching: Matching = None,
