@@ -31,8 +31,8 @@ LEFT_OUT = dict.fromkeys(["z_th", "min_stop_step", "stop_rule", "top_k", "max_st
                           "answer", "answer_probability", "token_answer", "refusal_retries",
                           "stop_clearance_m", "prompts", "distinct_views", "exploration", "gate",
                           "steering", "explorer", "vlm", "temperature", "perception",
-                          "relevancy", "grouping", "explore_scorer", "cache", "method", "reading", "gate_final",
-                          "matching"])
+                          "relevancy", "grouping", "explore_scorer", "cache", "method", "reading",
+                          "matching", "gate_final"])
 # The settings whose default format 1 recorded as None, each typed as its documented default.
 TYPED_DEFAULTS = {"answer_every_step": False, "answer_probability": "product",
                   "token_answer": "short", "refusal_retries": 3, "stop_clearance_m": 0.45}
