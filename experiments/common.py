@@ -143,7 +143,9 @@ def explore_episode(env: SyntheticEnv, config: AgentConfig, question: str = "Wha
     the path distance to the evidence of a point (``first_near``); ``coverage``: the floor
     share explored after each step; ``on_step``: called with the agent's hook arguments first.
     """
-    config = replace(config, stop=StopConfig(enabled=False), gate="none")
+    # No language model here: the question is read by rules, its words matched as words.
+    config = replace(config, stop=StopConfig(enabled=False), gate="none", reading="rules",
+                     matching="words")
     perception = SemanticPerception(env.scene_labels())
     answerer = RagAnswerer(StubChatModel(lambda messages: "unknown"), RuleGrouper(), m=1,
                            direct=True)
