@@ -270,6 +270,9 @@ def label(manifest: Mapping[str, Any]) -> str:
                           baseline=preset_settings(manifest))
 
 
+# Settings that act only where the steering or a gate reads the question's target.
+TARGET_SETTINGS = frozenset({"reading", "matching", "gate_final"})
+
 # How a label names a named configuration: the paper's by this phrase, one named after the
 # method or "default" by nothing, any other by its name less the method's ("per-token" for the
 # explore-eqa run of configs/explore-eqa-per-token.toml).
@@ -291,6 +294,8 @@ def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (
     "paper configuration" where it is the paper's."""
     parts = [method]
     skipped = set(skip) | METHOD_SETS.get(method, set())
+    if flat.get("steering") == "none" and flat.get("gate") == "none":
+        skipped |= TARGET_SETTINGS  # nothing reads the target: these cannot act
     if method in AGENTLESS_METHODS:
         against: Iterable[tuple[str, Any]] = ()
     elif baseline is not None:
