@@ -416,3 +416,23 @@ def test_a_count_question_is_told_the_count_of_its_one_view_as_a_number():
     assert "The view lists 1 chair" in stub.requests[0].messages[0].text
     assert count_note(q, ["You are in the office. Visible: a desk ahead, 1.0 m."]) == ""
     assert count_note("What colour is the chair?", five) == ""
+
+
+def test_the_answer_reads_the_agents_aliases():
+    """A couch the agent matched to the sofa the views list is no absence: the direct answer's
+    notes read the agent's target, not a fresh parse that knows no aliases (the paraphrase
+    split's "Is there a couch in the lounge?" was told "saw no couch there: the answer is no")."""
+    from dataclasses import replace
+
+    from efficienteqa.answer.rag import RagAnswerer
+    from efficienteqa.question import parse_question
+
+    question = "Is there a couch in the lounge?"
+    views = ["You are in the living room. Visible: a blue sofa ahead, 1.4 m."]
+    target = replace(parse_question(question), aliases=(("couch", "sofa"),))
+    assert "saw no couch" in absence_note(question, views)  # the words alone: no match
+    assert absence_note(question, views, target) == ""
+    stub = StubChatModel(["yes"], logprob_fn=lambda text, top: [TokenLogprob("yes", 0.0)])
+    RagAnswerer(stub, RuleGrouper(), direct=True).answer(question, views, target)
+    prompt = stub.requests[0].messages[0].text
+    assert "saw no couch" not in prompt and "blue sofa" in prompt

@@ -148,7 +148,8 @@ def test_the_reading_options_are_checked_and_the_paper_reads_by_rules():
     with pytest.raises(ValueError, match="matching"):
         AgentConfig(matching="sound")
     assert (PAPER_CONFIG.reading, PAPER_CONFIG.matching) == ("rules", "words")
-    assert (AgentConfig().reading, AgentConfig().matching) == ("rules", "words")
+    # the default: the rules' target, the model's likely rooms, words matched by meaning
+    assert (AgentConfig().reading, AgentConfig().matching) == ("rules+rooms", "meaning")
 
 
 def test_the_paper_configuration_builds_no_reading(monkeypatch):
@@ -174,6 +175,9 @@ def test_rules_plus_rooms_keeps_the_rules_target_and_adds_the_models_rooms():
     question = "Where id the small wooden stool?"
     t = reading.target(question)
     assert t.object == "small wooden stool" and t.likely_rooms == ("bedroom",)
+    calls = len(model.requests)
+    named = reading.target("Is there a stool in the kitchen?")  # a named room: no prior needed
+    assert named.likely_rooms == () and len(model.requests) == calls
 
 
 @needs_egl

@@ -427,7 +427,7 @@ class Agent:
         else:
             top_k = top.best()
             with self._phase("answer"):
-                result = self.answerer.answer(question, [r.item for r in top_k])
+                result = self.answerer.answer(question, [r.item for r in top_k], target)
             retrieved = [(r.step, r.sim) for r in top_k]
         answer_s = time.perf_counter() - t
         state = explore.mapper.state((obs.pose.x, obs.pose.y))

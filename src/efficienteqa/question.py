@@ -79,8 +79,8 @@ class Target:
             return False
         if names(thing, category):
             return True
-        pair = (thing.lower(), category.lower())
-        return any((a.lower(), b.lower()) == pair for a, b in self.aliases)
+        # an alias's category names the perceived one as words do ("sofa" -> "blue sofa")
+        return any(a.lower() == thing.lower() and names(b, category) for a, b in self.aliases)
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"kind": self.kind, "object": self.object,

@@ -339,21 +339,23 @@ TOKEN_ANSWERS = (TOKEN_ANSWER, "verbalized")
 
 def answer_token_probability(model: ChatModel, question: str,
                              evidence: Sequence[str | np.ndarray], *, hinted: bool = False,
-                             max_tokens: int = 24, how: str = ANSWER_PROBABILITY) -> AnswerResult:
+                             max_tokens: int = 24, how: str = ANSWER_PROBABILITY,
+                             target: Target | None = None) -> AnswerResult:
     """A short greedy answer; its confidence (0-1, as VC's after normalising) is the model's
     probability of that answer: the product of its tokens' probabilities, first line only
     (``how="per-token"``: their geometric mean, ``ANSWER_PROBABILITIES``). A token at -inf or
     with an unreadable (NaN) logprob makes it 0; positive logprobs (rounding) count as
     probability 1. ``hinted``: the direct answer (DESIGN 8), whose prompt adds the hint of the
     question's form (``question_hint``) and reads text views cut to what the question names
-    (``focus_views``)."""
+    (``focus_views``); ``target``: the agent's reading of the question, so the notes match its
+    words as the gate and the steering do (an alias: "couch" is the sofa the views list)."""
     _check_how(how)
     require_logprobs(model)
     note = ""
     if hinted and evidence and all(isinstance(e, str) for e in evidence):
         views = [str(e) for e in evidence]
-        note = absence_note(question, views) or count_note(question, views)
-        evidence = focus_views(question, views)
+        note = absence_note(question, views, target) or count_note(question, views, target)
+        evidence = focus_views(question, views, target)
     text, images = evidence_text(evidence)
     template = load_prompt("answer_direct" if hinted else "answer_token", PROMPTS)
     hint = question_hint(question, "image" if images else "text")

@@ -25,6 +25,7 @@ from efficienteqa.answer.calls import (
     verbalized_token_probability,
 )
 from efficienteqa.models.base import ChatModel
+from efficienteqa.question import Target
 from efficienteqa.vc.grouping import Grouper
 from efficienteqa.vc.parse import AnswerResult, M
 
@@ -128,21 +129,24 @@ class RagAnswerer:
         self.model, self.grouper, self.m, self.confidence = model, grouper, m, confidence
         self.direct, self.probability, self.token_prompt = direct, probability, token_prompt
 
-    def answer(self, question: str, evidence: Sequence[str | np.ndarray]) -> AnswerResult:
+    def answer(self, question: str, evidence: Sequence[str | np.ndarray],
+               target: Target | None = None) -> AnswerResult:
         """The answer from ``evidence``, best first. Images beyond the server's cap per request
         (``capabilities.max_images``, probed) are cut, the least relevant first, and the answer's
-        problems say so: a capped server would refuse the whole request."""
+        problems say so: a capped server would refuse the whole request. ``target``: the
+        agent's reading of the question (with its aliases), for the direct answer's notes."""
         evidence, cut = cut_to_cap(evidence, getattr(self.model.capabilities, "max_images", None))
-        result = self._answer(question, evidence)
+        result = self._answer(question, evidence, target)
         return replace(result, problems=[cut, *result.problems]) if cut else result
 
-    def _answer(self, question: str, evidence: Sequence[str | np.ndarray]) -> AnswerResult:
+    def _answer(self, question: str, evidence: Sequence[str | np.ndarray],
+                target: Target | None = None) -> AnswerResult:
         if not self.direct and self.confidence == "token" and self.token_prompt == "verbalized":
             return verbalized_token_probability(self.model, question, evidence,
                                                 how=self.probability)
         if self.direct or self.confidence == "token":
             return answer_token_probability(self.model, question, evidence, hinted=self.direct,
-                                            how=self.probability)
+                                            how=self.probability, target=target)
         return answer_with_confidence(self.model, question, evidence, self.grouper, m=self.m)
 
 

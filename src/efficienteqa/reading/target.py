@@ -3,7 +3,7 @@ perception names (``matching``); both are ``AgentConfig`` options.
 
 ``reading``: "rules" (``question.parse_question``, no call), "model" (``reader.ModelReader``:
 one call, each field checked, the rules' field where it fails), "rules+rooms" (the rules'
-target with the model's likely rooms only: the same one call). ``matching``: "words" (the
+target with the model's likely rooms only, one call where the question names no room). ``matching``: "words" (the
 question's words name a category by themselves) or "meaning" (``aliases.AliasResolver`` over
 the perception's vocabulary).
 """
@@ -42,7 +42,8 @@ class TargetReading:
         target = parse_question(question)
         if self.reader is not None and self.reading == "model":
             target = self.reader.read(question)
-        elif self.reader is not None and self.reading == "rules+rooms":
+        elif self.reader is not None and self.reading == "rules+rooms" and not target.rooms:
+            # the likely rooms act only where the question names none: no call otherwise
             target = replace(target, likely_rooms=self.reader.read(question).likely_rooms)
         if self.resolver is not None and self.matching == "meaning":
             target = replace(target, aliases=self.resolver.aliases(target, self.vocabulary))
