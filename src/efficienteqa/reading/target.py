@@ -4,8 +4,8 @@ perception names (``matching``); both are ``AgentConfig`` options.
 ``reading``: "rules" (``question.parse_question``, no call), "model" (``reader.ModelReader``:
 one call, each field checked, the rules' field where it fails), "rules+rooms" (the rules'
 target with the model's likely rooms only, one call where the question names no room).
-``matching``: "words" (the question's words name a category by themselves) or "meaning" (``aliases.AliasResolver`` over
-the perception's vocabulary).
+``matching``: "words" (the question's words name a category by themselves) or "meaning"
+(``aliases.AliasResolver`` over the perception's vocabulary).
 """
 
 from __future__ import annotations
