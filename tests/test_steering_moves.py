@@ -16,25 +16,25 @@ from efficienteqa.mapping.state import MapState
 from efficienteqa.perception.base import Sightings
 from efficienteqa.question import Target
 
-SPEC = GridSpec.covering(0.0, 0.0, 10.0, 4.0, resolution_m=0.1)
+GRID = GridSpec.covering(0.0, 0.0, 10.0, 4.0, resolution_m=0.1)
 
 
 def _box(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
     """Cell-centre points (N, 2) of the box, metres."""
-    xs, ys = SPEC.centres()
+    xs, ys = GRID.centres()
     inside = (xs >= x0) & (xs <= x1) & (ys >= y0) & (ys <= y1)
     return np.stack([xs[inside], ys[inside]], axis=-1)
 
 
 def _mask(points: np.ndarray) -> np.ndarray:
-    out = np.zeros(SPEC.shape, bool)
-    i, j = SPEC.world_to_cell(points)
+    out = np.zeros(GRID.shape, bool)
+    i, j = GRID.world_to_cell(points)
     out[i, j] = True
     return out
 
 
 def _state(island: np.ndarray, explored: np.ndarray, xy: tuple[float, float]) -> MapState:
-    return MapState(SPEC, island, ~island, explored, island, xy)
+    return MapState(GRID, island, ~island, explored, island, xy)
 
 
 def _not_idle(decision, pose: Pose2D) -> bool:
@@ -46,7 +46,7 @@ def test_a_way_to_the_named_room_that_ends_where_the_robot_stands_is_not_taken()
     # nearest its middle is the robot's own, so "to the office" would end where it stands.
     ex = TargetExplorer(FrontierExplorer())
     ex.set_target(Target("existence", "desk", None, ("office",)))
-    ex.see(SPEC, Sightings({"office": _box(7.5, 1.0, 9.5, 3.0)}))
+    ex.see(GRID, Sightings({"office": _box(7.5, 1.0, 9.5, 3.0)}))
     island = _mask(_box(2.0, 1.0, 5.0, 3.0))
     state = _state(island, island.copy(), (4.5, 2.0))
     goal = ex._stand_near(state, Pose2D(3.0, 2.0, 0.0), np.array([8.5, 2.0]), 0.0, "office")
@@ -60,7 +60,7 @@ def test_a_way_to_the_named_room_that_ends_where_the_robot_stands_is_not_taken()
 def test_a_look_around_that_would_face_the_way_the_robot_already_looks_is_skipped():
     ex = TargetExplorer(FrontierExplorer())
     ex.set_target(Target("existence", "desk", None, ("office",)))
-    ex.see(SPEC, Sightings({"office": _box(2.0, 1.0, 5.0, 3.0)}))
+    ex.see(GRID, Sightings({"office": _box(2.0, 1.0, 5.0, 3.0)}))
     island = _mask(_box(2.0, 1.0, 5.0, 3.0))
     pose = Pose2D(3.5, 2.0, 0.0)
     ex._centred.add("office")
@@ -77,7 +77,7 @@ def _search_walk(explored_box: tuple[float, float, float, float], coverage: floa
     ex = TargetExplorer(FrontierExplorer(), TargetConfig(search_coverage=coverage))
     ex.set_target(Target("existence", "desk", None, ("office",)))
     office = _box(1.0, 1.0, 9.0, 3.0)
-    ex.see(SPEC, Sightings({"office": office}))
+    ex.see(GRID, Sightings({"office": office}))
     island = _mask(office)
     explored = _mask(_box(*explored_box))
     pose = Pose2D(5.0, 2.0, 0.0)
@@ -106,7 +106,7 @@ def test_a_question_naming_no_room_searches_its_likely_rooms_in_their_order():
     ex = TargetExplorer(FrontierExplorer())
     ex.set_target(Target("location", "stool", None, (),
                          likely_rooms=("kitchen", "bathroom", "office")))
-    ex.see(SPEC, Sightings({"office": _box(1.0, 1.0, 3.0, 3.0),
+    ex.see(GRID, Sightings({"office": _box(1.0, 1.0, 3.0, 3.0),
                             "kitchen": _box(7.0, 1.0, 9.0, 3.0),
                             "hallway": _box(3.5, 1.5, 6.5, 2.5)}))
     island = _mask(_box(1.0, 1.0, 9.0, 3.0))
@@ -129,7 +129,7 @@ def test_a_ceiling_lamp_is_looked_for_from_far_enough_back_to_have_it_in_view():
         ex = TargetExplorer(FrontierExplorer(), TargetConfig(look_up=look_up))
         ex.set_target(Target("state", obj, None, ("office",)))
         office = _box(1.0, 0.5, 9.0, 3.5)
-        ex.see(SPEC, Sightings({"office": office}))
+        ex.see(GRID, Sightings({"office": office}))
         island = _mask(office)
         pose = Pose2D(5.5, 2.0, 0.0)
         return ex.decide(_state(island, island.copy(), (pose.x, pose.y)), pose, None, 2)
@@ -151,7 +151,7 @@ def test_a_doorway_out_of_a_room_seen_keeps_its_weight_where_a_corner_of_it_does
     def prior(ahead_m: float) -> np.ndarray:
         ex = TargetExplorer(FrontierExplorer(), TargetConfig(ahead_m=ahead_m))
         ex.set_target(Target("existence", "desk", None, ("office",)))
-        ex.see(SPEC, Sightings({"bathroom": _box(1.0, 1.0, 4.0, 3.0)}))
+        ex.see(GRID, Sightings({"bathroom": _box(1.0, 1.0, 4.0, 3.0)}))
         corner = Frontier((0, 0), (2.0, 2.0), (1.0, 0.0), 5)  # more bathroom beyond it
         doorway = Frontier((0, 0), (3.9, 2.0), (1.0, 0.0), 5)  # nothing seen beyond it
         return ex.frontier.prior([corner, doorway])  # type: ignore[misc]
