@@ -2,7 +2,7 @@
 
     python -m experiments.question_reading --hm-eqa ../shared/datasets/hm-eqa/questions.csv \
         [--model-sample 60 --seed 1] [--training 0-20 --training-sample 40]
-        [--out /tmp/reading.jsonl]
+        [--out out/reading.jsonl]
 
 - rules: the share of HM-EQA's questions with a non-empty target (an object or a support), all
   of them; the hand check of 60 of them (seeded sample ``random.Random(0).sample(range(500),
