@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,9 +35,10 @@ class PixelPerception(SemanticPerception):
     name = "pixels"
     modality: Modality = "text"
 
-    def __init__(self, classify: Classifier) -> None:
+    def __init__(self, classify: Classifier, record: dict[str, Any] | None = None) -> None:
         super().__init__(labels=None)  # type: ignore[arg-type]  # read() is all that uses them
         self.classify = classify
+        self.record = record or {}  # the weights' record (how they were made), when loaded
         self._read: tuple[Observation, Observation, SceneLabels] | None = None
 
     @classmethod
@@ -45,15 +46,16 @@ class PixelPerception(SemanticPerception):
         """The committed network (or the one at ``weights``); one-line error when missing."""
         from efficienteqa.perception.pixels.net import load_weights, predict
 
-        net, vocabulary, _ = load_weights(weights or WEIGHTS)
+        net, vocabulary, meta = load_weights(weights or WEIGHTS)
+        thresholds = {str(k): float(v) for k, v in meta.get("region_thresholds", {}).items()}
 
         def classify(rgb: np.ndarray, depth_m: np.ndarray) -> PixelClasses:
             category, colour, state, confidence = predict(net, rgb, depth_m)
             return PixelClasses(category, colour, state, vocabulary.categories,
                                 vocabulary.colours, vocabulary.states,
-                                confidence.astype(np.float32))
+                                confidence.astype(np.float32), thresholds)
 
-        return cls(classify)
+        return cls(classify, meta)
 
     def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
         if self._read is None or self._read[0] is not obs:  # the network runs once per frame

@@ -10,7 +10,11 @@ either side; the room at a floor point from the floor the frame shows. Pure nump
 
 Instances are the connected regions of one object category, cut where depth jumps (two chairs
 side by side are two chairs when one stands behind the other); a region the network is unsure
-of (mean probability of its category under MIN_CONFIDENCE) is left out. Colour and state are the
+of is left out: its confidence, the mean probability of its category over the region, must
+reach a threshold per category chosen on validation houses (``perception.pixels.thresholds``)
+and recorded with the weights, MIN_CONFIDENCE where none was chosen. (The mean over the region's
+interior, its one-pixel rim left out, traded found for right along the same curve on validation
+houses 3900-3909: no better, so the whole region it is.) Colour and state are the
 majority of the pixels' predictions inside a region; the room of an object is the room of the predicted
 floor nearest to it; a door's near side is the room of the floor in front of it, its far side
 the room of the floor seen beyond it.
@@ -18,8 +22,8 @@ the room of the floor seen beyond it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
@@ -53,6 +57,8 @@ class PixelClasses:
     colours: Sequence[str]
     states: Sequence[str]
     confidence: np.ndarray | None = None  # (h, w) the category's probability, when known
+    # a region's least confidence per category (``thresholds``), MIN_CONFIDENCE for the others
+    min_confidence: Mapping[str, float] = field(default_factory=dict)
 
 
 class FrameLabels:
@@ -95,7 +101,9 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
 
     instance_small = np.where(small == 0, -1, 0).astype(np.int32)
     instance_small[depth_small <= 0] = -1
-    regions = _regions(small, depth_small, first_object, classes.confidence)
+    regions = [(category, mask) for category, mask, sure in
+               regions_of(small, depth_small, first_object, classes.confidence)
+               if sure >= classes.min_confidence.get(names[category], MIN_CONFIDENCE)]
     points = backproject(depth_small, _scaled(intrinsics, fy, fx), cam_to_world)
     camera_xy = np.array([cam_to_world[0, 3], cam_to_world[1, 3]])
     labels: dict[int, ObjectLabel] = {}
@@ -155,15 +163,17 @@ def _floor_cells(xy: np.ndarray, category: np.ndarray, names: list[str]
     return centres, [names[cat][len(FLOOR_PREFIX):] for _, cat, _ in best.values()]
 
 
-def _regions(small: np.ndarray, depth: np.ndarray, first_object: int,
-             confidence: np.ndarray | None = None) -> list[tuple[int, np.ndarray]]:
-    """Connected regions of each object category (doors included), cut at depth jumps; each
-    as (category, mask at half size), largest first within a category."""
+def regions_of(small: np.ndarray, depth: np.ndarray, first_object: int,
+               confidence: np.ndarray | None = None) -> list[tuple[int, np.ndarray, float]]:
+    """Connected regions of each object category (doors included), cut at depth jumps, of at
+    least MIN_REGION_PIXELS; each as (category, mask at half size, confidence), largest first
+    within a category. The confidence is the mean probability over the region (1.0 without
+    ``confidence``)."""
     jump = np.zeros(small.shape, bool)
     rel = DEPTH_JUMP * np.maximum(depth, 1e-3)
     jump[:, 1:] |= np.abs(np.diff(depth, axis=1)) > rel[:, 1:]
     jump[1:, :] |= np.abs(np.diff(depth, axis=0)) > rel[1:, :]
-    out: list[tuple[int, np.ndarray]] = []
+    out: list[tuple[int, np.ndarray, float]] = []
     for category in np.unique(small[small >= first_object]).tolist():
         mask = (small == category) & (depth > 0)
         cores, n = ndimage.label(mask & ~jump)
@@ -173,11 +183,11 @@ def _regions(small: np.ndarray, depth: np.ndarray, first_object: int,
         _, (ri, ci) = ndimage.distance_transform_edt(cores == 0, return_indices=True)
         grown = np.where(mask, cores[ri, ci], 0)
         sizes = np.bincount(grown.ravel(), minlength=n + 1)
-        sure = (np.bincount(grown.ravel(), weights=confidence.ravel(), minlength=n + 1)
-                / np.maximum(sizes, 1)) if confidence is not None else np.ones(n + 1)
         for k in np.argsort(-sizes[1:], kind="stable") + 1:
-            if sizes[k] >= MIN_REGION_PIXELS and sure[k] >= MIN_CONFIDENCE:
-                out.append((int(category), grown == k))
+            if sizes[k] >= MIN_REGION_PIXELS:
+                region = grown == k
+                sure = 1.0 if confidence is None else float(confidence[region].mean())
+                out.append((int(category), region, sure))
     return out
 
 
