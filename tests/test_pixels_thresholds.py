@@ -49,11 +49,11 @@ def test_choose_lowers_a_hard_category_and_raises_a_noisy_one():
     right, unsure ones wrong. The choice finds each category's best F1."""
     c = Candidates()
     for _ in range(10):
-        c.regions["sink"].append((0.35, True))
-        c.objects["sink"].append([(0.35, 0.9)])
-        c.regions["cabinet"].append((0.8, True))
-        c.objects["cabinet"].append([(0.8, 0.9)])
-        c.regions["cabinet"].append((0.65, False))
+        c.regions["sink"].append((0.35, True, 0.0))
+        c.objects["sink"].append([(0.35, 0.9, 0.0)])
+        c.regions["cabinet"].append((0.8, True, 0.0))
+        c.objects["cabinet"].append([(0.8, 0.9, 0.0)])
+        c.regions["cabinet"].append((0.65, False, 0.0))
     chosen = choose(c)
     assert chosen["sink"]["threshold"] <= 0.35 < MIN_CONFIDENCE
     assert chosen["sink"]["recall"] == 1.0 and chosen["sink"]["recall_at_default"] == 0.0
@@ -63,11 +63,14 @@ def test_choose_lowers_a_hard_category_and_raises_a_noisy_one():
     assert after[0] > before[0] and after[1] > before[1]
 
 
-def test_a_rare_category_keeps_the_global_threshold():
+def test_a_rare_or_never_found_category_keeps_the_global_threshold():
     c = Candidates()
-    c.regions["toilet"].append((0.3, True))
-    c.objects["toilet"].append([(0.3, 1.0)])
-    assert "toilet" not in choose(c)
+    c.regions["toilet"].append((0.3, True, 0.0))
+    c.objects["toilet"].append([(0.3, 1.0, 0.0)])
+    for _ in range(10):  # wall lamps in view, never covered by a right region
+        c.objects["wall lamp"].append([])
+        c.regions["wall lamp"].append((0.5, False, 0.0))
+    assert choose(c) == {}
 
 
 def test_thresholds_are_recorded_beside_the_weights_and_loaded_with_them(tmp_path):

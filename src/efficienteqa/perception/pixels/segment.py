@@ -31,6 +31,7 @@ from scipy.spatial import cKDTree
 
 from efficienteqa.envs.base import DoorSides, ObjectLabel
 from efficienteqa.geometry import backproject
+from efficienteqa.perception.pixels.fusion import FUSED_MIN, ObjectEvidence, cell_keys
 from efficienteqa.perception.semantic import FLOOR_TOLERANCE_M, ROOM_CELL_M  # as the describer
 
 FLOOR_PREFIX = "floor:"  # the network's floor categories: "floor:<room type>"
@@ -82,9 +83,12 @@ class FrameLabels:
 
 
 def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarray,
-               cam_to_world: np.ndarray) -> tuple[np.ndarray, FrameLabels]:
+               cam_to_world: np.ndarray, evidence: ObjectEvidence | None = None
+               ) -> tuple[np.ndarray, FrameLabels]:
     """The full-size instance buffer and the frame's labels from the network's classes.
-    ``depth_m``, ``intrinsics`` and ``cam_to_world`` are the frame's own (full size)."""
+    ``depth_m``, ``intrinsics`` and ``cam_to_world`` are the frame's own (full size);
+    ``evidence``, the episode's objects fused over views, gains this frame's regions and keeps
+    those that the views together are sure of."""
     h, w = depth_m.shape
     small = classes.category
     sh, sw = small.shape
@@ -101,10 +105,12 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
 
     instance_small = np.where(small == 0, -1, 0).astype(np.int32)
     instance_small[depth_small <= 0] = -1
-    regions = [(category, mask) for category, mask, sure in
-               regions_of(small, depth_small, first_object, classes.confidence)
-               if sure >= classes.min_confidence.get(names[category], MIN_CONFIDENCE)]
+    proposed = regions_of(small, depth_small, first_object, classes.confidence)
     points = backproject(depth_small, _scaled(intrinsics, fy, fx), cam_to_world)
+    fused = fused_support(proposed, points, evidence)
+    regions = [(category, mask) for (category, mask, sure), together in zip(proposed, fused)
+               if sure >= classes.min_confidence.get(names[category], MIN_CONFIDENCE)
+               or together >= FUSED_MIN]
     camera_xy = np.array([cam_to_world[0, 3], cam_to_world[1, 3]])
     labels: dict[int, ObjectLabel] = {}
     for k, (category, mask) in enumerate(regions, start=1):
@@ -189,6 +195,18 @@ def regions_of(small: np.ndarray, depth: np.ndarray, first_object: int,
                 sure = 1.0 if confidence is None else float(confidence[region].mean())
                 out.append((int(category), region, sure))
     return out
+
+
+def fused_support(regions: Sequence[tuple[int, np.ndarray, float]], points: np.ndarray,
+                  evidence: ObjectEvidence | None) -> list[float]:
+    """Add the regions (category, mask, confidence) of one view, with the frame's world
+    ``points`` at the masks' size, to ``evidence``; then each region's fused evidence (0 for
+    every region without ``evidence``)."""
+    if evidence is None:
+        return [0.0] * len(regions)
+    keys = [cell_keys(points[mask], category) for category, mask, _ in regions]
+    evidence.add_view([(k, sure) for k, (_, _, sure) in zip(keys, regions)])
+    return [evidence.support(k) for k in keys]
 
 
 def _majority(values: np.ndarray, n: int) -> int | None:
