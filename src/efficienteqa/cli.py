@@ -730,13 +730,16 @@ def perception_dataset(
     frames_per_house: int = typer.Option(20, "--frames-per-house", help="Views per house."),
     seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
     workers: int = typer.Option(2, help="Rendering processes."),
+    recolour_share: float = typer.Option(0.5, "--recolour-share", help="Share of colourable "
+                                         "objects recoloured in training houses (3000-3899)."),
 ) -> None:
     """Render RGB-D frames with per-pixel category, colour and state labels at half size."""
     from efficienteqa.perception.pixels.dataset import parse_seeds, render_dataset
 
     houses = parse_seeds(seeds)
     start = time.perf_counter()
-    meta = render_dataset(houses, out, frames_per_house, seed, workers=workers)
+    meta = render_dataset(houses, out, frames_per_house, seed, workers=workers,
+                          recolour_share=recolour_share)
     console.print(f"{len(houses)} houses, {len(houses) * frames_per_house} frames in "
                   f"{(time.perf_counter() - start) / 60:.1f} min -> {out} ({meta['frames']} "
                   "frames in all)", highlight=False, soft_wrap=True)
