@@ -2,11 +2,13 @@
 rarity, and the training loop's device, checkpoint and resume."""
 
 import json
+import sys
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from conftest import needs_egl
 from efficienteqa.envs.synthetic.catalog import Catalog, CatalogEntry
 from efficienteqa.envs.synthetic.generate import COLOURABLE, generate_house, recolour_share_of
 from efficienteqa.envs.synthetic.primitives import builtin_catalog
@@ -102,3 +104,115 @@ def test_training_houses_never_use_a_heldout_mesh(monkeypatch):
                                       if o.model_key not in heldout), heldout)
     with pytest.raises(KeyError):
         uses_heldout_mesh(generate_house(3000, catalog, "builtin"), 10_000, heldout)
+
+
+# -- crops by rarity ----------------------------------------------------------------------------
+def _frames_with_one_rare_patch(n=20):
+    cat = np.ones((n, 240, 320), np.uint8)  # wall everywhere...
+    cat[7, 100:106, 200:206] = 50  # ...but a 6x6 patch of category 50 in one frame
+    return {"rgb": np.zeros((n, 240, 320, 3), np.uint8), "depth": np.ones((n, 240, 320), np.float16),
+            "category": cat, "colour": np.full_like(cat, 255), "state": np.full_like(cat, 255)}
+
+
+def test_crops_by_rarity_find_the_rare_category():
+    from efficienteqa.perception.pixels.dataset import build_vocabulary
+    from efficienteqa.perception.pixels.train import CropSampler
+
+    frames, vocab = _frames_with_one_rare_patch(), build_vocabulary()
+
+    def share_with_patch(rarity: float) -> float:
+        sampler = CropSampler(frames, vocab, (160, 224), np.random.default_rng(0), rarity)
+        hits = sum(bool((sampler.batch(1)[1] == 50).any()) for _ in range(200))
+        return hits / 200
+
+    assert share_with_patch(1.0) > 0.4  # half the centres are the patch's category
+    assert share_with_patch(0.0) < 0.1  # uniform crops: the one frame in 20, when it is in view
+
+
+def test_class_weights_follow_the_crops_drawn():
+    from efficienteqa.perception.pixels.dataset import build_vocabulary
+    from efficienteqa.perception.pixels.train import CropSampler, weights_of_counts
+
+    frames, vocab = _frames_with_one_rare_patch(), build_vocabulary()
+    sampler = CropSampler(frames, vocab, (160, 224), np.random.default_rng(0), 1.0)
+    state = sampler.rng.bit_generator.state
+    counts = sampler.crop_counts(100, len(vocab.categories))
+    assert sampler.rng.bit_generator.state == state  # training's draws are not disturbed
+    assert counts[50] > 0 and counts[1] > counts[50]
+    w = weights_of_counts(counts)
+    assert float(w[50]) > float(w[1])
+
+
+# -- device, checkpoint and resume --------------------------------------------------------------
+TINY = (4, 8, 8, 8, 8)
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    from efficienteqa.perception.pixels.dataset import render_dataset
+
+    out = tmp_path_factory.mktemp("pixels-shortcut-data")
+    for seeds in (range(3000, 3001), range(3900, 3901)):
+        render_dataset(seeds, out, frames_per_house=3, seed=0, progress=False, workers=1,
+                       assets="builtin")
+    return out
+
+
+@needs_egl
+def test_meta_records_recolouring_and_heldout_keys(data):
+    meta = json.loads((data / "meta.json").read_text())
+    assert meta["recolour_share"] == 0.5 and meta["heldout_model_keys"] == []  # builtin: 1 each
+
+
+@needs_egl
+def test_an_interrupted_training_resumes_to_the_same_weights(data, tmp_path, monkeypatch):
+    import torch
+
+    from efficienteqa.errors import EfficientEQAError
+    from efficienteqa.perception.pixels import train as train_module
+    from efficienteqa.perception.pixels.train import TrainConfig, checkpoint_path, train
+
+    config = TrainConfig(steps=6, batch=2, crop=(32, 48), widths=TINY, threads=1, device="cpu",
+                         checkpoint_every=2)
+    whole = tmp_path / "whole.pt"
+    record = train(data, whole, config, log=sys.stdout)
+    assert record["resumed_at_step"] is None and record["device"].startswith("cpu")
+    assert not checkpoint_path(whole).exists()  # finished: no checkpoint left
+
+    real, calls = train_module.losses, []
+
+    def crash_at_step_4(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 4:
+            raise RuntimeError("power cut")
+        return real(*args, **kwargs)
+
+    parts = tmp_path / "parts.pt"
+    monkeypatch.setattr(train_module, "losses", crash_at_step_4)
+    with pytest.raises(RuntimeError):
+        train(data, parts, config, log=sys.stdout)
+    monkeypatch.setattr(train_module, "losses", real)
+    assert checkpoint_path(parts).is_file()
+    with pytest.raises(EfficientEQAError, match="another training"):
+        train(data, parts, replace(config, steps=7, resume=True), log=sys.stdout)
+    again = train(data, parts, replace(config, resume=True), log=sys.stdout)
+    assert again["resumed_at_step"] == 2 and again["steps_done"] == 6
+    a = torch.load(whole, weights_only=True)
+    b = torch.load(parts, weights_only=True)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert again["loss_history"] == record["loss_history"]
+
+
+def test_device_choice():
+    import torch
+
+    from efficienteqa.errors import EfficientEQAError
+    from efficienteqa.perception.pixels.train import pick_device
+
+    assert pick_device("cpu").type == "cpu"
+    assert pick_device("auto").type == ("cuda" if torch.cuda.is_available() else "cpu")
+    with pytest.raises(EfficientEQAError):
+        pick_device("tpu")
+    if not torch.cuda.is_available():
+        with pytest.raises(EfficientEQAError, match="no CUDA"):
+            pick_device("cuda")
