@@ -216,3 +216,12 @@ def test_device_choice():
     if not torch.cuda.is_available():
         with pytest.raises(EfficientEQAError, match="no CUDA"):
             pick_device("cuda")
+
+
+def test_code_version_names_the_copied_source(monkeypatch):
+    from efficienteqa.perception.pixels.dataset import code_version
+
+    monkeypatch.setenv("EFFICIENTEQA_CODE_VERSION", "abc1234")
+    assert code_version() == "abc1234"
+    monkeypatch.delenv("EFFICIENTEQA_CODE_VERSION")
+    assert code_version() != "abc1234"

@@ -34,6 +34,7 @@ import hashlib
 import json
 import math
 import multiprocessing
+import os
 import subprocess
 import sys
 import time
@@ -96,7 +97,11 @@ def build_vocabulary() -> Vocabulary:
 
 
 def code_version() -> str:
-    """``git describe`` of the checkout this runs from, else the package version."""
+    """$EFFICIENTEQA_CODE_VERSION (set where a copy of the source runs outside its checkout,
+    e.g. on a GPU machine), else ``git describe`` of the checkout this runs from, else the
+    package version."""
+    if os.environ.get("EFFICIENTEQA_CODE_VERSION"):
+        return os.environ["EFFICIENTEQA_CODE_VERSION"]
     try:
         out = subprocess.run(["git", "describe", "--always", "--dirty", "--tags"],
                              cwd=Path(__file__).parent, capture_output=True, text=True, timeout=10)
