@@ -225,3 +225,23 @@ def test_code_version_names_the_copied_source(monkeypatch):
     assert code_version() == "abc1234"
     monkeypatch.delenv("EFFICIENTEQA_CODE_VERSION")
     assert code_version() != "abc1234"
+
+
+@needs_egl
+def test_loss_history_means_each_window_over_its_own_steps(data, tmp_path, monkeypatch):
+    from efficienteqa.perception.pixels import train as train_module
+    from efficienteqa.perception.pixels.train import TrainConfig, train
+
+    real = train_module.losses
+
+    def fixed_parts(*args, **kwargs):
+        loss, _ = real(*args, **kwargs)
+        return loss, {"category": 1.0, "colour": 1.0, "state": 1.0}
+
+    monkeypatch.setattr(train_module, "losses", fixed_parts)
+    # 45 steps log every 2: the last window holds one step
+    config = TrainConfig(steps=45, batch=1, crop=(32, 48), widths=TINY, threads=1, device="cpu",
+                         checkpoint_every=0)
+    record = train(data, tmp_path / "w.pt", config, log=sys.stdout)
+    assert record["loss_history"][-1]["step"] == 45
+    assert all(h["category"] == 1.0 for h in record["loss_history"])

@@ -363,10 +363,12 @@ def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: s
         opt.step()
         sched.step()
         done += 1
-        for k, v in {"loss": float(loss.detach()), **parts}.items():
+        for k, v in {"loss": float(loss.detach()), **parts, "n": 1.0}.items():
             running[k] = running.get(k, 0.0) + v
         if done % every == 0 or done == config.steps:
-            avg = {k: v / every for k, v in running.items()}
+            # mean over the steps since the last line (the last window can be shorter)
+            n_steps = running.pop("n")
+            avg = {k: v / n_steps for k, v in running.items()}
             running = {}
             history.append({"step": done, **{k: round(v, 4) for k, v in avg.items()}})
             elapsed = time.perf_counter() - start
