@@ -245,3 +245,22 @@ def test_loss_history_means_each_window_over_its_own_steps(data, tmp_path, monke
     record = train(data, tmp_path / "w.pt", config, log=sys.stdout)
     assert record["loss_history"][-1]["step"] == 45
     assert all(h["category"] == 1.0 for h in record["loss_history"])
+
+
+@pytest.mark.parametrize("args", [["--widths", "16,32"], ["--widths", "a,b,c,d,e"],
+                                  ["--device", "tpu"]])
+def test_train_refuses_bad_widths_and_devices(args, monkeypatch, capsys, tmp_path):
+    from efficienteqa import cli
+    from efficienteqa.perception.pixels.dataset import build_vocabulary
+
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "meta.json").write_text(json.dumps({"vocabulary": build_vocabulary().to_json(),
+                                                "houses": [3000]}))
+    (data / "houses-3000-3000.npz").write_bytes(b"")
+    monkeypatch.setattr(sys, "argv", ["efficienteqa", "perception", "train", "--data", str(data),
+                                      "--out", str(tmp_path / "w.pt"), "--steps", "1", *args])
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main()
+    out = capsys.readouterr().out
+    assert exit_info.value.code == 1 and len(out.strip().splitlines()) == 1 and "error" in out
