@@ -730,13 +730,16 @@ def perception_dataset(
     frames_per_house: int = typer.Option(20, "--frames-per-house", help="Views per house."),
     seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
     workers: int = typer.Option(2, help="Rendering processes."),
+    recolour_share: float = typer.Option(0.5, "--recolour-share", help="Share of colourable "
+                                         "objects recoloured in training houses (3000-3899)."),
 ) -> None:
     """Render RGB-D frames with per-pixel category, colour and state labels at half size."""
     from efficienteqa.perception.pixels.dataset import parse_seeds, render_dataset
 
     houses = parse_seeds(seeds)
     start = time.perf_counter()
-    meta = render_dataset(houses, out, frames_per_house, seed, workers=workers)
+    meta = render_dataset(houses, out, frames_per_house, seed, workers=workers,
+                          recolour_share=recolour_share)
     console.print(f"{len(houses)} houses, {len(houses) * frames_per_house} frames in "
                   f"{(time.perf_counter() - start) / 60:.1f} min -> {out} ({meta['frames']} "
                   "frames in all)", highlight=False, soft_wrap=True)
@@ -752,21 +755,39 @@ def perception_train(
     batch: int = typer.Option(8, help="Crops per step."),
     minutes: float = typer.Option(90.0, help="Stop early after this long (a guard; recorded)."),
     threads: int = typer.Option(2, help="Torch CPU threads."),
+    widths: str = typer.Option("16,32,64,96,160", help="Channels of the 1/1 ... 1/16 levels."),
+    device: str = typer.Option("auto", help="auto (cuda where torch sees one) | cpu | cuda."),
+    resume: bool = typer.Option(False, "--resume", help="Continue from the checkpoint beside "
+                                "--out (same options and data)."),
+    checkpoint_every: int = typer.Option(250, "--checkpoint-every", help="Steps between "
+                                         "checkpoints (0: none)."),
 ) -> None:
     """Train the pixel network on rendered frames; validate on houses 3900-3909."""
     from efficienteqa.perception.pixels.train import TrainConfig, check_data, check_writable, train
 
-    if steps < 1 or batch < 1 or threads < 1:
-        raise EfficientEQAError("--steps, --batch and --threads must be at least 1")
+    if steps < 1 or batch < 1 or threads < 1 or checkpoint_every < 0:
+        raise EfficientEQAError("--steps, --batch and --threads must be at least 1, "
+                                "--checkpoint-every at least 0")
+    try:
+        width_list = tuple(int(w) for w in widths.split(","))
+    except ValueError:
+        raise EfficientEQAError(f"cannot read --widths {widths!r}", fix="give 5 numbers such as "
+                                "16,32,64,96,160") from None
+    if len(width_list) != 5 or min(width_list) < 1:
+        raise EfficientEQAError(f"--widths needs 5 positive numbers, got {widths!r}")
     check_data(data)
     check_writable(out)
     # DATA: the folder 'perception dataset' wrote (its houses are in the record's "data"); a
-    # path on this machine would mean nothing on another
+    # path on this machine would mean nothing on another. --resume and --device do not change
+    # the result's recipe (the record says where it ran and whether it resumed).
     command = " ".join(["efficienteqa", "perception", "train", "--data", "DATA", "--out",
                         str(out), "--steps", str(steps), "--seed", str(seed), "--batch",
-                        str(batch), "--minutes", f"{minutes:g}", "--threads", str(threads)])
+                        str(batch), "--minutes", f"{minutes:g}", "--threads", str(threads),
+                        "--widths", ",".join(map(str, width_list)), "--device", device])
     record = train(data, out, TrainConfig(steps=steps, seed=seed, batch=batch, minutes=minutes,
-                                          threads=threads), command=command)
+                                          threads=threads, widths=width_list, device=device,
+                                          checkpoint_every=checkpoint_every, resume=resume),
+                   command=command)
     val = record["validation"] or {}
     figures = ", ".join(f"{k} {val[k]}" for k in ("pixel_accuracy", "mean_iou", "colour_accuracy",
                                                   "state_accuracy") if val.get(k) is not None)
