@@ -824,7 +824,7 @@ def perception_evaluate(
         read_poses,
         write_scores,
     )
-    from efficienteqa.records import check_writable
+    from efficienteqa.records import check_writable, code_version
 
     try:
         houses = parse_seeds(seeds)
@@ -849,7 +849,8 @@ def perception_evaluate(
         write_scores(scores, out, {"houses": seeds,
                                    "frames_per_house": frames_per_house, "seed": seed,
                                    "poses": "walks " + poses.name if poses else "training-style",
-                                   "weights": str(weights or "committed")})
+                                   "weights": str(weights or "committed"),
+                                   "code_version": code_version()})
     console.print(markdown_table(figures), highlight=False, soft_wrap=True)
     console.print(f"{figures['frames']} frames of houses {seeds}; "
                   f"floor room type {figures['floor_room_type']}; median "
