@@ -5,7 +5,9 @@ It reads the observation's RGB, depth, intrinsics and pose and nothing else: no 
 no scene labels, no floor plan. The network (``perception.pixels.net``) gives classes per pixel;
 ``segment.read_frame`` makes instances and per-frame labels of them; the semantic describer turns
 those into the view, direction and relevancy texts and the sightings, so the rest of the pipeline
-is unchanged.
+is unchanged. Rooms are named by the episode's room votes (``rooms.RoomVotes``: floor evidence
+and the objects seen, per room region of the map) unless ``room_votes`` is off; ``reset`` starts
+them afresh, and the agent calls it at the start of every episode.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ import numpy as np
 
 from efficienteqa.observation import Observation
 from efficienteqa.perception.base import Modality
-from efficienteqa.perception.pixels.segment import PixelClasses, read_frame
+from efficienteqa.perception.pixels.rooms import PRIOR, RoomPrior, RoomVotes
+from efficienteqa.perception.pixels.segment import PixelClasses, floor_types, read_frame
 from efficienteqa.perception.semantic import SemanticPerception
 
 if TYPE_CHECKING:
@@ -35,10 +38,20 @@ class PixelPerception(SemanticPerception):
     name = "pixels"
     modality: Modality = "text"
 
-    def __init__(self, classify: Classifier) -> None:
+    def __init__(self, classify: Classifier, room_votes: bool = True,
+                 prior: RoomPrior | None = None) -> None:
         super().__init__(labels=None)  # type: ignore[arg-type]  # read() is all that uses them
         self.classify = classify
+        self.room_votes = room_votes
+        self.prior = prior if prior is not None or not room_votes else RoomPrior.load(PRIOR)
+        self._votes: RoomVotes | None = None
         self._read: tuple[Observation, Observation, SceneLabels] | None = None
+
+    def reset(self) -> None:
+        """A new episode: the room votes start empty."""
+        self._votes = None
+        self._read = None
+        super().reset()
 
     @classmethod
     def load(cls, weights: Path | None = None) -> PixelPerception:
@@ -57,8 +70,11 @@ class PixelPerception(SemanticPerception):
 
     def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
         if self._read is None or self._read[0] is not obs:  # the network runs once per frame
-            instance, labels = read_frame(self.classify(obs.rgb, obs.depth_m), obs.depth_m,
-                                          obs.intrinsics, obs.cam_to_world)
+            classes = self.classify(obs.rgb, obs.depth_m)
+            if self.room_votes and self._votes is None:
+                self._votes = RoomVotes(floor_types(classes.categories), self.prior)
+            instance, labels = read_frame(classes, obs.depth_m, obs.intrinsics,
+                                          obs.cam_to_world, self._votes)
             seen = Observation(rgb=obs.rgb, depth_m=obs.depth_m, cam_to_world=obs.cam_to_world,
                                intrinsics=obs.intrinsics, pose=obs.pose, instance=instance)
             self._read = (obs, seen, labels)
