@@ -119,7 +119,7 @@ def true_floor(obs: Any, truth: Any) -> tuple[np.ndarray, list[str]]:
     return np.array(xy, np.float32).reshape(-1, 2), rooms
 
 
-def walk(houses: list[int], per_house: int, out: Path, votes: bool) -> None:
+def walk(houses: list[int], per_house: int, out: Path, votes: bool, first: int = 0) -> None:
     """The agent's walks, each step's network output and truth stored (see the docstring)."""
     from efficienteqa.scenes import open_scene, synthetic_questions
 
@@ -128,7 +128,8 @@ def walk(houses: list[int], per_house: int, out: Path, votes: bool) -> None:
         scene = open_scene(f"synthetic:{house}", oracle=False)
         env = scene.env
         try:
-            for n, q in enumerate(synthetic_questions(env, oracle=False)[:per_house]):  # type: ignore[arg-type]
+            qs = synthetic_questions(env, oracle=False)[first:first + per_house]  # type: ignore[arg-type]
+            for n, q in enumerate(qs, start=first):
                 t = time.perf_counter()
                 steps, frames = walk_episode(env, q.question, votes)
                 arrays = {f"{k}_{i}": v for i, f in enumerate(frames) for k, v in f.items()}
@@ -316,11 +317,13 @@ def tune(folders: list[Path], grid: dict[str, list[float]]) -> None:
     keys = list(grid)
     for values in itertools.product(*(grid[k] for k in keys)):
         sets = dict(zip(keys, values))
-        threshold = sets.pop("OBJECT_CONFIDENCE", 0.6)
+        threshold = sets.pop("OBJECT_CONFIDENCE", rooms_module.OBJECT_CONFIDENCE)
         for name, value in sets.items():
             setattr(rooms_module, name, value)
         prior = RoomPrior.load(rooms_module.PRIOR)
-        floor, here, by_room = [0, 0], [0, 0], {}
+        floor, here = [0, 0], [0, 0]
+        by_room: dict[str, list[int]] = {}
+        here_by: dict[str, list[int]] = {}
         for frames in walks:
             votes = RoomVotes(floor_types(frames[0]["names"]), prior)
             for f in frames:
@@ -334,12 +337,16 @@ def tune(folders: list[Path], grid: dict[str, list[float]]) -> None:
                     by_room.setdefault(room, [0, 0])[0] += ok
                     by_room[room][1] += 1
                 if f["here"]:
-                    here[0] += room_map.room_at(*f["pose"][:2]) == f["here"]
+                    ok = room_map.room_at(*f["pose"][:2]) == f["here"]
+                    here[0] += ok
                     here[1] += 1
+                    here_by.setdefault(f["here"], [0, 0])[0] += ok
+                    here_by[f["here"]][1] += 1
         print(json.dumps({"floor": round(floor[0] / max(floor[1], 1), 4),
                           "here": round(here[0] / max(here[1], 1), 4), "steps": here[1],
                           "set": {**sets, "OBJECT_CONFIDENCE": threshold},
-                          "by_room": {r: round(a / b, 3) for r, (a, b) in sorted(by_room.items())}}),
+                          "by_room": {r: round(a / b, 3) for r, (a, b) in sorted(by_room.items())},
+                          "here_by_room": {r: f"{a}/{b}" for r, (a, b) in sorted(here_by.items())}}),
               flush=True)
 
 
@@ -352,6 +359,7 @@ def main() -> None:
     w = sub.add_parser("walk")
     w.add_argument("--houses", required=True, help="e.g. 3000-3004 (training) or 2000-2001")
     w.add_argument("--per-house", type=int, default=2, help="questions (episodes) per house")
+    w.add_argument("--first", type=int, default=0, help="the house's first question to walk")
     w.add_argument("--votes", choices=("on", "off"), default="on")
     w.add_argument("--out", type=Path, required=True)
     c = sub.add_parser("confusion")
@@ -372,7 +380,7 @@ def main() -> None:
         make_confusion(args.folders, "python -m experiments.room_votes confusion "
                        + " ".join(str(f) for f in args.folders))
     elif args.what == "walk":
-        walk(parse_houses(args.houses), args.per_house, args.out, args.votes == "on")
+        walk(parse_houses(args.houses), args.per_house, args.out, args.votes == "on", args.first)
     else:
         sets = {k: float(v) for k, _, v in (item.partition("=") for item in args.set)}
         for votes in (False, True):

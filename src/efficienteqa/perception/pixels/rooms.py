@@ -35,9 +35,9 @@ PRIOR_MIX = 0.1  # P(room | category) mixed with this share of P(room): a home m
 # the training houses, so no object rules a room out (log ratios stay above log PRIOR_MIX)
 FLOOR_MIX = 0.05  # P(predicted floor | room type) mixed with this share of uniform: no floor
 # reading rules a room out
-FLOOR_WEIGHT = 1.0  # how many independent readings a region's floor counts for: its confusions
+FLOOR_WEIGHT = 4.0  # how many independent readings a region's floor counts for: its confusions
 # repeat in every view, so its evidence does not grow with the pixels seen
-OBJECT_CONFIDENCE = 0.6  # an object votes when its region's mean probability reaches this
+OBJECT_CONFIDENCE = 0.8  # an object votes when its region's mean probability reaches this
 OBJECT_REACH_M = 1.0  # an object votes for the region of the nearest seen floor this close
 OBJECT_MERGE_M = 0.5  # sightings of one category this close are one object (counted once)
 WALL_BAND_M = (0.1, 2.0)  # wall pixels at these heights bound rooms (not the floor, ceiling, lintels)
