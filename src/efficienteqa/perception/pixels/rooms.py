@@ -206,10 +206,12 @@ class RoomVotes:
                                             seen.door_xy.reshape(-1, 2)]))
         self._fit(np.concatenate([floor, bound]))
         o = np.array(self._origin)
-        f = floor - o
-        np.add.at(self._floor, (np.asarray(seen.floor_room, np.int64), f[:, 0], f[:, 1]), 1.0)
-        b = bound - o
-        np.add.at(self._wall, (b[:, 0], b[:, 1]), 1.0)
+        r, h, w = self._floor.shape
+        f, b = floor - o, bound - o
+        flat = (np.asarray(seen.floor_room, np.int64) * h + f[:, 0]) * w + f[:, 1]
+        for grid, index in ((self._floor, flat), (self._wall, b[:, 0] * w + b[:, 1])):
+            cells, n = np.unique(index, return_counts=True)
+            grid.reshape(-1)[cells] += n
         for category, xy in seen.objects:
             if self._ratio.get(category) is None:
                 continue
@@ -220,26 +222,39 @@ class RoomVotes:
 
     # -- solution --------------------------------------------------------------------------
     def _solve(self) -> RoomMap:
-        counts = self._floor
-        seen = counts.sum(0) > 0
-        bound = self._wall > 0
+        reach_cells = int(round(OBJECT_REACH_M / ROOM_CELL_M))
         span = max(1, int(round(GAP_CLOSE_M / ROOM_CELL_M)))
-        for axis in (0, 1):  # close doorway-wide gaps along wall lines (axis-aligned first)
-            shape = (span, 1) if axis == 0 else (1, span)
-            bound |= ndimage.binary_closing(self._wall > 0, np.ones(shape, bool))
+        # the work is done on the part of the grid that holds what was seen, with room around
+        # it for the reaches and the gap closing
+        pad = max(reach_cells, int(np.ceil(ROOM_REACH_M / ROOM_CELL_M)), span) + 2
+        any_seen = self._floor.any(0) | (self._wall > 0)
+        rows, cols = np.flatnonzero(any_seen.any(1)), np.flatnonzero(any_seen.any(0))
+        if not len(rows):
+            empty = np.zeros((1, 1), np.int64)
+            return RoomMap(self.rooms, self._origin, empty - 1, np.zeros((2, 1, 1), np.int64),
+                           np.full((1, 1), np.inf))
+        i0, j0 = max(rows[0] - pad, 0), max(cols[0] - pad, 0)
+        crop = (slice(i0, rows[-1] + pad + 1), slice(j0, cols[-1] + pad + 1))
+        counts, walls = self._floor[(slice(None), *crop)], self._wall[crop]
+        origin = (self._origin[0] + int(i0), self._origin[1] + int(j0))
+        seen = counts.sum(0) > 0
+        bound = walls > 0
+        for shape in ((span, 1), (1, span)):  # close doorway-wide gaps along wall lines
+            bound |= ndimage.binary_closing(walls > 0, np.ones(shape, bool))
         free = seen & ~bound
         regions, n = ndimage.label(free)
         r = len(self.rooms)
-        flat = regions.ravel()
-        totals = np.stack([np.bincount(flat, weights=counts[t].ravel(), minlength=n + 1)
+        cells = np.flatnonzero(free)
+        flat = regions.ravel()[cells]
+        totals = np.stack([np.bincount(flat, weights=counts[t].ravel()[cells], minlength=n + 1)
                            for t in range(r)], axis=1)  # (n + 1, R)
         shares = totals / np.maximum(totals.sum(1, keepdims=True), 1.0)  # (n + 1, R predicted)
         score = FLOOR_WEIGHT * shares @ self._log_floor.T  # (n + 1, R true)
         distance, nearest = ndimage.distance_transform_edt(~free, return_indices=True)
         distance_m = distance * ROOM_CELL_M
-        o = np.array(self._origin)
+        o = np.array(origin)
         h, w = free.shape
-        reach = _grow(regions, bound, int(round(OBJECT_REACH_M / ROOM_CELL_M)))
+        reach = _grow(regions, bound, reach_cells)
         for (category, _, _), xy in sorted(self._objects.items()):
             i, j = self._cells(np.array(xy))[0] - o
             region = reach[i, j] if 0 <= i < h and 0 <= j < w else 0
@@ -251,7 +266,7 @@ class RoomVotes:
         best = score.argmax(1)
         best[0] = -1  # not a region
         room = np.where(regions > 0, best[regions], -1)
-        return RoomMap(self.rooms, self._origin, room, nearest, distance_m)
+        return RoomMap(self.rooms, origin, room, nearest, distance_m)
 
 
 def _grow(regions: np.ndarray, bound: np.ndarray, cells: int) -> np.ndarray:
