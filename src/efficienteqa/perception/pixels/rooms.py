@@ -30,18 +30,25 @@ from scipy import ndimage
 from efficienteqa.perception.semantic import ROOM_CELL_M
 
 PRIOR = Path(__file__).resolve().parent / "weights" / "room_prior.json"
-# All chosen on agent walks in training houses 3000-3004 (experiments/room_votes.py tune):
+# Chosen on the agent's walks in training houses 3000-3004 and validation houses 3900-3909 (2
+# and 1 episodes each, 474 steps; `experiments/room_votes.py tune`); figures are floor points
+# right: regions by floor alone 80.9%, with objects 87.1% at these values.
 PRIOR_MIX = 0.1  # P(room | category) mixed with this share of P(room): a home may differ from
-# the training houses, so no object rules a room out (log ratios stay above log PRIOR_MIX)
+# the training houses, so no object rules a room out (0.02-0.3 measured the same, *)
 FLOOR_MIX = 0.05  # P(predicted floor | room type) mixed with this share of uniform: no floor
-# reading rules a room out
-FLOOR_WEIGHT = 4.0  # how many independent readings a region's floor counts for: its confusions
-# repeat in every view, so its evidence does not grow with the pixels seen
-OBJECT_CONFIDENCE = 0.8  # an object votes when its region's mean probability reaches this
-OBJECT_REACH_M = 1.0  # an object votes for the region of the nearest seen floor this close
-OBJECT_MERGE_M = 0.5  # sightings of one category this close are one object (counted once)
-WALL_BAND_M = (0.1, 2.0)  # wall pixels at these heights bound rooms (not the floor, ceiling, lintels)
-GAP_CLOSE_M = 1.1  # gaps this wide in a line of wall or door cells are closed (doorways)
+# reading rules a room out (0.01-0.2 the same, *)
+FLOOR_WEIGHT = 8.0  # how many independent readings a region's floor counts for: its confusions
+# repeat in every view, so its evidence does not grow with the pixels seen (6: 86.7%, 12: 86.8%)
+OBJECT_CONFIDENCE = 0.7  # an object votes when its region's mean probability reaches this
+# (0.6: 86.8%, 0.8: 86.2%)
+OBJECT_REACH_M = 1.0  # an object votes for a region this close, not across a wall (0.5-2 m the
+# same, *)
+OBJECT_MERGE_M = 0.5  # sightings of one category this close are one object (not tuned)
+WALL_BAND_M = (0.1, 2.0)  # wall pixels at these heights bound rooms: not the floor, not the
+# ceiling, not a doorway's lintel (not tuned)
+GAP_CLOSE_M = 1.1  # gaps up to this wide in a line of wall or door cells are closed: doorways
+# (1.0-1.4 m: 85.2-86.5%; 0.8 leaves doorways open, 70.4%; 1.6 joins walls, 77.9%, *)
+# (*: measured at FLOOR_WEIGHT 4, OBJECT_CONFIDENCE 0.8)
 ROOM_REACH_M = 1.0  # a point's room: the nearest region cell within this distance
 _GROW_CELLS = 64  # the grid grows by at least this many cells on a side
 
