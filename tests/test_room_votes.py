@@ -126,7 +126,8 @@ def test_the_votes_start_afresh_each_episode(env_seed3):
 
     categories = ("void", "wall", "floor:kitchen", "floor:bedroom", "door")
     says = {"floor": 2}
-    perception = PixelPerception(lambda rgb, depth: _frame_classes(says["floor"], categories))
+    perception = PixelPerception(lambda rgb, depth: _frame_classes(says["floor"], categories),
+                                 room_votes=True)
     obs = env_seed3.observe()
     pose = (obs.pose.x, obs.pose.y)
     assert perception.read(obs)[1].room_at(*pose) == "kitchen"
@@ -145,6 +146,15 @@ def test_the_votes_start_afresh_each_episode(env_seed3):
     for _ in range(2):
         built.agent.run(env_seed3, "What is in the kitchen?")
     assert len(calls) == 2
+
+
+def test_the_stack_builds_the_pixel_perception_with_votes_and_others_without():
+    """The agent's perception votes (and is reset each episode); one perception reading frames
+    of many houses (``evaluate``) does not, unless asked."""
+    from efficienteqa.stack import build_perception
+
+    assert build_perception("pixels", None).room_votes  # type: ignore[attr-defined]
+    assert not PixelPerception.load().room_votes
 
 
 def test_the_constants_have_the_documented_sense():

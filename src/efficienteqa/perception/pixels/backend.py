@@ -5,9 +5,11 @@ It reads the observation's RGB, depth, intrinsics and pose and nothing else: no 
 no scene labels, no floor plan. The network (``perception.pixels.net``) gives classes per pixel;
 ``segment.read_frame`` makes instances and per-frame labels of them; the semantic describer turns
 those into the view, direction and relevancy texts and the sightings, so the rest of the pipeline
-is unchanged. Rooms are named by the episode's room votes (``rooms.RoomVotes``: floor evidence
-and the objects seen, per room region of the map) unless ``room_votes`` is off; ``reset`` starts
-them afresh, and the agent calls it at the start of every episode.
+is unchanged. With ``room_votes`` (the stack builds the agent's perception so), rooms are named by
+the episode's room votes (``rooms.RoomVotes``: floor evidence and the objects seen, per room
+region of the map); ``reset`` starts them afresh, and the agent calls it as every episode starts.
+Without (the default: frames of many houses read by one perception, as ``evaluate`` reads them),
+each frame names rooms from its own floor.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ class PixelPerception(SemanticPerception):
     name = "pixels"
     modality: Modality = "text"
 
-    def __init__(self, classify: Classifier, room_votes: bool = True,
+    def __init__(self, classify: Classifier, room_votes: bool = False,
                  prior: RoomPrior | None = None) -> None:
         super().__init__(labels=None)  # type: ignore[arg-type]  # read() is all that uses them
         self.classify = classify
@@ -54,7 +56,7 @@ class PixelPerception(SemanticPerception):
         super().reset()
 
     @classmethod
-    def load(cls, weights: Path | None = None) -> PixelPerception:
+    def load(cls, weights: Path | None = None, room_votes: bool = False) -> PixelPerception:
         """The committed network (or the one at ``weights``); one-line error when missing."""
         from efficienteqa.perception.pixels.net import load_weights, predict
 
@@ -66,7 +68,7 @@ class PixelPerception(SemanticPerception):
                                 vocabulary.colours, vocabulary.states,
                                 confidence.astype(np.float32))
 
-        return cls(classify)
+        return cls(classify, room_votes)
 
     def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
         if self._read is None or self._read[0] is not obs:  # the network runs once per frame
