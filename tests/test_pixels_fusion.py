@@ -22,7 +22,7 @@ def _unsure_sink() -> PixelClasses:
 
 def _sinks(evidence: ObjectEvidence | None) -> int:
     depth = np.full((8, 16), 3.0, np.float32)
-    instance, labels = read_frame(_unsure_sink(), depth, K, np.eye(4), evidence)
+    instance, labels = read_frame(_unsure_sink(), depth, K, np.eye(4), evidence=evidence)
     ids = set(np.unique(instance).tolist()) - {0, -1}
     return sum(labels.label(i).category == "sink" for i in ids)
 

@@ -70,7 +70,7 @@ def _poses(env: SyntheticEnv) -> list[Pose2D]:
 
 def test_a_stripped_environment_gives_byte_identical_descriptions(env_seed3, weights,
                                                                    monkeypatch):
-    full = PixelPerception.load(weights)
+    full = PixelPerception.load(weights, room_votes=True)  # as the stack builds it
     monkeypatch.setattr("efficienteqa.perception.pixels.backend.WEIGHTS", weights)
     stripped = build_perception("pixels", StrippedEnv(env_seed3))  # the stack asks env nothing
     target = parse_question("What is on the table in the kitchen?")

@@ -319,6 +319,9 @@ class Agent:
         cfg = self.config
         t0 = time.perf_counter()
         obs, _ = env.reset(options={"start": start} if start is not None else None)
+        reset = getattr(self.perception, "reset", None)  # a perception that keeps what it saw
+        if reset is not None:  # over an episode (pixels' room votes) starts afresh
+            reset()
         budget = cfg.budget(env)
         options = {**exploration_options(cfg.explorer, cfg.exploration),
                    "stop_clearance_m": cfg.stop_clearance_m}

@@ -194,7 +194,7 @@ def _rgb(**_: Any) -> Perception:
 def _pixels(**_: Any) -> Perception:
     from efficienteqa.perception.pixels.backend import PixelPerception
 
-    return PixelPerception.load()
+    return PixelPerception.load(room_votes=True)  # the agent resets them every episode
 
 
 PERCEPTIONS: Registry[Perception] = Registry("perception")

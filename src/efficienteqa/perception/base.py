@@ -43,6 +43,9 @@ class Perception(Protocol):
 
     def explore_request(self, obs: Observation, prompts: Sequence[PromptPoint]) -> ExploreRequest: ...
 
+    # A perception that keeps what it saw across the frames of an episode (the pixel
+    # perception's room votes) has ``reset()``, which the agent calls as each episode starts.
+
 
 @dataclass(frozen=True)
 class Sighting:

@@ -26,6 +26,9 @@ class ImagePerception:
     name = "rgb"
     modality: Modality = "image"
 
+    def reset(self) -> None:
+        """A new episode: nothing is kept between frames, so nothing to do."""
+
     def frame(self, obs: Observation) -> np.ndarray:
         return obs.rgb
 

@@ -536,6 +536,11 @@ class SemanticPerception:
         self._last: tuple[Observation, FrameDescription] | None = None
         self._seen: tuple[Observation, Target, Sightings] | None = None
 
+    def reset(self) -> None:
+        """A new episode: nothing carries over (the descriptions cached for the last frame go)."""
+        self._last = None
+        self._seen = None
+
     def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
         """The frame and labels the describer reads: the scene's own here. A perception that
         predicts them from pixels (``perception.pixels``) overrides this, and only this."""

@@ -5,7 +5,13 @@ It reads the observation's RGB, depth, intrinsics and pose and nothing else: no 
 no scene labels, no floor plan. The network (``perception.pixels.net``) gives classes per pixel;
 ``segment.read_frame`` makes instances and per-frame labels of them; the semantic describer turns
 those into the view, direction and relevancy texts and the sightings, so the rest of the pipeline
-is unchanged.
+is unchanged. With ``room_votes`` (the stack builds the agent's perception so), rooms are named by
+the episode's room votes (``rooms.RoomVotes``: floor evidence and the objects seen, per room
+region of the map); ``reset`` starts them afresh, and the agent calls it as every episode starts.
+Without (the default: frames of many houses read by one perception, as ``evaluate`` reads them),
+each frame names rooms from its own floor. With ``fuse_views``, objects are fused over the
+episode's views (``fusion.ObjectEvidence``); off by default (DESIGN 9: on validation walks it
+traded objects right for objects found at about the rate a lower threshold does).
 """
 
 from __future__ import annotations
@@ -18,7 +24,9 @@ import numpy as np
 
 from efficienteqa.observation import Observation
 from efficienteqa.perception.base import Modality
-from efficienteqa.perception.pixels.segment import PixelClasses, read_frame
+from efficienteqa.perception.pixels.fusion import ObjectEvidence
+from efficienteqa.perception.pixels.rooms import PRIOR, RoomPrior, RoomVotes
+from efficienteqa.perception.pixels.segment import PixelClasses, floor_types, read_frame
 from efficienteqa.perception.semantic import SemanticPerception
 
 if TYPE_CHECKING:
@@ -35,14 +43,28 @@ class PixelPerception(SemanticPerception):
     name = "pixels"
     modality: Modality = "text"
 
-    def __init__(self, classify: Classifier, record: dict[str, Any] | None = None) -> None:
+    def __init__(self, classify: Classifier, room_votes: bool = False,
+                 prior: RoomPrior | None = None, record: dict[str, Any] | None = None,
+                 fuse_views: bool = False) -> None:
         super().__init__(labels=None)  # type: ignore[arg-type]  # read() is all that uses them
         self.classify = classify
+        self.room_votes = room_votes
+        self.prior = prior if prior is not None or not room_votes else RoomPrior.load(PRIOR)
         self.record = record or {}  # the weights' record (how they were made), when loaded
+        self.fuse_views = fuse_views
+        self._votes: RoomVotes | None = None
+        self._evidence: ObjectEvidence | None = ObjectEvidence() if fuse_views else None
         self._read: tuple[Observation, Observation, SceneLabels] | None = None
 
+    def reset(self) -> None:
+        """A new episode: the room votes and the fused objects start empty."""
+        self._votes = None
+        self._evidence = ObjectEvidence() if self.fuse_views else None
+        self._read = None
+        super().reset()
+
     @classmethod
-    def load(cls, weights: Path | None = None) -> PixelPerception:
+    def load(cls, weights: Path | None = None, room_votes: bool = False) -> PixelPerception:
         """The committed network (or the one at ``weights``); one-line error when missing."""
         from efficienteqa.perception.pixels.net import load_weights, predict
 
@@ -55,12 +77,15 @@ class PixelPerception(SemanticPerception):
                                 vocabulary.colours, vocabulary.states,
                                 confidence.astype(np.float32), thresholds)
 
-        return cls(classify, meta)
+        return cls(classify, room_votes, record=meta)
 
     def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
         if self._read is None or self._read[0] is not obs:  # the network runs once per frame
-            instance, labels = read_frame(self.classify(obs.rgb, obs.depth_m), obs.depth_m,
-                                          obs.intrinsics, obs.cam_to_world)
+            classes = self.classify(obs.rgb, obs.depth_m)
+            if self.room_votes and self._votes is None:
+                self._votes = RoomVotes(floor_types(classes.categories), self.prior)
+            instance, labels = read_frame(classes, obs.depth_m, obs.intrinsics,
+                                          obs.cam_to_world, self._votes, self._evidence)
             seen = Observation(rgb=obs.rgb, depth_m=obs.depth_m, cam_to_world=obs.cam_to_world,
                                intrinsics=obs.intrinsics, pose=obs.pose, instance=instance)
             self._read = (obs, seen, labels)

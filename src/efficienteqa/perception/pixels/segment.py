@@ -32,6 +32,13 @@ from scipy.spatial import cKDTree
 from efficienteqa.envs.base import DoorSides, ObjectLabel
 from efficienteqa.geometry import backproject
 from efficienteqa.perception.pixels.fusion import FUSED_MIN, ObjectEvidence, cell_keys
+from efficienteqa.perception.pixels.rooms import (
+    OBJECT_CONFIDENCE,
+    WALL_BAND_M,
+    RoomMap,
+    RoomVotes,
+    Seen,
+)
 from efficienteqa.perception.semantic import FLOOR_TOLERANCE_M, ROOM_CELL_M  # as the describer
 
 FLOOR_PREFIX = "floor:"  # the network's floor categories: "floor:<room type>"
@@ -64,18 +71,22 @@ class PixelClasses:
 
 class FrameLabels:
     """``SceneLabels`` read off one frame: the predicted objects' labels, and the room at a point
-    from the floor the frame shows (the nearest predicted floor cell within ROOM_REACH_M)."""
+    from the floor the frame shows (the nearest predicted floor cell within ROOM_REACH_M), or,
+    given ``votes``, from the episode's room map as it stood after this frame."""
 
-    def __init__(self, labels: dict[int, ObjectLabel], cells: np.ndarray, rooms: list[str]
-                 ) -> None:
+    def __init__(self, labels: dict[int, ObjectLabel], cells: np.ndarray, rooms: list[str],
+                 votes: RoomMap | None = None) -> None:
         self._labels = labels
         self._rooms = rooms
         self._tree = cKDTree(cells) if len(cells) else None
+        self._votes = votes
 
     def label(self, instance_id: int) -> ObjectLabel | None:
         return self._labels.get(int(instance_id))
 
     def room_at(self, x: float, y: float) -> str | None:
+        if self._votes is not None:
+            return self._votes.room_at(x, y)
         if self._tree is None:
             return None
         distance, k = self._tree.query((x, y), distance_upper_bound=ROOM_REACH_M)
@@ -83,10 +94,11 @@ class FrameLabels:
 
 
 def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarray,
-               cam_to_world: np.ndarray, evidence: ObjectEvidence | None = None
-               ) -> tuple[np.ndarray, FrameLabels]:
+               cam_to_world: np.ndarray, votes: RoomVotes | None = None,
+               evidence: ObjectEvidence | None = None) -> tuple[np.ndarray, FrameLabels]:
     """The full-size instance buffer and the frame's labels from the network's classes.
-    ``depth_m``, ``intrinsics`` and ``cam_to_world`` are the frame's own (full size);
+    ``depth_m``, ``intrinsics`` and ``cam_to_world`` are the frame's own (full size). With
+    ``votes`` (the episode's), the frame is added to them and rooms are named by their map;
     ``evidence``, the episode's objects fused over views, gains this frame's regions and keeps
     those that the views together are sure of."""
     h, w = depth_m.shape
@@ -101,7 +113,6 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
     first_object = names.index("door")
     floor_points = _floor_points(small, is_floor, depth_m, intrinsics, cam_to_world, fy, fx)
     cells, rooms = _floor_cells(*floor_points, names)
-    room_of = FrameLabels({}, cells, rooms)
 
     instance_small = np.where(small == 0, -1, 0).astype(np.int32)
     instance_small[depth_small <= 0] = -1
@@ -111,6 +122,12 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
     regions = [(category, mask) for (category, mask, sure), together in zip(proposed, fused)
                if sure >= classes.min_confidence.get(names[category], MIN_CONFIDENCE)
                or together >= FUSED_MIN]
+    room_map = None
+    if votes is not None:
+        seen = _seen(classes, names, depth_small, points, floor_points, regions)
+        key = tuple(np.round(cam_to_world[:3] * 1000).astype(np.int64).ravel().tolist())
+        room_map = votes.add(key, seen)
+    room_of = FrameLabels({}, cells, rooms, room_map)
     camera_xy = np.array([cam_to_world[0, 3], cam_to_world[1, 3]])
     labels: dict[int, ObjectLabel] = {}
     for k, (category, mask) in enumerate(regions, start=1):
@@ -129,7 +146,32 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
                                 classes.states[state - 1] if state else None, room, door)
     instance = np.repeat(np.repeat(instance_small, fy, axis=0), fx, axis=1)
     instance[depth_m <= 0] = -1
-    return instance, FrameLabels(labels, cells, rooms)
+    return instance, FrameLabels(labels, cells, rooms, room_map)
+
+
+def _seen(classes: PixelClasses, names: list[str], depth: np.ndarray, points: np.ndarray,
+          floor: tuple[np.ndarray, np.ndarray], regions: list[tuple[int, np.ndarray]]) -> Seen:
+    """What the frame adds to the room votes (``rooms.Seen``), at half size."""
+    is_floor = np.array([n.startswith(FLOOR_PREFIX) for n in names])
+    floor_index = np.where(is_floor, np.cumsum(is_floor) - 1, -1)  # category -> floor type
+    valid = depth > 0
+    z = points[..., 2]
+    wall = valid & (classes.category == names.index("wall")) & (z > WALL_BAND_M[0]) & (
+        z < WALL_BAND_M[1])
+    door = valid & (classes.category == names.index("door")) & (z < WALL_BAND_M[1])
+    objects = []
+    for category, mask in regions:
+        sure = (float(classes.confidence[mask].mean()) if classes.confidence is not None
+                else 1.0)
+        if names[category] != "door" and sure >= OBJECT_CONFIDENCE:
+            xy = np.median(points[mask][:, :2], axis=0)
+            objects.append((names[category], (float(xy[0]), float(xy[1]))))
+    return Seen(floor[0], floor_index[floor[1]], points[wall][:, :2], points[door][:, :2], objects)
+
+
+def floor_types(categories: Sequence[str]) -> list[str]:
+    """The room types of the network's floor classes, in its order."""
+    return [n[len(FLOOR_PREFIX):] for n in categories if n.startswith(FLOOR_PREFIX)]
 
 
 def _scaled(intrinsics: np.ndarray, fy: int, fx: int) -> np.ndarray:
