@@ -160,3 +160,32 @@ def test_the_stack_builds_the_pixel_perception_with_votes_and_others_without():
 def test_the_constants_have_the_documented_sense():
     assert rooms.OBJECT_REACH_M >= rooms.OBJECT_MERGE_M > 0
     assert rooms.WALL_BAND_M[0] > 0  # floor pixels never bound a room
+
+
+def test_with_perfect_classes_the_votes_name_the_rooms_the_sensor_does(env_seed3):
+    """A walk's frames read with every pixel's class right: the voted map names the robot's
+    room and the rooms in view as the label-reading sensor does (walls and doors split the
+    rooms where the house does)."""
+    from efficienteqa.geometry import Pose2D
+    from efficienteqa.perception.pixels.dataset import build_vocabulary, frame_labels
+    from efficienteqa.perception.pixels.net import IGNORE
+    from efficienteqa.perception.semantic import SemanticPerception
+
+    vocab = build_vocabulary()
+    start = env_seed3.house.start
+    poses = [Pose2D(start.x, start.y, start.yaw + turn) for turn in (0.0, 2.0, -2.0, 1.0)]
+    frames = [env_seed3.observe(pose) for pose in poses]
+    perfect = []
+    for obs in frames:
+        labels = frame_labels(obs, env_seed3.house, vocab)
+        keep = {k: np.where(labels[k] == IGNORE, 0, labels[k]) for k in ("category", "colour",
+                                                                          "state")}
+        perfect.append(PixelClasses(keep["category"], keep["colour"], keep["state"],
+                                    vocab.categories, vocab.colours, vocab.states,
+                                    np.ones(keep["category"].shape, np.float32)))
+    said = iter(perfect)
+    pixels = PixelPerception(lambda rgb, depth: next(said), room_votes=True)
+    sensor = SemanticPerception(env_seed3.scene_labels())
+    for obs in frames:
+        a, b = pixels.describe(obs), sensor.describe(obs)
+        assert a.room == b.room and a.rooms_in_view == b.rooms_in_view
