@@ -95,8 +95,12 @@ def write_prior(record: dict[str, Any]) -> None:
 
 # -- walks --------------------------------------------------------------------------------------
 def parse_houses(text: str) -> list[int]:
-    lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
+    """"3000-3004" or "2000-2001,100-104" -> the houses."""
+    houses: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.strip().partition("-")
+        houses += range(int(lo), int(hi or lo) + 1)
+    return houses
 
 
 def true_floor(obs: Any, truth: Any) -> tuple[np.ndarray, list[str]]:

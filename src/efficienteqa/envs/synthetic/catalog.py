@@ -363,6 +363,15 @@ class Catalog:
     def categories(self) -> list[str]:
         return sorted({e.category for e in self.entries})
 
+    def without(self, keys: Iterable[str]) -> Catalog:
+        """The catalogue less the entries ``keys`` (held-out meshes); meshes stay shared."""
+        drop = set(keys)
+        out = Catalog([e for e in self.entries if e.key not in drop],
+                      files={k: f for k, f in self._files.items() if k not in drop},
+                      skipped=self.skipped)
+        out._meshes = {k: m for k, m in self._meshes.items() if k not in drop}
+        return out
+
     def by_category(self, category: str) -> list[CatalogEntry]:
         return [e for e in self.entries if e.category == category]
 

@@ -26,10 +26,15 @@ GRID_RESOLUTION_M = 0.05
 COLOURABLE = ("sofa", "armchair", "bed", "office chair", "wardrobe", "refrigerator",
               "vase", "cup", "rug", "cabinet", "desk", "stool", "towel")
 RECOLOURS = ("red", "blue", "green", "yellow", "orange", "purple", "pink", "white", "black")
+RECOLOUR_STREAM = 7  # rng stream of ``recolour_share`` (any constant apart from the house's)
 
 
-def generate_house(seed: int, catalog: Catalog, assets: str = DEFAULT_ASSETS) -> House:
-    """The house of ``seed``: the same seed and catalogue always give the same house."""
+def generate_house(seed: int, catalog: Catalog, assets: str = DEFAULT_ASSETS, *,
+                   recolour_share: float = 0.0) -> House:
+    """The house of ``seed``: the same seed and catalogue always give the same house.
+
+    ``recolour_share`` > 0 (perception training houses only) recolours more objects after the
+    usual 2-3, see ``recolour_share_of``; 0 leaves every house as it always was."""
     rng = np.random.default_rng(seed)
     layout = generate_layout(rng, int(rng.integers(5, 10)))
     objects, tables = furnish(layout, catalog, rng)
@@ -40,6 +45,9 @@ def generate_house(seed: int, catalog: Catalog, assets: str = DEFAULT_ASSETS) ->
         if kind in ("tv", "lamp"):
             obj.state = "on" if rng.random() < 0.5 else "off"
     _recolour(rng, objects, layout)
+    if recolour_share > 0:
+        # a stream of its own: the house's other draws (start pose) stay as without it
+        recolour_share_of(np.random.default_rng([seed, RECOLOUR_STREAM]), objects, recolour_share)
     house = House(seed, layout, objects, Pose2D(0.0, 0.0, 0.0), assets,
                   meta={"chairs_at_table": {str(k): v for k, v in tables.items()},
                         "door_objects": {str(d.id): o.id for d, o in zip(layout.doors, doors)}})
@@ -143,6 +151,20 @@ def _recolour(rng: np.random.Generator, objects: list[PlacedObject], layout: Lay
         obj = candidates[int(idx)]
         name = RECOLOURS[int(rng.integers(len(RECOLOURS)))]
         obj.colour, obj.colour_rgb = name, PALETTE[name]
+
+
+def recolour_share_of(rng: np.random.Generator, objects: list[PlacedObject], share: float) -> int:
+    """Recolour objects of COLOURABLE categories (as ``_recolour`` does, to another colour than
+    their own) until ``share`` of them (rounded up) carry a recolouring; returns how many changed."""
+    colourable = [o for o in objects if o.category in COLOURABLE]
+    todo = [o for o in colourable if o.colour_rgb is None]
+    extra = max(0, math.ceil(share * len(colourable)) - (len(colourable) - len(todo)))
+    for idx in rng.permutation(len(todo))[:extra]:
+        obj = todo[int(idx)]
+        names = [c for c in RECOLOURS if c != obj.colour]
+        name = names[int(rng.integers(len(names)))]
+        obj.colour, obj.colour_rgb = name, PALETTE[name]
+    return min(extra, len(todo))
 
 
 def _informative_yaw(house: House, grid: OccupancyGrid, start_xy: tuple[float, float],

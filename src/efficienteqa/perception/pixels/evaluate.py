@@ -9,7 +9,13 @@ true objects of its category. Colour and state are scored on found objects (the 
 that overlaps it most), the room type of the floor on the true floor pixels. Colour is scored
 twice: the colour head's majority (what the perception says) and the palette name of the
 region's median pixel (the alternative it was measured against). Everything is split
-by category, by size (furniture and small objects) and by distance (under 2 m, 2-4 m, beyond).
+by category, by size (furniture and small objects) and by distance (under 2 m, 2-4 m, beyond),
+and apart for the objects the generator recoloured (the ones colour questions ask about) and for
+those whose mesh was held out of the network's training (``tags``).
+
+Frames are posed as the training frames are (random views, views of loaded surfaces and of
+doors), or at the poses of recorded walks (``--poses``: the agent's own, see
+``experiments/walk_poses.py``).
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ from __future__ import annotations
 import json
 import time
 from collections import defaultdict
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -97,20 +103,25 @@ class Scores:
                 "slices": {k: t.figures() for k, t in sorted(self.tallies.items())}}
 
 
-def _slices(obj: VisibleObject, small: frozenset[str]) -> list[str]:
+Tags = Mapping[int, Sequence[str]]  # instance id -> slices of its own ("recoloured", ...)
+RECOLOURED = "recoloured"
+HELD_OUT_MESH, TRAINED_MESH = "mesh:held out of training", "mesh:trained on"
+
+
+def _slices(obj: VisibleObject, small: frozenset[str], tags: Tags) -> list[str]:
     size = "small" if obj.label.category in small else "furniture"
     d = obj.distance_m
     distance = "under 2 m" if d < NEAR_M else "2-4 m" if d < FAR_M else "beyond 4 m"
     out = ["all", f"category:{obj.label.category}", f"size:{size}", f"distance:{distance}",
-           f"size:{size}, distance:{distance}"]
+           f"size:{size}, distance:{distance}", *tags.get(obj.instance_id, ())]
     if size == "small" and d < SMALL_WITHIN_M:
         out.append("small within 3 m")
     return out
 
 
 def score_frame(obs: Observation, truth: SceneLabels, perception: PixelPerception,
-                small: frozenset[str], scores: Scores) -> None:
-    """Add one frame's counts to ``scores``."""
+                small: frozenset[str], scores: Scores, tags: Tags | None = None) -> None:
+    """Add one frame's counts to ``scores`` (``tags``: extra slices of some true objects)."""
     assert obs.instance is not None, "scoring needs the frame's true instance buffer"
     stripped = Observation(rgb=obs.rgb, depth_m=obs.depth_m, cam_to_world=obs.cam_to_world,
                            intrinsics=obs.intrinsics, pose=obs.pose)
@@ -145,7 +156,7 @@ def score_frame(obs: Observation, truth: SceneLabels, perception: PixelPerceptio
                 tally.colour_from_pixels = [int(hue == o.label.colour), 1]
             if best is not None and o.label.state is not None:
                 tally.state = [int(best.state == o.label.state), 1]
-        for key in _slices(o, small):
+        for key in _slices(o, small, tags or {}):
             scores.tallies[key].add(tally)
     for p in predicted:
         mask = seen.instance == p.instance_id
@@ -183,28 +194,75 @@ def check_heldout(seeds: Sequence[int]) -> None:
                                     f"{TRAIN_SEEDS.stop - 1}, e.g. the evaluation split 100-129")
 
 
-def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0
-                   ) -> Iterator[tuple[Observation, SceneLabels]]:
-    """Frames of houses the network never saw, posed as its training frames are (random views,
-    views of loaded surfaces and of doors), with the houses' true labels."""
+Frame = tuple[Observation, SceneLabels, Tags]
+Poses = Mapping[int, Sequence[Sequence[float]]]  # house -> walk poses (x, y, yaw)
+
+
+def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
+                   poses: Poses | None = None, held_out_meshes: frozenset[str] = frozenset()
+                   ) -> Iterator[Frame]:
+    """Frames of houses the network never saw, with the houses' true labels and each object's
+    tags: posed as its training frames are, or ``frames_per_house`` poses spread evenly over
+    the house's walk in ``poses``. ``held_out_meshes``: the model keys kept out of training."""
     from efficienteqa.envs.synthetic.env import SyntheticEnv
+    from efficienteqa.geometry import Pose2D
     from efficienteqa.perception.pixels.dataset import house_poses
 
     check_heldout(seeds)
+    if poses is not None:
+        missing = [h for h in seeds if not poses.get(h)]
+        if missing:
+            raise EfficientEQAError(f"the poses file has no walk of house {missing[0]}",
+                                    fix="evaluate the houses it holds, or record their walks: "
+                                        "python -m experiments.walk_poses")
     for house in seeds:
-        rng = np.random.default_rng([seed, house])
         with SyntheticEnv.from_seed(house) as env:
             labels = env.scene_labels()
-            for _, pose in house_poses(env, frames_per_house, rng):
-                yield env.observe(pose), labels
+            tags = object_tags(env.house.objects, held_out_meshes)
+            if poses is None:
+                chosen = [p for _, p in house_poses(env, frames_per_house,
+                                                    np.random.default_rng([seed, house]))]
+            else:
+                walk = poses[house]
+                picks = np.linspace(0, len(walk) - 1, min(frames_per_house, len(walk)))
+                chosen = [Pose2D(*map(float, walk[int(round(i))])) for i in picks]
+            for pose in chosen:
+                yield env.observe(pose), labels, tags
 
 
-def evaluate(frames: Iterable[tuple[Observation, SceneLabels]], perception: PixelPerception,
+def object_tags(objects: Iterable[Any], held_out_meshes: frozenset[str]) -> dict[int, list[str]]:
+    """Per object id: "recoloured" where the generator gave it a palette colour, and whether its
+    mesh was held out of training (only when some meshes were)."""
+    tags: dict[int, list[str]] = {}
+    for o in objects:
+        mine = [RECOLOURED] if getattr(o, "colour_rgb", None) is not None else []
+        if held_out_meshes:
+            mine.append(HELD_OUT_MESH if o.model_key in held_out_meshes else TRAINED_MESH)
+        if mine:
+            tags[o.id] = mine
+    return tags
+
+
+def read_poses(path: Any) -> dict[int, list[list[float]]]:
+    """The walks of a poses file (``experiments/walk_poses.py``); one-line errors."""
+    fix = "record walks with: python -m experiments.walk_poses --out FILE"
+    try:
+        data = json.loads(path.read_text())
+        return {int(h): [list(map(float, p)) for p in walk["poses"]]
+                for h, walk in data["houses"].items()}
+    except OSError as exc:
+        raise EfficientEQAError(f"cannot read the poses file {path}: {exc.strerror}",
+                                fix=fix) from None
+    except (ValueError, KeyError, TypeError) as exc:
+        raise EfficientEQAError(f"unreadable poses file {path}: {exc}", fix=fix) from None
+
+
+def evaluate(frames: Iterable[Frame], perception: PixelPerception,
              small: frozenset[str] = SMALL_CATEGORIES,
              progress: Callable[[int], None] | None = None) -> Scores:
     scores = Scores()
-    for n, (obs, truth) in enumerate(frames, start=1):
-        score_frame(obs, truth, perception, small, scores)
+    for n, (obs, truth, tags) in enumerate(frames, start=1):
+        score_frame(obs, truth, perception, small, scores, tags)
         if progress is not None:
             progress(n)
     return scores

@@ -10,7 +10,11 @@ either side; the room at a floor point from the floor the frame shows. Pure nump
 
 Instances are the connected regions of one object category, cut where depth jumps (two chairs
 side by side are two chairs when one stands behind the other); a region the network is unsure
-of (mean probability of its category under MIN_CONFIDENCE) is left out. Colour and state are the
+of is left out: its confidence, the mean probability of its category over the region, must
+reach a threshold per category chosen on validation houses (``perception.pixels.thresholds``)
+and recorded with the weights, MIN_CONFIDENCE where none was chosen. (The mean over the region's
+interior, its one-pixel rim left out, traded found for right along the same curve on validation
+houses 3900-3909: no better, so the whole region it is.) Colour and state are the
 majority of the pixels' predictions inside a region; the room of an object is the room of the predicted
 floor nearest to it; a door's near side is the room of the floor in front of it, its far side
 the room of the floor seen beyond it.
@@ -18,8 +22,8 @@ the room of the floor seen beyond it.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
@@ -27,6 +31,7 @@ from scipy.spatial import cKDTree
 
 from efficienteqa.envs.base import DoorSides, ObjectLabel
 from efficienteqa.geometry import backproject
+from efficienteqa.perception.pixels.fusion import FUSED_MIN, ObjectEvidence, cell_keys
 from efficienteqa.perception.pixels.rooms import (
     OBJECT_CONFIDENCE,
     WALL_BAND_M,
@@ -60,6 +65,8 @@ class PixelClasses:
     colours: Sequence[str]
     states: Sequence[str]
     confidence: np.ndarray | None = None  # (h, w) the category's probability, when known
+    # a region's least confidence per category (``thresholds``), MIN_CONFIDENCE for the others
+    min_confidence: Mapping[str, float] = field(default_factory=dict)
 
 
 class FrameLabels:
@@ -87,11 +94,13 @@ class FrameLabels:
 
 
 def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarray,
-               cam_to_world: np.ndarray, votes: RoomVotes | None = None
-               ) -> tuple[np.ndarray, FrameLabels]:
+               cam_to_world: np.ndarray, votes: RoomVotes | None = None,
+               evidence: ObjectEvidence | None = None) -> tuple[np.ndarray, FrameLabels]:
     """The full-size instance buffer and the frame's labels from the network's classes.
     ``depth_m``, ``intrinsics`` and ``cam_to_world`` are the frame's own (full size). With
-    ``votes`` (the episode's), the frame is added to them and rooms are named by their map."""
+    ``votes`` (the episode's), the frame is added to them and rooms are named by their map;
+    ``evidence``, the episode's objects fused over views, gains this frame's regions and keeps
+    those that the views together are sure of."""
     h, w = depth_m.shape
     small = classes.category
     sh, sw = small.shape
@@ -107,8 +116,12 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
 
     instance_small = np.where(small == 0, -1, 0).astype(np.int32)
     instance_small[depth_small <= 0] = -1
-    regions = _regions(small, depth_small, first_object, classes.confidence)
+    proposed = regions_of(small, depth_small, first_object, classes.confidence)
     points = backproject(depth_small, _scaled(intrinsics, fy, fx), cam_to_world)
+    fused = fused_support(proposed, points, evidence)
+    regions = [(category, mask) for (category, mask, sure), together in zip(proposed, fused)
+               if sure >= classes.min_confidence.get(names[category], MIN_CONFIDENCE)
+               or together >= FUSED_MIN]
     room_map = None
     if votes is not None:
         seen = _seen(classes, names, depth_small, points, floor_points, regions)
@@ -198,15 +211,17 @@ def _floor_cells(xy: np.ndarray, category: np.ndarray, names: list[str]
     return centres, [names[cat][len(FLOOR_PREFIX):] for _, cat, _ in best.values()]
 
 
-def _regions(small: np.ndarray, depth: np.ndarray, first_object: int,
-             confidence: np.ndarray | None = None) -> list[tuple[int, np.ndarray]]:
-    """Connected regions of each object category (doors included), cut at depth jumps; each
-    as (category, mask at half size), largest first within a category."""
+def regions_of(small: np.ndarray, depth: np.ndarray, first_object: int,
+               confidence: np.ndarray | None = None) -> list[tuple[int, np.ndarray, float]]:
+    """Connected regions of each object category (doors included), cut at depth jumps, of at
+    least MIN_REGION_PIXELS; each as (category, mask at half size, confidence), largest first
+    within a category. The confidence is the mean probability over the region (1.0 without
+    ``confidence``)."""
     jump = np.zeros(small.shape, bool)
     rel = DEPTH_JUMP * np.maximum(depth, 1e-3)
     jump[:, 1:] |= np.abs(np.diff(depth, axis=1)) > rel[:, 1:]
     jump[1:, :] |= np.abs(np.diff(depth, axis=0)) > rel[1:, :]
-    out: list[tuple[int, np.ndarray]] = []
+    out: list[tuple[int, np.ndarray, float]] = []
     for category in np.unique(small[small >= first_object]).tolist():
         mask = (small == category) & (depth > 0)
         cores, n = ndimage.label(mask & ~jump)
@@ -216,12 +231,24 @@ def _regions(small: np.ndarray, depth: np.ndarray, first_object: int,
         _, (ri, ci) = ndimage.distance_transform_edt(cores == 0, return_indices=True)
         grown = np.where(mask, cores[ri, ci], 0)
         sizes = np.bincount(grown.ravel(), minlength=n + 1)
-        sure = (np.bincount(grown.ravel(), weights=confidence.ravel(), minlength=n + 1)
-                / np.maximum(sizes, 1)) if confidence is not None else np.ones(n + 1)
         for k in np.argsort(-sizes[1:], kind="stable") + 1:
-            if sizes[k] >= MIN_REGION_PIXELS and sure[k] >= MIN_CONFIDENCE:
-                out.append((int(category), grown == k))
+            if sizes[k] >= MIN_REGION_PIXELS:
+                region = grown == k
+                sure = 1.0 if confidence is None else float(confidence[region].mean())
+                out.append((int(category), region, sure))
     return out
+
+
+def fused_support(regions: Sequence[tuple[int, np.ndarray, float]], points: np.ndarray,
+                  evidence: ObjectEvidence | None) -> list[float]:
+    """Add the regions (category, mask, confidence) of one view, with the frame's world
+    ``points`` at the masks' size, to ``evidence``; then each region's fused evidence (0 for
+    every region without ``evidence``)."""
+    if evidence is None:
+        return [0.0] * len(regions)
+    keys = [cell_keys(points[mask], category) for category, mask, _ in regions]
+    evidence.add_view([(k, sure) for k, (_, _, sure) in zip(keys, regions)])
+    return [evidence.support(k) for k in keys]
 
 
 def _majority(values: np.ndarray, n: int) -> int | None:

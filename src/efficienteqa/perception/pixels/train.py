@@ -1,12 +1,15 @@
 """Fit the pixel network on rendered frames (``dataset``) and write its weights.
 
 Training houses are every house of the data folder outside VALIDATION_SEEDS; validation houses
-those inside it (scored once, at the end, on whole frames). Each step draws ``batch`` random
-crops (half of them centred on a small object, so that cups and lamps are not drowned by
-walls), flips half of them left-right, and minimises cross-entropy on the category (class
-weights 1/sqrt(frequency), capped), colour and state maps, with AdamW on a one-cycle schedule of
-a fixed number of steps: the command states the steps, so the result is reproducible from it
-(``minutes`` only guards against a slow machine and is recorded when it cuts training short).
+those inside it (scored once, at the end, on whole frames). Each step draws ``batch`` crops:
+RARITY_SHARE of them centred on a pixel of a category drawn uniformly among the categories
+present (inverse pixel frequency: sinks and cups as often as walls), the rest anywhere; crops
+are large (CROP, two thirds of a half-size frame) so the context branch sees a room as it does
+at inference. Half are flipped left-right. The loss is cross-entropy on the category (class
+weights 1/sqrt(frequency in the crops drawn), capped), colour and state maps, with AdamW on a
+one-cycle schedule of a fixed number of steps: the command states the steps, so the result is
+reproducible from it (``minutes`` only guards against a slow machine; a checkpoint beside the
+output every ``checkpoint_every`` steps lets ``resume`` continue the same schedule).
 """
 
 from __future__ import annotations
@@ -29,7 +32,6 @@ from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.perception.pixels.dataset import VALIDATION_SEEDS, code_version, load_shards
 from efficienteqa.perception.pixels.net import (
-    DEFAULT_WIDTHS,
     IGNORE,
     VOID,
     WALL,
@@ -41,9 +43,19 @@ from efficienteqa.perception.pixels.net import (
 from efficienteqa.perception.pixels.segment import FLOOR_PREFIX
 
 MAX_CLASS_WEIGHT = 10.0  # category weights are 1/sqrt(frequency), mean pixel weight 1, capped
-SMALL_SHARE = 0.5  # share of crops centred on a small object
+# Share of crops centred by rarity; the rest keep the frames' own statistics (walls are 55% of
+# pixels). Three quarters: chosen, not tuned.
+RARITY_SHARE = 0.75
+RARITY_STRIDE = 4  # candidate centres: every 4th pixel of each axis (memory; crops are large)
+WEIGHT_CROPS = 512  # crops drawn (then put back) to measure the category frequency the loss sees
 STATE_LOSS_WEIGHT = 0.5
 THREADS = 2  # the machine's cores; 1 does better when others load them
+CROP = (160, 224)  # (height, width) at half size: 2/3 x 0.7 of a 240x320 frame
+# Wider deep levels (issue 34: the network underfits); the 1/1 and 1/2 levels, which cost the
+# most time per frame, keep their widths. Inference stays <= 100 ms (benchmarks.pixels_bench).
+WIDE_WIDTHS = (16, 32, 64, 96, 160)
+CHECKPOINT_EVERY = 250  # steps between checkpoints (a few minutes on 2 cores)
+CHECKPOINT_FORMAT = 1
 
 
 @dataclass(frozen=True)
@@ -51,12 +63,37 @@ class TrainConfig:
     steps: int = 4000
     seed: int = 0
     batch: int = 8
-    crop: tuple[int, int] = (128, 160)  # (height, width) at the network's (half) resolution
+    crop: tuple[int, int] = CROP  # (height, width) at the network's (half) resolution
     lr: float = 4e-3
     weight_decay: float = 1e-4
-    widths: tuple[int, ...] = DEFAULT_WIDTHS
+    widths: tuple[int, ...] = WIDE_WIDTHS
     minutes: float = 90.0
     threads: int = THREADS
+    device: str = "auto"  # auto (cuda where there is one) | cpu | cuda
+    checkpoint_every: int = CHECKPOINT_EVERY
+    resume: bool = False
+
+    def schedule(self) -> dict[str, Any]:
+        """What a checkpoint must share with the run that resumes it."""
+        return {"steps": self.steps, "seed": self.seed, "batch": self.batch,
+                "crop": list(self.crop), "lr": self.lr, "weight_decay": self.weight_decay,
+                "widths": list(self.widths)}
+
+
+def pick_device(name: str) -> torch.device:
+    """"auto": cuda when torch sees one, else cpu; "cuda" without one is an error."""
+    if name not in ("auto", "cpu", "cuda"):
+        raise EfficientEQAError(f"unknown device {name!r}", fix="use auto, cpu or cuda")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise EfficientEQAError("--device cuda: torch sees no CUDA device",
+                                fix="use --device cpu (or auto)")
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    return torch.device(name)
+
+
+def checkpoint_path(out: Path) -> Path:
+    return Path(out).with_suffix(".ckpt")
 
 
 def check_data(data: Path) -> dict[str, Any]:
@@ -92,7 +129,12 @@ def check_writable(out: Path) -> None:
 
 def class_weights(category: np.ndarray, n: int) -> torch.Tensor:
     """1/sqrt(frequency) per category, scaled to a mean pixel weight of 1, capped."""
-    counts = np.bincount(category[category != IGNORE].ravel(), minlength=n)[:n].astype(np.float64)
+    return weights_of_counts(np.bincount(category[category != IGNORE].ravel(), minlength=n)[:n])
+
+
+def weights_of_counts(counts_in: np.ndarray) -> torch.Tensor:
+    """``class_weights`` of per-category pixel counts."""
+    counts = np.asarray(counts_in, np.float64)
     freq = counts / max(counts.sum(), 1.0)
     w = np.where(counts > 0, 1.0 / np.sqrt(np.maximum(freq, 1e-12)), 0.0)
     w /= max(float((freq * w).sum()), 1e-12)
@@ -102,39 +144,52 @@ def class_weights(category: np.ndarray, n: int) -> torch.Tensor:
 
 
 class CropSampler:
-    """Random crops of the training frames; a share centred on small-object pixels."""
+    """Crops of the training frames: RARITY_SHARE centred on a pixel of a category drawn
+    uniformly among those present, the rest anywhere. ``rng`` holds all its randomness."""
 
     def __init__(self, frames: dict[str, np.ndarray], vocab: Vocabulary, crop: tuple[int, int],
-                 rng: np.random.Generator) -> None:
-        self.f, self.crop, self.rng = frames, crop, rng
+                 rng: np.random.Generator, rarity_share: float = RARITY_SHARE) -> None:
+        self.f, self.crop, self.rng, self.rarity_share = frames, crop, rng, rarity_share
         n, h, w = frames["category"].shape
         if crop[0] > h or crop[1] > w:
             raise EfficientEQAError(f"crop {crop} is larger than the frames ({h}x{w})")
-        small = np.array([vocab.index(c) for c in sorted(SMALL_CATEGORIES)
-                          if vocab.index(c) is not None], np.uint8)
-        self.small_pixels: list[np.ndarray] = []  # per frame: (k, 2) small-object pixels
-        for i in range(n):
-            ys, xs = np.nonzero(np.isin(frames["category"][i, ::2, ::2], small))
-            self.small_pixels.append(np.stack([ys * 2, xs * 2], 1))
-        self.small_frames = np.array([i for i, p in enumerate(self.small_pixels) if len(p)], int)
+        # candidate centres per category, as flat indices into the strided category array
+        k = RARITY_STRIDE
+        strided = frames["category"][:, k // 2::k, k // 2::k]
+        self._grid = strided.shape[1:]
+        flat = strided.reshape(-1)
+        order = np.argsort(flat, kind="stable")
+        counts = np.bincount(flat, minlength=256)
+        bounds = np.concatenate([[0], np.cumsum(counts)])
+        self.centres = {c: order[bounds[c]:bounds[c + 1]] for c in range(len(vocab.categories))
+                        if counts[c] > 0}
+        self.classes = np.array(sorted(self.centres), int)
+
+    def _origin(self) -> tuple[int, int, int]:
+        ch, cw = self.crop
+        n, h, w = self.f["category"].shape
+        if len(self.classes) and self.rng.random() < self.rarity_share:
+            c = int(self.classes[self.rng.integers(len(self.classes))])
+            flat = int(self.centres[c][self.rng.integers(len(self.centres[c]))])
+            gh, gw = self._grid
+            i, rest = divmod(flat, gh * gw)
+            k = RARITY_STRIDE
+            py, px = (rest // gw) * k + k // 2, (rest % gw) * k + k // 2
+            y0 = int(np.clip(py - ch // 2 + self.rng.integers(-ch // 4, ch // 4 + 1), 0, h - ch))
+            x0 = int(np.clip(px - cw // 2 + self.rng.integers(-cw // 4, cw // 4 + 1), 0, w - cw))
+            return i, y0, x0
+        i = int(self.rng.integers(n))
+        return i, int(self.rng.integers(h - ch + 1)), int(self.rng.integers(w - cw + 1))
 
     def batch(self, size: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         ch, cw = self.crop
-        n, h, w = self.f["category"].shape
         rgb: list[np.ndarray] = []
         depth: list[np.ndarray] = []
         cat: list[np.ndarray] = []
         col: list[np.ndarray] = []
         st: list[np.ndarray] = []
         for _ in range(size):
-            if len(self.small_frames) and self.rng.random() < SMALL_SHARE:
-                i = int(self.small_frames[self.rng.integers(len(self.small_frames))])
-                py, px = self.small_pixels[i][self.rng.integers(len(self.small_pixels[i]))]
-                y0 = int(np.clip(py - ch // 2 + self.rng.integers(-ch // 4, ch // 4 + 1), 0, h - ch))
-                x0 = int(np.clip(px - cw // 2 + self.rng.integers(-cw // 4, cw // 4 + 1), 0, w - cw))
-            else:
-                i = int(self.rng.integers(n))
-                y0, x0 = int(self.rng.integers(h - ch + 1)), int(self.rng.integers(w - cw + 1))
+            i, y0, x0 = self._origin()
             sl = (i, slice(y0, y0 + ch), slice(x0, x0 + cw))
             flip = self.rng.random() < 0.5
             for store, key in ((rgb, "rgb"), (depth, "depth"), (cat, "category"),
@@ -144,6 +199,19 @@ class CropSampler:
         x = to_input(np.stack(rgb), np.stack(depth).astype(np.float32))
         labels = [torch.from_numpy(np.stack(v).astype(np.int64)) for v in (cat, col, st)]
         return x, labels[0], labels[1], labels[2]
+
+    def crop_counts(self, crops: int, n: int) -> np.ndarray:
+        """Category pixel counts of ``crops`` crops drawn as training draws them, with a copy of
+        the generator (the training draws are not disturbed)."""
+        saved = self.rng.bit_generator.state
+        ch, cw = self.crop
+        counts = np.zeros(n, np.int64)
+        for _ in range(crops):
+            i, y0, x0 = self._origin()
+            labels = self.f["category"][i, y0:y0 + ch:2, x0:x0 + cw:2]
+            counts += np.bincount(labels[labels != IGNORE].ravel(), minlength=n)[:n]
+        self.rng.bit_generator.state = saved
+        return counts
 
 
 def losses(net: PixelNet, x: torch.Tensor, cat: torch.Tensor, col: torch.Tensor,
@@ -169,7 +237,7 @@ def _masked_ce(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
 
 
 def evaluate(net: PixelNet, frames: dict[str, np.ndarray], vocab: Vocabulary,
-             batch: int = 4) -> dict[str, Any]:
+             batch: int = 4, device: torch.device | None = None) -> dict[str, Any]:
     """Whole-frame figures: pixel accuracy, mean IoU over the categories present, colour and
     state accuracy on object pixels, the floor's room type, and recall of small objects and of
     other objects (the category of each labelled object pixel)."""
@@ -180,7 +248,8 @@ def evaluate(net: PixelNet, frames: dict[str, np.ndarray], vocab: Vocabulary,
     with torch.inference_mode():
         for s in range(0, len(frames["category"]), batch):
             x = to_input(frames["rgb"][s:s + batch], frames["depth"][s:s + batch].astype(np.float32))
-            cat_l, col_l, st_l = net(x)
+            cat_t, col_t_l, st_t_l = net(x.to(device or "cpu"))
+            cat_l, col_l, st_l = cat_t.cpu(), col_t_l.cpu(), st_t_l.cpu()
             pred = cat_l.argmax(1).numpy()
             truth = frames["category"][s:s + batch]
             keep = truth != IGNORE
@@ -223,12 +292,16 @@ def evaluate(net: PixelNet, frames: dict[str, np.ndarray], vocab: Vocabulary,
 def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: str = "",
           log: Any = sys.stderr) -> dict[str, Any]:
     """Train on ``data``, evaluate on its validation houses, write ``out`` (+ .json); returns
-    the metadata written."""
+    the metadata written. Every ``checkpoint_every`` steps (and when ``minutes`` stops it) the
+    state is saved to ``checkpoint_path(out)``; with ``resume`` a matching checkpoint there is
+    continued, giving the weights an uninterrupted run gives (on the same device)."""
     meta = check_data(data)
     check_writable(out)
+    device = pick_device(config.device)
     torch.manual_seed(config.seed)
     torch.set_num_threads(config.threads)
-    torch.use_deterministic_algorithms(True, warn_only=True)
+    # deterministic kernels on CPU; CUDA's bilinear backward has none (the record says which)
+    torch.use_deterministic_algorithms(device.type == "cpu", warn_only=True)
     rng = np.random.default_rng(config.seed)
     vocab = Vocabulary.from_json(meta["vocabulary"])
     houses = sorted(meta["houses"])
@@ -238,47 +311,82 @@ def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: s
     if not frames:
         raise EfficientEQAError(f"{data} holds no frames of its training houses")
     sampler = CropSampler(frames, vocab, config.crop, rng)
-    weights = class_weights(frames["category"], len(vocab.categories))
-    net = PixelNet(vocab, config.widths)
+    weights = weights_of_counts(sampler.crop_counts(WEIGHT_CROPS, len(vocab.categories))).to(device)
+    net = PixelNet(vocab, config.widths).to(device)
     net.train()
     opt = torch.optim.AdamW(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=config.steps,
                                                 pct_start=0.1)
-    start = time.perf_counter()
     every = max(1, min(50, config.steps // 20))
     running: dict[str, float] = {}
     history: list[dict[str, float]] = []
-    done = 0
-    for step in range(config.steps):
+    done, before_min, resumed_at = 0, 0.0, None
+    ckpt = checkpoint_path(out)
+    data_id = {"houses": houses, "frames": int(len(frames["category"]))}
+    if config.resume and ckpt.is_file():
+        state = torch.load(ckpt, map_location=device, weights_only=False)
+        if state.get("schedule") != config.schedule() or state.get("data") != data_id:
+            raise EfficientEQAError(f"{ckpt} was written by another training (steps, seed, "
+                                    "batch, crop, lr, widths or data differ)",
+                                    fix="give the same options and data, or delete it")
+        net.load_state_dict(state["net"])
+        opt.load_state_dict(state["opt"])
+        sched.load_state_dict(state["sched"])
+        rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+        done, running, history = state["step"], state["running"], state["history"]
+        before_min, resumed_at = state["minutes"], state["step"]
+        print(f"resuming from {ckpt} at step {done}", file=log, flush=True)
+
+    def save_checkpoint() -> None:
+        tmp = ckpt.with_name(ckpt.name + ".tmp")
+        torch.save({"format": CHECKPOINT_FORMAT, "schedule": config.schedule(), "data": data_id,
+                    "net": net.state_dict(), "opt": opt.state_dict(),
+                    "sched": sched.state_dict(), "rng": rng.bit_generator.state,
+                    "torch_rng": torch.get_rng_state(), "step": done, "running": running,
+                    "history": history,
+                    "minutes": before_min + (time.perf_counter() - start) / 60}, tmp)
+        tmp.replace(ckpt)
+
+    start = time.perf_counter()
+    first = done
+    while done < config.steps:
         if (time.perf_counter() - start) / 60 > config.minutes:
-            print(f"stopping at step {step}: --minutes {config.minutes} reached", file=log,
-                  flush=True)
+            print(f"stopping at step {done}: --minutes {config.minutes} reached (checkpoint "
+                  f"{ckpt}; --resume continues)", file=log, flush=True)
+            save_checkpoint()
             break
-        x, cat, col, st = sampler.batch(config.batch)
+        x, cat, col, st = (t.to(device, non_blocking=True) for t in sampler.batch(config.batch))
         loss, parts = losses(net, x, cat, col, st, weights)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
         sched.step()
-        done = step + 1
-        for k, v in {"loss": float(loss.detach()), **parts}.items():
+        done += 1
+        for k, v in {"loss": float(loss.detach()), **parts, "n": 1.0}.items():
             running[k] = running.get(k, 0.0) + v
         if done % every == 0 or done == config.steps:
-            avg = {k: v / every for k, v in running.items()}
+            # mean over the steps since the last line (the last window can be shorter)
+            n_steps = running.pop("n")
+            avg = {k: v / n_steps for k, v in running.items()}
             running = {}
             history.append({"step": done, **{k: round(v, 4) for k, v in avg.items()}})
             elapsed = time.perf_counter() - start
-            rate = done / elapsed
+            rate = (done - first) / elapsed
             print(f"step {done}/{config.steps} loss {avg['loss']:.3f} (category "
                   f"{avg['category']:.3f}, colour {avg['colour']:.3f}, state {avg['state']:.3f}) "
                   f"{rate:.2f} steps/s, {elapsed / 60:.1f} min, eta "
                   f"{(config.steps - done) / max(rate, 1e-9) / 60:.1f} min", file=log, flush=True)
-    minutes = (time.perf_counter() - start) / 60
+        if config.checkpoint_every and done % config.checkpoint_every == 0 and done < config.steps:
+            save_checkpoint()
+    minutes = before_min + (time.perf_counter() - start) / 60
+    rate = (done - first) / max(time.perf_counter() - start, 1e-9)
     del sampler, frames
     validation: dict[str, Any] | None = None
     if val_houses:
         val = load_shards(data, val_houses)
-        validation = evaluate(net, val, vocab)
+        validation = evaluate(net, val, vocab, batch=32 if device.type == "cuda" else 4,
+                              device=device)
         brief = {k: v for k, v in validation.items() if k != "iou_per_category"}
         print(f"validation: {json.dumps(brief)}", file=log, flush=True)
     record = {
@@ -286,15 +394,28 @@ def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: s
         "batch": config.batch, "crop": list(config.crop), "lr": config.lr,
         "weight_decay": config.weight_decay, "minutes": round(minutes, 2),
         "minutes_guard": config.minutes, "threads": config.threads, "torch": torch.__version__,
+        "device": _device_name(device), "steps_per_s": round(rate, 2),
+        "resumed_at_step": resumed_at, "rarity_share": RARITY_SHARE,
         "code_version": code_version(),
         "data": {"houses": [houses[0], houses[-1]] if houses else [],
                  "train_houses": len(train_houses), "validation_houses": val_houses,
                  "frames_per_house": meta.get("frames_per_house"),
                  "render_seed": meta.get("seed"), "assets": meta.get("assets"),
+                 "recolour_share": meta.get("recolour_share"),
+                 "heldout_model_keys": meta.get("heldout_model_keys"),
                  "train_seed_range": meta.get("train_seeds"),
                  "validation_seed_range": meta.get("validation_seeds")},
         "validation": validation, "loss_history": history[-5:],
         "final_loss": history[-1]["loss"] if history else math.nan,
     }
+    net.cpu()
     save_weights(out, net, vocab, record)
+    if done >= config.steps and ckpt.is_file():
+        ckpt.unlink()  # finished: the weights hold everything
     return record
+
+
+def _device_name(device: torch.device) -> str:
+    if device.type == "cuda":
+        return f"cuda ({torch.cuda.get_device_name(device)})"
+    return f"cpu ({torch.get_num_threads()} threads)"
