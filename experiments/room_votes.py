@@ -296,8 +296,9 @@ def seen_cache(folder: Path) -> list[list[dict[str, Any]]]:
             is_floor = np.array([n.startswith(segment.FLOOR_PREFIX) for n in names])
             floor = segment._floor_points(small, is_floor, depth, k, pose, fy, fx)
             depth_small = depth[fy // 2::fy, fx // 2::fx]
-            regions = segment._regions(small, depth_small, names.index("door"),
-                                       classes.confidence)
+            regions = [(c, m) for c, m, sure in segment.regions_of(
+                small, depth_small, names.index("door"), classes.confidence)
+                if sure >= classes.min_confidence.get(names[c], segment.MIN_CONFIDENCE)]
             points = backproject(depth_small, segment._scaled(k, fy, fx), pose)
             seen = {}
             for t in THRESHOLDS:
