@@ -1,5 +1,6 @@
-"""docs/perception.md's table is what `efficienteqa perception table` makes of the published
-figures (results/perception/heldout.json), and the figures say what they were measured on."""
+"""docs/perception.md's tables are what `efficienteqa perception table` makes of the published
+figures (results/perception/heldout.json, training-style poses, and walks.json, the agent's
+walks), and the figures say what they were measured on."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import json
 import re
 from pathlib import Path
 
+import pytest
 from typer.testing import CliRunner
 
 from efficienteqa import cli
@@ -15,22 +17,28 @@ from efficienteqa.perception.pixels.dataset import TRAIN_SEEDS
 from efficienteqa.perception.pixels.evaluate import markdown_table
 
 ROOT = Path(__file__).resolve().parents[1]
-FIGURES = ROOT / "results" / "perception" / "heldout.json"
+PUBLISHED = [ROOT / "results" / "perception" / name for name in ("heldout.json", "walks.json")]
 
 
-def test_the_docs_table_is_generated_from_the_published_figures():
-    figures = json.loads(FIGURES.read_text())
+def test_the_docs_tables_are_generated_from_the_published_figures():
     doc = (ROOT / "docs" / "perception.md").read_text()
-    block = re.search(r"<!-- perception: (\S+) -->\n(.*?)\n<!-- /perception -->", doc, re.S)
-    assert block is not None and (ROOT / block.group(1)) == FIGURES
-    assert block.group(2).strip() == markdown_table(figures).strip()
-    printed = CliRunner().invoke(cli.app, ["perception", "table", str(FIGURES)])
-    assert printed.exit_code == 0 and printed.output.strip() == markdown_table(figures).strip()
+    blocks = re.findall(r"<!-- perception: (\S+) -->\n(.*?)\n<!-- /perception -->", doc, re.S)
+    assert sorted(ROOT / path for path, _ in blocks) == sorted(PUBLISHED)
+    for path, table in blocks:
+        figures = json.loads((ROOT / path).read_text())
+        assert table.strip() == markdown_table(figures).strip(), path
+        printed = CliRunner().invoke(cli.app, ["perception", "table", str(ROOT / path)])
+        assert printed.exit_code == 0 and printed.output.strip() == markdown_table(figures).strip()
 
 
-def test_the_figures_come_from_houses_the_network_never_trained_on():
-    figures = json.loads(FIGURES.read_text())
+@pytest.mark.parametrize("path", PUBLISHED, ids=lambda p: p.name)
+def test_the_figures_come_from_houses_the_network_never_trained_on(path):
+    figures = json.loads(path.read_text())
     houses = parse_seeds(figures["houses"])
     assert not set(houses) & set(TRAIN_SEEDS)
-    assert figures["frames"] == len(houses) * figures["frames_per_house"]
+    if figures["poses"] == "training-style":
+        assert figures["frames"] == len(houses) * figures["frames_per_house"]
+    else:  # a walk shorter than frames_per_house gives all its frames
+        assert len(houses) <= figures["frames"] <= len(houses) * figures["frames_per_house"]
     assert figures["slices"]["all"]["objects"] > 0
+    assert "dirty" not in figures["code_version"]  # published from a clean commit
