@@ -53,3 +53,21 @@ def test_cells_are_three_dimensional():
     low = cell_keys(np.array([[1.0, 1.0, 0.3]]), 5)
     high = cell_keys(np.array([[1.0, 1.0, 0.9]]), 5)
     assert not set(low.tolist()) & set(high.tolist())
+
+
+def test_fragments_of_one_object_are_one_instance_and_two_objects_stay_two(monkeypatch):
+    """A chair cut in two where depth jumps (its back behind its seat) is one chair; two chairs
+    a metre apart stay two; door leaves are never merged."""
+    from efficienteqa.perception.pixels.segment import FRAGMENT_MERGE_M, merge_fragments
+
+    points = np.zeros((4, 8, 3))
+    points[..., 0] = np.arange(8)[None, :] * (FRAGMENT_MERGE_M / 4)  # x grows along a row
+    left, near, far = (np.zeros((4, 8), bool) for _ in range(3))
+    left[:, 0], near[:, 2], far[:, 7] = True, True, True  # centres 0, 2/4 and 7/4 merge distances
+    chair, door = 4, 3
+    merged = merge_fragments([(chair, left), (chair, near), (chair, far)], points, door=door)
+    assert [(c, int(m.sum())) for c, m in merged] == [(chair, 8), (chair, 4)]
+    doors = merge_fragments([(door, left), (door, near)], points, door=door)
+    assert len(doors) == 2
+    monkeypatch.setattr("efficienteqa.perception.pixels.segment.FRAGMENT_MERGE_M", 0.0)
+    assert len(merge_fragments([(chair, left), (chair, near)], points, door=door)) == 2
