@@ -51,8 +51,9 @@ WEIGHT_CROPS = 512  # crops drawn (then put back) to measure the category freque
 STATE_LOSS_WEIGHT = 0.5
 THREADS = 2  # the machine's cores; 1 does better when others load them
 CROP = (160, 224)  # (height, width) at half size: 2/3 x 0.7 of a 240x320 frame
-# Wider deep levels (issue 34: the network underfits); the 1/1 and 1/2 levels, which cost the
-# most time per frame, keep their widths. Inference stays <= 100 ms (benchmarks.pixels_bench).
+# Wider deep levels (DESIGN 9, learned perception: the earlier network underfit); the 1/1 and
+# 1/2 levels, which cost the most time per frame, keep their widths. Inference stays <= 100 ms
+# (benchmarks.pixels_bench).
 WIDE_WIDTHS = (16, 32, 64, 96, 160)
 CHECKPOINT_EVERY = 250  # steps between checkpoints (a few minutes on 2 cores)
 CHECKPOINT_FORMAT = 1
