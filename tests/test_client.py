@@ -873,3 +873,22 @@ def test_llama_cpp_server(llama_server, tmp_path):
         assert plain.text.strip() and plain.logprobs is None
         print(f"\nSmolLM2: first {first.latency_s * 1000:.0f} ms, cached {second.latency_s * 1000:.2f} ms, "
               f"plain {plain.latency_s * 1000:.0f} ms; reply {first.text!r}")
+
+
+def test_a_server_that_fails_on_json_schemas_is_probed_as_without_them(serve, private_cache):
+    """llama-cpp-python's server answers HTTP 500 to a JSON-schema response_format: the probe
+    reads that as "not supported" (a plain request passes) and the run goes on without it."""
+    server = serve(Reply(body=completion(logprobs=True)),
+                   Reply(500, {"error": {"message": "Input should be 'text' or 'json_object'"}}),
+                   Reply(body=completion()))
+    caps = build_chat_model(openai_backend(server)).capabilities
+    assert caps.logprobs and not caps.json_schema
+    assert caps.probed["json_schema"] == "failed: HTTP 500, read as not supported"
+    assert "response_format" not in server.requests[2].body  # the plain request that passed
+
+
+def test_a_server_that_fails_every_request_still_fails_the_probe_in_one_line(serve, private_cache):
+    server = serve(Reply(500, {"error": {"message": "internal error"}}))
+    with pytest.raises(EfficientEQAError, match="HTTP 500") as raised:
+        build_chat_model(openai_backend(server))
+    assert "\n" not in str(raised.value)

@@ -138,6 +138,14 @@ def test_debiasing_cancels_a_model_that_always_says_a():
     assert len(model.requests) == 3 and all(r.logprobs for r in model.requests)
 
 
+def test_a_choice_reply_without_any_letter_is_counted_as_a_problem():
+    """A one-token reply whose top logprobs hold no letter gives uniform scores, said so."""
+    model = StubChatModel(lambda _: "The")
+    scores, info = DebiasedDirections(model).letter_scores(frame())
+    assert all(math.isclose(v, 1 / 3) for v in scores.values())
+    assert len(info["problems"]) == 3 and "no letter among the top logprobs" in info["problems"][0]
+
+
 def test_debiased_choice_follows_the_office_wherever_it_is_shown():
     def office(messages):
         return next(x for x, t in directions_of(messages).items() if "office" in t)

@@ -197,3 +197,21 @@ def test_a_configuration_file_is_read_and_checked(tmp_path):
     (tmp_path / "binary.toml").write_bytes(b"\xff\xfe\x00")
     with pytest.raises(EfficientEQAError, match="cannot read the configuration"):
         load_config(tmp_path / "binary.toml", types)
+
+
+def test_the_paper_presets_judge_follows_a_vlm_given_on_the_command_line():
+    """--preset paper grades with its own GPT-4o; --vlm pointing at another server (and no
+    --judge) must not leave the judge, and the user's key, at OpenAI."""
+    from efficienteqa.presets import fill, judge_follows_vlm, load_preset
+
+    values = load_preset("paper")
+    assert values["judge"] == values["vlm"]
+    mine = "openai:qwen2.5-coder-1.5b@http://127.0.0.1:8080/v1"
+    options = judge_follows_vlm(fill({"vlm": mine, "judge": None}, values, {"vlm"}), values,
+                                {"vlm"})
+    assert options["judge"] == mine
+    judged = judge_follows_vlm(fill({"vlm": mine, "judge": "rule"}, values, {"vlm", "judge"}),
+                               values, {"vlm", "judge"})
+    assert judged["judge"] == "rule"  # a judge given is kept
+    plain = judge_follows_vlm(fill({"vlm": None, "judge": None}, values, set()), values, set())
+    assert plain["judge"] == values["judge"]  # nothing given: the preset's own

@@ -91,6 +91,13 @@ def test_the_readme_main_table_is_a_short_form_of_the_full_one():
     assert set(short) <= set(full) and short_ref == full_ref
 
 
+def test_a_run_on_a_server_without_a_listed_price_costs_unknown_not_zero():
+    from efficienteqa.eval.summary import has_price
+
+    assert has_price("local:qwen2.5-coder-1.5b") and has_price(None) and has_price("openai:gpt-4o")
+    assert not has_price("openai:qwen2.5-vl-7b@http://127.0.0.1:8000/v1")
+
+
 def test_a_stale_readme_block_is_regenerated_and_other_text_kept(tmp_path):
     ref, new = two_runs(tmp_path)
     command = "efficienteqa report results/new results/ref --paired-against results/ref --markdown"
@@ -106,16 +113,16 @@ def test_a_stale_readme_block_is_regenerated_and_other_text_kept(tmp_path):
     lines = body.splitlines()
     header = [c.strip() for c in lines[0].strip("|").split("|")]
     rows = {r.split("|")[1].strip(): [c.strip() for c in r.strip("|").split("|")] for r in lines[2:4]}
-    assert header[:11] == ["Method", "Accuracy, rule judge (%) [95% CI]", "LLM-Match", "Steps",
+    assert header[:12] == ["Method", "Accuracy, rule judge (%) [95% CI]", "LLM-Match", "Steps",
                            "Steps / oracle", "Evidence seen (%)", "Relevancy stops (%)",
-                           "Median wall s", "Calls / ep", "Tokens / ep", "n"]
-    assert header[11].startswith("Δ accuracy vs efficienteqa Z_th=2")
+                           "Median wall s", "Calls / ep", "Tokens / ep", "$ / ep", "n"]
+    assert header[12].startswith("Δ accuracy vs efficienteqa Z_th=2")
     new_row, ref_row = rows["efficienteqa"], rows["efficienteqa Z_th=2"]
     assert new_row[1].startswith("87.5 [") and ref_row[1].startswith("50.0 [")
-    assert new_row[3:11] == ["10.0", "1.67", "100", "100", "4.5", "10.0", "1000", "8"]
+    assert new_row[3:12] == ["10.0", "1.67", "100", "100", "4.5", "10.0", "1000", "0.0000", "8"]
     assert ref_row[3:8] == ["20.0", "3.33", "75", "0", "4.0"]
-    assert new_row[11].startswith("+37.5 [") and new_row[12] == "-10.0 [-10.0, -10.0]"
-    assert new_row[13] == "8" and ref_row[11:] == ["reference", "reference", "-"]
+    assert new_row[12].startswith("+37.5 [") and new_row[13] == "-10.0 [-10.0, -10.0]"
+    assert new_row[14] == "8" and ref_row[12:] == ["reference", "reference", "-"]
     assert lines[-1].startswith("Back-ends: environment synthetic-builtin; perception "
                                 "semantic-sensor; VLM qwen2.5-coder-1.5b; relevancy all-MiniLM-L6-v2")
     assert lines[-1].endswith("; judge local:qwen2.5-coder-1.5b, rule. Code: 0.1.0+test.")

@@ -81,6 +81,14 @@ def test_token_letters_are_read_on_the_first_line_only():
     score = explore_token_scores(stub, "Where is the cat?", VIEW, DIRECTIONS)
     assert score.letters == pytest.approx({"A": 1 / 3, "B": 1 / 3, "C": 1 / 3})
     assert score.p_yes == pytest.approx(0.1 / 0.8)
+    # the uniform scores are a problem the episode counts, not a silent reading
+    assert score.info["problems"] == ["no direction letter among the reply's top logprobs: uniform"]
+
+
+def test_a_read_letter_is_no_problem():
+    stub = StubChatModel(["B\nyes"], logprob_fn=lambda text, top: [LETTER, _tok("\n"),
+                                                                    _tok("yes", yes=0.9, no=0.1)])
+    assert explore_token_scores(stub, "Where is the cat?", VIEW, DIRECTIONS).info["problems"] == []
 
 
 def _image_obs():

@@ -229,7 +229,7 @@ def _option_types() -> dict[str, type]:
 def _options(ctx: typer.Context) -> dict:
     """The command's options, those left out on the command line filled from --config, then
     from --preset: each option set once, whatever the source."""
-    from efficienteqa.presets import fill, load_config, load_preset
+    from efficienteqa.presets import fill, judge_follows_vlm, load_config, load_preset
 
     params = dict(ctx.params)
     left_out = ("DEFAULT", "DEFAULT_MAP")  # by name: typer may bring its own click
@@ -241,7 +241,7 @@ def _options(ctx: typer.Context) -> dict:
         values.update(load_preset(params["preset"], types))
     if params.get("config_file") is not None:
         values.update(load_config(params["config_file"], types))
-    options = fill(params, values, given)
+    options = judge_follows_vlm(fill(params, values, given), values, given)
     if "method" in values and "method" not in params:
         options["method"] = values["method"]  # ask refuses another method
     return options

@@ -165,6 +165,19 @@ def fill(options: Mapping[str, Any], values: Mapping[str, Any],
             else v for k, v in options.items()}
 
 
+def judge_follows_vlm(options: Mapping[str, Any], values: Mapping[str, Any],
+                      given: Any) -> dict[str, Any]:
+    """``options`` where a configuration grades with its own VLM (``values``' judge is its vlm:
+    the paper preset's "the same GPT-4o grades") and the command line (``given``) names another
+    VLM but no judge: the judge follows that VLM, so the user's server grades too and no key
+    goes to the configuration's server unasked."""
+    out = dict(options)
+    if (values.get("judge") is not None and values.get("judge") == values.get("vlm")
+            and "vlm" in given and "judge" not in given and "judge" in out):
+        out["judge"] = out["vlm"]
+    return out
+
+
 def apply_preset(name: str | None, options: Mapping[str, Any]) -> dict[str, Any]:
     """``options`` with the preset's value for each option left out (None); options the preset
     does not name are kept as they are."""

@@ -140,21 +140,23 @@ def category_table(summaries: Sequence[RunSummary], labels: Sequence[str], rule:
 
 
 def efficiency_table(summaries: Sequence[RunSummary], labels: Sequence[str]) -> Table:
-    """What each run cost: how episodes ended, model calls and tokens, time."""
+    """What each run cost: how episodes ended, model calls and tokens, dollars, time."""
     reasons = sorted({r for s in summaries for r in s.stop_reasons},
                      key=lambda r: (STOP_ORDER.index(r) if r in STOP_ORDER else len(STOP_ORDER), r))
     header = ["Method", "Done", "Failed", *(f"Stop: {r}" for r in reasons), "Calls / ep",
               "Tokens / ep (prompt + completion)", "Model s / ep", "Cached calls",
-              "Wall s / ep (median)"]
+              "$ / ep ($ in all)", "Wall s / ep (median)"]
     rows = []
     for s, lab in zip(summaries, labels):
         tokens = ("-" if math.isnan(s.tokens) else
                   f"{s.tokens:.0f} ({s.prompt_tokens:.0f} + {s.completion_tokens:.0f})")
         cached = "-" if math.isnan(s.cached_fraction) else f"{100 * s.cached_fraction:.0f}%"
+        dollars = ("unknown (a model without a listed price)" if s.cost_per_episode is None
+                   else f"{s.cost_per_episode:.4f} ({s.cost_usd:.2f})")
         rows.append([lab, str(s.n_done), str(s.n_failed), *(str(s.stop_reasons.get(r, 0)) for r in reasons),
-                     num(s.calls, 1), tokens, num(s.model_latency_s, 1), cached,
+                     num(s.calls, 1), tokens, num(s.model_latency_s, 1), cached, dollars,
                      f"{num(s.wall_s_mean, 1)} ({num(s.wall_s_median, 1)})"])
-    return Table("Cost per episode: stop reasons, model calls, tokens, wall time", header, rows,
+    return Table("Cost per episode: stop reasons, model calls, tokens, dollars, wall time", header, rows,
                  provenance(summaries))
 
 

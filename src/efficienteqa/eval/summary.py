@@ -99,6 +99,9 @@ class RunSummary:
     # the done episodes that record them.
     problems: dict[str, int] = field(default_factory=dict)
     cost_usd: float = 0.0  # dollars of every episode's model calls, failed ones included
+    # False where a model of the run (its VLM or judge) is a server's with no listed price
+    # (``models.backends.PRICES``): its cost is then unknown, not 0
+    priced: bool = True
     rule_accuracy: float = math.nan
     n_rule: int = 0
     rule_by_category: dict[str, float] = field(default_factory=dict)
@@ -124,6 +127,11 @@ class RunSummary:
     baseline: dict[str, Any] | None = field(default=None, repr=False, compare=False)
 
     @property
+    def cost_per_episode(self) -> float | None:
+        """Dollars per episode, None where unknown (a model without a listed price)."""
+        return self.cost_usd / self.n if self.priced and self.n else None
+
+    @property
     def tokens(self) -> float:
         """Prompt plus completion tokens per episode."""
         return self.prompt_tokens + self.completion_tokens
@@ -132,6 +140,16 @@ class RunSummary:
     def evidence_seen(self) -> float:
         """Share (0-1) of the episodes with evidence that ever had it in view."""
         return 1 - self.never_seen
+
+
+def has_price(spec: Any) -> bool:
+    """Whether the dollars of a VLM spec's calls are known: local models and no model cost 0;
+    an OpenAI-compatible server's model is known only where ``PRICES`` lists it."""
+    from efficienteqa.models.backends import PRICES
+
+    if not isinstance(spec, str) or not spec.startswith("openai:"):
+        return True
+    return spec.partition(":")[2].partition("@")[0] in PRICES
 
 
 def _problem_totals(done: Sequence[Mapping[str, Any]]) -> dict[str, int]:
@@ -393,6 +411,8 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
                             if r.get("status") != "done").most_common()),
         problems=_problem_totals(done),
         cost_usd=round(sum(float((r.get("usage") or {}).get("cost_usd") or 0.0) for r in rows), 6),
+        priced=all(has_price(spec) for spec in (
+            (manifest.get("stack") or {}).get("vlm"), manifest.get("judge"))),
         rule_accuracy=mean(rule_values) if n_rule else math.nan, n_rule=n_rule,
         rule_by_category={c: mean(v) for c, v in sorted(rule_categories.items())} if n_rule else {},
         choice_accuracy=mean(choice_values) if n_choice else math.nan, n_choice=n_choice,

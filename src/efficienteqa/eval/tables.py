@@ -328,7 +328,7 @@ def markdown_table(summaries: Sequence[RunSummary],
     judge = " or ".join(names[k] for k in names if k in kinds) or "rule judge"
     header = ["Method", f"Accuracy, {judge} (%) [95% CI]", "LLM-Match", "Steps", "Steps / oracle",
               "Evidence seen (%)", "Relevancy stops (%)", "Median wall s", "Calls / ep",
-              "Tokens / ep", "n"]
+              "Tokens / ep", "$ / ep", "n"]
     paired_columns = any(d is not None for d in differences)
     if paired_columns:
         reference = next(d.reference for d in differences if d is not None)
@@ -337,7 +337,8 @@ def markdown_table(summaries: Sequence[RunSummary],
     for i, (s, lab) in enumerate(zip(summaries, labels)):
         row = [lab, _accuracy_cell(s, mixed), num(s.llm_match, 1), num(s.mean_steps, 1),
                num(s.steps_over_oracle, 2), _pct(s.evidence_seen), _pct(s.relevancy_stops),
-               num(s.wall_s_median, 1), num(s.calls, 1), num(s.tokens, 0), str(s.n)]
+               num(s.wall_s_median, 1), num(s.calls, 1), num(s.tokens, 0),
+               "unknown" if s.cost_per_episode is None else f"{s.cost_per_episode:.4f}", str(s.n)]
         if paired_columns:
             d = differences[i] if i < len(differences) else None
             row += (["reference", "reference", "-"] if d is None else

@@ -34,6 +34,7 @@ from efficienteqa.vc.logprobs import (
     TOP_LOGPROBS,
     letter_and_yes_probs,
     letter_probs_from_logprobs,
+    letter_read,
     require_logprobs,
     yes_prob_from_logprobs,
 )
@@ -146,6 +147,8 @@ def explore_token_scores(model: ChatModel, question: str, view: str,
                       temperature=0.0, logprobs=TOP_LOGPROBS)
     tokens = resp.logprobs or []
     problems = [] if tokens else ["no logprobs in the reply: uniform"]
+    if tokens and not letter_read(tokens, letters, first_line=True):
+        problems.append("no direction letter among the reply's top logprobs: uniform")
     scores, p_yes = letter_and_yes_probs(tokens, letters)
     return SemanticScore(scores, p_yes, {"raw": resp.text or "", "problems": problems,
                                          "candidates": sorted(scores.items(), key=lambda kv: -kv[1]),
@@ -168,6 +171,8 @@ def explore_image_scores(model: ChatModel, question: str, letters: Sequence[str]
         resp = model.chat([Message("user", prompt, tuple(marked))], max_tokens=1,
                           temperature=0.0, logprobs=TOP_LOGPROBS)
         problems = [] if resp.logprobs else ["no logprobs in the letter reply: uniform"]
+        if resp.logprobs and not letter_read(resp.logprobs, letters):
+            problems.append("no direction letter among the reply's top logprobs: uniform")
         scores = letter_probs_from_logprobs(resp.logprobs, letters)
         candidates = sorted(scores.items(), key=lambda kv: -kv[1])
     else:
@@ -272,6 +277,8 @@ class DebiasedDirections:
                                    max_tokens=1, temperature=0.0, logprobs=TOP_LOGPROBS)
             if not resp.logprobs:
                 problems.append(f"order {shift}: no logprobs, counted uniform")
+            elif not letter_read(resp.logprobs, list(names)):
+                problems.append(f"order {shift}: no letter among the top logprobs, counted uniform")
             probs = letter_probs_from_logprobs(resp.logprobs, list(names))
             for new, old in names.items():
                 total[old] += probs[new] / len(letters)

@@ -3,10 +3,12 @@
 
 The SDK retries connection errors, timeouts, 408, 409, 429 and 5xx ``max_retries`` times with
 exponential backoff (0.5 s doubling to 8 s, jittered), waiting what ``Retry-After`` asks where
-the server sends it; other 4xx fail at once. Its typed errors become one-line
-``EfficientEQAError``s here. Replies are cached on disk (``models/cache.py``). The API key is read
-from the environment variable named in the config and handed to the SDK only, which sends it in
-the ``Authorization`` header: it is never in configs, reprs, logs, errors or the cache.
+the server sends it; other 4xx fail at once. A 5xx left after the retries is a ``ServerFailed``:
+the capability probe reads one to a feature request as "not supported" (once a plain request has
+passed). The SDK's typed errors become one-line ``EfficientEQAError``s here. Replies are cached
+on disk (``models/cache.py``). The API key is read from the environment variable named in the
+config and handed to the SDK only, which sends it in the ``Authorization`` header: it is never
+in configs, reprs, logs, errors or the cache.
 
 ``openai`` is imported on the first request, so modules that only need ``encode_image`` stay
 light.
@@ -165,6 +167,16 @@ def parse_logprobs(choice: dict[str, Any]) -> list[TokenLogprob] | None:
 
 class RequestRejected(EfficientEQAError):
     """The server answered with a 4xx that retrying will not fix (``status``: the HTTP code)."""
+
+    def __init__(self, message: str, status: int, fix: str | None = None) -> None:
+        super().__init__(message, fix=fix)
+        self.status = status
+
+
+class ServerFailed(EfficientEQAError):
+    """The server still answered with a 5xx after its retries (``status``: the HTTP code). Some
+    servers answer 500 to a request option they do not know (llama-cpp-python to a JSON-schema
+    ``response_format``), so the capability probe reads it as "not supported"."""
 
     def __init__(self, message: str, status: int, fix: str | None = None) -> None:
         super().__init__(message, fix=fix)
@@ -356,12 +368,12 @@ class OpenAIChatClient:
             choices = data.get("choices") or [{}]
             found["logprobs"] = bool(parse_logprobs(choices[0]))
             found["logprobs_probe"] = "returned" if found["logprobs"] else "ignored"
-        except RequestRejected as error:
+        except (RequestRejected, ServerFailed) as error:
             if error.status in (401, 403, 404):
                 raise
             self._complete(plain, probe=True)  # the server answers a plain request, or this raises
             found["logprobs"] = False
-            found["logprobs_probe"] = f"rejected: HTTP {error.status}"
+            found["logprobs_probe"] = _refusal(error)
         if self._capabilities.json_schema:
             schema = {"name": "probe", "schema": {"type": "object", "properties": {
                 "ok": {"type": "boolean"}}, "required": ["ok"]}}
@@ -369,9 +381,11 @@ class OpenAIChatClient:
                 self._complete({**plain, "max_tokens": 8, "response_format": {
                     "type": "json_schema", "json_schema": schema}}, probe=True)
                 found["json_schema"], found["json_schema_probe"] = True, "accepted"
-            except RequestRejected as error:
+            except (RequestRejected, ServerFailed) as error:
+                if isinstance(error, ServerFailed):  # a failing server, or one failing on this?
+                    self._complete(plain, probe=True)
                 found["json_schema"] = False
-                found["json_schema_probe"] = f"rejected: HTTP {error.status}"
+                found["json_schema_probe"] = _refusal(error)
         return found
 
     def _probe_images(self) -> dict[str, Any]:
@@ -388,13 +402,13 @@ class OpenAIChatClient:
             self._complete(request(PROBE_IMAGES), probe=True)
             return {"images": True, "max_images": None,
                     "images_probe": f"{PROBE_IMAGES} accepted"}
-        except RequestRejected as error:
+        except (RequestRejected, ServerFailed) as error:
             said = re.search(r"at most (\d+) image", str(error), re.IGNORECASE)
             fewer = int(said.group(1)) if said else 1
             fewer = fewer if 1 <= fewer < PROBE_IMAGES else 1
             try:
                 self._complete(request(fewer), probe=True)
-            except RequestRejected as again:
+            except (RequestRejected, ServerFailed) as again:
                 return {"images": False, "max_images": None,
                         "images_probe": f"rejected: {_one_line(str(again), 200)}"}
             return {"images": True, "max_images": fewer,
@@ -512,7 +526,10 @@ class OpenAIChatClient:
         if isinstance(error, openai.APIStatusError):
             status = error.status_code
             detail = self._redact(_one_line(_error_text(error), 200))
-            if status in (408, 409, 429) or status >= 500:  # what the SDK retries
+            if status >= 500:  # the SDK retried these
+                return ServerFailed(f"{where} still answered HTTP {status} after {tries} tries: "
+                                    f"{detail}", status, fix=self._fix_for(status))
+            if status in (408, 409, 429):  # the SDK retried these too
                 return EfficientEQAError(f"{where} still answered HTTP {status} after {tries} tries: "
                                          f"{detail}", fix=self._fix_for(status))
             return RequestRejected(f"{where} rejected the request: HTTP {status} {detail}", status,
@@ -554,6 +571,13 @@ class OpenAIChatClient:
             raw=data,
             finish_reason=finish if isinstance(finish, str) else None,
         )
+
+
+def _refusal(error: RequestRejected | ServerFailed) -> str:
+    """What a feature probe's refusal says in ``capabilities.probed``."""
+    if isinstance(error, ServerFailed):
+        return f"failed: HTTP {error.status}, read as not supported"
+    return f"rejected: HTTP {error.status}"
 
 
 def _read_json(path: Path) -> dict[str, Any] | None:

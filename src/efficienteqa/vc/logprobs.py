@@ -101,13 +101,8 @@ def _has_newline(token: str) -> bool:
     return "\n" in token or "Ċ" in token  # Ċ: a byte-level BPE tokenizer's raw newline
 
 
-def letter_and_yes_probs(tokens: Sequence[TokenLogprob], letters: Sequence[str]
-                         ) -> tuple[dict[str, float], float]:
-    """ExploreEQA's two-line white-box reply (a letter, then yes/no): P(letter) on the first
-    line, P(yes) on the yes/no line after it (blank lines skipped; in a one-line reply, the
-    tokens after the letter). Alternatives at the letter token ("Yes" as another way to start
-    the reply) never count as the yes/no answer."""
-    tokens = list(tokens)
+def _split_first_line(tokens: list[TokenLogprob]) -> tuple[list[TokenLogprob], list[TokenLogprob]]:
+    """The reply's tokens up to the end of its first non-blank line, and the rest."""
     end, seen_text = len(tokens), False
     for i, t in enumerate(tokens):
         head = t.token.replace("Ċ", "\n").split("\n")[0]
@@ -115,7 +110,27 @@ def letter_and_yes_probs(tokens: Sequence[TokenLogprob], letters: Sequence[str]
             end = i + 1 if head.strip() else i  # "B\n" ends the line it belongs to
             break
         seen_text = seen_text or bool(t.token.strip())
-    first_line, rest = tokens[:end], tokens[end:]
+    return tokens[:end], tokens[end:]
+
+
+def letter_read(top_logprobs: LogprobInput | None, letters: Sequence[str], *,
+                first_line: bool = False) -> bool:
+    """Whether a letter of ``letters`` is among the alternatives of some position (of the first
+    line only, as ``letter_and_yes_probs`` reads it, with ``first_line``): where none is, the
+    letter probabilities are uniform, which the caller must count as a problem."""
+    if first_line and isinstance(top_logprobs, Sequence) and all(
+            isinstance(t, TokenLogprob) for t in top_logprobs):
+        top_logprobs = _split_first_line(list(top_logprobs))[0]  # type: ignore[arg-type]
+    return _softmax_first(top_logprobs, [str(x).strip().upper() for x in letters]) is not None
+
+
+def letter_and_yes_probs(tokens: Sequence[TokenLogprob], letters: Sequence[str]
+                         ) -> tuple[dict[str, float], float]:
+    """ExploreEQA's two-line white-box reply (a letter, then yes/no): P(letter) on the first
+    line, P(yes) on the yes/no line after it (blank lines skipped; in a one-line reply, the
+    tokens after the letter). Alternatives at the letter token ("Yes" as another way to start
+    the reply) never count as the yes/no answer."""
+    first_line, rest = _split_first_line(list(tokens))
     keys = [str(x).strip().upper() for x in letters]
     at = next((i for i, alts in enumerate(_positions(first_line)) if _softmax_at(alts, keys)), None)
     if not any(t.token.strip() for t in rest):  # one line: yes/no after the letter
