@@ -436,3 +436,12 @@ def test_the_answer_reads_the_agents_aliases():
     RagAnswerer(stub, RuleGrouper(), direct=True).answer(question, views, target)
     prompt = stub.requests[0].messages[0].text
     assert "saw no couch" not in prompt and "blue sofa" in prompt
+
+
+def test_images_are_counted_in_words_the_prompt_can_say():
+    from efficienteqa.answer.calls import evidence_text
+
+    one = np.zeros((4, 4, 3), np.uint8)
+    assert evidence_text([one])[0] == "the attached image"
+    assert evidence_text([one, one])[0] == "the 2 attached images"
+    assert evidence_text([]) == ("nothing", ())

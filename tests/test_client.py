@@ -892,3 +892,11 @@ def test_a_server_that_fails_every_request_still_fails_the_probe_in_one_line(ser
     with pytest.raises(EfficientEQAError, match="HTTP 500") as raised:
         build_chat_model(openai_backend(server))
     assert "\n" not in str(raised.value)
+
+
+def test_a_missing_key_names_the_flag_that_changes_it(tmp_path, monkeypatch):
+    monkeypatch.delenv("EFFICIENTEQA_TEST_KEY", raising=False)
+    with pytest.raises(EfficientEQAError) as raised:
+        OpenAIChatClient(ClientConfig(base_url="http://127.0.0.1:9/v1", model="m",
+                                      api_key_env="EFFICIENTEQA_TEST_KEY"))
+    assert "--api-key-env none" in str(raised.value) and "None" not in str(raised.value)

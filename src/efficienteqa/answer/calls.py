@@ -289,7 +289,9 @@ def evidence_text(evidence: Sequence[str | np.ndarray]) -> tuple[str, tuple[np.n
     if items and all(isinstance(e, str) for e in items):
         return "\n".join(f"view {i + 1}: {e}" for i, e in enumerate(items)), ()
     images = tuple(e for e in items if isinstance(e, np.ndarray))
-    return (f"the {len(images)} attached images" if images else "nothing"), images
+    if not images:
+        return "nothing", images
+    return ("the attached image" if len(images) == 1 else f"the {len(images)} attached images"), images
 
 
 def vc_answer(model: ChatModel, prompt: str, images: tuple[np.ndarray, ...], question: str,

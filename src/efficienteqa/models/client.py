@@ -435,7 +435,8 @@ class OpenAIChatClient:
         key = os.environ.get(env)
         if not key:
             raise EfficientEQAError(f"environment variable {env} is not set",
-                                    fix=f"export {env}=... or set api_key_env to None for a local server")
+                                    fix=f"export {env}=..., or --api-key-env none for a server that "
+                                        "needs no key")
         return key
 
     def _client(self) -> openai.OpenAI:
