@@ -900,3 +900,27 @@ def test_a_missing_key_names_the_flag_that_changes_it(tmp_path, monkeypatch):
         OpenAIChatClient(ClientConfig(base_url="http://127.0.0.1:9/v1", model="m",
                                       api_key_env="EFFICIENTEQA_TEST_KEY"))
     assert "--api-key-env none" in str(raised.value) and "None" not in str(raised.value)
+
+
+@pytest.mark.slow
+def test_the_projects_own_server_works_through_openai_as_through_local(llama_server, private_cache):
+    """`--vlm openai:MODEL@URL` against the llama-cpp-python server `models serve` runs: the
+    probe passes (the server's HTTP 500 to a JSON schema reads as not supported) and the
+    replies are the ones `local:` gets from the same server."""
+    openai_model = build_chat_model(ChatBackend(kind="openai", model="smollm2-135m",
+                                                base_url=llama_server, retries=0, timeout_s=60))
+    caps = openai_model.capabilities
+    assert caps.source == "probed" and caps.logprobs
+    assert caps.probed["json_schema"] in ("accepted", "failed: HTTP 500, read as not supported")
+    print(f"\nllama-cpp-python server probed: {caps.probed}")
+    local_model = build_chat_model(ChatBackend(kind="local", model="smollm2-135m",
+                                               base_url=llama_server, timeout_s=60))
+    messages = [Message("user", "Answer with one letter. Is the sky blue? A: yes, B: no.")]
+    a = openai_model.chat(messages, max_tokens=4, logprobs=3, temperature=0.0)
+    b = local_model.chat(messages, max_tokens=4, logprobs=3, temperature=0.0)
+    assert a.text == b.text and a.logprobs and b.logprobs
+    # the same tokens and alternatives; the values agree up to llama.cpp's run-to-run noise
+    # (its prompt cache evaluates a repeated prefix in another batch: about 0.04 nats here)
+    assert [t.token for t in a.logprobs] == [t.token for t in b.logprobs]
+    assert [lp.logprob for lp in a.logprobs] == pytest.approx([lp.logprob for lp in b.logprobs],
+                                                             abs=0.15)
