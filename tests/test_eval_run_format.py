@@ -246,3 +246,20 @@ def test_an_openai_run_recorded_before_the_image_settings_sent_png():
     assert upgrade({"stack": {**stack, "image_format": None}})["stack"]["image_format"] == "auto"
     local = {k: v for k, v in asdict(Stack()).items() if k not in STACK_DEFAULTS}
     assert upgrade({"stack": local})["stack"]["image_format"] == "auto"  # PNG either way
+
+
+def test_a_refused_resume_says_what_changed_without_a_urls_password(tmp_path):
+    """The server's URL changed: the error names the VLM it was and is, not just "another
+    stack", and leaves a password in the URL out."""
+    from efficienteqa.eval.records import open_run
+
+    spec = main_table_spec("default")
+    run = manifest(spec, 48)
+    run["stack"] = {**run["stack"], "vlm": "openai:m@http://alice:s3cret@10.0.0.1:8000/v1"}
+    open_run(tmp_path, run)
+    moved = {**run, "stack": {**run["stack"], "vlm": "openai:m@http://10.0.0.2:8000/v1"}}
+    with pytest.raises(EfficientEQAError) as raised:
+        open_run(tmp_path, moved)
+    said = str(raised.value)
+    assert "another stack (vlm: openai:m@http://10.0.0.1:8000/v1 -> openai:m@http://10.0.0.2:8000/v1)" in said
+    assert "s3cret" not in said and "alice" not in said

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -141,9 +142,11 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
         differs = [k for k in RUN_IDENTITY if _identity(k, earlier) != _identity(k, manifest)]
         differs += [k for k in SCENE_IDENTITY if k in earlier and earlier[k] != manifest.get(k)]
         if differs:
+            changed = _changes(differs, earlier, manifest)
             raise EfficientEQAError(
-                f"{out} holds a run with another {', '.join(differs)}",
-                fix="use a new --out folder for a new configuration")
+                f"{out} holds a run with another {', '.join(differs)}"
+                + (f" ({changed})" if changed else ""),
+                fix="use a new --out folder for a new configuration, or the run's own settings")
     elif read_episodes(out / EPISODES_FILE).by_id:
         raise EfficientEQAError(f"{out} holds episodes but no {RUN_FILE}, so what ran them is "
                                 "unknown", fix="use a new --out folder")
@@ -208,6 +211,27 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
             out[key] = config
     out["format"] = RUN_FORMAT
     return out
+
+
+def _changes(keys: list[str], earlier: dict[str, Any], now: dict[str, Any],
+             limit: int = 4) -> str:
+    """The settings that differ, as "name: was -> now" (a nested setting by its own name, e.g.
+    the stack's vlm when the server's URL changed); passwords in URLs are left out."""
+    said: list[str] = []
+    for key in keys:
+        before, after = _identity(key, earlier), _identity(key, now)
+        if isinstance(before, dict) and isinstance(after, dict):
+            said += [f"{k}: {_shown(before.get(k))} -> {_shown(after.get(k))}"
+                     for k in sorted(set(before) | set(after)) if before.get(k) != after.get(k)]
+        else:
+            said.append(f"{key}: {_shown(before)} -> {_shown(after)}")
+    return "; ".join(said[:limit]) + ("; ..." if len(said) > limit else "")
+
+
+def _shown(value: Any) -> str:
+    """A setting as an error line shows it: short, and without a URL's user and password."""
+    text = re.sub(r"//[^/@\s]+@", "//", json.dumps(value) if not isinstance(value, str) else value)
+    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def _identity(key: str, manifest: dict[str, Any]) -> Any:
