@@ -924,3 +924,46 @@ def test_the_projects_own_server_works_through_openai_as_through_local(llama_ser
     assert [t.token for t in a.logprobs] == [t.token for t in b.logprobs]
     assert [lp.logprob for lp in a.logprobs] == pytest.approx([lp.logprob for lp in b.logprobs],
                                                              abs=0.15)
+
+
+# ------------------------------------------------------------------ --capabilities FILE
+
+def test_a_capabilities_file_stands_in_for_the_probe(serve, private_cache, tmp_path):
+    """A server whose answers mislead the probe: the user says what it can do, and it is not
+    asked."""
+    server = serve(Reply(body=completion()))
+    declared = tmp_path / "caps.json"
+    declared.write_text('{"logprobs": true, "json_schema": false, "images": true, "max_images": 1}')
+    client = build_chat_model(openai_backend(server, images=True,
+                                             capabilities_file=str(declared)))
+    caps = client.capabilities
+    assert server.requests == []
+    assert (caps.logprobs, caps.json_schema, caps.images, caps.max_images, caps.source) == (
+        True, False, True, 1, "file")
+    text_only = build_chat_model(openai_backend(server, capabilities_file=str(declared)))
+    assert not text_only.capabilities.images  # images only where the run reads them
+
+
+@pytest.mark.parametrize("text, said", [
+    ("not json", "is not JSON"), ("[1, 2]", "holds no JSON object"),
+    ('{"logprobs": "yes"}', "bad entry 'logprobs'"), ('{"max_images": true}', "bad entry"),
+    ('{"max_images": 0}', "allows 0 images"), ('{"speed": 3}', "bad entry 'speed'")])
+def test_a_bad_capabilities_file_is_one_line_before_any_work(tmp_path, text, said):
+    from efficienteqa.stack import parse_vlm
+
+    bad = tmp_path / "caps.json"
+    bad.write_text(text)
+    with pytest.raises(EfficientEQAError, match=said) as raised:
+        parse_vlm("openai:m@http://127.0.0.1:9/v1", images=False, capabilities=str(bad))
+    assert "\n" not in str(raised.value)
+
+
+def test_capabilities_are_refused_for_the_embedded_server_and_a_missing_file_is_said(tmp_path):
+    from efficienteqa.stack import parse_vlm
+
+    good = tmp_path / "caps.json"
+    good.write_text("{}")
+    with pytest.raises(EfficientEQAError, match="embedded one"):
+        parse_vlm("local:qwen2.5-coder-1.5b", images=False, capabilities=str(good))
+    with pytest.raises(EfficientEQAError, match="cannot read the capabilities file"):
+        parse_vlm("openai:m", images=False, capabilities=str(tmp_path / "missing.json"))

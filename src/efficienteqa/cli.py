@@ -155,6 +155,11 @@ ImageFormat = Annotated[str | None, _option(BACKENDS,
 ImageMaxSide = Annotated[int | None, _option(BACKENDS,
     "--image-max-side", help="Images are shrunk to this longer side in px (default 512).",
     show_default=False)]
+CapabilitiesFile = Annotated[str | None, _option(BACKENDS,
+    "--capabilities", help="A JSON file of what the --vlm openai: server can do, e.g. "
+    '{"logprobs": true, "json_schema": false, "images": true, "max_images": 1}, in place of '
+    "asking it (for a server whose answers mislead the probe; a flag left out is off).",
+    show_default=False)]
 ImageDetail = Annotated[str | None, _option(BACKENDS,
     "--image-detail", help="auto | low | high: OpenAI's image_url.detail (default: not sent, "
     "the server's own).", show_default=False)]
@@ -283,6 +288,7 @@ def ask_command(
     image_format: ImageFormat = None,
     image_max_side: ImageMaxSide = None,
     image_detail: ImageDetail = None,
+    capabilities: CapabilitiesFile = None,
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
     device: Device = None,
@@ -443,6 +449,7 @@ def eval_command(
     image_format: ImageFormat = None,
     image_max_side: ImageMaxSide = None,
     image_detail: ImageDetail = None,
+    capabilities: CapabilitiesFile = None,
     perception: PerceptionOpt = None,
     relevancy: Relevancy = None,
     device: Device = None,

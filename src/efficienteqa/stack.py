@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import Agent, AgentConfig
@@ -23,7 +24,12 @@ from efficienteqa.explore.text_scorers import (
     LogitDirections,
 )
 from efficienteqa.explore.vlm_scorer import VLMScorer
-from efficienteqa.models.backends import CHAT_BACKENDS, ChatBackend, build_chat_model
+from efficienteqa.models.backends import (
+    CHAT_BACKENDS,
+    ChatBackend,
+    build_chat_model,
+    read_capabilities,
+)
 from efficienteqa.models.base import ChatModel
 from efficienteqa.models.client import IMAGE_DETAILS, IMAGE_FORMATS
 from efficienteqa.models.local.weights import DEFAULT_MODEL
@@ -57,7 +63,9 @@ class Stack:
     ``timeout_s`` and ``retries`` of each call, ``api_key_env`` (the variable whose key is sent,
     or "none"), ``image_format`` (``IMAGE_FORMAT_AUTO`` | png | jpeg; auto: jpeg for openai:
     servers, png for the local one), ``image_max_side`` (px) and ``image_detail`` (auto | low |
-    high). ``server_options()`` gives them as ``parse_vlm``'s keywords.
+    high), ``capabilities`` (a JSON file of what an openai: server can do, in place of its
+    probe: ``models.backends.read_capabilities``). ``server_options()`` gives them as
+    ``parse_vlm``'s keywords.
 
     The relevancy model's (``build_relevancy``): ``device`` (auto | cpu | cuda | cuda:N; auto:
     the GPU torch sees, in float16, else the CPU), ``relevancy_weights`` (a local folder with
@@ -76,6 +84,7 @@ class Stack:
     image_format: str = IMAGE_FORMAT_AUTO
     image_max_side: int = 512
     image_detail: str | None = None
+    capabilities: str | None = None
     device: str = "auto"
     relevancy_weights: str | None = None
     allow_download: bool = False
@@ -83,14 +92,15 @@ class Stack:
     def server_options(self) -> dict[str, Any]:
         return {"timeout_s": self.timeout_s, "retries": self.retries,
                 "api_key_env": self.api_key_env, "image_format": self.image_format,
-                "image_max_side": self.image_max_side, "image_detail": self.image_detail}
+                "image_max_side": self.image_max_side, "image_detail": self.image_detail,
+                "capabilities": self.capabilities}
 
 
 def parse_vlm(spec: str, images: bool, cache: bool = True,
               temperature: float | None = None, *, timeout_s: float | None = None,
               retries: int | None = None, api_key_env: str | None = None,
               image_format: str | None = None, image_max_side: int | None = None,
-              image_detail: str | None = None) -> ChatBackend:
+              image_detail: str | None = None, capabilities: str | None = None) -> ChatBackend:
     """The back-end of a VLM spec and the server options (None, and an ``image_format`` of
     ``IMAGE_FORMAT_AUTO``: ``ChatBackend``'s default); a bad value fails here, in one line,
     before anything is built."""
@@ -120,9 +130,16 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
     if image_max_side is not None and image_max_side < 16:
         raise EfficientEQAError(f"image max side {image_max_side} px is too small",
                                 fix="use --image-max-side 16 or more (e.g. 512)")
+    if capabilities is not None:
+        if kind != "openai":
+            raise EfficientEQAError(f"--capabilities describes an openai: server; {spec} is the "
+                                    "embedded one, whose capabilities are known",
+                                    fix="leave out --capabilities, or use --vlm openai:MODEL@URL")
+        read_capabilities(Path(capabilities), images)  # a bad file fails here, before the work
     options: dict[str, Any] = {"timeout_s": timeout_s, "retries": retries,
                                "api_key_env": api_key_env, "image_format": image_format,
-                               "image_max_side": image_max_side, "image_detail": image_detail}
+                               "image_max_side": image_max_side, "image_detail": image_detail,
+                               "capabilities_file": capabilities}
     return ChatBackend(kind=kind, model=model, base_url=url or None, images=images, cache=cache,
                        temperature=temperature,
                        **{k: v for k, v in options.items() if v is not None})

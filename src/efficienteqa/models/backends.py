@@ -3,9 +3,12 @@ share one client (``OpenAIChatClient``); only the URL, the model and the capabil
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, replace
+from pathlib import Path
 from urllib.parse import urlsplit
 
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatModel
 from efficienteqa.models.client import ClientConfig, OpenAIChatClient
 from efficienteqa.models.local.weights import DEFAULT_MODEL
@@ -63,6 +66,8 @@ class ChatBackend:
     image_max_side: int = 512
     image_detail: str | None = None
     probe: bool = True
+    # a JSON file of what the server can do (``read_capabilities``), in place of the probe
+    capabilities_file: str | None = None
 
     @property
     def key_env(self) -> str | None:
@@ -108,9 +113,49 @@ def _openai(backend: ChatBackend) -> ChatModel:
         cache_server=base_url,
         unreachable_fix=f"check that the server of --vlm {model_spec} is running and that the "
                         "URL is right (it usually ends in /v1)"))
-    if backend.probe:
+    if backend.capabilities_file is not None:
+        client.declare(read_capabilities(Path(backend.capabilities_file), backend.images))
+    elif backend.probe:
         client.probe(images=backend.images)
     return client
+
+
+CAPABILITY_FIELDS = ("logprobs", "json_schema", "images", "grammar", "max_images")
+
+
+def read_capabilities(path: Path, images: bool = True) -> Capabilities:
+    """What a server can do, as the user wrote it (``--capabilities FILE``: a JSON object of
+    ``CAPABILITY_FIELDS``, e.g. ``{"logprobs": true, "json_schema": false}``; a flag left out is
+    off, ``images`` only where the run reads images): for a server whose answers to the probe
+    mislead. One-line errors for a file that cannot be read or holds anything else."""
+    fix = ('write a JSON object such as {"logprobs": true, "json_schema": false, "images": true, '
+           '"max_images": 1}')
+    try:
+        data = json.loads(Path(path).read_text())
+    except OSError as error:
+        raise EfficientEQAError(f"cannot read the capabilities file {path}: "
+                                f"{error.strerror or error}", fix=fix) from None
+    except ValueError as error:
+        raise EfficientEQAError(f"the capabilities file {path} is not JSON: {error}",
+                                fix=fix) from None
+    if not isinstance(data, dict):
+        raise EfficientEQAError(f"the capabilities file {path} holds no JSON object", fix=fix)
+    for key, value in data.items():
+        ok = key in CAPABILITY_FIELDS and (
+            isinstance(value, bool) if key != "max_images"
+            else value is None or (isinstance(value, int) and not isinstance(value, bool)))
+        if not ok:
+            raise EfficientEQAError(f"the capabilities file {path} has a bad entry {key!r}: "
+                                    f"{value!r}", fix=fix)
+    max_images = data.get("max_images")
+    if max_images is not None and max_images < 1:
+        raise EfficientEQAError(f"the capabilities file {path} allows {max_images} images",
+                                fix="give max_images 1 or more, or null for no cap")
+    return Capabilities(images=images and bool(data.get("images", False)),
+                        logprobs=bool(data.get("logprobs", False)),
+                        json_schema=bool(data.get("json_schema", False)),
+                        grammar=bool(data.get("grammar", False)), max_images=max_images,
+                        source="file", probed={"file": str(path)})
 
 
 CHAT_BACKENDS: Registry[ChatModel] = Registry("chat back-end")

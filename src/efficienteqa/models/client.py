@@ -334,6 +334,11 @@ class OpenAIChatClient:
             log.warning("cannot keep the probe of %s (%s)", self.url, _one_line(str(error)))
         return self._capabilities
 
+    def declare(self, capabilities: Capabilities) -> Capabilities:
+        """Take ``capabilities`` as the server's, without asking it (``--capabilities FILE``)."""
+        self._capabilities = capabilities
+        return capabilities
+
     def forget_probe(self) -> None:
         """Drop this server's kept probe: the next ``probe`` asks the server again."""
         self._probe_path().unlink(missing_ok=True)
