@@ -225,8 +225,9 @@ def test_every_default_is_a_value_but_those_whose_none_is_one_of_its_own():
     for "a default decided elsewhere"; a default that follows something else is a named value
     ("auto": the relevancy device, the image format of the server). A None left is a value of
     its own: ``max_steps``, the scene's budget; the server's timeout, retries and key variable
-    and the image detail, not sent (the back-end's own); the relevancy weights' folder, not
-    given. A new setting gets a value; runs recorded before it are read by records.upgrade."""
+    and the image detail, not sent (the back-end's own); the relevancy weights' folder and the
+    capabilities file, not given (the server is probed). A new setting gets a value; runs
+    recorded before it are read by records.upgrade."""
     import dataclasses
 
     from efficienteqa.stop.rules import StopConfig
@@ -238,7 +239,7 @@ def test_every_default_is_a_value_but_those_whose_none_is_one_of_its_own():
     assert none_by_default(AgentConfig) == {"max_steps"}
     assert none_by_default(StopConfig) == set()
     assert none_by_default(Stack) == {"timeout_s", "retries", "api_key_env", "image_detail",
-                                      "relevancy_weights"}
+                                      "relevancy_weights", "capabilities"}
 
 
 def test_run_json_records_what_an_agent_methods_episodes_ran_with():
