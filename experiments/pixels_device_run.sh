@@ -10,18 +10,19 @@
 T0=$(date +%s); el() { echo $(( $(date +%s) - T0 )); }
 FIRST=${1:-3000}; MAXH=${2:-480}; RENDER_END=${3:-250}; TRAIN_END=${4:-480}; MAXSTEPS=${MAXSTEPS:-7000}
 BATCH=${BATCH:-16}; FRAMES=${FRAMES:-24}; WORKERS=${WORKERS:-16}
-R=$PWD; D=${DATA:-/tmp/data}; V=/tmp/valdata; OUT=${OUT:-/tmp/out}; mkdir -p $OUT $D $V
+R=$PWD; WORK=${WORK:-$(mktemp -d)}  # scratch space: the data, the wheels, the output
+D=${DATA:-$WORK/data}; V=$WORK/valdata; OUT=${OUT:-$WORK/out}; mkdir -p $OUT $D $V
 export PYTHONUNBUFFERED=1
 if [ -n "$ON_DEVICE" ]; then for f in .devrun/gl/*.deb; do dpkg -x $f /; done; ldconfig; fi
 if [ -n "$ON_DEVICE" ] && ! python3 -c "import moderngl" 2>/dev/null; then
-  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .devrun/whl/*.whl || exit 2
-  export PYTHONPATH=/tmp/site
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target $WORK/site .devrun/whl/*.whl || exit 2
+  export PYTHONPATH=$WORK/site
 fi
 export PYTHONPATH=$R/.devrun/src:$R/.devrun:${PYTHONPATH}
 export EFFICIENTEQA_CACHE=$R/.devrun/cache EFFICIENTEQA_CODE_VERSION=$(cat .devrun/VERSION)
 if [ -n "$FAKE_SH3F" ]; then  # the cached conversion only checks the source's size and mtime
-  mkdir -p /tmp/sh3f; truncate -s 24649303 /tmp/sh3f/BlendSwap-CC-0.sh3f
-  touch -d @1608597687 /tmp/sh3f/BlendSwap-CC-0.sh3f; export EFFICIENTEQA_FURNITURE_DIR=/tmp/sh3f
+  mkdir -p $WORK/sh3f; truncate -s 24649303 $WORK/sh3f/BlendSwap-CC-0.sh3f
+  touch -d @1608597687 $WORK/sh3f/BlendSwap-CC-0.sh3f; export EFFICIENTEQA_FURNITURE_DIR=$WORK/sh3f
 fi
 PY=${PY:-python3}
 EEQA() { $PY -c "import sys; from efficienteqa.cli import main; sys.argv[0]='efficienteqa'; main()" "$@"; }
@@ -55,14 +56,14 @@ RATE=$($PY .devrun/tools/rate.py ${DEVICE:-cuda} $BATCH 40 2 | tee -a $OUT/bench
 NOW=$(el); AVAIL=$(( TRAIN_END - NOW - 60 ))
 STEPS=$($PY -c "print(max(20, min($MAXSTEPS, int(0.85 * $RATE * $AVAIL))))")
 echo "[$(el)s] rate $RATE steps/s, avail ${AVAIL}s -> $STEPS steps"
-cp .devrun/src/efficienteqa/perception/pixels/weights/pixels.pt /tmp/committed.pt; cp .devrun/src/efficienteqa/perception/pixels/weights/pixels.json /tmp/committed.json
+cp .devrun/src/efficienteqa/perception/pixels/weights/pixels.pt $WORK/committed.pt; cp .devrun/src/efficienteqa/perception/pixels/weights/pixels.json $WORK/committed.json
 MIN=$($PY -c "print(round(($TRAIN_END - $NOW - 20) / 60, 2))")
 EEQA perception train --data $D --out src/efficienteqa/perception/pixels/weights/pixels.pt --steps $STEPS --seed 0 --batch $BATCH --minutes $MIN --threads 2 --device ${DEVICE:-cuda} > $OUT/train.log 2>&1
 tail -3 $OUT/train.log
 cp src/efficienteqa/perception/pixels/weights/pixels.pt src/efficienteqa/perception/pixels/weights/pixels.json $OUT/
 echo "[$(el)s] benchmarks on 2 cores"
 if [ $(el) -lt ${BENCH_BY:-520} ]; then
-  for w in /tmp/committed.pt src/efficienteqa/perception/pixels/weights/pixels.pt; do
+  for w in $WORK/committed.pt src/efficienteqa/perception/pixels/weights/pixels.pt; do
     echo "== $w" >> $OUT/bench.txt
     taskset -c 0,1 $PY -m benchmarks.pixels_bench --frames 10 --weights $w >> $OUT/bench.txt 2>&1
   done
