@@ -121,7 +121,7 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
     instance_small = np.where(small == 0, -1, 0).astype(np.int32)
     instance_small[depth_small <= 0] = -1
     proposed = regions_of(small, depth_small, first_object, classes.confidence)
-    points = backproject(depth_small, _scaled(intrinsics, fy, fx), cam_to_world)
+    points = backproject(depth_small, scaled_intrinsics(intrinsics, fy, fx), cam_to_world)
     fused = fused_support(proposed, points, evidence)
     regions = merge_fragments(
         [(category, mask) for (category, mask, sure), together in zip(proposed, fused)
@@ -179,7 +179,7 @@ def floor_types(categories: Sequence[str]) -> list[str]:
     return [n[len(FLOOR_PREFIX):] for n in categories if n.startswith(FLOOR_PREFIX)]
 
 
-def _scaled(intrinsics: np.ndarray, fy: int, fx: int) -> np.ndarray:
+def scaled_intrinsics(intrinsics: np.ndarray, fy: int, fx: int) -> np.ndarray:
     k = intrinsics.astype(np.float64).copy()
     k[0] /= fx
     k[1] /= fy
@@ -191,7 +191,7 @@ def _floor_points(small: np.ndarray, is_floor: np.ndarray, depth_m: np.ndarray,
                   ) -> tuple[np.ndarray, np.ndarray]:
     """World xy and category of each predicted floor pixel at floor height (half size)."""
     depth_small = depth_m[fy // 2::fy, fx // 2::fx]
-    points = backproject(depth_small, _scaled(intrinsics, fy, fx), cam_to_world)
+    points = backproject(depth_small, scaled_intrinsics(intrinsics, fy, fx), cam_to_world)
     floor = is_floor[small] & (depth_small > 0) & (np.abs(points[..., 2]) < FLOOR_TOLERANCE_M)
     return points[floor][:, :2], small[floor]
 

@@ -28,19 +28,19 @@ from efficienteqa.envs.base import SceneLabels
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import backproject
 from efficienteqa.observation import Observation
+from efficienteqa.perception.pixels.evaluate import COVER, ORACLE_PIXELS
 from efficienteqa.perception.pixels.fusion import ObjectEvidence
 from efficienteqa.perception.pixels.segment import (
     MIN_CONFIDENCE,
     PixelClasses,
     fused_support,
     regions_of,
+    scaled_intrinsics,
 )
 from efficienteqa.perception.semantic import scaled_min_pixels, visible_objects
 
 GRID = tuple(round(0.05 * k, 2) for k in range(4, 19))  # 0.2 ... 0.9, the thresholds tried
 MIN_OBJECTS = 8  # fewer objects of a category in view: its threshold stays MIN_CONFIDENCE
-COVER = 0.5  # as evaluate.COVER: found when kept regions cover this share of an object
-ORACLE_PIXELS = 250  # as evaluate.ORACLE_PIXELS: an object "in view" at 640x480
 
 
 @dataclass
@@ -99,10 +99,8 @@ def _add_frame(obs: Observation, truth: SceneLabels, classes: PixelClasses,
     names = list(classes.categories)
     depth_small = obs.depth_m[fy // 2::fy, fx // 2::fx]
     regions = regions_of(classes.category, depth_small, names.index("door"), classes.confidence)
-    k = obs.intrinsics.astype(np.float64).copy()
-    k[0] /= fx
-    k[1] /= fy
-    fused = fused_support(regions, backproject(depth_small, k, obs.cam_to_world), evidence)
+    points = backproject(depth_small, scaled_intrinsics(obs.intrinsics, fy, fx), obs.cam_to_world)
+    fused = fused_support(regions, points, evidence)
     every = visible_objects(obs, truth, 1)
     true_category = np.full((h, w), "", dtype=object)
     for o in every:
