@@ -2,9 +2,9 @@
 
 It runs on 127.0.0.1 (port 0: a free one) in a thread, answers ``POST /v1/chat/completions``
 and ``GET /v1/models``, checks every image it is sent and records every request. It answers the
-project's prompts (explore, worth exploring, relevancy match, the gate, the answers, grouping,
-the judge, the probe) in the format they ask for, in one of several ``STYLES``, deterministically
-(the same request gets the same reply). ``Options`` says how it behaves, e.g. like GPT-4o
+project's prompts (explore, worth exploring, relevancy match, the gate, the sightings, the
+answers, grouping, the judge, the probe) in the format they ask for, in one of several
+``STYLES``, deterministically (the same request gets the same reply). ``Options`` says how it behaves, e.g. like GPT-4o
 (logprobs returned, any number of images), like vLLM with ``--limit-mm-per-prompt image=1``
 (``max_images=1``), like a server that ignores or rejects logprobs, hangs, or cuts replies at
 ``max_tokens``.
@@ -44,7 +44,7 @@ from typing import Any
 
 from PIL import Image
 
-STYLES = ("exact", "markdown", "preamble", "json", "reasoning")
+STYLES = ("exact", "markdown", "preamble", "json", "reasoning", "refuse")
 # vLLM's answer to more images than --limit-mm-per-prompt allows (HTTP 400).
 VLLM_IMAGE_LIMIT = "At most {n} image(s) may be provided in one request."
 
@@ -55,7 +55,7 @@ class Options:
 
     ``style``: how replies are written: "exact" (the asked format), "markdown" (bold, ``%``),
     "preamble" (a sentence before), "json" (JSON in a code fence), "reasoning" (a few sentences
-    of reasoning, then the asked format).
+    of reasoning, then the asked format), "refuse" (a refusal to every request but the probes).
     ``logprobs``: "return" (chat-style ``content`` with ``top_logprobs``), "ignore" (a reply
     without them), "reject" (HTTP 400, as a server without logprobs support).
     ``json_schema``: "accept" (the reply is a JSON instance of the schema) or "reject" (400).
@@ -130,6 +130,8 @@ def classify(text: str, images: int = 0) -> str:
         return "explore-direction"  # explore_direction.txt
     if t.startswith("Is this view worth exploring"):
         return "worth-token" if "Reply with yes or no only" in t else "worth"
+    if "Say what this view shows, as one JSON object" in t:
+        return "sightings"  # perception/prompts/sightings.txt
     if "Does this view of a home show what the question asks about" in t:
         return "match"  # relevancy/prompts/match.txt (also the model gate)
     if "Do these two answers mean the same thing" in t:
@@ -227,6 +229,8 @@ def compose(kind: str, text: str, images: int, seed: int) -> Reply:
     if kind == "match":
         return Reply(f"{yn} {conf}", {"answer": yn, "confidence": conf},
                      "I looked for what the question names in the view.")
+    if kind == "sightings":
+        return _sightings(text, images, seed, question)
     if kind == "blind-choice":
         letters = re.findall(r"^([A-H])[.)]", text, re.MULTILINE) or ["A"]
         letter = letters[seed % len(letters)]
@@ -252,11 +256,38 @@ def compose(kind: str, text: str, images: int, seed: int) -> Reply:
     return Reply("I don't know.", {"answer": "I don't know."}, "I am not sure what is asked.")
 
 
+SIGHTING_ROOMS = ("kitchen", "living room", "bedroom", "bathroom", "hallway", "office")
+
+
+def _sightings(text: str, images: int, seed: int, question: str) -> Reply:
+    """A sighting reply: the room the question names two times in three (else another), the
+    first of the target's names with a box (an image) or the first listed item (a text view),
+    a doorway to another room every other time."""
+    named = next((r for r in SIGHTING_ROOMS if r in question.lower()), None)
+    others = [r for r in SIGHTING_ROOMS if r != named]
+    room = named if named is not None and seed % 3 else others[seed % len(others)]
+    names = re.findall(r'"([^"]+)"', text.split('"name": one of', 1)[1].split("}", 1)[0]) \
+        if '"name": one of' in text else []
+    where: dict[str, Any] = ({"box": [250 + seed % 200, 350, 650 + seed % 200, 950]} if images
+                             else {"item": 1})
+    data: dict[str, Any] = {"room": room, "doorways": [], "things": []}
+    if names and seed % 5:
+        data["things"].append({"name": names[0], **where})
+    if seed % 2 and images:
+        data["doorways"].append({"room": others[(seed // 2) % len(others)],
+                                 "box": [800, 300, 1000, 900]})
+    return Reply(json.dumps(data), data, "I looked at the floor, the walls and the furniture.")
+
+
 def styled(reply: Reply, style: str, kind: str) -> str:
     """``reply`` written in ``style`` (see ``Options``). Probes are answered exactly: a server
     writes prose to a question, not to a one-token probe."""
     if style == "exact" or kind.startswith("probe"):
         return reply.exact
+    if style == "refuse":
+        return "I'm sorry, but I can't help with that."
+    if style == "markdown" and kind == "sightings":  # JSON is written in a code fence
+        return "```json\n" + reply.exact + "\n```"
     if style == "markdown":
         lines = []
         for line in reply.exact.splitlines():
@@ -501,7 +532,9 @@ class VLMServer:
         if isinstance(fmt, dict) and fmt.get("type") == "json_schema":
             if o.json_schema == "reject":
                 return self._error(400, "response_format json_schema is not supported")
-            reply_text = json.dumps(schema_instance(fmt.get("json_schema") or {}, seed))
+            reply_text = (compose(seen.kind, text, len(images), seed).exact
+                          if seen.kind == "sightings"  # an instance that says something
+                          else json.dumps(schema_instance(fmt.get("json_schema") or {}, seed)))
         else:
             reply_text = styled(compose(seen.kind, text, len(images), seed), o.style, seen.kind)
         finish = "stop"

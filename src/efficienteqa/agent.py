@@ -300,15 +300,18 @@ class Agent:
     def _calls_since(self, n: int) -> list[int]:
         return list(range(n, len(self.exchanges.exchanges))) if self.exchanges is not None else []
 
-    def _problems_said(self) -> tuple[int, int]:
-        """How many problems the relevancy scorer and the gate have noted so far."""
+    def _problems_said(self) -> tuple[int, int, int]:
+        """How many problems the relevancy scorer, the gate and the model's sightings have
+        noted so far."""
         return (len(getattr(self.relevancy, "problems", ())),
-                len(getattr(self.gate, "problems", ())))
+                len(getattr(self.gate, "problems", ())),
+                len(getattr(self.perception, "problems", ())))
 
-    def _problems_since(self, said: tuple[int, int]) -> list[str]:
-        """The relevancy scorer's and the gate's problems noted since ``_problems_said``."""
+    def _problems_since(self, said: tuple[int, int, int]) -> list[str]:
+        """The problems noted since ``_problems_said``."""
         return [*getattr(self.relevancy, "problems", [])[said[0]:],
-                *(f"gate: {p}" for p in getattr(self.gate, "problems", [])[said[1]:])]
+                *(f"gate: {p}" for p in getattr(self.gate, "problems", [])[said[1]:]),
+                *(f"sightings: {p}" for p in getattr(self.perception, "problems", [])[said[2]:])]
 
     def _n_calls(self) -> int:
         return len(self.exchanges.exchanges) if self.exchanges is not None else 0
@@ -339,6 +342,9 @@ class Agent:
                                 self.scorer, seed=cfg.seed, prompts=prompts, target=target)
         sightings = (getattr(self.perception, "sightings", None)
                      if isinstance(explorer, Steered) else None)
+        ask_about = getattr(self.perception, "ask_about", None)  # model sightings: the question
+        if ask_about is not None:
+            ask_about(question)
         gate = self.gate if cfg.gate != "none" else None
         if gate is not None:
             gate.reset()
@@ -368,7 +374,8 @@ class Agent:
             elif record.valid:
                 eligible: bool | None = None
                 if gate is not None and gate.eager:  # a cheap gate judges every frame
-                    verdict = gate.check(question, target, obs, frame)
+                    with self._phase(f"step {step}"):  # model sightings are a call
+                        verdict = gate.check(question, target, obs, frame)
                     record.gate = {"ok": verdict.ok, "why": verdict.why}
                     eligible = verdict.ok
                 record.check = stopper.check(step, sim, eligible)

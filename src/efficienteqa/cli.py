@@ -97,9 +97,10 @@ Exploration = Annotated[str | None, _option(BEYOND,
     help="The frontier explorer's options beyond the paper: default, or paper (DESIGN 3.2's "
     "explorer, every one off).", show_default=False)]
 Gate = Annotated[str | None, _option(BEYOND,
-    help="The answerability gate a relevancy stop must pass: auto (default: rules with the "
-    "semantic perception, else model), rules (the question's target in the frame's "
-    "description), model (one yes/no call to the VLM) or none (the paper's stop).",
+    help="The answerability gate a relevancy stop must pass: auto (default: rules with a "
+    "perception that describes objects, sightings with the VLM's sightings, else model), rules "
+    "(the question's target in the frame's description), sightings (the target in the frame's "
+    "sightings), model (one yes/no call to the VLM) or none (the paper's stop).",
     show_default=False)]
 Steering = Annotated[str | None, _option(BEYOND,
     help="target (default: go to the room the question names, inspect what it asks about, "
@@ -169,6 +170,11 @@ PerceptionOpt = Annotated[str | None, _option(BACKENDS,
     "--perception", help="semantic (object labels as text; default) | pixels (RGB-D read by the "
     "project's own network, described as text) | rgb (images, needs an image VLM).",
     show_default=False)]
+SightingsOpt = Annotated[str | None, _option(BACKENDS,
+    "--sightings", help="Where the steering and the sightings gate learn what a frame shows of "
+    "rooms and of the question's target: auto (default: the perception's own; with rgb, the "
+    "VLM's) | perception | model (one call to the VLM per step: boxes over the image, or "
+    "numbers of the description's objects).", show_default=False)]
 Relevancy = Annotated[str | None, _option(BACKENDS,
     help="minilm (default over text) | minilm-match (MiniLM calibrated to a match probability) | "
     "overlap | vlm-match (the VLM answers 'does this view show it?'; default over images) | "
@@ -290,6 +296,7 @@ def ask_command(
     image_detail: ImageDetail = None,
     capabilities: CapabilitiesFile = None,
     perception: PerceptionOpt = None,
+    sightings: SightingsOpt = None,
     relevancy: Relevancy = None,
     device: Device = None,
     relevancy_weights: RelevancyWeights = None,
@@ -451,6 +458,7 @@ def eval_command(
     image_detail: ImageDetail = None,
     capabilities: CapabilitiesFile = None,
     perception: PerceptionOpt = None,
+    sightings: SightingsOpt = None,
     relevancy: Relevancy = None,
     device: Device = None,
     relevancy_weights: RelevancyWeights = None,

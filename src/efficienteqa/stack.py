@@ -35,12 +35,13 @@ from efficienteqa.models.client import IMAGE_DETAILS, IMAGE_FORMATS
 from efficienteqa.models.local.weights import DEFAULT_MODEL
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
+from efficienteqa.perception.sightings import ModelSightings
 from efficienteqa.reading.aliases import AliasResolver
 from efficienteqa.reading.reader import ModelReader
 from efficienteqa.reading.target import TargetReading
 from efficienteqa.registry import Registry
 from efficienteqa.relevancy.base import SCORERS, RelevancyScorer, make_scorer
-from efficienteqa.stop.gate import AnswerGate, ModelGate, RulesGate
+from efficienteqa.stop.gate import AnswerGate, ModelGate, RulesGate, SightingsGate
 from efficienteqa.vc.grouping import Grouper, LLMGrouper, RuleGrouper
 from efficienteqa.vc.parse import M
 
@@ -73,6 +74,7 @@ class Stack:
 
     vlm: str = f"local:{DEFAULT_MODEL}"
     perception: str = "semantic"
+    sightings: str = "auto"
     relevancy: str = "minilm"
     grouping: str = "llm"
     cache: bool = True
@@ -184,6 +186,10 @@ def check_stack(stack: Stack) -> None:
         from efficienteqa.relevancy.base import resolve_device
 
         resolve_device(stack.device)
+    SIGHTINGS.check(stack.sightings)
+    if stack.sightings == "perception" and stack.perception == "rgb":
+        raise EfficientEQAError("rgb perception gives no sightings of its own",
+                                fix="use --sightings model (one call to the VLM per step)")
     if stack.relevancy in TEXT_RELEVANCY and stack.perception == "rgb":
         raise EfficientEQAError(
             f"relevancy scorer {stack.relevancy!r} reads text, but --perception rgb gives images",
@@ -304,8 +310,31 @@ def build_grouper(name: str, model: ChatModel, relevancy: RelevancyScorer) -> Gr
     return GROUPINGS.build(name, model=model, relevancy=relevancy)
 
 
+def _own_or_model(perception: Perception, model: ChatModel, **_: Any) -> Perception:
+    return perception if hasattr(perception, "sightings") else ModelSightings(perception, model)
+
+
+# Where the steering and the sightings gate learn what a frame shows (``Stack.sightings``): the
+# perception's own, or one call per step to the chat model (``perception.sightings``); "auto":
+# the perception's own where it has them (semantic, pixels), else the model's (rgb). A factory
+# gets the perception, the (recorded) chat model and the environment.
+SIGHTINGS: Registry[Perception] = Registry("sightings source")
+SIGHTINGS.register("auto", _own_or_model)
+SIGHTINGS.register("perception", lambda perception, **_: perception)
+SIGHTINGS.register("model", lambda perception, model, **_: ModelSightings(perception, model))
+
+
+def sightings_label(perception: Perception) -> str:
+    """What the record says of where the sightings come from."""
+    if not isinstance(perception, ModelSightings):
+        return "perception" if hasattr(perception, "sightings") else "none"
+    return (f"model (one call per step to {perception.model.name}, reading "
+            f"{'the image' if perception.images else 'the description'})")
+
+
 GATE_LABELS = {"none": "none",
                "rules": "rules (the question's target in the frame's description)",
+               "sightings": "sightings (the question's target in the model's sightings)",
                "model": "model (one yes/no call to {model} on a flagged frame)"}
 
 
@@ -314,9 +343,16 @@ def build_gate(name: str, perception: Perception, model: ChatModel) -> AnswerGat
     where the perception describes objects, else "model"."""
     if name == "none":
         return None
-    describes = hasattr(perception, "describe") and hasattr(perception, "sightings")
+    sights = hasattr(perception, "sightings")
+    describes = hasattr(perception, "describe") and sights
     if name == "auto":
-        name = "rules" if describes else "model"
+        name = "rules" if describes else "sightings" if sights else "model"
+    if name == "sightings":
+        if not sights:
+            raise EfficientEQAError(f"the sightings gate reads sightings, which "
+                                    f"{perception.name} perception does not give",
+                                    fix="use --sightings model, or --gate model")
+        return SightingsGate(perception)  # type: ignore[arg-type]
     if name == "rules":
         if not describes:
             raise EfficientEQAError(f"the rules gate reads object descriptions, which "
@@ -407,6 +443,7 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                                 fix="use --perception semantic, or an image VLM such as "
                                     "--vlm openai:gpt-4o")
     recorder = RecordingChatModel(model)
+    perception = SIGHTINGS.build(stack.sightings, perception=perception, model=recorder, env=env)
     if relevancy is None and stack.relevancy == "vlm-match":  # the agent's own model as ITM
         from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
@@ -437,6 +474,7 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                                    if scorer is not None else None),
                 "answer": answer_label(answer, config, model), "judge": None,
                 "capabilities": model.capabilities.to_dict(),
+                "sightings": sightings_label(perception),
                 "gate": GATE_LABELS[gate.name if gate is not None else "none"].format(
                     model=model.name)}
     return BuiltAgent(agent, recorder, backends)

@@ -16,7 +16,6 @@ pixel perception and a VLM over images: with a VLM the one call goes to that VLM
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import replace
 from typing import Any
@@ -31,6 +30,7 @@ from efficienteqa.question import (
     singular,
     thing_name,
 )
+from efficienteqa.vc.parse import json_object
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.reading"  # reading/prompts/read.txt
@@ -65,7 +65,7 @@ class ModelReader:
         schema = SCHEMA if self.model.capabilities.json_schema else None
         reply = self.model.chat([Message("user", prompt)], max_tokens=self.max_tokens,
                                 temperature=0.0, json_schema=schema).text or ""
-        said = _json_object(reply)
+        said = json_object(reply)
         if said is None:
             self.problems.append(f"no JSON object in the reading {reply[:60]!r}: the rules' target")
             return rules
@@ -136,16 +136,3 @@ def _rooms(value: Any) -> tuple[str, ...]:
         return ()
     rooms = (canonical_room(v) for v in value if isinstance(v, str))
     return tuple(dict.fromkeys(r for r in rooms if r))[:MAX_LIKELY]
-
-
-def _json_object(reply: str) -> dict[str, Any] | None:
-    """The first JSON object in ``reply`` (a model may wrap it in prose or a code fence)."""
-    start = reply.find("{")
-    while start >= 0:
-        try:
-            value, _ = json.JSONDecoder().raw_decode(reply[start:])
-        except ValueError:
-            start = reply.find("{", start + 1)
-            continue
-        return value if isinstance(value, dict) else None
-    return None

@@ -25,6 +25,9 @@ pixels, as on a view that shows the book. The gate asks whether the frame answer
     names two rooms, a door the text places between them (or, closed, in a wall of one of
     them: no frame shows a closed door's far side), not any door. A question whose target the
     parse cannot read passes (relevancy decides alone).
+- ``sightings`` (a perception that gives sightings but no description: a VLM over images whose
+  sightings the model reads, ``perception.sightings``): the same rules on the sightings. They
+  state no relation, so "What is on the X?" passes on the X wholly in view;
 - ``model`` (any perception, images included): one yes/no call to the chat model, "can the
   question be answered from this view?", passing at P(yes) > 0.5; an unreadable reply does not
   pass.
@@ -49,8 +52,9 @@ if TYPE_CHECKING:
     from efficienteqa.perception.semantic import FrameDescription, VisibleObject
     from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
-# "auto": rules where the perception describes objects (the semantic sensor), else model.
-GATES = ("auto", "none", "rules", "model")
+# "auto": rules where the perception describes objects (the semantic sensor), sightings where it
+# gives sightings only (a VLM's, perception.sightings), else model.
+GATES = ("auto", "none", "rules", "sightings", "model")
 GROUP_M = 1.6  # a count group's member stands this close to its support ("around the table")
 # Sightings of a member this close are one member: on training houses 0-20 one chair's
 # sightings (the median of its visible points) spread up to 0.51 m across an episode's views,
@@ -123,23 +127,7 @@ class RulesGate:
             if room is not None and d.room != room:  # a doorway cuts a group: count from inside
                 return Verdict(False, f"{target.object} seen from outside the {room}")
             if target.support:
-                seen = self.perception.sightings(obs, target)
-                support = [s for s in seen.things if target.is_a(target.support, s.category)]
-                if not support or any(s.cut for s in support):
-                    return Verdict(False, f"{target.support} not wholly in view")
-                members = [s.xy for s in seen.things if target.is_a(target.object, s.category)
-                           and any(_near(s.xy, b.xy, GROUP_M) for b in support)]
-                self._members = _merge(self._members, members)
-                if len(group) < len(members):  # a glimpse the text does not list: the model
-                    # would count fewer than the gate
-                    return Verdict(False, f"{len(members) - len(group)} of the {len(members)} "
-                                          f"{target.object} too small to be told")
-                if len(members) < len(self._members):
-                    return Verdict(False, f"{len(members)} of the {len(self._members)} "
-                                          f"{target.object} seen around the {target.support}")
-                # the whole group and its support, from inside the room: it answers outright
-                return Verdict(True, f"{len(members)} {target.object} around the whole "
-                                     f"{target.support}", final=True)
+                return self._group(target, self.perception.sightings(obs, target), len(group))
             return Verdict(True, f"{len(group)} {target.object} in view")
         thing = target.object or target.support or ""
         hits = [o for o in shown if target.is_a(thing, o.label.category)]
@@ -149,6 +137,68 @@ class RulesGate:
                 return Verdict(False, f"no {thing} of the {' and the '.join(target.rooms)} "
                                       "in view")
         return Verdict(bool(hits), f"{thing} {'in view' if hits else 'not in view'}")
+
+    def _group(self, target: Target, seen: Sightings, told: int | None) -> Verdict:
+        """A count group around its support from one frame's sightings: the support wholly in
+        view and every member seen so far around it in this frame, which then answers outright
+        (``told``: how many members the frame's text lists; None where no text is read)."""
+        support = [s for s in seen.things if target.is_a(target.support, s.category)]
+        if not support or any(s.cut for s in support):
+            return Verdict(False, f"{target.support} not wholly in view")
+        members = [s.xy for s in seen.things if target.is_a(target.object, s.category)
+                   and any(_near(s.xy, b.xy, GROUP_M) for b in support)]
+        self._members = _merge(self._members, members)
+        if told is not None and told < len(members):  # a glimpse the text does not list:
+            # the model would count fewer than the gate
+            return Verdict(False, f"{len(members) - told} of the {len(members)} "
+                                  f"{target.object} too small to be told")
+        if len(members) < len(self._members):
+            return Verdict(False, f"{len(members)} of the {len(self._members)} "
+                                  f"{target.object} seen around the {target.support}")
+        # the whole group and its support, from inside the room: it answers outright
+        return Verdict(True, f"{len(members)} {target.object} around the whole "
+                             f"{target.support}", final=True)
+
+
+class SightingsGate(RulesGate):
+    """The target in the frame's sightings, for a perception that gives sightings but no
+    description (a VLM over images with ``perception.sightings.ModelSightings``): the same
+    rules read from the model's sightings. The thing (or the surface of "What is on the X?",
+    wholly in view) in the named room as the sightings place it; a count group as the rules
+    gate judges one. The sightings state no relation, so "on the X" is the X in view."""
+
+    name = "sightings"
+
+    def __init__(self, perception: Sighter) -> None:  # noqa: D107 - RulesGate's
+        self.perception = perception  # type: ignore[assignment]
+        self.reset()
+
+    def check(self, question: str, target: Target, obs: Observation,
+              frame: str | np.ndarray) -> Verdict:
+        if target.kind == "other" or not target.things:
+            return Verdict(True, "no target parsed")
+        seen = self.perception.sightings(obs, target)
+        room = target.room if target.kind != "state" or target.object != "door" else None
+        shown = [s for s in seen.things if room is None or s.room in (None, room)]
+        if target.kind == "identification":
+            surfaces = [s for s in shown if target.is_a(target.support, s.category)]
+            if not surfaces or all(s.cut for s in surfaces):
+                return Verdict(False, f"{target.support} not wholly in view")
+            return Verdict(True, f"{target.support} in view")
+        if target.kind == "count":
+            group = [s for s in shown if target.is_a(target.object, s.category)]
+            if not group:
+                return Verdict(False, f"no {target.object} in view")
+            if target.support:
+                return self._group(target, seen, None)
+            return Verdict(True, f"{len(group)} {target.object} in view")
+        thing = target.object or target.support or ""
+        hits = [s for s in shown if target.is_a(thing, s.category)]
+        return Verdict(bool(hits), f"{thing} {'in view' if hits else 'not in view'}")
+
+
+class Sighter(Protocol):
+    def sightings(self, obs: Observation, target: Target) -> Sightings: ...
 
 
 def _near(a: tuple[float, float], b: tuple[float, float], within_m: float) -> bool:

@@ -437,3 +437,17 @@ def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
     return (conf if word in ("yes", "true") else 1.0 - conf), problems
 
 
+
+
+def json_object(reply: str) -> dict[str, Any] | None:
+    """The first JSON object in ``reply`` (a model may wrap it in prose or a code fence); None
+    when there is none, or the first JSON value found is not an object."""
+    start = reply.find("{")
+    while start >= 0:
+        try:
+            value, _ = json.JSONDecoder().raw_decode(reply[start:])
+        except ValueError:
+            start = reply.find("{", start + 1)
+            continue
+        return value if isinstance(value, dict) else None
+    return None
