@@ -4,8 +4,8 @@ It runs on 127.0.0.1 (port 0: a free one) in a thread, answers ``POST /v1/chat/c
 and ``GET /v1/models``, checks every image it is sent and records every request. It answers the
 project's prompts (explore, worth exploring, relevancy match, the gate, the sightings, the
 answers, grouping, the judge, the probe) in the format they ask for, in one of several
-``STYLES``, deterministically (the same request gets the same reply). ``Options`` says how it behaves, e.g. like GPT-4o
-(logprobs returned, any number of images), like vLLM with ``--limit-mm-per-prompt image=1``
+``STYLES``, deterministically (the same request gets the same reply). ``Options`` says how it
+behaves, e.g. like GPT-4o (logprobs returned, any number of images), like vLLM with ``--limit-mm-per-prompt image=1``
 (``max_images=1``), like a server that ignores or rejects logprobs, hangs, or cuts replies at
 ``max_tokens``.
 
