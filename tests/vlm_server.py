@@ -5,9 +5,9 @@ and ``GET /v1/models``, checks every image it is sent and records every request.
 project's prompts (explore, worth exploring, relevancy match, the gate, the sightings, the
 answers, grouping, the judge, the probe) in the format they ask for, in one of several
 ``STYLES``, deterministically (the same request gets the same reply). ``Options`` says how it
-behaves, e.g. like GPT-4o (logprobs returned, any number of images), like vLLM with ``--limit-mm-per-prompt image=1``
-(``max_images=1``), like a server that ignores or rejects logprobs, hangs, or cuts replies at
-``max_tokens``.
+behaves, e.g. like GPT-4o (logprobs returned, any number of images), like vLLM with
+``--limit-mm-per-prompt image=1`` (``max_images=1``), like a server that ignores or rejects
+logprobs, hangs, or cuts replies at ``max_tokens``.
 
 In a test::
 
