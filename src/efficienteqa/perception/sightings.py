@@ -183,13 +183,13 @@ def _region(entry: dict[str, Any], items: int | None, problems: list[str],
         if isinstance(item, bool) or not isinstance(item, (int, float)) or item != int(item) \
                 or not 1 <= item <= items:
             if required:
-                problems.append(f"item {str(item)[:20]!r} is not listed")
+                problems.append(f"item {str(item)[:20]} is not listed")
             return None if required else Region()
         return Region(items=(int(item),))
     box = entry.get("box")
     if not (isinstance(box, list) and len(box) == 4
             and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in box)):
-        problems.append(f"box {str(box)[:40]!r} is not four numbers")
+        problems.append(f"box {str(box)[:40]} is not four numbers")
         return None
     values = [float(v) for v in box]
     if max(values) <= 1.0:  # fractions of the frame, not thousandths
