@@ -118,3 +118,41 @@ def test_a_chatty_server_still_gives_a_clean_answer(vlm, tmp_path, question, sty
     assert row["status"] == "done", row.get("error")
     assert not s.image_errors
     assert row["answer"] in ANSWERS, (style, row["answer"], row["extra"]["answer_problems"])
+
+
+STEERED = ("to the", "into the", "look around", "inspect", "search the")
+
+
+@pytest.mark.parametrize(("perception", "relevancy", "reading"),
+                         [("rgb", "vlm-match", "the image"),
+                          ("semantic", "overlap", "the description")])
+def test_the_vlms_sightings_steer_an_image_user_as_labels_do(vlm, tmp_path, perception, relevancy,
+                                                             reading):
+    """With --perception rgb the sightings come from one call per step to the VLM (boxes over
+    the image); the same call reads a description with --sightings model. The steering goes to
+    the named room and looks around in it, and the sightings gate stops on the target."""
+    questions = load_dataset("synthetic:0", limit=3, assets="builtin")
+    s = vlm(Options())
+    options = {"vlm": f"openai:test-vlm@{s.base_url}", "perception": perception,
+               "relevancy": relevancy, "max_steps": 8, "cache": False, "sightings": "model"}
+    spec = RunSpec(method="efficienteqa", dataset="synthetic:0", stack=build_stack(options),
+                   config=build_config(options), judge=None, assets="builtin")
+    out = tmp_path / "run"
+    run_eval(spec, questions, out)
+    rows = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    assert [r["status"] for r in rows] == ["done"] * 3
+    episodes = [json.loads((out / "episodes" / r["id"].replace("/", "__") / "episode.json")
+                           .read_text()) for r in rows]
+    decisions, verdicts = [], []
+    for e in episodes:
+        assert e["backends"]["sightings"] == f"model (one call per step to test-vlm, reading {reading})"
+        assert e["backends"]["gate"].startswith("sightings" if perception == "rgb" else "rules")
+        decisions += [r["decision"] for r in e["per_step"]]
+        verdicts += [(r.get("gate") or {}).get("ok") for r in e["per_step"]]
+    sighting_calls = [r for r in s.requests if r.kind == "sightings"]
+    steps = sum(r["steps"] for r in rows)  # one per step at most (the last step does not move)
+    assert steps - len(rows) <= len(sighting_calls) <= steps
+    assert all(r.images == (perception == "rgb") for r in sighting_calls)
+    assert any(d.startswith(STEERED) for d in decisions)
+    if perception == "rgb":
+        assert True in verdicts and any(r["stop_reason"] == "relevancy" for r in rows)

@@ -256,7 +256,8 @@ def compose(kind: str, text: str, images: int, seed: int) -> Reply:
     return Reply("I don't know.", {"answer": "I don't know."}, "I am not sure what is asked.")
 
 
-SIGHTING_ROOMS = ("kitchen", "living room", "bedroom", "bathroom", "hallway", "office")
+SIGHTING_ROOMS = ("living room", "kitchen", "dining room", "guest bedroom", "bedroom", "bathroom",
+                  "hallway", "office")  # a longer name before the one it holds
 
 
 def _sightings(text: str, images: int, seed: int, question: str) -> Reply:
