@@ -11,10 +11,10 @@ turns the reply into the same ``Sightings`` with the frame's depth and pose:
 
 - the floor: every valid pixel whose world point lies within ``FLOOR_M`` of z = 0 belongs to
   the room of the doorway box it falls in, else to the view's room;
-- a thing: the points of its box (less the floor) within ``NEAR_M`` of the box's nearer part,
-  taken at the box's middle half (a box also holds the wall behind a chair): the median x, y,
-  the 98th percentile of z; cut when the box touches the left, right or top edge; its room
-  the room of the nearest floor point named, within ``ROOM_M``.
+- a thing: the points of its box (less the floor) at the depth most of the box's middle half
+  shows (a box also holds the wall behind a chair): the median x, y, the 98th percentile of z;
+  cut when the box touches the left, right or top edge; its room the room of the nearest floor
+  point named, within ``ROOM_M``.
 
 The same call reads a text perception's description (``images`` False): the objects are listed
 by number, the reply names numbers, and each number's pixels come from the perception's own
@@ -51,7 +51,13 @@ BOX_SCALE = 1000.0  # box coordinates are thousandths of the frame's width and h
 FLOOR_M = 0.08  # world points this close to z = 0 are floor
 STRIDE = 4  # floor points: every 4th pixel each way, as the semantic sensor's
 EDGE = 5.0  # a box within this many thousandths of the left, right or top edge is cut
-NEAR_M = 0.6  # a thing's points: within this of the nearer part of its box
+# A thing's points: within NEAR_M / 2 of the depth bin (DEPTH_BIN_M) most of its box's middle
+# lies in. Training houses 0-7, 96 random poses, 380 things boxed from the labels: the median
+# distance to the semantic sensor's place is 0.06 m, 5.5% are over 0.6 m off (the 25th
+# percentile of the depths and all within 0.6 m of it: 0.08 m, 8.9%); the rest are things
+# behind others (a chair behind its table), whose box shows mostly the nearer thing.
+NEAR_M = 0.6
+DEPTH_BIN_M = 0.25
 ROOM_M = 1.5  # a thing's room: the nearest floor point named within this
 
 
@@ -289,13 +295,14 @@ def _middle(box: tuple[float, float, float, float]) -> tuple[float, float, float
 
 def _thing_points(points: np.ndarray, depth: np.ndarray, box: np.ndarray,
                   inner: np.ndarray) -> np.ndarray:
-    """A box's points on the thing: within NEAR_M of the nearer half of its middle's depths
-    (the box's own where its middle shows only floor)."""
+    """A box's points on the thing: those within NEAR_M / 2 of the depth most of its middle's
+    pixels lie at (``DEPTH_BIN_M`` bins; the whole box where its middle shows only floor)."""
     core = inner if inner.any() else box
     if not core.any():
         return np.zeros((0, 3))
-    near = float(np.percentile(depth[core], 25))
-    return points[box & (depth <= near + NEAR_M)]
+    bins, counts = np.unique(np.floor(depth[core] / DEPTH_BIN_M).astype(int), return_counts=True)
+    centre = (bins[np.argmax(counts)] + 0.5) * DEPTH_BIN_M
+    return points[box & (np.abs(depth - centre) <= NEAR_M / 2)]
 
 
 def _room_near(xy: tuple[float, float], floor: dict[str, np.ndarray]) -> str | None:

@@ -1,0 +1,144 @@
+"""What sightings read by a model are worth to the steering, and what reading by a model costs.
+
+    python -m experiments.sighting_noise run --limit 48 --out out/sightings frontier-only miss20-room10
+    python -m experiments.sighting_noise table out/sightings > results/sightings/noise.md
+
+``run`` runs the main table's questions (the synthetic split's first LIMIT: houses 100-999, never
+used for tuning) once per setting, each an ``efficienteqa eval`` in this process with the offline
+default stack (synthetic houses, semantic-sensor perception, Qwen2.5-Coder-1.5B on llama.cpp,
+MiniLM relevancy, the rule judge) but for where the steering's sightings come from:
+
+- ``frontier-only``: the main table's frontier-only row (no steering; its gate as the default's);
+- ``rules``: the default (the semantic sensor's own sightings, read from the labels);
+- ``model``: the local model reads the description, one call per step (``--sightings model``);
+- ``exact``, ``miss20-room10``, ...: the labels-backed test VLM (``tests/labels_vlm.py``) over the
+  image path: boxes from the truth, projected with depth, with misses (``missN``: N% of the
+  things in view left out), wrong rooms (``roomN``) and displaced boxes (``shiftN``) at set rates.
+
+``table`` prints, per setting, accuracy, mean steps, steps over the oracle's, evidence seen and
+the sighting calls per step, with the paired difference in accuracy against frontier-only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _errors(name: str) -> Any:
+    sys.path.insert(0, str(ROOT / "tests"))
+    from labels_vlm import Errors
+
+    if name == "exact":
+        return Errors()
+    rates = dict(re.findall(r"(miss|room|shift)(\d+)", name))
+    if not rates or "-".join(f"{k}{v}" for k, v in rates.items()) != name:
+        raise SystemExit(f"unknown setting {name!r}: frontier-only, rules, model, exact or e.g. "
+                         "miss20-room10-shift10")
+    return Errors(miss=int(rates.get("miss", 0)) / 100, wrong_room=int(rates.get("room", 0)) / 100,
+                  displace=int(rates.get("shift", 0)) / 100)
+
+
+def spec_for(name: str) -> Any:
+    from efficienteqa.eval.methods import RunSpec
+    from efficienteqa.presets import apply_preset, build_config, build_stack
+    from efficienteqa.stack import SIGHTINGS
+
+    options = apply_preset("frontier-only" if name == "frontier-only" else "default", {})
+    if name == "model":
+        options["sightings"] = "model"
+    elif name not in ("frontier-only", "rules"):
+        errors = _errors(name)
+        from labels_vlm import LabelsSightings
+
+        if f"labels:{name}" not in SIGHTINGS:
+            SIGHTINGS.register(f"labels:{name}", lambda perception, env, **_: LabelsSightings(
+                perception, env.scene_labels(), errors))
+        options["sightings"] = f"labels:{name}"
+    return RunSpec(method=options.get("method") or "efficienteqa", dataset="synthetic",
+                   stack=build_stack(options), config=build_config(options), judge=None)
+
+
+def run(names: list[str], limit: int, out: Path) -> None:
+    from efficienteqa.datasets import load_dataset
+    from efficienteqa.eval.runner import run_eval
+
+    questions = load_dataset("synthetic", limit=limit)
+    for name in names:
+        spec = spec_for(name)
+        result = run_eval(spec, questions, out / name, on_episode=_progress(name))
+        print(f"{name}: {result}", flush=True)
+
+
+def _progress(name: str) -> Any:
+    def say(row: dict[str, Any]) -> None:
+        print(f"{name} {row['id']} {row['status']} {row.get('steps')} "
+              f"{(row.get('rule') or {}).get('correct')}", flush=True)
+    return say
+
+
+def figures(folder: Path) -> tuple[Any, float]:
+    """The run's summary and its sighting calls per step."""
+    from efficienteqa.eval.records import read_run
+    from efficienteqa.eval.summary import summarise
+
+    manifest, episodes = read_run(folder)
+    rows = list(episodes.rows())
+    calls = steps = 0
+    for row in rows:
+        episode = folder / "episodes" / row["id"].replace("/", "__") / "episode.json"
+        if row.get("status") != "done" or not episode.is_file():
+            continue
+        record = json.loads(episode.read_text())
+        steps += record["steps"]
+        calls += sum("Say what this view shows" in json.dumps(x) for x in
+                     record["model"]["exchanges"])
+    return summarise(manifest, rows, source=folder.name), calls / steps if steps else 0.0
+
+
+def table(folders: list[Path]) -> str:
+    from efficienteqa.eval.summary import paired
+
+    rows = [(f.name, *figures(f)) for f in folders]
+    base = next((s for name, s, _ in rows if name == "frontier-only"), None)
+    lines = ["| sightings | n | accuracy (%) | vs frontier-only (points) | mean steps | "
+             "vs frontier-only (steps) | steps / oracle | evidence seen | sighting calls / step "
+             "| code |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for name, s, per_step in rows:
+        acc = steps = "-"
+        if base is not None and s is not base:
+            d = paired(s, base)
+            acc = f"{d.accuracy:+.1f} [{d.accuracy_ci[0]:+.1f}, {d.accuracy_ci[1]:+.1f}]"
+            steps = f"{d.steps:+.1f} [{d.steps_ci[0]:+.1f}, {d.steps_ci[1]:+.1f}]"
+        lines.append(f"| {name} | {s.n} | {s.rule_accuracy:.1f} | {acc} | {s.mean_steps:.1f} | "
+                     f"{steps} | {s.steps_over_oracle:.2f} | {100 * s.evidence_seen:.0f}% | "
+                     f"{per_step:.2f} | {s.code_version} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run")
+    r.add_argument("settings", nargs="+")
+    r.add_argument("--limit", type=int, default=48)
+    r.add_argument("--out", type=Path, default=Path("out/sightings"))
+    t = sub.add_parser("table")
+    t.add_argument("folders", nargs="+", type=Path)
+    args = parser.parse_args(argv)
+    if args.command == "run":
+        for name in args.settings:
+            spec_for(name)  # a bad setting fails before any episode
+        run(args.settings, args.limit, args.out)
+    else:
+        print(table(args.folders))
+
+
+if __name__ == "__main__":
+    main()
