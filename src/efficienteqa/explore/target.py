@@ -34,9 +34,9 @@ a frame has shown first; their frontiers weigh more, but no room is ruled out.
 Otherwise the wrapped frontier explorer decides, its frontiers weighted by their room
 (``room_prior``): x1e-6 in a room the question rules out, x100 in the named one. Whenever the
 perception gives no sightings, the semantic values of its verbalized confidence steer the
-frontier explorer alone. A VLM over images supplies the same ``Sightings`` by naming the room
-and the target's things in a frame and back-projecting their pixels with the depth (the pixel
-perception does so today); the coverage of a room then reads the map alone.
+frontier explorer alone. A VLM over images supplies the same ``Sightings`` from one call per
+step (``perception.sightings``: the room in view, the doorways' rooms and boxes around the
+target's things, back-projected with the depth), as the pixel perception does from its classes.
 """
 
 from __future__ import annotations
