@@ -58,7 +58,7 @@ def test_ask_with_a_bad_scene_start_or_model_is_one_line():
                           (["--start", "nan,0,0"], "is not finite"),
                           (["--scene", "synthetic:-1"], "integer seed of 0 or more"),
                           (["--start", "100,100,0", "--assets", "builtin"], "is not on the floor"),
-                          (["--vlm", "gpt-4o", "--assets", "builtin"], "cannot read the VLM")):
+                          (["--vlm", "gpt-4o", "--assets", "builtin"], "cannot read --vlm")):
         result = _run("ask", "Where is the sofa?", *args)
         assert result.returncode == 1, (args, result.stdout, result.stderr)
         assert message in result.stdout and "Traceback" not in result.stdout + result.stderr

@@ -999,3 +999,23 @@ def test_ask_and_eval_through_openai_match_local_on_the_projects_own_server(
         said[kind] = ((one.result.answer, one.result.steps, one.result.stop_reason),
                       [(r["id"], r["answer"], r["steps"], r["stop_reason"]) for r in rows])
     assert said["openai"] == said["local"]
+
+
+def test_an_unreachable_judge_is_named_as_the_judge(private_cache, monkeypatch):
+    """The hint of a server that cannot be reached names the option that chose it."""
+    from efficienteqa.eval.runner import build_judge
+
+    monkeypatch.delenv("OPENAI_API_KEY", raising=False)
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    url = f"http://127.0.0.1:{port}/v1"
+    with pytest.raises(EfficientEQAError) as judge:
+        build_judge(f"openai:gpt-4o@{url}", "grade")
+    assert f"the server of --judge openai:gpt-4o@{url}" in str(judge.value)
+    from efficienteqa.stack import parse_vlm
+
+    backend = replace(parse_vlm(f"openai:gpt-4o@{url}", images=False), retries=0)
+    with pytest.raises(EfficientEQAError) as vlm:
+        build_chat_model(backend)
+    assert f"the server of --vlm openai:gpt-4o@{url}" in str(vlm.value)

@@ -414,7 +414,7 @@ def judge_command(
     from efficienteqa.stack import parse_vlm
 
     judge = judge or DEFAULT_JUDGE  # the one default judge model, eval's
-    parse_vlm(judge, images=False)
+    parse_vlm(judge, images=False, flag="--judge")
     mode = _judge_mode(judge_mode, judge)
     for run in runs:
         with console.status(f"grading {run}..."):
@@ -530,7 +530,7 @@ def eval_command(
                                 fix="give a judge model (--judge local:MODEL or openai:MODEL)")
     judge_spec = None if judge_spec in ("none", "rule") else judge_spec
     if judge_spec:
-        parse_vlm(judge_spec, images=False)
+        parse_vlm(judge_spec, images=False, flag="--judge")
     check_writable(out)
     questions = load_dataset(dataset, path=o["hm_eqa_path"], limit=o["limit"], closed_set=closed_set,
                              assets=assets)

@@ -102,14 +102,15 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
               temperature: float | None = None, *, timeout_s: float | None = None,
               retries: int | None = None, api_key_env: str | None = None,
               image_format: str | None = None, image_max_side: int | None = None,
-              image_detail: str | None = None, capabilities: str | None = None) -> ChatBackend:
+              image_detail: str | None = None, capabilities: str | None = None,
+              flag: str = "--vlm") -> ChatBackend:
     """The back-end of a VLM spec and the server options (None, and an ``image_format`` of
     ``IMAGE_FORMAT_AUTO``: ``ChatBackend``'s default); a bad value fails here, in one line,
-    before anything is built."""
+    before anything is built. ``flag``: the option that named it, for its errors ("--judge")."""
     kind, _, rest = spec.partition(":")
     model, _, url = rest.partition("@")
     if kind not in CHAT_BACKENDS or not model:
-        raise EfficientEQAError(f"cannot read the VLM {spec!r}",
+        raise EfficientEQAError(f"cannot read {flag} {spec!r}",
                                 fix="use local:MODEL or openai:MODEL[@BASE_URL], "
                                     "e.g. local:qwen2.5-coder-1.5b or openai:gpt-4o")
     if temperature is not None and not 0.0 <= temperature <= 2.0:
@@ -143,7 +144,7 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
                                "image_max_side": image_max_side, "image_detail": image_detail,
                                "capabilities_file": capabilities}
     return ChatBackend(kind=kind, model=model, base_url=url or None, images=images, cache=cache,
-                       temperature=temperature,
+                       temperature=temperature, flag=flag,
                        **{k: v for k, v in options.items() if v is not None})
 
 

@@ -57,7 +57,8 @@ def build_judge(spec: str, mode: str) -> Any:
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.stack import parse_vlm
 
-    return LLMMatchJudge(build_chat_model(parse_vlm(spec, images=False)), mode=mode)
+    return LLMMatchJudge(build_chat_model(parse_vlm(spec, images=False, flag="--judge")),
+                         mode=mode)
 
 
 def _rule(q: EvalQuestion, answer: str) -> dict[str, Any] | None:
@@ -235,7 +236,8 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
     model = build_chat_model(parse_vlm(spec.stack.vlm, images=spec.stack.perception == "rgb",
                                        cache=spec.stack.cache, **spec.stack.server_options()))
     if spec.judge is not None and spec.judge != spec.stack.vlm:
-        build_chat_model(parse_vlm(spec.judge, images=False, cache=spec.stack.cache))
+        build_chat_model(parse_vlm(spec.judge, images=False, cache=spec.stack.cache,
+                                   flag="--judge"))
     if resolve(spec.method) is run_agent_method:
         config = method_config(spec.method, spec.config)
         if config.confidence == "token" or config.answer == "direct":

@@ -68,6 +68,7 @@ class ChatBackend:
     probe: bool = True
     # a JSON file of what the server can do (``read_capabilities``), in place of the probe
     capabilities_file: str | None = None
+    flag: str = "--vlm"  # the option that named it, for the errors ("--judge" for a judge)
 
     @property
     def key_env(self) -> str | None:
@@ -111,7 +112,8 @@ def _openai(backend: ChatBackend) -> ChatModel:
         temperature=backend.temperature, image_format=backend.image_format or "jpeg",
         image_max_side=backend.image_max_side, image_detail=backend.image_detail,
         cache_server=base_url,
-        unreachable_fix=f"check that the server of --vlm {model_spec} is running and that the "
+        unreachable_fix=f"check that the server of {backend.flag} {model_spec} is running and "
+                        "that the "
                         "URL is right (it usually ends in /v1)"))
     if backend.capabilities_file is not None:
         client.declare(read_capabilities(Path(backend.capabilities_file), backend.images))

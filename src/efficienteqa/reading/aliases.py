@@ -15,9 +15,9 @@ which the gate, the steering, the sightings and the hints read through ``Target.
 The vocabulary is what the perception can name: the semantic sensor's categories (the scene's
 labels), the pixel network's classes (``perception.pixels``); ``stack.perception_vocabulary``
 gives it. A VLM over images names no fixed list: its sightings (``perception.sightings``) are
-asked in the target's own words, so they need none. Thresholds were set on a handful of everyday synonym pairs (couch/sofa 0.86, coffee
-machine/coffee maker 0.88, bedside table/nightstand 0.68, stool/chair 0.60), no held-out
-question.
+asked in the target's own words, so they need none. Thresholds were set on a handful of
+everyday synonym pairs (couch/sofa 0.86, coffee machine/coffee maker 0.88, bedside
+table/nightstand 0.68, stool/chair 0.60), no held-out question.
 """
 
 from __future__ import annotations
