@@ -47,10 +47,10 @@ def _errors(name: str) -> Any:
 
 def spec_for(name: str) -> Any:
     from efficienteqa.eval.methods import RunSpec
-    from efficienteqa.presets import apply_preset, build_config, build_stack
+    from efficienteqa.presets import build_config, build_stack, load_preset
     from efficienteqa.stack import SIGHTINGS
 
-    options = apply_preset("frontier-only" if name == "frontier-only" else "default", {})
+    options = dict(load_preset("frontier-only" if name == "frontier-only" else "default"))
     if name == "model":
         options["sightings"] = "model"
     elif name not in ("frontier-only", "rules"):
