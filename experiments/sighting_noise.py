@@ -1,9 +1,9 @@
 """What sightings read by a model are worth to the steering, and what reading by a model costs.
 
-    python -m experiments.sighting_noise run --limit 48 --out out/sightings frontier-only miss20-room10
-    python -m experiments.sighting_noise table out/sightings > results/sightings/noise.md
+    python -m experiments.sighting_noise --limit 48 --out out/sightings frontier-only miss20-room10
+    efficienteqa report out/sightings/* --paired-against out/sightings/frontier-only --markdown
 
-``run`` runs the main table's questions (the synthetic split's first LIMIT: houses 100-999, never
+It runs the main table's questions (the synthetic split's first LIMIT: houses 100-999, never
 used for tuning) once per setting, each an ``efficienteqa eval`` in this process with the offline
 default stack (synthetic houses, semantic-sensor perception, Qwen2.5-Coder-1.5B on llama.cpp,
 MiniLM relevancy, the rule judge) but for where the steering's sightings come from:
@@ -15,14 +15,13 @@ MiniLM relevancy, the rule judge) but for where the steering's sightings come fr
   image path: boxes from the truth, projected with depth, with misses (``missN``: N% of the
   things in view left out), wrong rooms (``roomN``) and displaced boxes (``shiftN``) at set rates.
 
-``table`` prints, per setting, accuracy, mean steps, steps over the oracle's, evidence seen and
-the sighting calls per step, with the paired difference in accuracy against frontier-only.
+The runs' back-ends say where the sightings came from (``sightings`` in each row's back-ends);
+the labels-backed model's calls are not the chat model's, so they are in no call or token count.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import re
 import sys
 from pathlib import Path
@@ -83,61 +82,15 @@ def _progress(name: str) -> Any:
     return say
 
 
-def figures(folder: Path) -> tuple[Any, float]:
-    """The run's summary and its sighting calls per step."""
-    from efficienteqa.eval.records import read_run
-    from efficienteqa.eval.summary import summarise
-
-    manifest, episodes = read_run(folder)
-    rows = list(episodes.rows())
-    calls = steps = 0
-    for row in rows:
-        episode = folder / "episodes" / row["id"].replace("/", "__") / "episode.json"
-        if row.get("status") != "done" or not episode.is_file():
-            continue
-        record = json.loads(episode.read_text())
-        steps += record["steps"]
-        calls += sum("Say what this view shows" in json.dumps(x) for x in
-                     record["model"]["exchanges"])
-    return summarise(manifest, rows, source=folder.name), calls / steps if steps else 0.0
-
-
-def table(folders: list[Path]) -> str:
-    from efficienteqa.eval.summary import paired
-
-    rows = [(f.name, *figures(f)) for f in folders]
-    base = next((s for name, s, _ in rows if name == "frontier-only"), None)
-    lines = ["| sightings | n | accuracy (%) | vs frontier-only (points) | mean steps | "
-             "vs frontier-only (steps) | steps / oracle | evidence seen | sighting calls / step "
-             "| code |", "|---|---|---|---|---|---|---|---|---|---|"]
-    for name, s, per_step in rows:
-        acc = steps = "-"
-        if base is not None and s is not base:
-            d = paired(s, base)
-            acc = f"{d.accuracy:+.1f} [{d.accuracy_ci[0]:+.1f}, {d.accuracy_ci[1]:+.1f}]"
-            steps = f"{d.steps:+.1f} [{d.steps_ci[0]:+.1f}, {d.steps_ci[1]:+.1f}]"
-        lines.append(f"| {name} | {s.n} | {s.rule_accuracy:.1f} | {acc} | {s.mean_steps:.1f} | "
-                     f"{steps} | {s.steps_over_oracle:.2f} | {100 * s.evidence_seen:.0f}% | "
-                     f"{per_step:.2f} | {s.code_version} |")
-    return "\n".join(lines)
-
-
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("run")
-    r.add_argument("settings", nargs="+")
-    r.add_argument("--limit", type=int, default=48)
-    r.add_argument("--out", type=Path, default=Path("out/sightings"))
-    t = sub.add_parser("table")
-    t.add_argument("folders", nargs="+", type=Path)
+    parser.add_argument("settings", nargs="+")
+    parser.add_argument("--limit", type=int, default=48)
+    parser.add_argument("--out", type=Path, default=Path("out/sightings"))
     args = parser.parse_args(argv)
-    if args.command == "run":
-        for name in args.settings:
-            spec_for(name)  # a bad setting fails before any episode
-        run(args.settings, args.limit, args.out)
-    else:
-        print(table(args.folders))
+    for name in args.settings:
+        spec_for(name)  # a bad setting fails before any episode
+    run(args.settings, args.limit, args.out)
 
 
 if __name__ == "__main__":

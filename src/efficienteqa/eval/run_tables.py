@@ -75,7 +75,7 @@ def provenance(summaries: Sequence[RunSummary]) -> list[str]:
         if key == "grouping":
             continue
         values = sorted({v for s in summaries for v in s.backends.get(key, [])})
-        if key in ("explore_scorer", "answer") and not values:  # runs recorded before them
+        if key in ("explore_scorer", "answer", "sightings") and not values:  # recorded before them
             continue
         text = f"{names.get(key, key)} {', '.join(values) or '-'}"
         if key == "perception" and SEMANTIC_SENSOR in values:

@@ -44,8 +44,8 @@ from efficienteqa.eval.judge import score_value
 from efficienteqa.eval.records import upgrade
 
 # The back-ends a table states, in the order it states them, from the rows' ``backends``.
-BACKEND_KEYS = ("environment", "perception", "vlm", "relevancy", "grouping", "explore_scorer",
-                "answer")
+BACKEND_KEYS = ("environment", "perception", "sightings", "vlm", "relevancy", "grouping",
+                "explore_scorer", "answer")
 # Settings that change no result: left out when runs are compared for ablations.
 NEUTRAL_SETTINGS = frozenset({"cache"})
 # How a setting that differs from the default is written in a label (the paper's symbols).

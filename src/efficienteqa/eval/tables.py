@@ -256,7 +256,8 @@ SUMMARY_FILE = "summary.json"
 REPORT_HTML = "report.html"
 README_BLOCK = re.compile(r"<!-- results: (?P<command>[^\n]*?) -->\n(?P<body>.*?)<!-- /results -->",
                           re.DOTALL)
-MARKDOWN_BACKENDS = (("environment", "environment"), ("perception", "perception"), ("vlm", "VLM"),
+MARKDOWN_BACKENDS = (("environment", "environment"), ("perception", "perception"),
+                     ("sightings", "sightings"), ("vlm", "VLM"),
                      ("relevancy", "relevancy"), ("explore_scorer", "explore scorer"),
                      ("answer", "answer"), ("judge", "judge"))
 
@@ -310,6 +311,8 @@ def markdown_backends(summaries: Sequence[RunSummary]) -> str:
         if key == "answer" and not values:  # the answer option, where no back-end names it
             values = {str(s.settings["answer"]) for s in summaries
                       if s.settings.get("answer") and s.method not in AGENTLESS_METHODS}
+        if key == "sightings" and not values:  # runs from before they were recorded
+            continue
         parts.append(f"{name} {', '.join(sorted(values)) or '-'}")
     codes = sorted({s.code_version for s in summaries})
     return f"Back-ends: {'; '.join(parts)}. Code: {', '.join(codes)}."
