@@ -235,3 +235,25 @@ def test_the_sightings_gate_reads_the_models_sightings():
     blind = SightingsGate(LabelsSightings(SemanticPerception(FakeLabels()), FakeLabels(),
                                           Errors(miss=1.0)))
     assert not blind.check("What colour is the sofa?", SOFA, obs, obs.rgb).ok
+
+
+def test_a_sightings_source_that_cannot_act_is_refused_in_one_line():
+    from efficienteqa.errors import EfficientEQAError
+    from efficienteqa.stack import Stack, check_stack
+
+    with pytest.raises(EfficientEQAError, match="unknown sightings source 'labels'"):
+        check_stack(Stack(sightings="labels"))
+    with pytest.raises(EfficientEQAError, match="rgb perception gives no sightings of its own") \
+            as raised:
+        check_stack(Stack(perception="rgb", relevancy="vlm-match", sightings="perception"))
+    assert "--sightings model" in str(raised.value)
+
+
+def test_the_cli_takes_sightings_from_the_command_line_and_a_config_file(tmp_path):
+    from efficienteqa.cli import _option_types
+    from efficienteqa.presets import build_stack, load_config
+
+    config = tmp_path / "c.toml"
+    config.write_text('sightings = "model"\n')
+    assert build_stack({"sightings": "model"}).sightings == "model"
+    assert load_config(config, _option_types())["sightings"] == "model"
