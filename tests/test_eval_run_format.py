@@ -207,7 +207,8 @@ def test_the_stacks_defaults_are_values_a_user_can_type():
 def test_a_format_1_run_that_did_not_record_the_stacks_defaults_reads_as_them(tmp_path):
     run = json.loads((PUBLISHED / "default-v2" / RUN_FILE).read_text())
     assert not set(STACK_DEFAULTS) & set(run["stack"])  # the premise: recorded before they existed
-    assert upgrade(run)["stack"] == {**run["stack"], "temperature": 0.0, **STACK_DEFAULTS}
+    assert upgrade(run)["stack"] == {**run["stack"], "temperature": 0.0, "sightings": "auto",
+                                     **STACK_DEFAULTS}
     typed = published_spec(**STACK_DEFAULTS)
     assert typed.stack == published_spec().stack
     resume(published_copy(tmp_path, "default-v2"), typed)

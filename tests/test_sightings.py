@@ -257,3 +257,12 @@ def test_the_cli_takes_sightings_from_the_command_line_and_a_config_file(tmp_pat
     config.write_text('sightings = "model"\n')
     assert build_stack({"sightings": "model"}).sightings == "model"
     assert load_config(config, _option_types())["sightings"] == "model"
+
+
+def test_a_run_recorded_before_the_sightings_source_reads_as_what_it_ran_with():
+    from efficienteqa.eval.records import upgrade
+
+    semantic = upgrade({"format": 2, "stack": {"perception": "semantic"}})
+    assert semantic["stack"]["sightings"] == "auto"  # the perception's own, as "auto" is now
+    rgb = upgrade({"format": 2, "stack": {"perception": "rgb"}})
+    assert "sightings" not in rgb["stack"]  # it had none: no run of today resumes it

@@ -196,6 +196,10 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
     if isinstance(stack, dict):
         if "image_format" not in stack and str(stack.get("vlm", "")).startswith("openai:"):
             stack = {**stack, "image_format": "png"}  # recorded before JPEG became openai:'s
+        if "sightings" not in stack and stack.get("perception") != "rgb":
+            # recorded before the source was an option: the perception's own, which "auto"
+            # is for these (an rgb run had none: it stays unlike any run of today)
+            stack = {**stack, "sightings": "auto"}
         out["stack"] = {**stack, **{k: v for k, v in FORMAT_1_STACK_NONE.items()
                                     if stack.get(k) is None}}
     for key in ("config", "method_config"):

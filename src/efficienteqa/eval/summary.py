@@ -504,9 +504,9 @@ def _order(value: Any) -> tuple[int, float, str]:
 
 def distinct_labels(summaries: Sequence[RunSummary]) -> list[str]:
     """Each run's label, made unique where two runs share one: first by the back-ends that tell
-    them apart (VLM, perception, relevancy), then by the folder they came from."""
+    them apart (VLM, perception, sightings, relevancy), then by the folder they came from."""
     out = [s.label for s in summaries]
-    for keys in (("vlm", "perception", "relevancy", "judge"), ("source",)):
+    for keys in (("vlm", "perception", "sightings", "relevancy", "judge"), ("source",)):
         counts = Counter(out)
         for i, s in enumerate(summaries):
             if counts[out[i]] > 1:
