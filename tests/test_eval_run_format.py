@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = ROOT / "results" / "main-heldout"
 # The options of `eval` as the command line leaves them (None), the ones a row of
 # experiments/main_table.sh sets included.
-LEFT_OUT = dict.fromkeys(["z_th", "min_stop_step", "stop_rule", "top_k", "max_steps", "seed",
+LEFT_OUT = dict.fromkeys(["z_th", "z_gated", "min_stop_step", "stop_rule", "top_k", "max_steps", "seed",
                           "answer", "answer_probability", "token_answer", "refusal_retries",
                           "stop_clearance_m", "prompts", "distinct_views", "exploration", "gate",
                           "steering", "explorer", "vlm", "temperature", "perception",
@@ -135,7 +135,8 @@ def test_labels_come_from_the_named_configuration_the_run_recorded(tmp_path):
         return label(read_run(folder)[0])
 
     assert made("default") == "efficienteqa"
-    assert made("default", z_th=2.0) == "efficienteqa Z_th=2"
+    assert made("default", z_gated=2.0) == "efficienteqa z_gated=2"
+    assert made("default", gate="model", z_th=2.0) == "efficienteqa gate=model Z_th=2"
     assert made("paper-offline") == "efficienteqa paper configuration"
     assert made("paper-offline", top_k=10) == "efficienteqa paper configuration K=10"
     assert made("explore-eqa") == "explore-eqa"

@@ -13,7 +13,7 @@ from efficienteqa.stack import Stack
 from efficienteqa.stop import StopConfig
 from efficienteqa.stop.rules import GATED_MIN_STEP
 
-NOTHING_GIVEN = {"z_th": None, "min_stop_step": None, "no_early_stop": False, "top_k": None,
+NOTHING_GIVEN = {"z_th": None, "z_gated": None, "min_stop_step": None, "no_early_stop": False, "top_k": None,
                  "max_steps": None, "seed": None, "explorer": None, "vlm": None,
                  "temperature": None, "perception": None, "relevancy": None, "grouping": None,
                  "cache": None, "dataset": None, "limit": None, "env": None, "judge": None,
@@ -30,13 +30,14 @@ def test_options_left_out_take_the_dataclass_defaults():
 
 
 def test_given_options_reach_the_dataclasses():
-    o = {**NOTHING_GIVEN, "z_th": 1.5, "min_stop_step": 4, "top_k": 3, "max_steps": 12, "seed": 7,
+    o = {**NOTHING_GIVEN, "z_th": 1.5, "z_gated": 0.5, "min_stop_step": 4, "top_k": 3,
+         "max_steps": 12, "seed": 7, "gate": "model",
          "explorer": "random", "relevancy": "overlap", "cache": False, "temperature": 0.5,
          "refusal_retries": 0, "stop_clearance_m": 0.3, "prompts": "paper",
          "answer_probability": "per-token", "token_answer": "verbalized"}
     config = build_config(o)
     assert (config.answer_probability, config.token_answer) == ("per-token", "verbalized")
-    assert config.stop == StopConfig(z_th=1.5, min_step=4)
+    assert config.stop == StopConfig(z_th=1.5, z_gated=0.5, min_step=4)
     assert (config.top_k, config.max_steps, config.seed, config.explorer) == (3, 12, 7, "random")
     assert (config.refusal_retries, config.stop_clearance_m, config.prompts) == (0, 0.3, "paper")
     stack = build_stack(o)
@@ -45,7 +46,7 @@ def test_given_options_reach_the_dataclasses():
 
 
 def test_no_early_stop_turns_the_stop_off_and_keeps_its_other_values():
-    config = build_config({**NOTHING_GIVEN, "no_early_stop": True, "z_th": 2.0})
+    config = build_config({**NOTHING_GIVEN, "no_early_stop": True, "z_th": 2.0, "gate": "none"})
     assert config.stop == StopConfig(z_th=2.0, enabled=False, min_step=GATED_MIN_STEP)
 
 
@@ -215,3 +216,15 @@ def test_the_paper_presets_judge_follows_a_vlm_given_on_the_command_line():
     assert judged["judge"] == "rule"  # a judge given is kept
     plain = judge_follows_vlm(fill({"vlm": None, "judge": None}, values, set()), values, set())
     assert plain["judge"] == values["judge"]  # nothing given: the preset's own
+
+
+@pytest.mark.parametrize("gate", ["auto", "rules", "sightings"])
+def test_a_z_th_that_cannot_act_is_refused_in_one_line(gate):
+    """A gate that judges every frame stops a frame it passes at z_gated, and never one it
+    turns down: Z_th decides nothing there."""
+    with pytest.raises(EfficientEQAError, match=f"--z-th 2 does not act with the {gate} gate") \
+            as raised:
+        build_config({**NOTHING_GIVEN, "z_th": 2.0, "gate": gate})
+    assert "--z-gated" in str(raised.value) and "\n" not in str(raised.value)
+    for acting in ("model", "none"):
+        assert build_config({**NOTHING_GIVEN, "z_th": 2.0, "gate": acting}).stop.z_th == 2.0

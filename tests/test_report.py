@@ -241,3 +241,13 @@ def test_each_calls_dollar_cost_is_recorded_and_summed():
     assert costs == [pytest.approx(prompt_price + completion_price / 10), 0.0]
     assert model_block(recorder.exchanges)["cost_usd"] == pytest.approx(sum(costs))
     assert usage_of([e.to_dict() for e in recorder.exchanges])["cost_usd"] == pytest.approx(sum(costs))
+
+
+def test_the_curve_draws_the_threshold_that_acted_and_the_absolute_stop():
+    steps = _steps([0.1, 0.2, 0.15, 0.9], [None, 0.5, 0.4, 0.45])
+    for s, z in zip(steps, [None, 1.0, 3.0, 1.0]):
+        s["z_applied"] = z
+    svg = relevancy_svg(steps, 3.0, 2, 4, [4], sim_abs=0.75)
+    assert "threshold that acted: mu + 1/3 sigma" in svg
+    assert "<title>Sim 0.75 stops</title>" in svg
+    assert "Sim 0.75 stops" not in relevancy_svg(steps, 3.0, 2, 4, [4])

@@ -194,3 +194,23 @@ def test_paper_preset_keeps_the_paper_rule_and_the_option_reaches_the_config():
     assert build_config(apply_preset("paper", base | {"stop_rule": "robust"})).stop.rule == "robust"
     with pytest.raises(EfficientEQAError, match="unknown stop rule"):
         build_config(base | {"stop_rule": "nope"})
+
+
+def test_with_a_gate_judging_every_frame_z_gated_acts_and_is_the_threshold_recorded():
+    """The gate passed every frame: Z_th decides nothing (any value stops at the same step),
+    z_gated does, and each check records the threshold that acted."""
+    sims = [0.30, 0.32, 0.29, 0.31, 0.30, 0.45, 0.30]
+
+    def stop_at(**options) -> tuple[int | None, list]:
+        stopper = RelevancyStopper(StopConfig(min_step=2, **options))
+        checks = [stopper.check(t, s, eligible=True) for t, s in enumerate(sims, 1)]
+        return next((c.step for c in checks if c.stop), None), checks
+
+    assert stop_at(z_th=1.0)[0] == stop_at(z_th=100.0)[0]
+    low, checks = stop_at(z_gated=1.0)
+    assert low is not None and stop_at(z_gated=50.0)[0] is None
+    assert all(c.z_applied == 1.0 for c in checks if c.mu is not None)
+    tested = [c for c in checks if c.threshold is not None]
+    assert tested and all(abs(c.threshold - (c.mu + c.sigma)) < 1e-9 for c in tested)
+    turned_down = RelevancyStopper(StopConfig(min_step=2)).check(1, 0.3, eligible=False)
+    assert turned_down.z_applied is None and turned_down.threshold is None

@@ -72,8 +72,15 @@ def _option(panel: str, *args: Any, **kwargs: Any) -> Any:
 # and takes the default of its dataclass (presets.build_stack / build_config): no default is
 # written twice.
 ZTh = Annotated[float | None, _option(METHOD, "--z-th", help="Stop when a frame's relevancy z-score "
-                                           f"exceeds this (default {StopConfig.z_th:g}).",
+                                           f"exceeds this (default {StopConfig.z_th:g}), with no "
+                                           "answerability gate or the model gate; refused with a "
+                                           "gate that judges every frame (see --z-gated).",
                                            show_default=False)]
+ZGated = Annotated[float | None, _option(BEYOND, "--z-gated", help="The z-score a frame that an "
+                                              "answerability gate judging every frame (rules, "
+                                              "sightings: the default) passed must exceed to stop "
+                                              f"the robot (default {StopConfig.z_gated:g}).",
+                                              show_default=False)]
 MinStopStep = Annotated[int | None, _option(METHOD, help="Never stop before this step (default "
                                                  f"{GATED_MIN_STEP}; the paper's: 10).",
                                                  show_default=False)]
@@ -311,6 +318,7 @@ def ask_command(
     distinct_views: DistinctViews = None,
     exploration: Exploration = None,
     gate: Gate = None,
+    z_gated: ZGated = None,
     gate_final: GateFinal = None,
     steering: Steering = None,
     reading: Reading = None,
@@ -480,6 +488,7 @@ def eval_command(
     distinct_views: DistinctViews = None,
     exploration: Exploration = None,
     gate: Gate = None,
+    z_gated: ZGated = None,
     gate_final: GateFinal = None,
     steering: Steering = None,
     reading: Reading = None,

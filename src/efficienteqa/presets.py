@@ -33,7 +33,8 @@ if TYPE_CHECKING:
 
 
 # Command-line names of StopConfig fields (the others are named as their fields).
-_STOP_OPTIONS = {"z_th": "z_th", "min_stop_step": "min_step", "stop_rule": "rule"}
+_STOP_OPTIONS = {"z_th": "z_th", "z_gated": "z_gated", "min_stop_step": "min_step",
+                 "stop_rule": "rule"}
 _TYPE_NAMES = {bool: "true or false", int: "an integer", float: "a number", str: "a string",
                Path: "a path (a string)"}
 
@@ -213,9 +214,17 @@ def build_config(options: Mapping[str, Any]) -> AgentConfig:
         stop = replace(stop, enabled=False)
     agent_fields = [f.name for f in fields(AgentConfig) if f.name != "stop"]
     try:
-        return AgentConfig(stop=stop, **given(options, agent_fields))
+        config = AgentConfig(stop=stop, **given(options, agent_fields))
     except ValueError as exc:  # a value the dataclass refuses, e.g. --prompts bogus
         raise EfficientEQAError(str(exc), fix="see efficienteqa ask --help") from None
+    from efficienteqa.stop.rules import z_th_acts
+
+    if options.get("z_th") is not None and not z_th_acts(config.gate):
+        raise EfficientEQAError(
+            f"--z-th {options['z_th']:g} does not act with the {config.gate} gate: it judges every "
+            f"frame, and a frame it passes stops at --z-gated ({config.stop.z_gated:g}), one it "
+            "turns down never", fix="use --z-gated, or --gate model or none (Z_th then decides)")
+    return config
 
 
 def named_configuration(preset: str | None, config_file: Path | None,

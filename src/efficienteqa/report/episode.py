@@ -18,6 +18,7 @@ def step_dict(r: StepRecord) -> dict[str, Any]:
         "step": r.step, "pose": r.pose, "valid": r.valid,
         "sim": c.sim if c else None, "mu": c.mu if c else None, "sigma": c.sigma if c else None,
         "z": c.z if c else None, "threshold": c.threshold if c else None,
+        "z_applied": c.z_applied if c else None,
         "tested_step": c.tested_step if c else None,
         "prompts": r.prompts, "lsv": r.lsv, "gsv": r.gsv, "p_yes": r.p_yes,
         "frontier": r.frontier_xy, "target": r.target_xy, "n_frontiers": r.n_frontiers,

@@ -1,7 +1,7 @@
 """``report.html``: one self-contained page per episode (images inlined, no scripts, no network).
 
 Sections: the outcome and the back-ends that produced it; the top-down map with trajectory,
-frontiers and semantic values; the relevancy curve with its ``mu + Z_th * sigma`` threshold (the
+frontiers and semantic values; the relevancy curve with the threshold that acted at each step (the
 paper's Fig. 4); the retrieved top-K frames as captured (what the answer model was given);
 every frame with its Sim (with its lettered directions where the step had them); every model
 exchange with its phase and the images it was sent, as sent. The answer is shown as
@@ -42,16 +42,22 @@ def _img(src: str, alt: str, cls: str = "") -> str:
 
 
 def relevancy_svg(per_step: Sequence[Mapping[str, Any]], z_th: float, min_step: int,
-                  stop_step: int | None, retrieved: Sequence[int] = ()) -> str:
-    """Sim per step (dots, retrieved frames ringed), the threshold mu + z_th * sigma of the
-    earlier frames (dashed), the first step a stop is allowed (grey line) and the stop (red)."""
+                  stop_step: int | None, retrieved: Sequence[int] = (),
+                  sim_abs: float | None = None) -> str:
+    """Sim per step (dots, retrieved frames ringed), the threshold that acted at each step
+    (dashed: mu + z sigma of the other frames, z the step's ``z_applied``: ``z_th``, or the
+    gate's lower one on a frame it passed), the Sim that stops whatever the baseline
+    (``sim_abs``, dotted, for a rule with ``absolute``), the first step a stop is allowed (grey
+    line) and the stop (red)."""
     pts = [(s["step"], s["sim"]) for s in per_step if s.get("sim") is not None]
     thr = [(s["step"], s["threshold"]) for s in per_step if s.get("threshold") is not None]
+    applied = sorted({s["z_applied"] for s in per_step if s.get("z_applied") is not None})
+    z_said = "/".join(f"{z:g}" for z in applied) if applied else f"{z_th:g}"
     if not pts:
         return '<p class="note">No valid frame: no relevancy curve.</p>'
     steps = [s["step"] for s in per_step]
     x0, x1 = min(steps), max(max(steps), min_step)
-    values = [v for _, v in pts] + [v for _, v in thr]
+    values = [v for _, v in pts] + [v for _, v in thr] + ([sim_abs] if sim_abs is not None else [])
     y0, y1 = min(values), max(values)
     if y1 - y0 < 1e-9:
         y0, y1 = y0 - 0.5, y1 + 0.5
@@ -83,7 +89,11 @@ def relevancy_svg(per_step: Sequence[Mapping[str, Any]], z_th: float, min_step: 
     if len(thr) > 1:
         path = " ".join(f"{x(s):.1f},{y(v):.1f}" for s, v in thr)
         out.append(f'<polyline points="{path}" fill="none" stroke="#d33" stroke-width="1.5" '
-                   f'stroke-dasharray="6 4"><title>mu + {z_th:g} sigma</title></polyline>')
+                   f'stroke-dasharray="6 4"><title>mu + {z_said} sigma</title></polyline>')
+    if sim_abs is not None:
+        out.append(f'<line x1="{PAD}" x2="{CURVE_W - PAD}" y1="{y(sim_abs):.1f}" '
+                   f'y2="{y(sim_abs):.1f}" stroke="#d33" stroke-dasharray="1 3">'
+                   f'<title>Sim {sim_abs:g} stops</title></line>')
     out.append('<polyline points="' + " ".join(f"{x(s):.1f},{y(v):.1f}" for s, v in pts)
                + '" fill="none" stroke="#369" stroke-width="1.5"/>')
     for s, v in pts:
@@ -94,7 +104,7 @@ def relevancy_svg(per_step: Sequence[Mapping[str, Any]], z_th: float, min_step: 
         out.append(f'<line x1="{x(stop_step):.1f}" x2="{x(stop_step):.1f}" y1="{PAD / 2}" '
                    f'y2="{CURVE_H - PAD}" stroke="#d33" stroke-width="2"/>')
     legend = [("#369", "Sim per frame (ringed: retrieved top-K)", ""),
-              ("#d33", f"mu + {z_th:g} sigma of earlier frames", ' stroke-dasharray="6 4"'),
+              ("#d33", f"threshold that acted: mu + {z_said} sigma", ' stroke-dasharray="6 4"'),
               ("#999", f"no stop before step {min_step}", ' stroke-dasharray="2 3"')]
     for k, (colour, label, dash) in enumerate(legend):
         lx = PAD + 8 + 250 * k
@@ -169,7 +179,9 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
               _img(map_url, "top-down map", "map"),
               "<h2>Relevancy</h2>",
               relevancy_svg(per_step, stop_cfg.get("z_th", 3.0), stop_cfg.get("min_step", 10),
-                            stop_step, retrieved),
+                            stop_step, retrieved,
+                            stop_cfg.get("sim_abs") if "absolute" in str(stop_cfg.get("rule", ""))
+                            else None),
               f"<h2>Retrieved top-{len(retrieved)} frames</h2>",
               '<p class="note">As captured, without lettered circles: ' + (
                   "the answer model read the descriptions under them." if text_perception else

@@ -133,9 +133,11 @@ class StopConfig:
 @dataclass(frozen=True)
 class StopCheck:
     """One frame's check. ``mu``/``sigma`` are over the earlier frames (None until two exist);
-    ``z`` is None where sigma is missing or zero; ``threshold`` = mu + z_th * sigma.
-    ``tested_step``: the frame tested (the current one, or under ``lookback`` the best so far,
-    with ``mu``/``sigma`` over all the other frames)."""
+    ``z`` is None where sigma is missing or zero. ``z_applied``: the threshold that acted on the
+    tested frame, ``z_th``, or ``z_gated`` where an answerability gate passed it (None where the
+    gate turned it down: it cannot stop the robot); ``threshold`` = mu + z_applied * sigma, the
+    Sim the tested frame had to exceed. ``tested_step``: the frame tested (the current one, or
+    under ``lookback`` the best so far, with ``mu``/``sigma`` over all the other frames)."""
 
     step: int
     sim: float
@@ -145,6 +147,23 @@ class StopCheck:
     threshold: float | None
     stop: bool
     tested_step: int | None = None
+    z_applied: float | None = None
+
+
+def applied_z(config: StopConfig, eligible: bool | None) -> float | None:
+    """The z-score threshold for a frame with the gate's verdict ``eligible``: ``z_th`` without
+    a verdict (no gate, or a gate asked only after the stop rule flagged the frame), ``z_gated``
+    where the gate passed it, None where it turned it down (it cannot stop the robot)."""
+    if eligible is None:
+        return config.z_th
+    return config.z_gated if eligible else None
+
+
+def z_th_acts(gate: str, enabled: bool = True) -> bool:
+    """Whether ``z_th`` can decide a stop with the answerability gate ``gate`` (``stop.gate.GATES``):
+    not where the gate judges every frame first (``auto``, ``rules``, ``sightings``), since each
+    frame then stops at ``z_gated`` or not at all."""
+    return enabled and gate in ("none", "model")
 
 
 class RelevancyStopper:
@@ -180,16 +199,16 @@ class RelevancyStopper:
         if self.parts:
             return self._check_beyond(step, sim, eligible)
         mu, sigma = self.mu, self.sigma
+        z_th = applied_z(cfg, eligible)
         z = threshold = None
         if mu is not None and sigma is not None:
-            threshold = mu + cfg.z_th * sigma
+            threshold = mu + z_th * sigma if z_th is not None else None
             if sigma > cfg.sigma_eps:
                 z = (sim - mu) / sigma
-        z_th = cfg.z_th if eligible is None else cfg.z_gated
-        stop = (cfg.enabled and eligible is not False and step >= cfg.min_step and z is not None
+        stop = (cfg.enabled and z_th is not None and step >= cfg.min_step and z is not None
                 and z > z_th)
         self._add(step, sim, eligible)
-        return StopCheck(step, sim, mu, sigma, z, threshold, stop, step)
+        return StopCheck(step, sim, mu, sigma, z, threshold, stop, step, z_th)
 
     def _check_beyond(self, step: int, sim: float, eligible: bool | None) -> StopCheck:
         cfg = self.config
@@ -208,12 +227,14 @@ class RelevancyStopper:
             value, others = every[j], every[:j] + every[j + 1:]
         mu, sigma = baseline(others, robust, floor)
         z = zscore(value, mu, sigma, cfg.sigma_eps)
-        threshold = mu + cfg.z_th * sigma if mu is not None and sigma is not None else None
-        outlier = z is not None and z > (cfg.z_th if ok is None else cfg.z_gated)
+        z_th = applied_z(cfg, ok)
+        threshold = (mu + z_th * sigma if mu is not None and sigma is not None
+                     and z_th is not None else None)
+        outlier = z is not None and z_th is not None and z > z_th
         high = "absolute" in self.parts and value >= cfg.sim_abs
         stop = cfg.enabled and ok is not False and step >= cfg.min_step and (outlier or high)
         self._add(step, sim, eligible)
-        return StopCheck(step, sim, mu, sigma, z, threshold, stop, tested)
+        return StopCheck(step, sim, mu, sigma, z, threshold, stop, tested, z_th)
 
     def _add(self, step: int, sim: float, eligible: bool | None = None) -> None:
         self.history.append((step, sim))
