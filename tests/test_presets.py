@@ -8,7 +8,7 @@ import pytest
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.module import REFUSAL_RETRIES
-from efficienteqa.presets import PRESETS, apply_preset, build_config, build_stack
+from efficienteqa.presets import PRESETS, apply_preset, build_config, build_stack, load_preset
 from efficienteqa.stack import Stack
 from efficienteqa.stop import StopConfig
 from efficienteqa.stop.rules import GATED_MIN_STEP
@@ -228,3 +228,18 @@ def test_a_z_th_that_cannot_act_is_refused_in_one_line(gate):
     assert "--z-gated" in str(raised.value) and "\n" not in str(raised.value)
     for acting in ("model", "none"):
         assert build_config({**NOTHING_GIVEN, "z_th": 2.0, "gate": acting}).stop.z_th == 2.0
+
+
+@pytest.mark.parametrize("method", ["explore-eqa", "explore-eqa-blackbox"])
+def test_the_baselines_in_the_papers_setting_explore_with_the_vlm(method):
+    """ExploreEQA's baselines as the paper ran them (--preset paper --method M): the VLM scores
+    the directions (the main table's rows use the model-free scorer, configs/explore-eqa.toml)."""
+    from efficienteqa.eval.methods import method_config
+    from efficienteqa.perception.image import ImagePerception
+    from efficienteqa.stack import explore_scorer_name
+
+    o = apply_preset("paper", {**NOTHING_GIVEN, "method": method})
+    config = method_config(method, build_config(o))
+    assert explore_scorer_name(build_stack(o), ImagePerception(), config) == "vlm"
+    row = {**NOTHING_GIVEN, **load_preset(method)}
+    assert build_stack(row).explore_scorer == "direction-logit"
