@@ -156,3 +156,24 @@ def test_the_vlms_sightings_steer_an_image_user_as_labels_do(vlm, tmp_path, perc
     assert any(d.startswith(STEERED) for d in decisions)
     if perception == "rgb":
         assert True in verdicts and any(r["stop_reason"] == "relevancy" for r in rows)
+
+
+@pytest.mark.parametrize("method", ["explore-eqa", "explore-eqa-blackbox"])
+def test_explore_eqa_weighs_each_step_by_the_vlms_own_confidence(vlm, tmp_path, question, method):
+    """--step-weight confident (the paper preset's): one "are you confident?" call per valid
+    frame, white-box read from its tokens, black-box verbalized; the answer is the step with
+    the highest weight x answer confidence, and each step records its weight."""
+    s, result, rows, out = run(vlm, tmp_path, question, method, "logprobs",
+                               {"step_weight": "confident"})
+    [row] = rows
+    assert row["status"] == "done", row.get("error")
+    kind = "confident-token" if method == "explore-eqa" else "confident"
+    asked = [r for r in s.requests if r.kind == kind]
+    episode = json.loads((out / "episodes" / row["id"].replace("/", "__") / "episode.json")
+                         .read_text())
+    valid = [p for p in episode["per_step"] if p["sim"] is not None]
+    assert len(asked) == len(valid) >= 1 and all(r.images == 1 for r in asked)
+    weights = {p["step"]: p["step_answer"]["weight"] for p in valid}
+    assert all(0.0 <= w <= 1.0 for w in weights.values())
+    values = [p["step_answer"]["value"] for p in valid if "value" in (p["step_answer"] or {})]
+    assert values and max(values) <= max(weights.values()) + 1e-9

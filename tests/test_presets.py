@@ -3,6 +3,8 @@ fills only what was left out, and `ask` and `eval` build the same agent from the
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 
 from efficienteqa.agent import AgentConfig
@@ -13,7 +15,8 @@ from efficienteqa.stack import Stack
 from efficienteqa.stop import StopConfig
 from efficienteqa.stop.rules import GATED_MIN_STEP
 
-NOTHING_GIVEN = {"z_th": None, "z_gated": None, "min_stop_step": None, "no_early_stop": False, "top_k": None,
+NOTHING_GIVEN = {"step_weight": None, "z_th": None, "z_gated": None, "min_stop_step": None,
+                 "no_early_stop": False, "top_k": None,
                  "max_steps": None, "seed": None, "explorer": None, "vlm": None,
                  "temperature": None, "perception": None, "relevancy": None, "grouping": None,
                  "cache": None, "dataset": None, "limit": None, "env": None, "judge": None,
@@ -67,7 +70,8 @@ def test_a_preset_fills_only_what_was_left_out():
     from efficienteqa.agent import PAPER_CONFIG
 
     every = apply_preset("paper", {**NOTHING_GIVEN, "stop_rule": None, "explore_scorer": None})
-    assert build_config(every) == PAPER_CONFIG  # what tables call "paper configuration"
+    # what tables call "paper configuration" (with ExploreEQA's own weight of step answers)
+    assert build_config(every) == replace(PAPER_CONFIG, step_weight="confident")
     assert build_stack(every).explore_scorer == "vlm"
 
 
@@ -133,7 +137,7 @@ MAIN_TABLE_ROWS["paper-offline-pixels"] = {**MAIN_TABLE_ROWS["paper-offline"],
 PAPER_BACKENDS = {"dataset": "hm-eqa", "limit": 100, "env": "habitat",
                   "vlm": "openai:gpt-4o-2024-05-13", "temperature": 1.0, "perception": "rgb",
                   "relevancy": "blip2-itm", "judge": "openai:gpt-4o-2024-05-13",
-                  "judge_mode": "grade"}
+                  "judge_mode": "grade", "step_weight": "confident"}
 
 
 def test_the_presets_are_the_shipped_configuration_files():
@@ -160,7 +164,9 @@ def test_paper_offline_is_the_papers_algorithm_on_the_offline_stack():
     assert build_stack(o) == Stack(explore_scorer="vlm")
     assert o["dataset"] is None and o["env"] is None  # the synthetic defaults
     paper = apply_preset("paper", {**NOTHING_GIVEN, "stop_rule": None, "explore_scorer": None})
-    assert build_config(paper) == build_config(o)
+    # the same but for the weight of ExploreEQA's step answers, which the agent's own answer
+    # (retrieval) never reads
+    assert build_config(paper) == replace(build_config(o), step_weight="confident")
     manifest = {"method": "efficienteqa", "config": asdict(build_config(o)),
                 "stack": {"explore_scorer": "vlm"}}
     assert label(manifest) == "efficienteqa paper configuration"

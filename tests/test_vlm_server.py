@@ -123,6 +123,8 @@ def test_each_style_writes_the_same_reply_its_own_way(vlm, style):
     elif style == "json":
         body = reply.removeprefix("```json\n").removesuffix("\n```")
         assert json.loads(body)["answer"] in ("yes", "no")
+    elif style == "refuse":  # a refusal, whatever was asked
+        assert reply == "I'm sorry, but I can't help with that." and reply != plain
     else:
         assert reply.endswith(plain) and len(reply.splitlines()) > 1
 

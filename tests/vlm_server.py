@@ -132,6 +132,8 @@ def classify(text: str, images: int = 0) -> str:
         return "worth-token" if "Reply with yes or no only" in t else "worth"
     if "Say what this view shows, as one JSON object" in t:
         return "sightings"  # perception/prompts/sightings.txt
+    if "Are you confident about answering the question with the current view?" in t:
+        return "confident-token" if "Reply with yes or no only" in t else "confident"
     if "Does this view of a home show what the question asks about" in t:
         return "match"  # relevancy/prompts/match.txt (also the model gate)
     if "Do these two answers mean the same thing" in t:
@@ -218,7 +220,7 @@ def compose(kind: str, text: str, images: int, seed: int) -> Reply:
         letter = sorted(_letters(text), key=lambda x: hashlib.sha256(f"{seed}{x}".encode()).digest())[0]
         exact = f"{letter}\n{yn}" if kind == "explore-token" else letter
         return Reply(exact, {"letter": letter}, f"Direction {letter} looks most promising.")
-    if kind in ("explore-direction", "worth-token", "group", "judge-same"):
+    if kind in ("explore-direction", "worth-token", "group", "judge-same", "confident-token"):
         if kind == "group":
             first, second = _field(text, "Answer 1"), _field(text, "Answer 2")
             yn = "yes" if first.strip().lower() == second.strip().lower() else "no"
@@ -226,7 +228,7 @@ def compose(kind: str, text: str, images: int, seed: int) -> Reply:
     if kind == "worth":
         return Reply(f"worth exploring: {yn} {conf}", {"worth_exploring": yn, "confidence": conf},
                      "The view shows part of the home the question may concern.")
-    if kind == "match":
+    if kind in ("match", "confident"):
         return Reply(f"{yn} {conf}", {"answer": yn, "confidence": conf},
                      "I looked for what the question names in the view.")
     if kind == "sightings":

@@ -32,6 +32,7 @@ from efficienteqa.answer.calls import (
     TOKEN_ANSWER,
     TOKEN_ANSWERS,
 )
+from efficienteqa.answer.confident import STEP_WEIGHTS, confident_probability
 from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK, View
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
@@ -113,6 +114,11 @@ class AgentConfig:
     # question's form, confidence its token probability; needs logprobs), "paper" (DESIGN 3.5's
     # M verbalized guesses, grouped), or "auto": direct when the model gives logprobs.
     answer: str = "auto"
+    # answer_at="best-step": what weighs each step's answer: "relevancy" (the relevancy scorer's
+    # Sim, no extra call: the main table's rows) or "confident" (the model's own P(yes) to "Are
+    # you confident about answering with the current view?", one call per valid frame, as
+    # ExploreEQA's code does; the paper preset's). answer.confident.
+    step_weight: str = "relevancy"
     # answer_at="best-step": True asks the model at every valid frame, as ExploreEQA does
     # online; False, only the frames that can still win: the same answer in fewer calls
     # (answer.best_step).
@@ -183,6 +189,9 @@ class AgentConfig:
             raise ValueError(f"matching must be one of {MATCHINGS}, not {self.matching!r}")
         if self.answer_at not in ANSWER_AT:
             raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
+        if self.step_weight not in STEP_WEIGHTS:
+            raise ValueError(f"step_weight must be one of {STEP_WEIGHTS}, not "
+                             f"{self.step_weight!r}")
 
     def budget(self, env: Environment) -> int:
         """The episode's step budget: ``max_steps``, or the scene's (``stop.env_step_budget``)."""
@@ -468,10 +477,28 @@ class Agent:
             records[c.step - 1].calls += self._calls_since(n)
             return said
 
+        weights: dict[int, float] = {}
+        if self.config.step_weight == "confident":  # ExploreEQA's: the model's own P(yes)
+            model = self.answerer.model
+            token = self.config.confidence == "token"
+            weighed = []
+            for c in candidates:
+                n = self._n_calls()
+                with self._phase(f"step {c.step}"):
+                    p, problems = confident_probability(model, question, c.item, token=token)
+                record = records[c.step - 1]
+                record.calls += self._calls_since(n)
+                record.relevancy_problems += [f"confident: {x}" for x in problems]
+                weights[c.step] = p
+                weighed.append(StepFrame(c.step, p, c.item))
+            candidates = weighed
         best, asked = best_step_answer(candidates, ask, every_step=self.config.answer_every_step)
         for a in asked:
             records[a.step - 1].step_answer = {"answer": a.answer.answer,
                                                "confidence": a.answer.confidence, "value": a.value}
+        for step, p in weights.items():
+            records[step - 1].step_answer = {**(records[step - 1].step_answer or {}),
+                                             "weight": p}
         return best
 
 

@@ -137,6 +137,11 @@ AnswerProbability = Annotated[str | None, _option(METHOD,
     "ExploreEQA's, the direct answer's) is read: product (default: the whole answer's "
     "probability) or per-token (its tokens' geometric mean, length-normalised).",
     show_default=False)]
+StepWeight = Annotated[str | None, _option(METHOD,
+    "--step-weight", help="ExploreEQA's answer: what weighs each step's answer: relevancy "
+    "(default: the relevancy scorer's Sim, no extra call) or confident (the VLM's own P(yes) to "
+    "'are you confident about answering with this view?', one call a frame, as ExploreEQA's "
+    "code; the paper preset's).", show_default=False)]
 TokenAnswer = Annotated[str | None, _option(METHOD,
     "--token-answer", help="White-box ExploreEQA's per-frame prompt: short (default: one line) or "
     "verbalized (DESIGN 3.5's prompt with one guess, as black-box asks, read by its token "
@@ -288,6 +293,7 @@ def ask_command(
     answer: AnswerOpt = None,
     answer_probability: AnswerProbability = None,
     token_answer: TokenAnswer = None,
+    step_weight: StepWeight = None,
     explorer: str | None = _option(METHOD, None, help="sfe (default) | frontier-only | random.",
                                         show_default=False),
     grouping: Grouping = None,
@@ -451,6 +457,7 @@ def eval_command(
     answer: AnswerOpt = None,
     answer_probability: AnswerProbability = None,
     token_answer: TokenAnswer = None,
+    step_weight: StepWeight = None,
     seed: Seed = None,
     grouping: Grouping = None,
     explore_scorer: ExploreScorer = None,

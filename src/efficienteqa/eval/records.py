@@ -51,7 +51,8 @@ FORMAT_1_MISSING = {"gate": "none", "steering": "none"}
 # AgentConfig settings added after format 2, in any format: what a run that did not record them
 # ran with (the question read by rules, its words matched as words, no stop on a final gate
 # verdict; DESIGN 9).
-ADDED_SETTINGS = {"reading": "rules", "matching": "words", "gate_final": False}
+ADDED_SETTINGS = {"reading": "rules", "matching": "words", "gate_final": False,
+                  "step_weight": "relevancy"}
 # The stack's None (or a setting it did not record yet): each call's own temperature, 0 for
 # every call of a run; the relevancy model on the GPU torch sees, else the CPU; no download of
 # its weights; images at 512 px, as JPEG for openai: servers and PNG for the local one ("auto").

@@ -97,6 +97,12 @@ def yes_prob_from_logprobs(top_logprobs: LogprobInput | None) -> float:
     return probs["YES"] if probs else DEFAULT_P_YES
 
 
+def yes_prob_or_none(top_logprobs: LogprobInput | None) -> float | None:
+    """P(yes) over {yes, no} from token log-probabilities; None when neither is there."""
+    probs = _softmax_first(top_logprobs, ["YES", "NO"])
+    return probs["YES"] if probs else None
+
+
 def _has_newline(token: str) -> bool:
     return "\n" in token or "Ċ" in token  # Ċ: a byte-level BPE tokenizer's raw newline
 
