@@ -99,7 +99,7 @@ def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
     assert run["stack"]["vlm"] == "openai:gpt-4o-2024-05-13" and run["stack"]["temperature"] == 1.0
     assert (run["stack"]["perception"], run["stack"]["relevancy"]) == ("rgb", "blip2-itm")
     assert run["config"]["stop"]["z_th"] == 3.0 and run["config"]["top_k"] == 3
-    assert run["judge_mode"] == "grade"
+    assert run["judge_mode"] == "openeqa"
     if importlib.util.find_spec("habitat_sim") is None:
         assert result.returncode == 1 and "conda install" in result.stdout
 

@@ -381,3 +381,27 @@ def test_the_yes_prob_version_holds_both_prompts_and_the_mapping(monkeypatch):
     monkeypatch.setattr(judge, "load_prompt", lambda name, package: real(name, package) + (
         " " if name == "judge_correct" else ""))
     assert judge.prompt_version("yes-prob") != before
+
+
+# ------------------------------------------------------------------ OpenEQA's protocol
+
+def test_the_openeqa_mode_runs_the_protocol_as_openeqa_does(tmp_path):
+    """No rule grading first (the same answer still goes to the model), the response cut after
+    its last ".", temperature 0.2, seed 1234, 32 tokens, the mark after "Your mark:"."""
+    from efficienteqa.eval.judge import openeqa_cut, openeqa_mark
+
+    model = StubChatModel(["Your mark: 4", "5", "I think it is a good answer."])
+    judge = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="openeqa")
+    first = judge.judge("What is on the desk?", "a lamp", "A lamp. It is on the desk, I")
+    assert (first.score, first.judge) == (4, "stub (openeqa)")
+    request = model.requests[0]
+    assert (request.temperature, request.seed, request.max_tokens) == (0.2, 1234, 32)
+    sent = request.messages[-1].text
+    assert sent.rstrip().endswith("Response: A lamp.") and "Your mark: 5" in sent
+    assert judge.judge("Is the door open?", "yes", "yes").score == 5  # asked, not ruled
+    broken = judge.judge("What colour is the sofa?", "red", "blue")
+    assert broken.score == 1 and broken.problems and "no mark" in broken.problems[0]
+    assert len(model.requests) == 3
+    assert openeqa_cut("yes") == "yes" and openeqa_cut("It is red.") == "It is red."
+    assert [openeqa_mark(r) for r in ("3", "Your mark: **2**", "Your mark: 9", "mark 3")] == \
+        [3, 2, None, None]

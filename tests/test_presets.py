@@ -58,7 +58,7 @@ def test_a_preset_fills_only_what_was_left_out():
     paper = PRESETS["paper"]
     assert o["top_k"] == 3 and o["relevancy"] == "clip"  # given: kept
     assert o["vlm"] == paper["vlm"] and o["z_th"] == paper["z_th"]  # left out: the preset's
-    assert o["dataset"] == "hm-eqa" and o["limit"] == 100 and o["judge_mode"] == "grade"
+    assert o["dataset"] == "hm-eqa" and o["limit"] == 100 and o["judge_mode"] == "openeqa"
     assert o["seed"] is None  # the preset does not name it: the dataclass default applies
     assert build_stack(o).perception == "rgb"
     config = build_config(o)  # the paper's stepping: no re-plans, no clearance at a move's end
@@ -137,7 +137,7 @@ MAIN_TABLE_ROWS["paper-offline-pixels"] = {**MAIN_TABLE_ROWS["paper-offline"],
 PAPER_BACKENDS = {"dataset": "hm-eqa", "limit": 100, "env": "habitat",
                   "vlm": "openai:gpt-4o-2024-05-13", "temperature": 1.0, "perception": "rgb",
                   "relevancy": "blip2-itm", "judge": "openai:gpt-4o-2024-05-13",
-                  "judge_mode": "grade", "step_weight": "confident"}
+                  "judge_mode": "openeqa", "step_weight": "confident"}
 
 
 def test_the_presets_are_the_shipped_configuration_files():

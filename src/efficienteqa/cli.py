@@ -419,7 +419,7 @@ def judge_command(
     judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec). Default: eval's "
                                      "judge model (the local model, RunSpec.judge).",
                                      show_default=False),
-    judge_mode: str | None = typer.Option(None, help="grade | yes-prob | auto (default; see `eval "
+    judge_mode: str | None = typer.Option(None, help="grade | yes-prob | openeqa | auto (default; see `eval "
                                           "--help`).", show_default=False),
 ) -> None:
     """Grade finished runs again with another judge (e.g. openai:gpt-4o); results are kept."""
@@ -482,9 +482,11 @@ def eval_command(
                                      "for no model. Synthetic questions are always graded by the "
                                      "rule judge too. Default: rule for synthetic datasets, "
                                      "the local judge model (RunSpec.judge) for hm-eqa.", show_default=False),
-    judge_mode: str | None = _option(BACKENDS, None, help="grade (the judge says 1-5) | yes-prob (1 + 4 "
-                                          "P(yes) for 'same answer?') | auto (default: yes-prob for "
-                                          "local models).", show_default=False),
+    judge_mode: str | None = _option(BACKENDS, None, help="grade (the judge says 1-5 by the project's "
+                                          "rubric) | yes-prob (1 + 4 P(yes) for 'same answer?') | "
+                                          "openeqa (OpenEQA's LLM-Match protocol; the paper preset's) "
+                                          "| auto (default: yes-prob for local models, else grade).",
+                                          show_default=False),
     env: Env = None,
     hm3d_root: Hm3dRoot = None,
     assets: Assets = DEFAULT_ASSETS,

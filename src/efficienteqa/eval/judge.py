@@ -190,6 +190,29 @@ def parse_score(text: str) -> tuple[int | None, list[str]]:
 
 # --- the judge ----------------------------------------------------------------------------------
 
+def openeqa_cut(response: str) -> str:
+    """The response as OpenEQA grades it: up to and with its last "." when text follows it
+    ("A lamp. It is on." stays; "A lamp. It is" becomes "A lamp.")."""
+    end = response.rfind(".")
+    return response[:end + 1] if 0 <= end < len(response) - 1 else response
+
+
+def openeqa_mark(reply: str) -> int | None:
+    """The mark of an OpenEQA-style reply: the reply itself when it is a number, else the
+    number after the last "Your mark:" (to the end of its line); None when neither is a whole
+    number from 1 to 5."""
+    text = reply.strip()
+    if not text.isdigit():
+        at = text.rfind(OPENEQA_TAG)
+        text = text[at + len(OPENEQA_TAG):].split("\n", 1)[0].strip() if at >= 0 else text
+        found = re.match(r"^\**\s*(\d{1,2})\b", text)  # a bold mark is a mark
+        text = found.group(1) if found else ""
+    if not text.isdigit() or len(text) > 2:
+        return None
+    mark = int(text)
+    return mark if MIN_SCORE <= mark <= MAX_SCORE else None
+
+
 def render_prompt(question: str, reference: str, response: str, extra: Sequence[str] = (),
                   template: str = "judge") -> str:
     """The judge prompt: fixed instructions and examples first (llama.cpp reuses that prefix
@@ -202,7 +225,16 @@ def render_prompt(question: str, reference: str, response: str, extra: Sequence[
                                                  response=response)
 
 
-JUDGE_MODES = ("grade", "yes-prob")
+JUDGE_MODES = ("grade", "yes-prob", "openeqa")
+# openeqa: the protocol of OpenEQA's LLM-Match (its evaluation code and MMBench-style prompt,
+# read, not copied): a prompt with three worked examples and the mark after "Your mark:", at
+# temperature 0.2 with seed 1234 and at most 32 tokens, no rule grading first, the response cut
+# after its last "." (where text follows it). Figures in this mode compare with OpenEQA-style
+# ones; the project's own rubric (grade) and yes-prob do not.
+OPENEQA_TEMPERATURE = 0.2
+OPENEQA_SEED = 1234
+OPENEQA_MAX_TOKENS = 32
+OPENEQA_TAG = "Your mark:"
 # The judge of a run that names none (``eval.methods.default_judge``) and the mode of one that
 # names none, for `efficienteqa eval`, `efficienteqa judge` and ``RunSpec`` alike: "auto",
 # yes-prob for the local models (the published tables' judge: every judged run under results/
@@ -219,7 +251,8 @@ def judge_mode(mode: str, judge: str | None) -> str:
     if mode == "auto":
         return "yes-prob" if (judge or "").startswith("local:") else "grade"
     if mode not in JUDGE_MODES:
-        raise EfficientEQAError(f"unknown judge mode {mode!r}", fix="use grade, yes-prob or auto")
+        raise EfficientEQAError(f"unknown judge mode {mode!r}",
+                                fix="use grade, yes-prob, openeqa or auto")
     return mode
 
 
@@ -231,8 +264,12 @@ YES_COMBINE = "geometric mean"
 def prompt_version(mode: str = "grade") -> str:
     """A hash of everything the judge is told and of how its replies become a grade, so a
     changed prompt or mapping does not reuse old grades."""
-    text = (load_prompt("judge", PROMPTS) + "\n" + REMINDER if mode == "grade"
-            else "\n".join([*(load_prompt(t, PROMPTS) for t in YES_PROMPTS), YES_COMBINE]))
+    if mode == "openeqa":
+        text = (f"{load_prompt('judge_openeqa', PROMPTS)}\n{OPENEQA_TEMPERATURE} {OPENEQA_SEED} "
+                f"{OPENEQA_MAX_TOKENS}")
+    else:
+        text = (load_prompt("judge", PROMPTS) + "\n" + REMINDER if mode == "grade"
+                else "\n".join([*(load_prompt(t, PROMPTS) for t in YES_PROMPTS), YES_COMBINE]))
     return hashlib.sha256(f"{mode}\n{text}".encode()).hexdigest()[:16]
 
 
@@ -300,7 +337,7 @@ class LLMMatchJudge:
                                     fix="use --judge-mode grade")
         self.model = model
         # The name recorded with every grade says how it was obtained.
-        self.name = model.name if mode == "grade" else f"{model.name} (yes-prob)"
+        self.name = model.name if mode == "grade" else f"{model.name} ({mode})"
         self.mode = mode
         self._cache_path = cache_path
 
@@ -320,6 +357,14 @@ class LLMMatchJudge:
         do not raise."""
         if response is None or not response.strip():
             return Judgement(score=None, value=0.0, judge=self.name, problems=(MISSING_ANSWER,))
+        if self.mode == "openeqa":  # the protocol as it runs: no rules, its own cut
+            response = openeqa_cut(response)
+            key = self._key(question, reference, extra, response)
+            judgement = self._lookup(key)
+            if judgement is None:
+                judgement = self._openeqa(question, reference, response, extra)
+                self._store(key, judgement)
+            return judgement
         response = trim_response(response)
         ruled = rule_score(question, reference, response, extra)
         if ruled is not None:
@@ -345,6 +390,23 @@ class LLMMatchJudge:
         return replace(judgement, score=score, value=score_value(score),
                        raw=f"{judgement.raw} (held to {bounds.low}-{bounds.high} by rule: "
                            f"{bounds.rule}: {score})")
+
+    def _openeqa(self, question: str, reference: str, response: str,
+                 extra: Sequence[str]) -> Judgement:
+        """One call as OpenEQA makes it; an unreadable mark (OpenEQA raises) is the default
+        grade with a problem."""
+        accepted = [e.strip() for e in extra if e and e.strip()]
+        prompt = load_prompt("judge_openeqa", PROMPTS).format(
+            question=question.strip(), answer=reference.strip(), response=response,
+            extra=f"\nOther accepted answers: {'; '.join(accepted)}" if accepted else "")
+        reply = self.model.chat([Message("user", prompt)], max_tokens=OPENEQA_MAX_TOKENS,
+                                temperature=OPENEQA_TEMPERATURE, seed=OPENEQA_SEED)
+        score = openeqa_mark(reply.text or "")
+        if score is None:
+            return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name, reply.text,
+                             (f"no mark from 1 to 5 in {(reply.text or '')[:40]!r}, scored "
+                              f"{DEFAULT_SCORE}",))
+        return Judgement(score, score_value(score), self.name, reply.text)
 
     def _yes_prob(self, prompts: Sequence[str]) -> Judgement:
         """One call per prompt; the grade from the geometric mean of their P(yes). A prompt
