@@ -39,7 +39,7 @@ from typing import Any
 
 from scipy.stats import spearmanr
 
-from efficienteqa.eval.judge import DEFAULT_JUDGE, judge_mode
+from efficienteqa.eval.judge import DEFAULT_JUDGE, JUDGE_MODES, judge_mode
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "datasets" / "judge-agreement" / "dev.jsonl"
@@ -208,8 +208,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA,
                         help="graded items, one JSON object per line (default: the shared set)")
     parser.add_argument("--judge", action="append", help=f"a VLM spec (default {DEFAULT_JUDGE}); repeatable")
-    parser.add_argument("--judge-mode", action="append", choices=("grade", "yes-prob", "auto"),
-                        help="grade | yes-prob | auto (default auto); repeatable")
+    parser.add_argument("--judge-mode", action="append", choices=(*JUDGE_MODES, "auto"),
+                        help=f"{' | '.join(JUDGE_MODES)} | auto (default auto); repeatable")
     parser.add_argument("--limit", type=int, default=None, help="only the first N items")
     parser.add_argument("--fresh", action="store_true", help="ignore earlier cached grades")
     parser.add_argument("--dump", type=Path, default=None,
