@@ -23,7 +23,7 @@ test: setup-dev
 
 # ruff, mypy and the import contracts of docs/ARCHITECTURE.md (CI runs it beside the tests).
 lint: setup-dev
-	$(VENV)/bin/ruff check src tests benchmarks experiments scripts
+	$(VENV)/bin/ruff check src tests benchmarks experiments scripts examples
 	$(VENV)/bin/mypy src
 	$(VENV)/bin/lint-imports
 
