@@ -62,7 +62,7 @@ from efficienteqa.eval.synthetic_judge import RULE_CATEGORIES, rule_judgement
 from efficienteqa.records import code_version, plain, write_json
 from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent, parse_vlm
-from efficienteqa.stop.rules import StopConfig
+from efficienteqa.stop.rules import StopConfig, z_th_acts
 
 # The paper's Fig. 5/6 (HM-EQA, 100 questions, GPT-4o; DESIGN 3.6): LLM-Match on its own set-up.
 PAPER_Z = {1.0: (28.94, 47.75), 2.0: (28.70, 53.50), 3.0: (30.16, 54.25)}  # steps, LLM-Match
@@ -76,6 +76,12 @@ def _floats(text: str) -> list[float]:
 
 def _ints(text: str) -> list[int]:
     return [int(v) for v in text.split(",") if v.strip()]
+
+
+def acting_threshold(config: dict[str, Any]) -> str:
+    """Which threshold the Z_th rows vary: "z_gated" where the run's gate judged every frame
+    (the default's rules gate: Z_th decides nothing there), else "z_th"."""
+    return "z_th" if z_th_acts(str(config.get("gate", "none"))) else "z_gated"
 
 
 def stop_name(rule: str | None, z_th: float | None) -> str:
@@ -126,9 +132,11 @@ def replay_episode(row: dict[str, Any], record: dict[str, Any], manifest: dict[s
     if not todo:
         return 0
     config = _config(record)
+    gated = acting_threshold(record["config"]) == "z_gated"
     stopped = {(rule, z): replay_episode_stop(
         record["per_step"], record["stop_reason"],
-        stop_config_for(record["config"]["stop"], z_th=z, rule=rule)) if rule is not None
+        stop_config_for(record["config"]["stop"], z_th=z, rule=rule, gated=gated))
+        if rule is not None
         else replay_episode_stop(record["per_step"], record["stop_reason"],
                                  StopConfig(enabled=False))
         for rule, z in stops}
@@ -227,7 +235,8 @@ def _fmt(v: float | None, digits: int = 1) -> str:
 
 
 def print_tables(result: dict[str, Any], stops: Sequence[tuple[str | None, float | None]]) -> None:
-    print(f"\nZ_th (stop replayed; answer at K={result['z_th'][0]['k']})")
+    print(f"\nZ_th (stop replayed; answer at K={result['z_th'][0]['k']}; the threshold varied: "
+          f"{result.get('threshold', 'z_th')})")
     print(f"{'stop':<40} {'n':>3} {'acc %':>6} {'steps':>6} {'st/bud':>6} {'relev %':>7}"
           f"   paper steps / LLM-Match")
     for r in result["z_th"]:
@@ -307,6 +316,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(f"[{i + 1}/{len(records)}] {row['id']}: {n} answer calls", file=sys.stderr)
     lines = [ln for ln in read_episodes(out_jsonl).rows() if ln["episode"] in records]
     result = tables(lines, list(records), stops, ks, stop_k, not args.no_answer)
+    threshold = acting_threshold(manifest.get("config") or {})
+    result["threshold"] = threshold
     checked = {ln["episode"]: ln["prompt_match"] for ln in lines
                if ln.get("prompt_match") is not None}
     check = {"checked": len(checked), "matched": sum(checked.values()),
@@ -315,6 +326,7 @@ def main(argv: Sequence[str] | None = None) -> None:
                "dataset": manifest.get("dataset"), "stack": asdict(answerer.stack) if answerer
                else manifest["stack"], "episodes": len(records), "skipped": skipped,
                "rules": rules, "z_th": args.z_th, "k": ks, "stop_k": stop_k,
+               "threshold": threshold,
                "failed": sum(ln.get("status") == "failed" for ln in lines),
                "answer_calls_this_run": calls,  # response-cache hits included
                "wall_s": round(time.perf_counter() - t0, 1),

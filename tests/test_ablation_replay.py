@@ -188,3 +188,24 @@ def test_a_rules_gates_recorded_verdicts_are_replayed_with_the_sims():
     assert (stopped.step, stopped.reason) == (8, "relevancy")  # not at the refused spike (6)
     ungated = [{k: v for k, v in s.items() if k != "gate"} for s in per_step]
     assert replay_episode_stop(ungated, "budget", config).step == 6
+
+
+def test_the_z_th_rows_of_a_gated_run_vary_the_threshold_that_acts():
+    """A run whose gate judged every frame (the default) stops a passed frame at z_gated: its
+    Z_th rows vary that one, so they differ; a run without a gate varies Z_th."""
+    from experiments.ablation_replay import acting_threshold
+
+    sims = [0.30, 0.31, 0.29, 0.30, 0.32, 0.36, 0.30, 0.30]
+    per_step = [{"step": s, "pose": [0.0, 0.0, 0.0], "valid": True, "sim": v,
+                 "gate": {"ok": True, "why": ""}} for s, v in enumerate(sims, start=1)]
+    recorded = {"rule": "paper", "z_th": 3.0, "min_step": 2, "enabled": False}
+    assert acting_threshold({"gate": "auto"}) == "z_gated"
+    assert acting_threshold({"gate": "none"}) == acting_threshold({"gate": "model"}) == "z_th"
+    stops = {z: replay_episode_stop(per_step, "budget",
+                                    stop_config_for(recorded, z_th=z, gated=True)).step
+             for z in (1.0, 2.0, 3.0, 4.0)}
+    assert len(set(stops.values())) > 1, stops  # the rows differ
+    untouched = {z: replay_episode_stop(per_step, "budget",
+                                        stop_config_for(recorded, z_th=z)).step
+                 for z in (1.0, 4.0)}
+    assert len(set(untouched.values())) == 1  # varying Z_th under the gate changes nothing

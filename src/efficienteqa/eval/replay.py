@@ -88,13 +88,15 @@ def replay_stop(sims: Sequence[tuple[int, float] | tuple[int, float, bool | None
 
 
 def stop_config_for(recorded: StopConfig | Mapping[str, Any], *, z_th: float | None = None,
-                    rule: str | None = None) -> StopConfig:
+                    rule: str | None = None, gated: bool = False) -> StopConfig:
     """The stop of a replayed setting: the recorded configuration (``episode.json``'s
-    ``config.stop``, recorded with the stop off) switched on, with another ``z_th`` or rule."""
+    ``config.stop``, recorded with the stop off) switched on, with another threshold or rule.
+    ``z_th`` sets the threshold that acts: ``z_gated`` where ``gated`` (the run's gate judged
+    every frame, ``stop.rules.z_th_acts``: Z_th decides nothing there), else ``z_th``."""
     base = recorded if isinstance(recorded, StopConfig) else StopConfig(**dict(recorded))
     changes: dict[str, Any] = {"enabled": True}
     if z_th is not None:
-        changes["z_th"] = float(z_th)
+        changes["z_gated" if gated else "z_th"] = float(z_th)
     if rule is not None:
         changes["rule"] = rule
     return replace(base, **changes)
