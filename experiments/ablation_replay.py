@@ -62,7 +62,7 @@ from efficienteqa.eval.synthetic_judge import RULE_CATEGORIES, rule_judgement
 from efficienteqa.records import code_version, plain, write_json
 from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent, parse_vlm
-from efficienteqa.stop.rules import StopConfig, z_th_acts
+from efficienteqa.stop.rules import StopConfig
 
 # The paper's Fig. 5/6 (HM-EQA, 100 questions, GPT-4o; DESIGN 3.6): LLM-Match on its own set-up.
 PAPER_Z = {1.0: (28.94, 47.75), 2.0: (28.70, 53.50), 3.0: (30.16, 54.25)}  # steps, LLM-Match
@@ -78,10 +78,12 @@ def _ints(text: str) -> list[int]:
     return [int(v) for v in text.split(",") if v.strip()]
 
 
-def acting_threshold(config: dict[str, Any]) -> str:
-    """Which threshold the Z_th rows vary: "z_gated" where the run's gate judged every frame
-    (the default's rules gate: Z_th decides nothing there), else "z_th"."""
-    return "z_th" if z_th_acts(str(config.get("gate", "none"))) else "z_gated"
+def acting_threshold(per_step: Sequence[dict[str, Any]]) -> str:
+    """Which threshold the Z_th rows vary in an episode: "z_gated" where its gate judged every
+    frame (verdicts recorded on the steps: the default's rules gate, where Z_th decides
+    nothing), else "z_th"."""
+    gated = any(f.eligible is not None for f in recorded_frames(per_step))
+    return "z_gated" if gated else "z_th"
 
 
 def stop_name(rule: str | None, z_th: float | None) -> str:
@@ -132,7 +134,7 @@ def replay_episode(row: dict[str, Any], record: dict[str, Any], manifest: dict[s
     if not todo:
         return 0
     config = _config(record)
-    gated = acting_threshold(record["config"]) == "z_gated"
+    gated = acting_threshold(record["per_step"]) == "z_gated"
     stopped = {(rule, z): replay_episode_stop(
         record["per_step"], record["stop_reason"],
         stop_config_for(record["config"]["stop"], z_th=z, rule=rule, gated=gated))
@@ -316,7 +318,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(f"[{i + 1}/{len(records)}] {row['id']}: {n} answer calls", file=sys.stderr)
     lines = [ln for ln in read_episodes(out_jsonl).rows() if ln["episode"] in records]
     result = tables(lines, list(records), stops, ks, stop_k, not args.no_answer)
-    threshold = acting_threshold(manifest.get("config") or {})
+    acting = {acting_threshold(r["per_step"]) for r in records.values()}
+    threshold = "/".join(sorted(acting)) or "z_th"
     result["threshold"] = threshold
     checked = {ln["episode"]: ln["prompt_match"] for ln in lines
                if ln.get("prompt_match") is not None}
