@@ -92,10 +92,10 @@ class LabelsVLM:
              logprobs: int | None = None, json_schema: dict[str, Any] | None = None,
              seed: int | None = None) -> ChatResponse:
         text = messages[-1].text
-        if self.obs is None or "Say what this view shows" not in text:
+        if self.obs is None or "Say what one view shows" not in text:
             raise ValueError("the labels VLM answers the sighting call of a frame it was shown")
-        listed = text.split('"name": one of', 1)[1].split("}", 1)[0] if '"name": one of' in text else ""
-        data = self.truth(self.obs, re.findall(r'"([^"]+)"', listed))
+        listed = re.search(r"^Things to look for: (.*)$", text, re.MULTILINE)
+        data = self.truth(self.obs, re.findall(r'"([^"]+)"', listed.group(1)) if listed else [])
         pose = self.obs.pose
         rng = np.random.default_rng([self.seed, zlib.crc32(f"{pose.x:.3f} {pose.y:.3f} "
                                                            f"{pose.yaw:.3f}".encode())])

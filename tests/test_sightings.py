@@ -90,7 +90,11 @@ def test_a_text_view_names_listed_items_only():
 def test_the_prompt_and_schema_say_what_the_reply_needs():
     text = prompt("How many chairs are around the table in the kitchen?", COUNT,
                   "The view is the attached image.", images=True)
-    assert '"name": one of "chair", "table"' in text and "thousandths" in text
+    assert 'Things to look for: "chair", "table"' in text and "thousandths" in text
+    assert text.index("Example:") < text.index("Question:") < text.index("The view is")
+    other = prompt("Is there a lamp?", SOFA, "The view is the attached image.", images=True)
+    fixed = text[:text.index("Question:")]
+    assert other.startswith(fixed)  # the instructions are the same for every call
     assert "(living room, kitchen, dining room" in text and "Question: How many chairs" in text
     assert schema(True)["properties"]["things"]["items"]["required"] == ["name", "box"]
     assert schema(False)["properties"]["things"]["items"]["required"] == ["name", "item"]

@@ -130,7 +130,7 @@ def classify(text: str, images: int = 0) -> str:
         return "explore-direction"  # explore_direction.txt
     if t.startswith("Is this view worth exploring"):
         return "worth-token" if "Reply with yes or no only" in t else "worth"
-    if "Say what this view shows, as one JSON object" in t:
+    if "Say what one view shows, as one JSON object" in t:
         return "sightings"  # perception/prompts/sightings.txt
     if "Are you confident about answering the question with the current view?" in t:
         return "confident-token" if "Reply with yes or no only" in t else "confident"
@@ -269,8 +269,8 @@ def _sightings(text: str, images: int, seed: int, question: str) -> Reply:
     named = next((r for r in SIGHTING_ROOMS if r in question.lower()), None)
     others = [r for r in SIGHTING_ROOMS if r != named]
     room = named if named is not None and seed % 3 else others[seed % len(others)]
-    names = re.findall(r'"([^"]+)"', text.split('"name": one of', 1)[1].split("}", 1)[0]) \
-        if '"name": one of' in text else []
+    listed = re.search(r"^Things to look for: (.*)$", text, re.MULTILINE)
+    names = re.findall(r'"([^"]+)"', listed.group(1)) if listed else []
     where: dict[str, Any] = ({"box": [250 + seed % 200, 350, 650 + seed % 200, 950]} if images
                              else {"item": 1})
     data: dict[str, Any] = {"room": room, "doorways": [], "things": []}

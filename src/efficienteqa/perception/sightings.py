@@ -79,27 +79,27 @@ class SightingReply:
 
 
 def prompt(question: str, target: Target, view: str, images: bool) -> str:
-    """The sighting call's text: the view (a numbered description, or "the attached image")."""
-    things = " or ".join(target.things)
-    names = ", ".join(f'"{t}"' for t in target.things)
-    first = target.things[0] if target.things else "chair"
+    """The sighting call's text: fixed instructions first (a llama.cpp or vLLM server reuses
+    them between calls), then the episode's question and things, then the view (a numbered
+    description, or "the attached image")."""
     if images:
         where = '"box": [x0, y0, x1, y1]'
         how = ("A box is the rectangle around it in thousandths of the image: x0, x1 from the "
                "left edge (0) to the right edge (1000), y0, y1 from the top (0) to the bottom "
                "(1000).\n")
         example = ('{"room": "kitchen", "doorways": [{"room": "hallway", "box": [700, 250, 1000, '
-                   f'800]}}], "things": [{{"name": "{first}", "box": [120, 450, 480, 900]}}]}}')
+                   '800]}], "things": [{"name": "chair", "box": [120, 450, 480, 900]}]}')
         doorway = f'{{"room": its kind, {where}}}'
     else:
         where = '"item": its number in the list'
         how = "Name each thing by its number in the list; list one entry per number.\n"
         example = ('{"room": "kitchen", "doorways": [{"room": "hallway"}], "things": '
-                   f'[{{"name": "{first}", "item": 2}}]}}')
+                   '[{"name": "chair", "item": 2}]}')
         doorway = '{"room": its kind}'
     return load_prompt("sightings", PROMPTS).format(
-        question=question, view=view, rooms=", ".join(ROOMS), doorway=doorway, things=things,
-        thing=f'{{"name": one of {names}, {where}}}', how=how, example=example)
+        question=question, view=view, rooms=", ".join(ROOMS), doorway=doorway,
+        names=", ".join(f'"{t}"' for t in target.things) or "none",
+        thing=f'{{"name": one of the things to look for, {where}}}', how=how, example=example)
 
 
 def schema(images: bool) -> dict[str, Any]:
