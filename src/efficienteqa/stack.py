@@ -341,25 +341,24 @@ GATE_LABELS = {"none": "none",
 
 def build_gate(name: str, perception: Perception, model: ChatModel) -> AnswerGate | None:
     """The answerability gate ``name`` (stop.gate.GATES): None for "none"; "auto" is "rules"
-    where the perception describes objects, else "model"."""
+    where the perception describes objects, "sightings" where it gives sightings only (a VLM's),
+    else "model"."""
     if name == "none":
         return None
     sights = hasattr(perception, "sightings")
     describes = hasattr(perception, "describe") and sights
     if name == "auto":
         name = "rules" if describes else "sightings" if sights else "model"
-    if name == "sightings":
-        if not sights:
-            raise EfficientEQAError(f"the sightings gate reads sightings, which "
-                                    f"{perception.name} perception does not give",
-                                    fix="use --sightings model, or --gate model")
-        return SightingsGate(perception)  # type: ignore[arg-type]
-    if name == "rules":
-        if not describes:
-            raise EfficientEQAError(f"the rules gate reads object descriptions, which "
-                                    f"{perception.name} perception does not give",
-                                    fix="use --gate model (one yes/no call to the VLM)")
-        return RulesGate(perception)  # type: ignore[arg-type]
+    reads = {"sightings": (sights, "sightings", "--sightings model, or --gate model"),
+             "rules": (describes, "object descriptions",
+                       "--gate model (one yes/no call to the VLM)")}
+    if name in reads:
+        able, what, fix = reads[name]
+        if not able:
+            raise EfficientEQAError(f"the {name} gate reads {what}, which {perception.name} "
+                                    "perception does not give", fix=f"use {fix}")
+        gate = SightingsGate if name == "sightings" else RulesGate
+        return gate(perception)  # type: ignore[arg-type]
     from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
     return ModelGate(VLMMatchScorer(model, perception.modality))
