@@ -169,7 +169,7 @@ class SightingsGate(RulesGate):
 
     name = "sightings"
 
-    def __init__(self, perception: Sighter) -> None:  # noqa: D107 - RulesGate's
+    def __init__(self, perception: Sighter) -> None:
         self.perception = perception  # type: ignore[assignment]
         self.reset()
 
