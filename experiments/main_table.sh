@@ -34,10 +34,10 @@ run explore-eqa-per-token --preset explore-eqa-per-token
 run frontier-only --preset frontier-only
 run random --preset random
 run blind --preset blind
-run paper --preset paper-offline
+run paper-offline --preset paper-offline
 run pixels --preset pixels
-run paper-pixels --preset paper-offline-pixels
-RUNS=("$OUT/default" "$OUT/pixels" "$OUT/paper" "$OUT/paper-pixels" "$OUT/explore-eqa" "$OUT/explore-eqa-blackbox"
+run paper-offline-pixels --preset paper-offline-pixels
+RUNS=("$OUT/default" "$OUT/pixels" "$OUT/paper-offline" "$OUT/paper-offline-pixels" "$OUT/explore-eqa" "$OUT/explore-eqa-blackbox"
       "$OUT/explore-eqa-verbalized-prompt" "$OUT/explore-eqa-per-token" "$OUT/frontier-only"
       "$OUT/random" "$OUT/blind")
 "$EQA" report "${RUNS[@]}" --paired-against "$OUT/explore-eqa" --markdown || status=1

@@ -12,9 +12,9 @@ import pytest
 from conftest import needs_egl, needs_small_model
 
 ROOT = Path(__file__).resolve().parents[1]
-RUNS = ("default", "pixels", "paper", "paper-pixels", "explore-eqa", "explore-eqa-blackbox",
-        "explore-eqa-verbalized-prompt", "explore-eqa-per-token", "frontier-only", "random", "blind")
-PRESET_OF = {"paper": "paper-offline", "paper-pixels": "paper-offline-pixels"}  # the rest: own name
+RUNS = ("default", "pixels", "paper-offline", "paper-offline-pixels", "explore-eqa",
+        "explore-eqa-blackbox", "explore-eqa-verbalized-prompt", "explore-eqa-per-token",
+        "frontier-only", "random", "blind")
 
 
 @needs_egl
@@ -64,6 +64,19 @@ def test_every_row_is_a_shipped_configuration():
     script = (ROOT / "experiments" / "main_table.sh").read_text()
     rows = dict(re.findall(r"^run (\S+) --preset (\S+)$", script, flags=re.M))
     assert set(rows) == set(RUNS)
-    assert all(preset == PRESET_OF.get(name, name) for name, preset in rows.items())
+    assert all(preset == name for name, preset in rows.items())  # a row is named as its preset
     assert set(rows.values()) <= set(preset_names())
     assert not re.search(r"^run .*--(?!preset)", script, flags=re.M)  # no flag lists
+
+
+def test_the_published_main_table_folders_are_named_as_their_presets():
+    """results/main-heldout/NAME holds the run of preset NAME (NAME-vN: an earlier run of it;
+    the paraphrase split and the combined report apart)."""
+    import re
+
+    from efficienteqa.presets import preset_names
+
+    published = ROOT / "results" / "main-heldout"
+    names = {re.sub(r"-v\d+$", "", f.name) for f in published.iterdir()
+             if (f / "run.json").is_file() and not f.name.startswith("paraphrase")}
+    assert names and names <= set(preset_names()), names - set(preset_names())

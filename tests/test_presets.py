@@ -153,7 +153,7 @@ def test_the_presets_are_the_shipped_configuration_files():
 def test_paper_offline_is_the_papers_algorithm_on_the_offline_stack():
     """Exactly what ``--preset paper`` sets besides the back-ends: agent.PAPER_CONFIG with the
     VLM's semantic values, on the default (offline) stack, so tables name it "efficienteqa
-    paper configuration" as they name the committed run of results/main-heldout/paper."""
+    paper configuration" as they name the committed run of results/main-heldout/paper-offline."""
     from dataclasses import asdict
 
     from efficienteqa.agent import PAPER_CONFIG
