@@ -104,7 +104,7 @@ def test_a_format_1_run_reads_as_the_values_it_ran_with():
     assert (config["refusal_retries"], config["stop_clearance_m"]) == (3, 0.45)
     # Recorded before the gate and the steering existed: it ran without them.
     assert (config["gate"], config["steering"], config["answer_every_step"]) == ("none", "none", False)
-    paper = upgrade(json.loads((PUBLISHED / "paper" / RUN_FILE).read_text()))["config"]
+    paper = upgrade(json.loads((PUBLISHED / "paper-offline" / RUN_FILE).read_text()))["config"]
     assert (paper["refusal_retries"], paper["stop_clearance_m"]) == (0, 0.0)  # recorded values stay
 
 

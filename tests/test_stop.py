@@ -188,7 +188,7 @@ def test_paper_preset_keeps_the_paper_rule_and_the_option_reaches_the_config():
     from efficienteqa.errors import EfficientEQAError
     from efficienteqa.presets import apply_preset, build_config
 
-    base = {"stop_rule": None, "z_th": None, "min_stop_step": None}
+    base = {"stop_rule": None, "z_th": None, "min_stop_step": None, "gate": None}
     assert build_config(apply_preset("paper", base)).stop.rule == "paper"
     assert build_config(base | {"stop_rule": "lookback+floor"}).stop.rule == "lookback+floor"
     assert build_config(apply_preset("paper", base | {"stop_rule": "robust"})).stop.rule == "robust"
