@@ -21,7 +21,8 @@ run --method efficienteqa --limit "$LIMIT" --out "$OUT/syn-efficienteqa"
 run --method blind --limit "$LIMIT" --out "$OUT/syn-blind"
 run --method explore-eqa-blackbox --limit "$LIMIT" --out "$OUT/syn-explore-eqa-blackbox"
 run --method explore-eqa --limit "$LIMIT" --out "$OUT/syn-explore-eqa"
-for z in 1 2; do run --method efficienteqa --z-th "$z" --limit "$LIMIT" --out "$OUT/syn-efficienteqa-z$z"; done
+# The threshold that acts with the default gate is z_gated (--z-th is refused there).
+for z in 2 3; do run --method efficienteqa --z-gated "$z" --limit "$LIMIT" --out "$OUT/syn-efficienteqa-zg$z"; done
 for k in 1 3 10; do run --method efficienteqa --top-k "$k" --limit "$LIMIT" --out "$OUT/syn-efficienteqa-k$k"; done
 # Ray, with every model call replayed from the cache: frontier-only makes one answer call per
 # episode, so RAY_LIMIT episodes fill the cache quickly; then the same episodes with 1 and 2
