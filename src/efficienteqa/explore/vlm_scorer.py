@@ -26,7 +26,7 @@ import numpy as np
 
 from efficienteqa.explore.module import SemanticScore
 from efficienteqa.explore.text_scorers import DirectionFrame, DirectionTextScorer, Scores
-from efficienteqa.models.base import ChatModel, Message, TokenLogprob
+from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception.base import Perception
 from efficienteqa.vc.grouping import ExactGrouper, group_answers
@@ -37,6 +37,7 @@ from efficienteqa.vc.logprobs import (
     letter_read,
     require_logprobs,
     yes_prob_from_logprobs,
+    yes_prob_or_none,
 )
 from efficienteqa.vc.parse import (
     DEFAULT_LETTERS,
@@ -199,7 +200,7 @@ def worth_exploring(model: ChatModel, question: str, plain: np.ndarray, *, token
     if token:
         resp = model.chat(message, max_tokens=1, temperature=0.0, logprobs=TOP_LOGPROBS)
         p_yes = yes_prob_from_logprobs(resp.logprobs)
-        problems = ([] if _softmax_yes(resp.logprobs) is not None else
+        problems = ([] if yes_prob_or_none(resp.logprobs) is not None else
                     [f"no yes/no among the worth-exploring reply's tokens: P(yes) = {DEFAULT_P_YES}"])
     else:
         resp = model.chat(message, max_tokens=max_tokens, temperature=0.0)
@@ -344,22 +345,10 @@ class YesNoDirections:
             resp = self.model.chat([Message("user", direction_prompt(frame.question, frame.view,
                                                                      text))],
                                    max_tokens=1, temperature=0.0, logprobs=TOP_LOGPROBS)
-            if _softmax_yes(resp.logprobs) is None:
+            if yes_prob_or_none(resp.logprobs) is None:
                 problems.append(f"{x}: no yes/no among the reply's tokens: P(yes) = {DEFAULT_P_YES}")
             scores[x] = yes_prob_from_logprobs(resp.logprobs)
         return scores, {"problems": problems}
-
-
-def _softmax_yes(tokens: Sequence[TokenLogprob] | None) -> float | None:
-    """P(yes) when yes or no is among the tokens' alternatives, else None."""
-    p = yes_prob_from_logprobs(tokens)
-    return None if not tokens or (p == DEFAULT_P_YES and not _has_yes_no(tokens)) else p
-
-
-def _has_yes_no(tokens: Sequence[TokenLogprob]) -> bool:
-    words = {str(t).replace("Ġ", " ").strip().strip(".!?,").upper()
-             for tok in tokens for t in (tok.token, *(a for a, _ in tok.top))}
-    return bool(words & {"YES", "NO"})
 
 
 ELICITATIONS: dict[str, Callable[[ChatModel], DirectionTextScorer]] = {

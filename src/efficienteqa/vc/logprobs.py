@@ -91,16 +91,16 @@ def letter_probs_from_logprobs(top_logprobs: LogprobInput | None, letters: Seque
     return {x: (probs[k] if probs else 1.0 / len(letters)) for x, k in zip(letters, keys)}
 
 
-def yes_prob_from_logprobs(top_logprobs: LogprobInput | None) -> float:
-    """P(yes) over {yes, no} from token log-probabilities; ``DEFAULT_P_YES`` when neither is there."""
-    probs = _softmax_first(top_logprobs, ["YES", "NO"])
-    return probs["YES"] if probs else DEFAULT_P_YES
-
-
 def yes_prob_or_none(top_logprobs: LogprobInput | None) -> float | None:
     """P(yes) over {yes, no} from token log-probabilities; None when neither is there."""
     probs = _softmax_first(top_logprobs, ["YES", "NO"])
     return probs["YES"] if probs else None
+
+
+def yes_prob_from_logprobs(top_logprobs: LogprobInput | None) -> float:
+    """P(yes) over {yes, no} from token log-probabilities; ``DEFAULT_P_YES`` when neither is there."""
+    p = yes_prob_or_none(top_logprobs)
+    return DEFAULT_P_YES if p is None else p
 
 
 def _has_newline(token: str) -> bool:
