@@ -17,7 +17,7 @@ import numpy as np
 
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.vc.logprobs import yes_prob_or_none
-from efficienteqa.vc.parse import NO_WORTH_LINE, NO_YES_NO, parse_worth_exploring
+from efficienteqa.vc.parse import yes_no_confidence
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.answer"  # answer/prompts/confident.txt, confident_token.txt
@@ -43,7 +43,7 @@ def confident_probability(model: ChatModel, question: str, item: str | np.ndarra
             return 0.0, [f"no yes/no among the reply's tokens {resp.text!r}: weight 0"]
         return p, []
     resp = model.chat([Message("user", prompt, images)], max_tokens=MAX_TOKENS, temperature=0.0)
-    p, problems = parse_worth_exploring(resp.text or "")
-    if any(x.startswith(NO_YES_NO) for x in problems) or not math.isfinite(p):
+    p, problems = yes_no_confidence(resp.text or "")
+    if math.isnan(p):
         return 0.0, [f"unreadable reply {(resp.text or '')[:60]!r}: weight 0"]
-    return float(p), [x for x in problems if not x.startswith(NO_WORTH_LINE)]
+    return p, problems

@@ -20,7 +20,7 @@ import numpy as np
 
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.relevancy.base import Modality, check_question, observation_of
-from efficienteqa.vc.parse import NO_WORTH_LINE, NO_YES_NO, parse_worth_exploring
+from efficienteqa.vc.parse import yes_no_confidence
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.relevancy"  # relevancy/prompts/match.txt
@@ -49,15 +49,14 @@ class VLMMatchScorer:
         response = self.model.chat([Message("user", prompt, images)], max_tokens=self.max_tokens,
                                    temperature=0.0)
         reply = response.text or ""
-        p_yes, problems = parse_worth_exploring(reply)
-        if response.finish_reason == "length":
-            problems.append(f"reply cut at {self.max_tokens} tokens")
-        if any(p.startswith(NO_YES_NO) for p in problems):
+        p_yes, problems = yes_no_confidence(reply)
+        if math.isnan(p_yes):
             self.problems.append(f"unreadable reply {reply[:60]!r}: relevancy missing")
             return math.nan
-        # the match prompt asks for "<yes or no> <confidence>", with no "worth exploring" line
-        self.problems += [p for p in problems if not p.startswith(NO_WORTH_LINE)]
-        return float(p_yes)
+        if response.finish_reason == "length":
+            problems.append(f"reply cut at {self.max_tokens} tokens")
+        self.problems += problems
+        return p_yes
 
     def score_many(self, question: str, items: Sequence[np.ndarray | str]) -> np.ndarray:
         return np.array([self.score(question, text=item) if isinstance(item, str)

@@ -159,11 +159,11 @@ def applied_z(config: StopConfig, eligible: bool | None) -> float | None:
     return config.z_gated if eligible else None
 
 
-def z_th_acts(gate: str, enabled: bool = True) -> bool:
+def z_th_acts(gate: str) -> bool:
     """Whether ``z_th`` can decide a stop with the answerability gate ``gate`` (``stop.gate.GATES``):
     not where the gate judges every frame first (``auto``, ``rules``, ``sightings``), since each
     frame then stops at ``z_gated`` or not at all."""
-    return enabled and gate in ("none", "model")
+    return gate in ("none", "model")
 
 
 class RelevancyStopper:

@@ -451,3 +451,13 @@ def json_object(reply: str) -> dict[str, Any] | None:
             continue
         return value if isinstance(value, dict) else None
     return None
+
+
+def yes_no_confidence(reply: str) -> tuple[float, list[str]]:
+    """P(yes) of a "<yes or no> <confidence>" reply (``parse_worth_exploring`` without its
+    "worth exploring" line), and what could not be read; NaN when the reply says neither yes
+    nor no nor a number (a refusal, "N/A", prose cut short)."""
+    p_yes, problems = parse_worth_exploring(reply)
+    if any(p.startswith(NO_YES_NO) for p in problems):
+        return math.nan, problems
+    return float(p_yes), [p for p in problems if not p.startswith(NO_WORTH_LINE)]
