@@ -234,8 +234,8 @@ def test_the_sightings_gate_reads_the_models_sightings():
     assert isinstance(gate, SightingsGate)
     gate = SightingsGate(perception)
     assert gate.check("What colour is the sofa?", SOFA, obs, obs.rgb).ok
-    lamp = Target(kind="colour", object="bicycle")
-    assert not gate.check("What colour is the bicycle?", lamp, obs, obs.rgb).ok
+    bicycle = Target(kind="colour", object="bicycle")
+    assert not gate.check("What colour is the bicycle?", bicycle, obs, obs.rgb).ok
     blind = SightingsGate(LabelsSightings(SemanticPerception(FakeLabels()), FakeLabels(),
                                           Errors(miss=1.0)))
     assert not blind.check("What colour is the sofa?", SOFA, obs, obs.rgb).ok
