@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> None:
 
     stack = Stack(vlm=args.vlm, perception=args.perception,
                   relevancy=default_relevancy(args.perception))
-    config = AgentConfig(max_steps=args.max_steps)
+    config = AgentConfig.of(max_steps=args.max_steps)
     done = ask(args.question, args.scene, args.out, stack=stack, config=config, assets=args.assets)
     result = done.result
     print(f"answer: {result.answer} (confidence {result.confidence:.2f})")

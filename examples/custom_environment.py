@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> None:
     stack = Stack(vlm=args.vlm, perception="rgb", relevancy="vlm-match")
     scene = Scene(BoxRoom(), "box-room")
     done = ask(args.question, scene, args.out, stack=stack,
-               config=AgentConfig(max_steps=args.max_steps))
+               config=AgentConfig.of(max_steps=args.max_steps))
     print(f"answer: {done.result.answer} after {done.result.steps} steps "
           f"({done.result.stop_reason}); report: {done.report_html}")
 

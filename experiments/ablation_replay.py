@@ -47,7 +47,7 @@ from typing import Any
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.envs.synthetic.env import SyntheticEnv
-from efficienteqa.eval.records import append_episode, read_episodes, read_run
+from efficienteqa.eval.records import append_episode, nest_config, read_episodes, read_run
 from efficienteqa.eval.replay import (
     Frame,
     answer_prompt_matches,
@@ -59,6 +59,7 @@ from efficienteqa.eval.replay import (
 )
 from efficienteqa.eval.runner import episode_folder
 from efficienteqa.eval.synthetic_judge import RULE_CATEGORIES, rule_judgement
+from efficienteqa.knobs import build, with_leaves
 from efficienteqa.records import code_version, plain, write_json
 from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent, parse_vlm
@@ -118,10 +119,9 @@ class Answerer:
 
 
 def _config(record: dict[str, Any]) -> AgentConfig:
-    cfg = dict(record["config"])
-    cfg["stop"] = StopConfig(**cfg["stop"])
+    config = build(AgentConfig, nest_config(record["config"]))
     # The RAG answer from the retrieved frames, whatever the recorded method answered with.
-    return replace(AgentConfig(**cfg), answer_at="retrieval")
+    return with_leaves(config, answer_at="retrieval")
 
 
 def replay_episode(row: dict[str, Any], record: dict[str, Any], manifest: dict[str, Any],
@@ -171,7 +171,7 @@ def replay_episode(row: dict[str, Any], record: dict[str, Any], manifest: dict[s
     calls = 0
     for rule, z, k in todo:
         s = stopped[(rule, z)]
-        best = retrieve(frames, k, upto=s.step, distinct_views=config.distinct_views)
+        best = retrieve(frames, k, upto=s.step, distinct_views=config.answer.distinct_views)
         key = tuple(r.step for r in best)
         line: dict[str, Any] = {
             "id": setting_id(row["id"], stop_name(rule, z), k), "episode": row["id"],
@@ -295,8 +295,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     if not records:
         sys.exit(f"nothing to replay in {args.run_dir}: {skipped or 'no finished episodes'}")
     first = next(iter(records.values()))
-    rules = args.rule.split(",") if args.rule else [first["config"]["stop"]["rule"]]
-    stop_k = args.stop_k or int(first["config"]["top_k"])
+    first_config = nest_config(first["config"])
+    rules = args.rule.split(",") if args.rule else [first_config["stop"]["rule"]]
+    stop_k = args.stop_k or int(first_config["answer"]["top_k"])
     ks = sorted(set(args.k) | {stop_k})
     stops: list[tuple[str | None, float | None]] = [(None, None)] + [
         (rule, z) for rule in rules for z in args.z_th]

@@ -163,7 +163,7 @@ def trajectories(seeds: range, scorer: MiniLMScorer, explorer_seeds: int) -> lis
                         frames.append((record.step, perception.relevancy_text(obs), obs.instance))
 
                 # The agent's loop, frontier-only; a refused move spends the step.
-                explore_episode(env, AgentConfig(explorer="frontier-only", seed=es,
+                explore_episode(env, AgentConfig.of(explorer="frontier-only", seed=es,
                                                  refusal_retries=0, steering="none"),
                                 on_step=keep)
                 texts = [t for _, t, _ in frames]

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.stats import rankdata
@@ -27,6 +27,7 @@ from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.explore.module import ExploreStep, SemanticScorer
 from efficienteqa.explore.oracle import EvidenceDistance, evidence_distance_field
 from efficienteqa.geometry import Pose2D
+from efficienteqa.knobs import with_leaves
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.models.stub import StubChatModel
@@ -144,7 +145,7 @@ def explore_episode(env: SyntheticEnv, config: AgentConfig, question: str = "Wha
     share explored after each step; ``on_step``: called with the agent's hook arguments first.
     """
     # No language model here: the question is read by rules, its words matched as words.
-    config = replace(config, stop=StopConfig(enabled=False), gate="none", reading="rules",
+    config = with_leaves(config, stop=StopConfig(enabled=False), gate="none", reading="rules",
                      matching="words")
     perception = SemanticPerception(env.scene_labels())
     answerer = RagAnswerer(StubChatModel(lambda messages: "unknown"), RuleGrouper(), m=1,

@@ -66,7 +66,7 @@ def main() -> None:
                       f"{r['stop_reason']} first sight {first}", flush=True)
         finally:
             scene.env.close()
-    print(f"seeds {args.seeds}, gate_final {config.gate_final}: {right}/{n} stated counts right; "
+    print(f"seeds {args.seeds}, gate_final {config.stop.gate_final}: {right}/{n} stated counts right; "
           f"first sight -> stop {statistics.mean(waits):.2f} steps on average "
           f"(median {statistics.median(waits)}) over {len(waits)} seen")
 

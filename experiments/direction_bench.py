@@ -156,7 +156,7 @@ def episode_frames(env: SyntheticEnv, q: Question, seed: int, explorer_seed: int
     if not distance_m.reachable:
         return [], 0
     recorder = FrameRecorder(SemanticPerception(env.scene_labels()), distance_m, q, seed)
-    ep = explore_episode(env, AgentConfig(explorer="sfe", seed=explorer_seed, steering="none"),
+    ep = explore_episode(env, AgentConfig.of(explorer="sfe", seed=explorer_seed, steering="none"),
                          q.question, scorer=recorder,
                          seen=lambda instance: evidence_visible(instance, q.evidence),
                          on_step=lambda record, obs, out: recorder.stamp(record.step))

@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +40,7 @@ from efficienteqa.explore.module import REFUSAL_RETRIES, SemanticScorer
 from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
 from efficienteqa.explore.registry import EXPLORATIONS
+from efficienteqa.knobs import with_leaves
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stop.rules import env_step_budget
@@ -108,7 +108,7 @@ def agent_config(args: argparse.Namespace) -> AgentConfig:
     """The agent's configuration of the exploration options on the command line (the explorer,
     its seed and the budget are set per episode)."""
     given = {"stop_clearance_m": args.stop_clearance, "refusal_retries": args.refusal_retries}
-    return AgentConfig(exploration=args.exploration, prompts=args.prompts, steering="none",
+    return AgentConfig.of(exploration=args.exploration, prompts=args.prompts, steering="none",
                        **{k: v for k, v in given.items() if v is not None})
 
 
@@ -121,11 +121,11 @@ def houses(n: int, assets: str, rooms: int | None = None) -> list[int]:
 
 def cmd_cost(args: argparse.Namespace) -> None:
     seed = houses(1, args.assets, rooms=6)[0]
-    config = replace(agent_config(args), explorer="frontier-only")
+    config = with_leaves(agent_config(args), explorer="frontier-only")
     with SyntheticEnv.from_seed(seed, args.assets) as env:
-        explore_episode(env, replace(config, max_steps=5))  # warm-up (numba compilation)
+        explore_episode(env, with_leaves(config, max_steps=5))  # warm-up (numba compilation)
         for explorer_seed in range(10):  # an episode long enough to show the cost is flat
-            ep = explore_episode(env, replace(config, max_steps=40, seed=explorer_seed))
+            ep = explore_episode(env, with_leaves(config, max_steps=40, seed=explorer_seed))
             if len(ep.step_ms) >= 30:
                 break
     ms = np.array(ep.step_ms)
@@ -141,7 +141,7 @@ def cmd_coverage(args: argparse.Namespace) -> None:
         with SyntheticEnv.from_seed(seed, args.assets) as env:
             budget = env_step_budget(env)
             for name in curves:
-                ep = explore_episode(env, replace(agent_config(args), explorer=name, seed=seed,
+                ep = explore_episode(env, with_leaves(agent_config(args), explorer=name, seed=seed,
                                                   max_steps=budget), coverage=True)
                 curves[name].append(ep.coverage + [ep.coverage[-1]] * (budget - len(ep.coverage)))
                 print(f"house {seed}: {name:13s} explored {ep.coverage[-1]:.0%} of the floor "
@@ -424,13 +424,13 @@ def _steer(env: SyntheticEnv, q: Question, config: AgentConfig, budget: int, see
         steer = kind == "target"  # target:SCORER steers SFE by the target; target:frontier-only
         scorer = (None if "frontier-only" in (name, scorer_name)
                   else STEERING_SCORERS[scorer_name](env, q, distance_m, glimpsed))
-        method = replace(config, explorer="frontier-only" if scorer is None else "sfe",
+        method = with_leaves(config, explorer="frontier-only" if scorer is None else "sfe",
                          steering="target" if steer else "none", max_steps=budget)
         got: dict[str, list] = {k: [] for k in ("first_seen", "near", "coverage", "steps",
                                                 "moves", "refused", "lost", "asked", "points",
                                                 "off_floor", "uninformed", "explored", "idle")}
         for r in range(repeats):
-            ep = explore_episode(env, replace(method, seed=seed * 1000 + r), q.question,
+            ep = explore_episode(env, with_leaves(method, seed=seed * 1000 + r), q.question,
                                  scorer=scorer, seen=seen, near=distance_m, coverage=True,
                                  to_budget=to_budget)
             got["first_seen"].append(ep.first_seen)

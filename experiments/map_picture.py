@@ -12,7 +12,7 @@ start pose and explorer seed on both sides.
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +22,7 @@ from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.oracle import OracleScorer
 from efficienteqa.geometry import Pose2D
+from efficienteqa.knobs import with_leaves
 from efficienteqa.mapping.visualize import map_image, world_to_image
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stop.rules import env_step_budget
@@ -30,10 +31,11 @@ from experiments.common import evidence_centre, evidence_distance, explore_episo
 # The two sides: the paper's machinery (DESIGN 3.2-3.3 with the paper's stepping) and the defaults,
 # as the agent configures them (without the target steering: the picture is of the explorer).
 SIDES = {
-    "paper": replace(AgentConfig(), exploration=PAPER_CONFIG.exploration,
-                     prompts=PAPER_CONFIG.prompts, stop_clearance_m=PAPER_CONFIG.stop_clearance_m,
-                     refusal_retries=PAPER_CONFIG.refusal_retries, steering="none"),
-    "default": AgentConfig(steering="none"),
+    "paper": with_leaves(AgentConfig(), exploration=PAPER_CONFIG.explore.exploration,
+                     prompts=PAPER_CONFIG.explore.prompts,
+                     stop_clearance_m=PAPER_CONFIG.explore.stop_clearance_m,
+                     refusal_retries=PAPER_CONFIG.explore.refusal_retries, steering="none"),
+    "default": AgentConfig.of(steering="none"),
 }
 SCALE = 4  # picture pixels per map cell
 
@@ -56,7 +58,7 @@ def episode(env: SyntheticEnv, q: Question, side: AgentConfig, method: str, seed
         scorer = OracleScorer(evidence_distance(env, q),
                               lambda inst: any(evidence_visible(inst, [e], min_pixels=20)
                                                for e in q.evidence))
-    config = replace(side, explorer="sfe" if method == "sfe" else "frontier-only", seed=seed,
+    config = with_leaves(side, explorer="sfe" if method == "sfe" else "frontier-only", seed=seed,
                      max_steps=budget)
     ep = explore_episode(env, config, q.question, scorer=scorer, to_budget=True,
                          seen=lambda instance: evidence_visible(instance, q.evidence))

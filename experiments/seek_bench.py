@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +31,7 @@ from efficienteqa.agent import AgentConfig, StepRecord
 from efficienteqa.datasets import load_dataset
 from efficienteqa.envs.synthetic.questions import evidence_visible
 from efficienteqa.geometry import Pose2D
+from efficienteqa.knobs import with_leaves
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.records import code_version
 from efficienteqa.scenes import open_scene, synthetic_questions
@@ -52,8 +52,7 @@ def config_for(variant: str, sets: dict[str, Any]) -> AgentConfig:
 
     fields = {**VARIANTS[variant], **sets}
     base = PAPER_CONFIG if fields.pop("paper", False) else AgentConfig()
-    stop = {k: fields.pop(k) for k in ("min_step", "rule", "z_th") if k in fields}
-    return replace(base, stop=replace(base.stop, **stop) if stop else base.stop, **fields)
+    return with_leaves(base, **fields)
 
 
 def questions(split: str, limit: int) -> list[tuple[str, int, str, list[int], str, int | None,
@@ -162,7 +161,7 @@ def main() -> None:
                                                                            if q[1] == house):
                 for v in variants:
                     for seed in explorer_seeds:
-                        config = replace(config_for(v, sets), seed=seed)
+                        config = with_leaves(config_for(v, sets), seed=seed)
                         row = {"id": qid, "house": house, "category": category,
                                "question": text, "answer": answer, "evidence": evidence,
                                "oracle": oracle, "variant": v, "seed": seed,

@@ -53,7 +53,7 @@ def recorded_config(run: dict[str, Any]) -> AgentConfig:
     stop_names = {f.name for f in fields(StopConfig)}
     stop = StopConfig(**{k: v for k, v in rec.pop("stop").items() if k in stop_names})
     names = {f.name for f in fields(AgentConfig)}
-    config = AgentConfig(stop=stop, **{k: v for k, v in rec.items()
+    config = AgentConfig.of(stop=stop, **{k: v for k, v in rec.items()
                                        if k in names and v is not None})
     return method_config(run["method"], config)
 

@@ -70,7 +70,7 @@ def walk(env: SyntheticEnv, questions: list[Question], explorer: str, seed: int)
     """One early-stop-free agent episode asking ``questions[0]``: per valid frame its step,
     every question's Sim and evidence in view."""
     stack = Stack(grouping="rules")
-    config = AgentConfig(stop=StopConfig(enabled=False), explorer=explorer, seed=seed)
+    config = AgentConfig.of(stop=StopConfig(enabled=False), explorer=explorer, seed=seed)
     built = build_agent(env, stack, config, "synthetic", model=StubChatModel(lambda m: "no"))
     relevancy = build_relevancy(stack.relevancy)
     perception = built.agent.perception

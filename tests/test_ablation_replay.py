@@ -102,7 +102,7 @@ def _live(scene, q, tmp_path, stop: StopConfig, top_k: int = 5):
     room = scene.env.house.room(desk.room_id).name
     return ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=seeking_model(desk.category, room), relevancy=MentionScorer(desk.category, room),
-               config=AgentConfig(max_steps=30, seed=1, stop=stop, top_k=top_k), report=False)
+               config=AgentConfig.of(max_steps=30, seed=1, stop=stop, top_k=top_k), report=False)
 
 
 @needs_egl
@@ -148,7 +148,7 @@ def _fake_run(root, episodes: dict[str, list[float]]):
         append_episode(root / "episodes.jsonl", {"id": eid, "status": "done", "scene": "synthetic:0"})
         per_step = [{"step": s, "pose": [float(s), 0.0, 0.0], "valid": True, "sim": v}
                     for s, v in enumerate(sims, start=1)]
-        config = AgentConfig(stop=StopConfig(rule="paper", enabled=False))
+        config = AgentConfig.of(stop=StopConfig(rule="paper", enabled=False))
         write_json(episode_folder(root, eid) / "episode.json",
                    plain({"per_step": per_step, "stop_reason": "budget", "budget": len(sims),
                           "config": config, "question": "q?", "model": {"exchanges": []},

@@ -43,7 +43,7 @@ def _episode(scene, question, model, tmp_path, max_steps, **kw):
     room = scene.env.house.room(desk.room_id).name
     return ask(question.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=model(desk.category, room), relevancy=MentionScorer(desk.category, room),
-               config=AgentConfig(max_steps=max_steps, **kw))
+               config=AgentConfig.of(max_steps=max_steps, **kw))
 
 
 def test_a_model_that_points_at_the_evidence_stops_early_and_answers_right(house4, tmp_path):
@@ -121,7 +121,7 @@ def test_the_white_box_baseline_needs_logprobs(house4, tmp_path):
     blind = StubChatModel(["x"], capabilities=Capabilities(logprobs=False))
     with pytest.raises(EfficientEQAError, match="log-probabilities"):
         ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"), model=blind,
-            relevancy=MentionScorer("desk"), config=AgentConfig(confidence="token"))
+            relevancy=MentionScorer("desk"), config=AgentConfig.of(confidence="token"))
 
 
 def test_the_answer_is_direct_when_the_model_gives_logprobs_and_the_papers_otherwise():
@@ -129,10 +129,10 @@ def test_the_answer_is_direct_when_the_model_gives_logprobs_and_the_papers_other
     without = StubChatModel(["x"], capabilities=Capabilities(logprobs=False))
     assert answer_name(AgentConfig(), with_logprobs) == "direct"
     assert answer_name(AgentConfig(), without) == "paper"
-    assert answer_name(AgentConfig(answer="paper"), with_logprobs) == "paper"
-    assert answer_name(AgentConfig(answer_at="best-step"), with_logprobs) == "paper"
+    assert answer_name(AgentConfig.of(answer="paper"), with_logprobs) == "paper"
+    assert answer_name(AgentConfig.of(answer_at="best-step"), with_logprobs) == "paper"
     with pytest.raises(EfficientEQAError, match="answers at every step"):
-        answer_name(AgentConfig(answer="direct", answer_at="best-step"), with_logprobs)
+        answer_name(AgentConfig.of(answer="direct", answer_at="best-step"), with_logprobs)
 
 
 def test_the_direct_answer_needs_logprobs(house4, tmp_path):
@@ -140,13 +140,13 @@ def test_the_direct_answer_needs_logprobs(house4, tmp_path):
     blind = StubChatModel(["x"], capabilities=Capabilities(logprobs=False))
     with pytest.raises(EfficientEQAError, match="log-probabilities"):
         ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
-            model=blind, relevancy=MentionScorer("desk"), config=AgentConfig(answer="direct"))
+            model=blind, relevancy=MentionScorer("desk"), config=AgentConfig.of(answer="direct"))
 
 
 def test_the_explore_calls_carry_the_question_and_the_directions(house4, tmp_path):
     scene, q = house4
     model = seeking_model("desk", "office")
-    built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"), AgentConfig(max_steps=4),
+    built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"), AgentConfig.of(max_steps=4),
                         "test", model=model, relevancy=WordOverlapScorer())
     r = built.agent.run(scene.env, q.question)
     explore = [e for e in built.model.exchanges if e.phase.startswith("step")]
@@ -177,7 +177,7 @@ def test_the_agent_may_stop_at_the_minimum_step_itself(house4):
                           if msgs[-1].text.startswith("You guide") else "black; 90")
     sims = [0.1, 0.2] * 4 + [0.15, 5.0] + [0.1] * 10
     built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"),
-                        AgentConfig(max_steps=14, gate="none", stop=StopConfig()), "test",
+                        AgentConfig.of(max_steps=14, gate="none", stop=StopConfig()), "test",
                         model=model, relevancy=SequenceScorer(sims))
     r = built.agent.run(scene.env, q.question)
     assert all(rec.valid for rec in r.records)
@@ -212,7 +212,8 @@ def test_invalid_frames_never_reach_a_model(house4, tmp_path):
     seen = []
     model = StubChatModel(lambda msgs: seen.append(msgs[-1].text) or "A: 50\nworth exploring: no 0"
                           if msgs[-1].text.startswith("You guide") else "unknown; 100")
-    built = build_agent(env, Stack(grouping="rules", explore_scorer="vlm"), AgentConfig(max_steps=6), "test",
+    built = build_agent(env, Stack(grouping="rules", explore_scorer="vlm"),
+                        AgentConfig.of(max_steps=6), "test",
                         model=model, relevancy=WordOverlapScorer())
     r = built.agent.run(env, q.question)
     assert [rec.valid for rec in r.records] == [False, True, False, True, False, True]
@@ -224,7 +225,7 @@ def test_frontier_only_makes_no_explore_calls(house4, tmp_path):
     scene, q = house4
     model = StubChatModel(["unknown; 100"])
     done = ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"), model=model,
-               relevancy=WordOverlapScorer(), config=AgentConfig(explorer="frontier-only", max_steps=5))
+               relevancy=WordOverlapScorer(), config=AgentConfig.of(explorer="frontier-only", max_steps=5))
     assert len(model.requests) == 1 and done.result.steps == 5
 
 
@@ -260,7 +261,7 @@ def test_smoke_episode_with_the_real_small_model(house4, tmp_path, small_model_c
     try:
         done = ask(q.question, scene, tmp_path / "out", relevancy=WordOverlapScorer(),
                    stack=Stack(vlm="local:smollm2-135m", grouping="rules"),
-                   config=AgentConfig(max_steps=3))
+                   config=AgentConfig.of(max_steps=3))
     finally:
         local.stop("smollm2-135m")
     record = json.loads(done.episode_json.read_text())
@@ -300,7 +301,7 @@ def test_an_image_vlm_gets_marked_frames_and_the_top_k_images(house4, tmp_path):
     model = StubChatModel(_brightness_answer)
     done = ask(q.question, scene, tmp_path, stack=Stack(perception="rgb", grouping="rules"),
                model=model, relevancy=BrightnessScorer(),
-               config=AgentConfig(max_steps=6, top_k=3, answer="paper"))  # M guesses
+               config=AgentConfig.of(max_steps=6, top_k=3, answer="paper"))  # M guesses
     explore = [r for r in model.requests if r.messages[-1].text.startswith("You guide")]
     assert explore, "no exploration call"
     for request in explore:
@@ -330,7 +331,7 @@ def test_vlm_match_relevancy_is_a_recorded_model_call_per_frame(house4, tmp_path
         return "A: 50\nworth exploring: yes 50" if text.startswith("You guide") else "black; 90"
 
     built = build_agent(scene.env, Stack(relevancy="vlm-match", grouping="rules"),
-                        AgentConfig(max_steps=5), "test", model=StubChatModel(reply))
+                        AgentConfig.of(max_steps=5), "test", model=StubChatModel(reply))
     r = built.agent.run(scene.env, q.question)
     match = [e for e in built.model.exchanges if e.prompt.startswith("Does this view")]
     assert len(match) == sum(rec.valid for rec in r.records)
@@ -351,7 +352,7 @@ def test_the_papers_stack_rgb_frames_and_blip2_itm(house4, tmp_path, request):
                           if msgs[-1].text.startswith("You guide") else "brown; 40\nblack; 35\nBlack.; 25")
     done = ask(q.question, scene, tmp_path, stack=Stack(perception="rgb", grouping="rules"),
                model=model, relevancy=itm,
-               config=AgentConfig(max_steps=4, top_k=2, answer="paper"))
+               config=AgentConfig.of(max_steps=4, top_k=2, answer="paper"))
     sims = [rec.check.sim for rec in done.result.records if rec.check]
     assert len(sims) == 4 and all(0.0 <= s <= 1.0 for s in sims)
     assert done.record["backends"]["relevancy"] == itm.name
@@ -367,7 +368,7 @@ def test_the_papers_stack_rgb_frames_and_blip2_itm(house4, tmp_path, request):
                                            "token_answer": "verbalized"}, ("per-token", "verbalized"))])
 def test_the_token_answer_settings_reach_the_answerer(house4, given, read):
     scene, _ = house4
-    config = AgentConfig(confidence="token", **given)
+    config = AgentConfig.of(confidence="token", **given)
     built = build_agent(scene.env, Stack(grouping="rules"), config, "test",
                         model=StubChatModel([]), relevancy=WordOverlapScorer())
     assert (built.agent.answerer.probability, built.agent.answerer.token_prompt) == read
@@ -391,7 +392,7 @@ def test_an_unreadable_relevancy_reply_is_missing_and_every_problem_is_counted(h
 
     done = ask(q.question, scene, tmp_path, stack=Stack(relevancy="vlm-match", grouping="rules",
                                                         explore_scorer="vlm"),
-               model=StubChatModel(reply), config=AgentConfig(max_steps=5, gate="none"))
+               model=StubChatModel(reply), config=AgentConfig.of(max_steps=5, gate="none"))
     r, record = done.result, done.record
     missing = r.records[2]
     assert missing.valid and missing.check is None and missing.relevancy_problems
@@ -417,7 +418,7 @@ def test_an_episode_that_fails_at_its_answer_keeps_what_it_explored(house4, tmp_
     with pytest.raises(EfficientEQAError, match="HTTP 400") as failure:
         ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
             model=StubChatModel(reply), relevancy=WordOverlapScorer(),
-            config=AgentConfig(max_steps=3, gate="none"))
+            config=AgentConfig.of(max_steps=3, gate="none"))
     record = json.loads((tmp_path / "episode.json").read_text())
     assert record["status"] == "failed" and "HTTP 400" in record["error"]
     assert record["steps"] == 3 and len(record["per_step"]) == 3
@@ -438,6 +439,6 @@ def test_the_records_back_ends_say_the_servers_capabilities_and_the_answers_fall
     caps = built.backends["capabilities"]
     assert caps["logprobs"] is False and caps["source"] == "probed"
     chosen = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"),
-                         AgentConfig(answer="paper"), "test", model=without,
+                         AgentConfig.of(answer="paper"), "test", model=without,
                          relevancy=MentionScorer("desk"))
     assert "fallback" not in chosen.backends["answer"]  # asked for, not fallen back to

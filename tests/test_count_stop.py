@@ -3,7 +3,6 @@ final verdict, not a relevancy outlier that such frames never make. Training hou
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -24,7 +23,7 @@ def _walk(gate_final: bool):
     scene = open_scene("synthetic:1")
     try:
         q = next(q for q in scene.questions if q.id == "syn-1-02")
-        built = build_agent(scene.env, Stack(), replace(AgentConfig(), gate_final=gate_final),
+        built = build_agent(scene.env, Stack(), AgentConfig.of(gate_final=gate_final),
                             scene.backend, model=StubChatModel(lambda messages: "2"))
         seen: list[bool] = []
         result = built.agent.run(scene.env, q.question, on_step=lambda r, obs, _: seen.append(

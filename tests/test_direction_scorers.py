@@ -183,7 +183,7 @@ def test_the_offline_stack_takes_the_direction_logit_and_vlms_keep_their_confide
     text, image = TextPerception(), ImagePerception()
     assert explore_scorer_name(Stack(), text, AgentConfig()) == "direction-logit"
     assert explore_scorer_name(Stack(), image, AgentConfig()) == "vlm"
-    assert explore_scorer_name(Stack(), text, AgentConfig(confidence="token")) == "vlm"
+    assert explore_scorer_name(Stack(), text, AgentConfig.of(confidence="token")) == "vlm"
     assert explore_scorer_name(Stack(explore_scorer="vlm"), text, AgentConfig()) == "vlm"
     with pytest.raises(EfficientEQAError):
         explore_scorer_name(Stack(explore_scorer="direction-logit"), image, AgentConfig())
@@ -194,7 +194,7 @@ def test_the_offline_stack_takes_the_direction_logit_and_vlms_keep_their_confide
 def test_the_paper_preset_keeps_the_vlm():
     from efficienteqa.presets import PRESETS
 
-    assert PRESETS["paper"]["explore_scorer"] == "vlm"
+    assert PRESETS["paper"]["backends.explore_scorer"] == "vlm"
 
 
 # -- the benchmark's labelling --------------------------------------------------------------

@@ -19,6 +19,7 @@ from efficienteqa.agent import AgentConfig
 from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
 from efficienteqa.eval.summary import RunSummary, ablations, distinct_labels, summarise
 from efficienteqa.eval.tables import SEMANTIC_WARNING, read_summaries, write_folders_report
+from efficienteqa.knobs import with_leaves
 from efficienteqa.records import write_json
 from efficienteqa.stop.rules import StopConfig
 
@@ -30,7 +31,7 @@ BACKENDS = {"environment": "synthetic-builtin", "perception": "semantic-sensor",
 def manifest(method: str = "efficienteqa", dataset: str = "synthetic", *, z_th: float = 3.0,
              top_k: int = 5, questions: int = 5) -> dict:
     return {"method": method, "dataset": dataset, "closed_set": False,
-            "config": asdict(AgentConfig(top_k=top_k,
+            "config": asdict(AgentConfig.of(top_k=top_k,
                                          stop=replace(AgentConfig().stop, z_th=z_th))),
             "stack": {"vlm": "local:qwen2.5-coder-1.5b", "perception": "semantic", "relevancy": "minilm",
                       "grouping": "llm", "cache": True},
@@ -135,11 +136,11 @@ def test_the_papers_configuration_is_named_so_and_a_change_to_it_is_named_on_top
         return summarise(m, []).label
 
     assert run(PAPER_CONFIG) == "efficienteqa paper configuration"
-    assert run(replace(PAPER_CONFIG, top_k=10)) == "efficienteqa paper configuration K=10"
+    assert run(with_leaves(PAPER_CONFIG, top_k=10)) == "efficienteqa paper configuration K=10"
     # Without the VLM's semantic values it is not the paper's configuration: every setting shown.
     assert run(PAPER_CONFIG, "direction-logit").startswith(
-        "efficienteqa gate=none steering=none refusal_retries=0")
-    assert "rule=robust" in run(replace(PAPER_CONFIG, stop=StopConfig(rule="robust")))
+        "efficienteqa refusal_retries=0 stop_clearance_m=0 prompts=paper")
+    assert "rule=robust" in run(with_leaves(PAPER_CONFIG, stop=StopConfig(rule="robust")))
     assert run(AgentConfig()) == "efficienteqa"
 
 

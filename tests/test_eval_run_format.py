@@ -20,19 +20,10 @@ from efficienteqa.eval.methods import RunSpec
 from efficienteqa.eval.records import RUN_FILE, RUN_FORMAT, open_run, read_run, upgrade
 from efficienteqa.eval.runner import manifest
 from efficienteqa.eval.summary import label
-from efficienteqa.presets import build_config, build_stack, fill, named_configuration
 from efficienteqa.stack import Stack, parse_vlm
 
 ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = ROOT / "results" / "main-heldout"
-# The options of `eval` as the command line leaves them (None), the ones a row of
-# experiments/main_table.sh sets included.
-LEFT_OUT = dict.fromkeys(["z_th", "z_gated", "min_stop_step", "stop_rule", "top_k", "max_steps", "seed",
-                          "answer", "answer_probability", "token_answer", "refusal_retries",
-                          "stop_clearance_m", "prompts", "distinct_views", "exploration", "gate",
-                          "steering", "explorer", "vlm", "temperature", "perception",
-                          "relevancy", "grouping", "explore_scorer", "cache", "method", "reading",
-                          "matching", "gate_final"])
 # The settings whose default format 1 recorded as None, each typed as its documented default.
 TYPED_DEFAULTS = {"answer_every_step": False, "answer_probability": "product",
                   "token_answer": "short", "refusal_retries": 3, "stop_clearance_m": 0.45}
@@ -49,11 +40,11 @@ def published_copy(tmp_path: Path, row: str) -> Path:
 def main_table_spec(row: str, **config: object) -> RunSpec:
     """The RunSpec `efficienteqa eval --preset ROW --judge local:qwen2.5-coder-1.5b` builds
     (experiments/main_table.sh), with ``config`` typed on top."""
-    name, values = named_configuration(row, None)
-    options = {**fill(LEFT_OUT, values), **config}
-    return RunSpec(method=options["method"], dataset="synthetic", stack=build_stack(options),
-                   config=build_config(options), judge=DEFAULT_JUDGE, preset=name,
-                   preset_config=build_config(values))
+    resolved = presets.resolve(config, row)
+    run = resolved.run
+    return RunSpec(method=run.eval.method, dataset="synthetic", stack=run.backends,
+                   config=run.agent, judge=DEFAULT_JUDGE, preset=resolved.preset,
+                   preset_config=resolved.preset_run.agent)
 
 
 def published_spec(**config: object) -> RunSpec:
@@ -99,13 +90,15 @@ def test_another_value_than_the_one_a_format_1_run_meant_is_another_run(tmp_path
 def test_a_format_1_run_reads_as_the_values_it_ran_with():
     run = upgrade(json.loads((PUBLISHED / "explore-eqa-per-token" / RUN_FILE).read_text()))
     assert run["format"] == RUN_FORMAT and run["stack"]["temperature"] == 0.0
-    config = run["config"]
-    assert (config["answer_probability"], config["token_answer"]) == ("per-token", "short")
-    assert (config["refusal_retries"], config["stop_clearance_m"]) == (3, 0.45)
+    answer, explore = run["config"]["answer"], run["config"]["explore"]  # the tree's sections
+    assert (answer["answer_probability"], answer["token_answer"]) == ("per-token", "short")
+    assert (explore["refusal_retries"], explore["stop_clearance_m"]) == (3, 0.45)
     # Recorded before the gate and the steering existed: it ran without them.
-    assert (config["gate"], config["steering"], config["answer_every_step"]) == ("none", "none", False)
+    assert (run["config"]["stop"]["gate"], explore["steering"], answer["answer_every_step"]) == (
+        "none", "none", False)
     paper = upgrade(json.loads((PUBLISHED / "paper-offline" / RUN_FILE).read_text()))["config"]
-    assert (paper["refusal_retries"], paper["stop_clearance_m"]) == (0, 0.0)  # recorded values stay
+    # recorded values stay
+    assert (paper["explore"]["refusal_retries"], paper["explore"]["stop_clearance_m"]) == (0, 0.0)
 
 
 def test_a_judge_mode_counts_only_with_a_judge(tmp_path):
@@ -124,7 +117,7 @@ def test_a_new_run_records_its_format_and_its_named_configuration(tmp_path):
     run, _ = read_run(tmp_path)
     assert run["format"] == RUN_FORMAT and run["preset"] == "explore-eqa-per-token"
     assert run["preset_config"] == asdict(spec.preset_config)
-    assert run["preset_config"]["answer_probability"] == "per-token"
+    assert run["preset_config"]["answer"]["answer_probability"] == "per-token"
     assert run["judge_mode"] == "yes-prob"  # "auto" for a local judge, recorded as resolved
 
 
@@ -156,7 +149,7 @@ def test_a_changed_preset_file_does_not_relabel_a_run_recorded_before(tmp_path, 
 
     def changed(name: str, *args: object, **kwargs: object) -> dict:
         values = load(name, *args, **kwargs)  # type: ignore[arg-type]
-        return {**values, "z_th": 2.0} if name == "paper-offline" else values
+        return {**values, "stop.z_th": 2.0} if name == "paper-offline" else values
 
     monkeypatch.setattr(presets, "load_preset", changed)
     assert label(read_run(before)[0]) == "efficienteqa paper configuration"
@@ -197,7 +190,7 @@ STACK_DEFAULTS = {"device": "auto", "allow_download": False, "image_max_side": 5
 
 def test_the_stacks_defaults_are_values_a_user_can_type():
     assert Stack() == Stack(temperature=0.0, **STACK_DEFAULTS)  # type: ignore[arg-type]
-    assert build_stack({**LEFT_OUT, **STACK_DEFAULTS}) == build_stack(LEFT_OUT)
+    assert presets.build_run(STACK_DEFAULTS).backends == presets.build_run({}).backends
     # "auto" leaves the format to the back-end: JPEG for an openai: server, PNG for the local one.
     openai = Stack(vlm="openai:gpt-4o", perception="rgb")
     assert parse_vlm(openai.vlm, images=True, **openai.server_options()).image_format is None

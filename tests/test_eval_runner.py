@@ -65,7 +65,7 @@ def test_a_failing_episode_is_recorded_and_retried_on_resume(tmp_path, monkeypat
 
 def test_a_folder_of_another_configuration_is_refused(tmp_path):
     run_eval(spec(), questions(1), tmp_path, prepare=False)
-    other = spec(config=AgentConfig(top_k=3))
+    other = spec(config=AgentConfig.of(top_k=3))
     with pytest.raises(EfficientEQAError, match="another config"):
         run_eval(other, questions(1), tmp_path, prepare=False)
 
@@ -139,13 +139,15 @@ def test_methods_are_configurations_of_the_agent():
     base = AgentConfig()
     assert method_config("efficienteqa", base).stop.enabled
     white = method_config("explore-eqa", base)
-    assert (white.confidence, white.answer_at, white.stop.enabled) == ("token", "best-step", False)
+    assert (white.answer.confidence, white.answer.answer_at, white.stop.enabled) == (
+        "token", "best-step", False)
     black = method_config("explore-eqa-blackbox", base)
-    assert (black.confidence, black.answer_at, black.explorer) == ("verbalized", "best-step", "sfe")
-    assert method_config("frontier-only", base).explorer == "frontier-only"
-    direct = AgentConfig(answer="direct")  # ExploreEQA keeps its own answer at every step
-    assert method_config("explore-eqa", direct).answer == "paper"
-    assert method_config("efficienteqa", direct).answer == "direct"
+    assert (black.answer.confidence, black.answer.answer_at, black.explore.explorer) == (
+        "verbalized", "best-step", "sfe")
+    assert method_config("frontier-only", base).explore.explorer == "frontier-only"
+    direct = AgentConfig.of(answer="direct")  # ExploreEQA keeps its own answer at every step
+    assert method_config("explore-eqa", direct).answer.answer == "paper"
+    assert method_config("efficienteqa", direct).answer.answer == "direct"
     assert set(METHODS) >= {"efficienteqa", "explore-eqa", "explore-eqa-blackbox", "blind",
                             "frontier-only", "random"}
     with pytest.raises(EfficientEQAError, match="unknown method"):
@@ -236,7 +238,12 @@ def test_every_default_is_a_value_but_those_whose_none_is_one_of_its_own():
         return {f.name for f in dataclasses.fields(cls)
                 if (f.default if f.default is not dataclasses.MISSING else f.default_factory()) is None}
 
-    assert none_by_default(AgentConfig) == {"max_steps"}
+    from efficienteqa.answer.config import AnswerConfig
+    from efficienteqa.explore.config import ExploreConfig
+
+    assert none_by_default(AgentConfig) == set()  # its sections
+    assert none_by_default(ExploreConfig) == {"max_steps"}
+    assert none_by_default(AnswerConfig) == set()
     assert none_by_default(StopConfig) == set()
     assert none_by_default(Stack) == {"timeout_s", "retries", "api_key_env", "image_detail",
                                       "relevancy_weights", "capabilities"}
@@ -246,11 +253,13 @@ def test_run_json_records_what_an_agent_methods_episodes_ran_with():
     from efficienteqa.eval.runner import manifest
 
     white = manifest(spec("explore-eqa"), 3)
-    assert white["config"]["confidence"] == "verbalized"  # the options as given: the identity
-    assert white["method_config"]["confidence"] == "token"
+    # the options as given: the identity
+    assert white["config"]["answer"]["confidence"] == "verbalized"
+    assert white["method_config"]["answer"]["confidence"] == "token"
     assert white["method_config"]["stop"]["enabled"] is False
-    assert white["method_config"]["answer_at"] == "best-step"
-    assert manifest(spec("explore-eqa-blackbox"), 3)["method_config"]["confidence"] == "verbalized"
+    assert white["method_config"]["answer"]["answer_at"] == "best-step"
+    black = manifest(spec("explore-eqa-blackbox"), 3)["method_config"]
+    assert black["answer"]["confidence"] == "verbalized"
     assert manifest(spec("blind"), 3)["method_config"] is None
     assert manifest(spec(), 3)["method_config"] is None  # a user's module:function
 

@@ -93,7 +93,7 @@ def test_episode_json_records_when_the_evidence_was_in_view(house4, tmp_path):
     room = scene.env.house.room(desk.room_id).name
     done = ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=seeking_model(desk.category, room), relevancy=MentionScorer(desk.category, room),
-               config=AgentConfig(max_steps=30, seed=1), report=False)  # seed 1 frames the desk
+               config=AgentConfig.of(max_steps=30, seed=1), report=False)  # seed 1 frames the desk
     record = json.loads(done.episode_json.read_text())
     # Rendered again from the recorded poses, after the episode: the same steps show the desk.
     shown = [s["step"] for s in record["per_step"]
@@ -118,7 +118,7 @@ def test_a_question_of_ones_own_has_no_evidence_record(house4, tmp_path):
     done = ask("Is there a piano anywhere?", scene, tmp_path,
                stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=seeking_model("piano", "hall"), relevancy=MentionScorer("piano"),
-               config=AgentConfig(max_steps=3), report=False)
+               config=AgentConfig.of(max_steps=3), report=False)
     record = json.loads(done.episode_json.read_text())
     assert all(k in record and record[k] is None for k in FIELDS)
 
@@ -138,7 +138,7 @@ def test_eval_rows_carry_the_evidence_record_refused_moves_and_oracle_steps(tmp_
                         lambda backend: seeking_model(desk.category, room))
     spec = RunSpec(method="frontier-only", dataset="synthetic-test", judge=None, assets="builtin",
                    stack=Stack(relevancy="overlap", grouping="rules"),
-                   config=AgentConfig(max_steps=4))
+                   config=AgentConfig.of(max_steps=4))
     question = to_eval_question(q, "synthetic-test", "builtin")
     run_eval(spec, [question], tmp_path, prepare=False)
     row = json.loads((tmp_path / "episodes.jsonl").read_text().splitlines()[-1])

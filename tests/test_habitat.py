@@ -315,7 +315,7 @@ def test_an_episode_in_a_habitat_scene(standin, tmp_path):
     with scene.env:
         done = ask("Is there a table?", scene, tmp_path / "out", stack=Stack(grouping="rules"),
                    model=model, relevancy=WordOverlapScorer(),
-                       config=AgentConfig(max_steps=4, answer="paper", gate="none",
+                       config=AgentConfig.of(max_steps=4, answer="paper", gate="none",
                                           stop=StopConfig()))
     record = done.record
     assert record["backends"]["environment"] == "hm3d (habitat-sim)"
@@ -365,7 +365,7 @@ def test_an_episode_in_habitat_spends_the_navmesh_box_budget(standin, tmp_path):
     with scene.env:
         done = ask("Is there a table?", scene, tmp_path / "out", stack=Stack(grouping="rules"),
                    model=model, relevancy=WordOverlapScorer(), report=False,
-                   config=AgentConfig(answer="paper", gate="none", explorer="random",
+                   config=AgentConfig.of(answer="paper", gate="none", explorer="random",
                                       stop=StopConfig(enabled=False)))
     assert done.result.budget == 20
 

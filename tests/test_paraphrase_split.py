@@ -146,7 +146,7 @@ def test_a_rephrased_episode_records_its_originals_reference(house4, tmp_path):
         return ask(reworded, scene, out, stack=Stack(grouping="rules", explore_scorer="vlm"),
                    model=seeking_model(desk.category, room),
                    relevancy=MentionScorer(desk.category, room),
-                   config=AgentConfig(max_steps=2, seed=1), report=False, known_as=known_as).record
+                   config=AgentConfig.of(max_steps=2, seed=1), report=False, known_as=known_as).record
 
     record = run(q.question, tmp_path / "known")
     assert record["reference"]["id"] == q.id and record["oracle_steps"] == q.oracle_steps

@@ -144,12 +144,12 @@ def test_an_unanswered_pair_is_no_alias():
 # ----- the agent's options ----------------------------------------------------------------
 def test_the_reading_options_are_checked_and_the_paper_reads_by_rules():
     with pytest.raises(ValueError, match="reading"):
-        AgentConfig(reading="guess")
+        AgentConfig.of(reading="guess")
     with pytest.raises(ValueError, match="matching"):
-        AgentConfig(matching="sound")
-    assert (PAPER_CONFIG.reading, PAPER_CONFIG.matching) == ("rules", "words")
+        AgentConfig.of(matching="sound")
+    assert (PAPER_CONFIG.explore.reading, PAPER_CONFIG.explore.matching) == ("rules", "words")
     # the default: the rules' target, the model's likely rooms, words matched by meaning
-    assert (AgentConfig().reading, AgentConfig().matching) == ("rules+rooms", "meaning")
+    assert (AgentConfig().explore.reading, AgentConfig().explore.matching) == ("rules+rooms", "meaning")
 
 
 def test_the_paper_configuration_builds_no_reading(monkeypatch):
@@ -166,7 +166,7 @@ def test_an_agent_asked_to_read_by_model_needs_the_reading():
 
     with pytest.raises(ValueError, match="reading"):
         Agent(Text(), None, MentionScorer("x"), None,  # type: ignore[arg-type]
-              AgentConfig(reading="model"))
+              AgentConfig.of(reading="model"))
 
 
 def test_rules_plus_rooms_keeps_the_rules_target_and_adds_the_models_rooms():
@@ -196,7 +196,7 @@ def test_an_episode_reads_its_question_once_and_records_the_target(env_seed3):
         return averse._reply(messages)
 
     model = StubChatModel(reply, name="reader-stub")
-    config = AgentConfig(max_steps=2, reading="model")
+    config = AgentConfig.of(max_steps=2, reading="model")
     built = build_agent(env_seed3, Stack(grouping="rules", explore_scorer="direction-logit"),
                         config, "synthetic", model=model)
     result = built.agent.run(env_seed3, "Where id the stool?")

@@ -177,7 +177,7 @@ def _run(scene, q, tmp_path, **config):
     room = scene.env.house.room(desk.room_id).name
     done = ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=seeking_model(desk.category, room), relevancy=MentionScorer(desk.category, room),
-               config=AgentConfig(max_steps=4, **config), report=False)
+               config=AgentConfig.of(max_steps=4, **config), report=False)
     return json.loads(done.episode_json.read_text())
 
 
@@ -202,7 +202,7 @@ def test_without_retries_a_refused_move_spends_the_step(refusing_house, tmp_path
     assert [s["refused"] for s in steps[:3]] == [1, 1, 0]
     assert steps[0]["blocked"] and steps[1]["blocked"] and not steps[2]["blocked"]
     assert steps[0]["pose"] == steps[1]["pose"] == steps[2]["pose"]  # two steps spent in place
-    assert record["refused_moves"] == 2 and record["config"]["refusal_retries"] == 0
+    assert record["refused_moves"] == 2 and record["config"]["explore"]["refusal_retries"] == 0
 
 
 @needs_egl

@@ -49,7 +49,7 @@ def report(catalog, tmp_path_factory):
     try:
         done = ask(q.question, Scene(env, "synthetic:4 (builtin)", questions), out,
                    stack=Stack(grouping="rules", explore_scorer="vlm"), model=seeking_model("desk", "office"),
-                   relevancy=MentionScorer("desk", "office"), config=AgentConfig(max_steps=30))
+                   relevancy=MentionScorer("desk", "office"), config=AgentConfig.of(max_steps=30))
     finally:
         env.close()
     return done
@@ -176,7 +176,7 @@ def rgb_report(catalog, tmp_path_factory):
         done = ask(q.question, Scene(env, "synthetic:4 (builtin)", questions),
                    tmp_path_factory.mktemp("rgb-report"),
                    stack=Stack(perception="rgb", grouping="rules"), model=StubChatModel(reply),
-                   relevancy=_Brightness(), config=AgentConfig(max_steps=5, top_k=2))
+                   relevancy=_Brightness(), config=AgentConfig.of(max_steps=5, top_k=2))
     finally:
         env.close()
     return done

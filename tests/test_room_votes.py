@@ -139,7 +139,7 @@ def test_the_votes_start_afresh_each_episode(env_seed3):
     assert perception.read(obs)[1].room_at(*pose) == "bedroom"
 
     built = build_agent(env_seed3, Stack(grouping="rules", perception="semantic"),
-                        AgentConfig(max_steps=1, gate="none"), "test",
+                        AgentConfig.of(max_steps=1, gate="none"), "test",
                         model=StubChatModel(lambda m: "unknown"))
     calls = []
     perception.reset = lambda: calls.append(1)  # type: ignore[method-assign]

@@ -184,7 +184,7 @@ def _walk(env, question, steering):
     from efficienteqa.envs.synthetic.questions import evidence_visible
     from efficienteqa.stack import Stack, build_agent
 
-    config = AgentConfig(max_steps=30, steering=steering, gate="rules")
+    config = AgentConfig.of(max_steps=30, steering=steering, gate="rules")
     built = build_agent(env, Stack(grouping="rules", explore_scorer="direction-logit"), config,
                         "synthetic", model=averse_model("none", "none"))
     seen: list[bool] = []

@@ -254,13 +254,12 @@ def test_a_sightings_source_that_cannot_act_is_refused_in_one_line():
 
 
 def test_the_cli_takes_sightings_from_the_command_line_and_a_config_file(tmp_path):
-    from efficienteqa.cli import _option_types
     from efficienteqa.presets import build_stack, load_config
 
     config = tmp_path / "c.toml"
     config.write_text('sightings = "model"\n')
     assert build_stack({"sightings": "model"}).sightings == "model"
-    assert load_config(config, _option_types())["sightings"] == "model"
+    assert load_config(config)["backends.sightings"] == "model"
 
 
 def test_a_run_recorded_before_the_sightings_source_reads_as_what_it_ran_with():

@@ -186,14 +186,13 @@ def test_combined_rule_and_unknown_names():
 
 def test_paper_preset_keeps_the_paper_rule_and_the_option_reaches_the_config():
     from efficienteqa.errors import EfficientEQAError
-    from efficienteqa.presets import apply_preset, build_config
+    from efficienteqa.presets import build_config, resolve
 
-    base = {"stop_rule": None, "z_th": None, "min_stop_step": None, "gate": None}
-    assert build_config(apply_preset("paper", base)).stop.rule == "paper"
-    assert build_config(base | {"stop_rule": "lookback+floor"}).stop.rule == "lookback+floor"
-    assert build_config(apply_preset("paper", base | {"stop_rule": "robust"})).stop.rule == "robust"
+    assert resolve({}, "paper").run.stop.rule == "paper"
+    assert build_config({"stop_rule": "lookback+floor"}).stop.rule == "lookback+floor"
+    assert resolve({"stop.rule": "robust"}, "paper").run.stop.rule == "robust"
     with pytest.raises(EfficientEQAError, match="unknown stop rule"):
-        build_config(base | {"stop_rule": "nope"})
+        build_config({"stop_rule": "nope"})
 
 
 def test_with_a_gate_judging_every_frame_z_gated_acts_and_is_the_threshold_recorded():

@@ -26,18 +26,13 @@ from typing import Any
 import numpy as np
 
 from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answer
-from efficienteqa.answer.calls import (
-    ANSWER_PROBABILITIES,
-    ANSWER_PROBABILITY,
-    TOKEN_ANSWER,
-    TOKEN_ANSWERS,
-)
-from efficienteqa.answer.confident import STEP_WEIGHTS, confident_probability
-from efficienteqa.answer.rag import TOP_K, Confidence, RagAnswerer, TopK, View
+from efficienteqa.answer.confident import confident_probability
+from efficienteqa.answer.config import AnswerConfig
+from efficienteqa.answer.rag import RagAnswerer, TopK, View
 from efficienteqa.envs.base import Environment, Observation
 from efficienteqa.explore.base import Decision
+from efficienteqa.explore.config import ExploreConfig
 from efficienteqa.explore.module import (
-    REFUSAL_RETRIES,
     ExploreModule,
     ExploreStep,
     SemanticScorer,
@@ -45,21 +40,20 @@ from efficienteqa.explore.module import (
     move,
 )
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
-from efficienteqa.explore.registry import EXPLORATIONS, exploration_options, make_explorer
-from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig
+from efficienteqa.explore.registry import make_explorer
+from efficienteqa.explore.sfe import FrontierExplorer
 from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.geometry import Pose2D
+from efficienteqa.knobs import with_leaves
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.tsdf import VolumeSpec
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
 from efficienteqa.question import Target, parse_question
-from efficienteqa.reading.aliases import MATCHINGS
-from efficienteqa.reading.reader import READINGS
 from efficienteqa.reading.target import TargetReading
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
-from efficienteqa.stop.gate import GATES, AnswerGate
+from efficienteqa.stop.gate import AnswerGate
 from efficienteqa.stop.rules import (
     GATED_MIN_STEP,
     PAPER_MIN_STEP,
@@ -73,139 +67,41 @@ from efficienteqa.vc.parse import AnswerResult
 # Why exploration ended: a relevancy outlier (z > Z_th, past the gate when there is one), the
 # step budget, no frontier left, or (the "target" explorer) the named room searched in vain.
 STOP_REASONS = ("relevancy", "budget", "explored", "searched")
-# Where the answer comes from: the top-K frames at the end (EfficientEQA's RAG), or the best
-# per-step answer by relevancy x confidence (ExploreEQA).
-ANSWER_AT = ("retrieval", "best-step")
-ANSWERS = ("auto", "direct", "paper")
-STEERINGS = ("none", "target")
 
 
 @dataclass(frozen=True)
 class AgentConfig:
-    """Every knob of an episode; ablations are values here. Each default is a value, written
-    here once and recorded in run.json as it is (a run that types the default is the same
-    run). ``max_steps`` None: the scene's budget of DESIGN 3.1, ``int(sqrt(floor area) * 3)``
-    (``budget``), a number only the scene knows. ``confidence``: how the model's confidence
-    is read, in words ("verbalized", black-box) or from token probabilities ("token",
-    white-box)."""
+    """Every knob of an episode, one section per module of the paper: ``explore`` (DESIGN
+    3.2-3.3), ``stop`` with its answerability gate (3.4), ``answer`` (3.5). Ablations are values
+    here. Each default is a value, written once in its section and recorded in run.json as it
+    is (a run that types the default is the same run). The stop section's default has the
+    gated floor (``min_step`` 2): the default gate judges every frame, so no step-10 floor is
+    needed (DESIGN 9)."""
 
-    explorer: str = "sfe"  # "sfe" | "frontier-only" | "random"
+    explore: ExploreConfig = field(default_factory=ExploreConfig)
     stop: StopConfig = field(default_factory=lambda: StopConfig(min_step=GATED_MIN_STEP))
-    top_k: int = TOP_K
-    max_steps: int | None = None
-    seed: int = 0
-    confidence: Confidence = "verbalized"
-    answer_at: str = "retrieval"  # one of ANSWER_AT
-    # Beyond the paper (DESIGN 8). Re-plans within a step after the environment refuses a move
-    # (0: a refused move spends the step); the clearance the planner wants where a move ends
-    # (0: stop where the path is cut).
-    refusal_retries: int = REFUSAL_RETRIES
-    stop_clearance_m: float = SFEConfig.stop_clearance_m
-    # Where prompt points may lie: "default" (from 1 m, asks at more steps) or "paper"
-    # (DESIGN 3.3: 2-10 m); see explore.prompting.PROMPT_CONFIGS.
-    prompts: str = "default"
-    # Retrieval keeps K different views (answer.rag.same_view); False: DESIGN 3.5's top-K frames,
-    # copies of one view included.
-    distinct_views: bool = True
-    # The frontier explorer's options beyond DESIGN 3.2: "default" (SFEConfig's) or "paper"
-    # (every one off); see explore.registry.EXPLORATIONS.
-    exploration: str = "default"
-    # How the retrieved frames are answered: "direct" (one greedy answer with a hint for the
-    # question's form, confidence its token probability; needs logprobs), "paper" (DESIGN 3.5's
-    # M verbalized guesses, grouped), or "auto": direct when the model gives logprobs.
-    answer: str = "auto"
-    # answer_at="best-step": what weighs each step's answer: "relevancy" (the relevancy scorer's
-    # Sim, no extra call: the main table's rows) or "confident" (the model's own P(yes) to "Are
-    # you confident about answering with the current view?", one call per valid frame, as
-    # ExploreEQA's code does; the paper preset's). answer.confident.
-    step_weight: str = "relevancy"
-    # answer_at="best-step": True asks the model at every valid frame, as ExploreEQA does
-    # online; False, only the frames that can still win: the same answer in fewer calls
-    # (answer.best_step).
-    answer_every_step: bool = False
-    # A token-probability answer's confidence (white-box ExploreEQA's p, the direct answer's):
-    # "product", the whole answer's probability (the product of its tokens'); "per-token",
-    # their geometric mean, so a short answer ("no") does not outscore a longer one for its
-    # length.
-    answer_probability: str = ANSWER_PROBABILITY
-    # White-box ExploreEQA's per-frame prompt: "short", one line; "verbalized", DESIGN 3.5's
-    # prompt with one guess, as black-box asks, read by its token probability.
-    token_answer: str = TOKEN_ANSWER
-    # Beyond the paper (DESIGN 9): the answerability gate a relevancy outlier must pass to stop
-    # the robot (stop.gate.GATES: "rules" on the frame's description, "model", one yes/no call
-    # to the agent's model, "auto" the first where the perception describes objects, "none").
-    # With a gate the stop needs no step-10 floor (StopConfig.min_step 2). Chosen on training
-    # houses 0-20, checked on the held-out main table (DESIGN 9; docs/RESULTS.md).
-    # The gate itself is injected (stack.build_gate); an Agent given none under "auto" runs
-    # without one.
-    gate: str = "auto"
-    # Beyond the paper (DESIGN 9): a gate verdict that the frame answers outright (a count
-    # group wholly in view, ``stop.gate.Verdict.final``) stops the robot without waiting for a
-    # relevancy outlier, which such frames never make (every view of the table scores alike).
-    gate_final: bool = True
-    # Beyond the paper (DESIGN 9): "target" wraps the frontier explorer in explore.target's
-    # steering by the question's target (go to the named room, inspect, look around); "none".
-    steering: str = "target"
-    # Beyond the paper (DESIGN 9): how the question's target is read, "rules" (no call),
-    # "model" (one call, checked against the question's words) or "rules+rooms" (the rules'
-    # target, the model's likely rooms); how its words match the perception's categories,
-    # "words" or "meaning" (aliases by embeddings and one yes/no call). See reading/. Read
-    # only where something reads the target (steering or a gate): else by rules, no call.
-    reading: str = "rules+rooms"
-    matching: str = "meaning"
+    answer: AnswerConfig = field(default_factory=AnswerConfig)
 
-    def __post_init__(self) -> None:
-        if self.top_k < 1:
-            raise ValueError(f"top_k must be at least 1, not {self.top_k}")
-        if self.max_steps is not None and self.max_steps < 1:
-            raise ValueError(f"max_steps must be at least 1 (or left out for the default "
-                             f"budget), not {self.max_steps}")
-        if self.seed is not None and self.seed < 0:
-            raise ValueError(f"seed must be 0 or more, not {self.seed}")
-        if self.steering not in STEERINGS:
-            raise ValueError(f"steering must be one of {STEERINGS}, not {self.steering!r}")
-        if self.gate not in GATES:
-            raise ValueError(f"gate must be one of {GATES}, not {self.gate!r}")
-        if self.answer not in ANSWERS:
-            raise ValueError(f"answer must be one of {ANSWERS}, not {self.answer!r}")
-        if self.exploration not in EXPLORATIONS:
-            raise ValueError(f"exploration must be one of {tuple(EXPLORATIONS)}, "
-                             f"not {self.exploration!r}")
-        if self.prompts not in PROMPT_CONFIGS:
-            raise ValueError(f"prompts must be one of {tuple(PROMPT_CONFIGS)}, not {self.prompts!r}")
-        if self.refusal_retries < 0:
-            raise ValueError(f"refusal_retries must be 0 or more, not {self.refusal_retries}")
-        if not self.stop_clearance_m >= 0:
-            raise ValueError(f"stop_clearance_m must be 0 or more, not {self.stop_clearance_m}")
-        if self.answer_probability not in ANSWER_PROBABILITIES:
-            raise ValueError(f"answer_probability must be one of {ANSWER_PROBABILITIES}, "
-                             f"not {self.answer_probability!r}")
-        if self.token_answer not in TOKEN_ANSWERS:
-            raise ValueError(f"token_answer must be one of {TOKEN_ANSWERS}, "
-                             f"not {self.token_answer!r}")
-        if self.reading not in READINGS:
-            raise ValueError(f"reading must be one of {READINGS}, not {self.reading!r}")
-        if self.matching not in MATCHINGS:
-            raise ValueError(f"matching must be one of {MATCHINGS}, not {self.matching!r}")
-        if self.answer_at not in ANSWER_AT:
-            raise ValueError(f"answer_at must be one of {ANSWER_AT}, not {self.answer_at!r}")
-        if self.step_weight not in STEP_WEIGHTS:
-            raise ValueError(f"step_weight must be one of {STEP_WEIGHTS}, not "
-                             f"{self.step_weight!r}")
+    @classmethod
+    def of(cls, **values: Any) -> AgentConfig:
+        """The defaults with settings given by their names (``knobs.with_leaves``):
+        ``AgentConfig.of(top_k=10, gate="none")``."""
+        return with_leaves(cls(), **values)
 
     def budget(self, env: Environment) -> int:
         """The episode's step budget: ``max_steps``, or the scene's (``stop.env_step_budget``)."""
-        return self.max_steps if self.max_steps is not None else env_step_budget(env)
+        steps = self.explore.max_steps
+        return steps if steps is not None else env_step_budget(env)
 
 
 # The paper's algorithm (DESIGN 3.2-3.5) with every option beyond it off: what `--preset paper`
 # sets besides the back-ends (with the VLM as explore scorer), `--preset paper-offline`
 # (configs/paper-offline.toml, tests/test_presets.py holds them equal), and what a table calls
 # "paper configuration".
-PAPER_CONFIG = AgentConfig(stop=StopConfig(rule="paper", min_step=PAPER_MIN_STEP),
-                           refusal_retries=0, stop_clearance_m=0.0, prompts="paper",
-                           distinct_views=False, exploration="paper", answer="paper",
-                           gate="none", steering="none", reading="rules", matching="words")
+PAPER_CONFIG = AgentConfig.of(rule="paper", min_step=PAPER_MIN_STEP, gate="none",
+                              refusal_retries=0, stop_clearance_m=0.0, prompts="paper",
+                              distinct_views=False, exploration="paper", answer="paper",
+                              steering="none", reading="rules", matching="words")
 
 
 @dataclass
@@ -294,14 +190,14 @@ class Agent:
         self.config = config or AgentConfig()
         self.exchanges = exchanges
         self.gate = gate
-        if self.config.gate in ("rules", "model") and gate is None:
-            raise ValueError(f"config asks for the {self.config.gate!r} gate, and none was given")
+        if self.config.stop.gate in ("rules", "model") and gate is None:
+            raise ValueError(f"config asks for the {self.config.stop.gate!r} gate, and none was given")
         self.reading = reading
-        if (self.config.reading, self.config.matching) != ("rules", "words") and (
+        if (self.config.explore.reading, self.config.explore.matching) != ("rules", "words") and (
                 reading is None or (reading.reading, reading.matching)
-                != (self.config.reading, self.config.matching)):
-            raise ValueError(f"config asks for the {self.config.reading!r} reading and "
-                             f"{self.config.matching!r} matching, and no such reading was given")
+                != (self.config.explore.reading, self.config.explore.matching)):
+            raise ValueError(f"config asks for the {self.config.explore.reading!r} reading and "
+                             f"{self.config.explore.matching!r} matching, and no such reading was given")
 
     def _phase(self, name: str) -> AbstractContextManager[None]:
         return self.exchanges.in_phase(name) if self.exchanges is not None else nullcontext()
@@ -335,31 +231,29 @@ class Agent:
         if reset is not None:  # over an episode (pixels' room votes) starts afresh
             reset()
         budget = cfg.budget(env)
-        options = {**exploration_options(cfg.explorer, cfg.exploration),
-                   "stop_clearance_m": cfg.stop_clearance_m}
-        explorer = make_explorer(cfg.explorer, **options)
-        if cfg.steering == "target" and isinstance(explorer, FrontierExplorer):
-            explorer = TargetExplorer(explorer)
+        explorer = make_explorer(cfg.explore.explorer, **cfg.explore.explorer_options())
+        if cfg.explore.steering == "target" and isinstance(explorer, FrontierExplorer):
+            explorer = TargetExplorer(explorer, cfg.explore.target_config())
         with self._phase("question"):
-            reads_target = cfg.steering != "none" or cfg.gate != "none"
+            reads_target = cfg.explore.steering != "none" or cfg.stop.gate != "none"
             target = (self.reading.target(question)
                       if self.reading is not None and reads_target else parse_question(question))
-        prompts = PROMPT_CONFIGS[cfg.prompts]
+        prompts = PROMPT_CONFIGS[cfg.explore.prompts]
         if self.perception.modality == "text":  # no circles are drawn: none can overlap
             prompts = replace(prompts, min_px=0.0)
         explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)), explorer,
-                                self.scorer, seed=cfg.seed, prompts=prompts, target=target)
+                                self.scorer, seed=cfg.explore.seed, prompts=prompts, target=target)
         sightings = (getattr(self.perception, "sightings", None)
                      if isinstance(explorer, Steered) else None)
         ask_about = getattr(self.perception, "ask_about", None)  # model sightings: the question
         if ask_about is not None:
             ask_about(question)
-        gate = self.gate if cfg.gate != "none" else None
+        gate = self.gate if cfg.stop.gate != "none" else None
         if gate is not None:
             gate.reset()
         frames: dict[int, str | np.ndarray] = {}  # flagged frames the gate may still judge
         stopper = RelevancyStopper(cfg.stop)
-        top: TopK[str | np.ndarray] = TopK(cfg.top_k)
+        top: TopK[str | np.ndarray] = TopK(cfg.answer.top_k)
         candidates: list[StepFrame[str | np.ndarray]] = []  # answer_at="best-step"
         records: list[StepRecord] = []
         decision: Decision | None = None
@@ -388,16 +282,16 @@ class Agent:
                     record.gate = {"ok": verdict.ok, "why": verdict.why}
                     eligible = verdict.ok
                 record.check = stopper.check(step, sim, eligible)
-                if (cfg.gate_final and gate is not None and gate.eager and record.gate
+                if (cfg.stop.gate_final and gate is not None and gate.eager and record.gate
                         and verdict.final and cfg.stop.enabled and step >= cfg.stop.min_step):
                     record.gate["final"] = True
                     record.check = replace(record.check, stop=True, tested_step=step)
                 view = (View(obs.pose.x, obs.pose.y, obs.pose.yaw,
                              frame if isinstance(frame, str) else None)
-                        if cfg.distinct_views else None)
+                        if cfg.answer.distinct_views else None)
                 top.push(sim, step, frame, view)
                 record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
-                if cfg.answer_at == "best-step":
+                if cfg.answer.answer_at == "best-step":
                     candidates.append(StepFrame(step, sim, frame))
                 if gate is not None and not gate.eager:  # a model gate: flagged frames only
                     frames[step] = frame
@@ -425,7 +319,7 @@ class Agent:
                 stop_reason = "searched" if decision.reason == "searched" else "explored"
                 break
             t = time.perf_counter()
-            moved = move(env, explore, obs.pose, decision, step, cfg.refusal_retries)
+            moved = move(env, explore, obs.pose, decision, step, cfg.explore.refusal_retries)
             record.timings_ms["env"] = 1e3 * (time.perf_counter() - t)
             obs, record.refused, record.blocked = moved.obs, moved.refused, moved.blocked
             if moved.decision is not decision:  # re-planned after a refusal
@@ -435,7 +329,7 @@ class Agent:
                     stop_reason = "explored"
                     break
         t = time.perf_counter()
-        if cfg.answer_at == "best-step":
+        if cfg.answer.answer_at == "best-step":
             best = self._best_step(question, candidates, records)
             if best is None:  # no valid frame at all: nothing was seen
                 with self._phase("answer"):
@@ -478,9 +372,9 @@ class Agent:
             return said
 
         weights: dict[int, float] = {}
-        if self.config.step_weight == "confident":  # ExploreEQA's: the model's own P(yes)
+        if self.config.answer.step_weight == "confident":  # ExploreEQA's: the model's own P(yes)
             model = self.answerer.model
-            token = self.config.confidence == "token"
+            token = self.config.answer.confidence == "token"
             weighed = []
             for c in candidates:
                 n = self._n_calls()
@@ -492,7 +386,7 @@ class Agent:
                 weights[c.step] = p
                 weighed.append(StepFrame(c.step, p, c.item))
             candidates = weighed
-        best, asked = best_step_answer(candidates, ask, every_step=self.config.answer_every_step)
+        best, asked = best_step_answer(candidates, ask, every_step=self.config.answer.answer_every_step)
         for a in asked:
             records[a.step - 1].step_answer = {"answer": a.answer.answer,
                                                "confidence": a.answer.confidence, "value": a.value}

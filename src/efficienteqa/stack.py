@@ -24,6 +24,7 @@ from efficienteqa.explore.text_scorers import (
     LogitDirections,
 )
 from efficienteqa.explore.vlm_scorer import VLMScorer
+from efficienteqa.knobs import knob
 from efficienteqa.models.backends import (
     CHAT_BACKENDS,
     ChatBackend,
@@ -72,24 +73,49 @@ class Stack:
     the GPU torch sees, in float16, else the CPU), ``relevancy_weights`` (a local folder with
     its weights) and ``allow_download`` (fetch them from the Hugging Face Hub when missing)."""
 
-    vlm: str = f"local:{DEFAULT_MODEL}"
-    perception: str = "semantic"
-    sightings: str = "auto"
-    relevancy: str = "minilm"
-    grouping: str = "llm"
-    cache: bool = True
-    temperature: float = 0.0
-    explore_scorer: str = "auto"
-    timeout_s: float | None = None
-    retries: int | None = None
-    api_key_env: str | None = None
-    image_format: str = IMAGE_FORMAT_AUTO
-    image_max_side: int = 512
-    image_detail: str | None = None
-    capabilities: str | None = None
-    device: str = "auto"
-    relevancy_weights: str | None = None
-    allow_download: bool = False
+    vlm: str = knob(f"local:{DEFAULT_MODEL}", help="local:MODEL (the embedded llama.cpp "
+                    "server) | openai:MODEL[@BASE_URL] (any OpenAI-compatible server, e.g. "
+                    "openai:gpt-4o or openai:Qwen/Qwen2-VL-7B@http://localhost:8000/v1; key: see "
+                    "backends.api_key_env).")
+    perception: str = knob("semantic", help="semantic (object labels as text) | pixels (RGB-D "
+                           "read by the project's own network, described as text) | rgb "
+                           "(images, needs an image VLM).")
+    sightings: str = knob("auto", beyond=True, help="Where the steering and the sightings gate "
+                          "learn what a frame shows of rooms and of the question's target: auto "
+                          "(the perception's own; with rgb, the VLM's) | perception | model (one "
+                          "call to the VLM per step).")
+    relevancy: str = knob("minilm", help="minilm (over text) | minilm-match | overlap | "
+                          "vlm-match (the VLM answers 'does this view show it?'; default over "
+                          "images without BLIP-2's weights) | blip2-itm (the paper's; default over "
+                          "images where its weights are) | clip | siglip.")
+    grouping: str = knob("llm", help="How equivalent answers are grouped: llm | rules.")
+    cache: bool = knob(True, help="Replay identical model requests from the response cache.")
+    temperature: float = knob(0.0, help="The VLM's sampling temperature for every call.")
+    explore_scorer: str = knob("auto", help="Where the semantic values come from: auto (the "
+                               "VLM's verbalized confidence when it reads images or with token "
+                               "confidence, else direction-logit) | vlm | direction-logit (no "
+                               "model: features of the direction texts).")
+    timeout_s: float | None = knob(None, help="Seconds the model server has for each try of a "
+                                   "call (default 120).")
+    retries: int | None = knob(None, help="Retries of a model call after the first try, on "
+                               "timeouts, refused connections, 429 and 5xx (default 4).")
+    api_key_env: str | None = knob(None, help="The environment variable whose key is sent to "
+                                   "the openai: server, or none (default: OPENAI_API_KEY for "
+                                   "api.openai.com only).")
+    image_format: str = knob(IMAGE_FORMAT_AUTO, help="auto (jpeg, quality 90, for openai: "
+                             "servers; png for the local one) | png | jpeg.")
+    image_max_side: int = knob(512, help="Images are shrunk to this longer side in px.")
+    image_detail: str | None = knob(None, help="auto | low | high: OpenAI's image_url.detail "
+                                    "(default: not sent).")
+    capabilities: str | None = knob(None, help="A JSON file of what the openai: server can do, "
+                                    'e.g. {"logprobs": true, "json_schema": false, "images": '
+                                    "true}, in place of asking it.")
+    device: str = knob("auto", help="Where an image relevancy model runs: auto (the GPU torch "
+                       "sees, in float16, else the CPU) | cpu | cuda | cuda:N.")
+    relevancy_weights: str | None = knob(None, help="A local folder with the relevancy model's "
+                                         "weights (default: its Hugging Face cache).")
+    allow_download: bool = knob(False, off="no_download", help="Let missing relevancy weights "
+                                "download from the Hugging Face Hub.")
 
     def server_options(self) -> dict[str, Any]:
         return {"timeout_s": self.timeout_s, "retries": self.retries,
@@ -239,7 +265,7 @@ GROUPINGS.register("llm", lambda model, relevancy: LLMGrouper(
 # 1.5B text model gives the same confidences at every step, over the baselines it keeps.
 EXPLORE_SCORERS: Registry[SemanticScorer] = Registry("explore scorer")
 EXPLORE_SCORERS.register("vlm", lambda model, perception, config: VLMScorer(
-    model, perception, confidence=config.confidence))
+    model, perception, confidence=config.answer.confidence))
 EXPLORE_SCORERS.register("direction-logit", lambda perception, **_: DirectionScorer(
     LogitDirections(LOGIT_WEIGHTS, name="direction-logit"), perception))
 OFFLINE_EXPLORE_SCORER = "direction-logit"
@@ -255,7 +281,7 @@ def explore_scorer_name(stack: Stack, perception: Perception, config: AgentConfi
     ``OFFLINE_EXPLORE_SCORER``. A text scorer needs text directions."""
     name = stack.explore_scorer
     if name == "auto":
-        text = perception.modality == "text" and config.confidence != "token"
+        text = perception.modality == "text" and config.answer.confidence != "token"
         return OFFLINE_EXPLORE_SCORER if text else "vlm"
     if name not in EXPLORE_SCORERS:
         raise EfficientEQAError(f"unknown explore scorer {name!r}",
@@ -270,7 +296,7 @@ def explore_scorer_name(stack: Stack, perception: Perception, config: AgentConfi
 def explore_scorer_label(name: str, model: ChatModel, config: AgentConfig) -> str:
     """What the back-ends record: the scorer and where its values come from."""
     if name == "vlm":
-        how = "token probabilities" if config.confidence == "token" else "verbalized confidence"
+        how = "token probabilities" if config.answer.confidence == "token" else "verbalized confidence"
         return f"vlm ({how} of {model.name})"
     return EXPLORE_SCORER_LABELS.get(name, name)
 
@@ -280,24 +306,24 @@ ANSWER_LABELS = {"direct": "direct (one hinted answer, confidence its token prob
 
 
 def answer_name(config: AgentConfig, model: ChatModel) -> str:
-    """How the agent answers: ``config.answer``, or for "auto" the direct answer when the model
+    """How the agent answers: ``config.answer.answer``, or for "auto" the direct answer when the model
     gives logprobs and the answer reads retrieved frames, else the paper's. ExploreEQA's
     answer at every step (``answer_at="best-step"``) is always the paper's."""
-    if config.answer_at != "retrieval":
-        if config.answer == "direct":
+    if config.answer.answer_at != "retrieval":
+        if config.answer.answer == "direct":
             raise EfficientEQAError("the direct answer reads the retrieved frames, and this "
                                     "method answers at every step", fix="use --answer paper")
         return "paper"
-    if config.answer == "auto":
+    if config.answer.answer == "auto":
         return "direct" if model.capabilities.logprobs else "paper"
-    return config.answer
+    return config.answer.answer
 
 
 def answer_label(answer: str, config: AgentConfig, model: ChatModel) -> str:
     """The record's name of the answer, saying when the paper's answer stands in for the direct
     one because the server gives no token probabilities (a probed capability)."""
     label = ANSWER_LABELS[answer]
-    if answer == "paper" and config.answer == "auto" and config.answer_at == "retrieval" \
+    if answer == "paper" and config.answer.answer == "auto" and config.answer.answer_at == "retrieval" \
             and not model.capabilities.logprobs:
         label += f"; fallback: {model.name} gives no token probabilities"
     return label
@@ -409,14 +435,14 @@ def build_reading(config: AgentConfig, perception: Perception, model: ChatModel,
                   relevancy: RelevancyScorer) -> TargetReading | None:
     """How the agent reads the question's target (``AgentConfig.reading``/``matching``); None
     for the rules and the words alone (no call, nothing to load)."""
-    if (config.reading, config.matching) == ("rules", "words"):
+    if (config.explore.reading, config.explore.matching) == ("rules", "words"):
         return None
-    reader = ModelReader(model) if config.reading != "rules" else None
+    reader = ModelReader(model) if config.explore.reading != "rules" else None
     resolver = None
-    if config.matching == "meaning":  # MiniLM's sentence embeddings, loaded offline
+    if config.explore.matching == "meaning":  # MiniLM's sentence embeddings, loaded offline
         embed = getattr(relevancy, "embed", None) or build_relevancy("minilm").embed  # type: ignore[attr-defined]
         resolver = AliasResolver(embed, model)
-    return TargetReading(config.reading, config.matching, reader, resolver,
+    return TargetReading(config.explore.reading, config.explore.matching, reader, resolver,
                          perception_vocabulary(perception))
 
 
@@ -452,19 +478,19 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                                              stack.relevancy_weights, stack.allow_download)
     scorer_name = explore_scorer_name(stack, perception, config)
     scorer = (EXPLORE_SCORERS.build(scorer_name, model=recorder, perception=perception,
-                                    config=config) if config.explorer == "sfe" else None)
+                                    config=config) if config.explore.explorer == "sfe" else None)
     answer = answer_name(config, model)
-    if config.confidence == "token" or answer == "direct":
+    if config.answer.confidence == "token" or answer == "direct":
         from efficienteqa.vc.logprobs import require_logprobs
 
         require_logprobs(model)
     # Answering every step (ExploreEQA) asks for one answer per frame, not M.
-    m = 1 if config.answer_at == "best-step" else M
+    m = 1 if config.answer.answer_at == "best-step" else M
     answerer = RagAnswerer(recorder, build_grouper(stack.grouping, recorder, relevancy), m=m,
-                           confidence=config.confidence, direct=answer == "direct",
-                           probability=config.answer_probability,
-                           token_prompt=config.token_answer)
-    gate = build_gate(config.gate, perception, recorder)
+                           confidence=config.answer.confidence, direct=answer == "direct",
+                           probability=config.answer.answer_probability,
+                           token_prompt=config.answer.token_answer)
+    gate = build_gate(config.stop.gate, perception, recorder)
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder, gate=gate,
                   reading=build_reading(config, perception, recorder, relevancy))
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,

@@ -19,7 +19,7 @@ on the plain one), one per frame with ``vlm-match`` relevancy, one per flagged f
 model gate, and one answer. ExploreEQA answers lazily at the steps that can still win
 (``answer.best_step``); the count is in each episode's ``model`` block.
 
-The RAG answer is ``AgentConfig.answer``'s: by default the direct answer (one hinted answer,
+The RAG answer is ``AnswerConfig.answer``'s: by default the direct answer (one hinted answer,
 its token probability as confidence; DESIGN 8), DESIGN 3.5's M verbalized guesses with ``paper``.
 ``frontier-only`` and ``random`` keep EfficientEQA's stop and answer and only drop the semantic
 values: they show what SFE's steering is worth. A method may also be given as
@@ -42,6 +42,7 @@ from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.judge import DEFAULT_JUDGE, DEFAULT_JUDGE_MODE, judge_mode
+from efficienteqa.knobs import with_leaves
 from efficienteqa.stack import Stack
 
 
@@ -119,14 +120,13 @@ METHODS = (*_AGENT_METHODS, "blind")
 def method_config(method: str, config: AgentConfig) -> AgentConfig:
     """``config`` with the method's explorer, confidence reading, stop and answer source."""
     explorer, confidence, early_stop, answer_at = _AGENT_METHODS[method]
-    stop = config.stop if early_stop else replace(config.stop, enabled=False)
-    answer = config.answer if answer_at == "retrieval" else "paper"  # ExploreEQA's own answer
+    answer = config.answer.answer if answer_at == "retrieval" else "paper"  # ExploreEQA's own
     # Steering by the question's target is EfficientEQA's (beyond the paper); the references
     # explore as they always did. ExploreEQA never stops early, so it has no gate.
-    steering = config.steering if method == "efficienteqa" else "none"
-    gate = config.gate if early_stop else "none"
-    return replace(config, explorer=explorer, confidence=confidence, stop=stop,  # type: ignore[arg-type]
-                   answer_at=answer_at, answer=answer, steering=steering, gate=gate)
+    steering = config.explore.steering if method == "efficienteqa" else "none"
+    return with_leaves(config, explorer=explorer, confidence=confidence, answer_at=answer_at,
+                       answer=answer, steering=steering, enabled=config.stop.enabled and early_stop,
+                       gate=config.stop.gate if early_stop else "none")
 
 
 def effective_config(method: str, config: AgentConfig) -> AgentConfig | None:

@@ -17,9 +17,9 @@ from __future__ import annotations
 import json
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -38,8 +38,10 @@ TRANSPORT = ("timeout_s", "retries")  # stack settings that are not part of a ru
 # run.json's format. 1 (no "format" key): settings whose default was decided elsewhere were
 # recorded as None, and settings added later were missing. 2: every setting is recorded as the
 # value the run used, and the run names the configuration it started from ("preset", with
-# what that alone set, "preset_config").
-RUN_FORMAT = 2
+# what that alone set, "preset_config"). 3: the agent's settings are the configuration tree's
+# sections ("explore", "stop" with its gate, "answer"), where 1 and 2 held them flat beside a
+# nested "stop" (``nest_config``).
+RUN_FORMAT = 3
 # What a format-1 run's None (or a run recorded before the setting existed) meant, by
 # AgentConfig field: written out, not read from today's defaults, since a later default does
 # not change what an old run ran with.
@@ -186,12 +188,44 @@ def _read_manifest(run_file: Path) -> dict[str, Any]:
     return manifest
 
 
+def _nested(config: Mapping[str, Any]) -> bool:
+    """Whether an agent configuration is recorded as the tree's sections."""
+    from efficienteqa.agent import AgentConfig
+
+    sections = {f.name for f in fields(AgentConfig)}
+    return all(key in sections and isinstance(value, Mapping) for key, value in config.items())
+
+
+def nest_config(config: Mapping[str, Any]) -> dict[str, Any]:
+    """An agent configuration recorded flat (formats 1 and 2: ``top_k``, ``gate``... beside a
+    nested ``stop``) as the tree's sections, each flat name in the section that holds it today
+    (``knobs.flat_names``); a configuration already in sections is returned as it is."""
+    from efficienteqa.agent import AgentConfig
+    from efficienteqa.knobs import flat_names
+
+    if _nested(config):
+        return dict(config)
+    sections = {f.name for f in fields(AgentConfig)}
+    index = flat_names(AgentConfig)
+    out: dict[str, Any] = {s: {} for s in sections}
+    for key, value in config.items():  # in order: a section's values win over flat ones before
+        if key in sections and isinstance(value, Mapping):
+            out[key].update(value)
+        elif key in index:
+            section, name = index[key]
+            out[section][name] = value
+        else:  # a setting no longer known keeps its place, so the run still differs from others
+            out.setdefault("retired", {})[key] = value
+    return out
+
+
 def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
     """``manifest`` in the current format (``RUN_FORMAT``); a format-1 run's None settings, and
     the ones it did not record yet, become the values it ran with (``FORMAT_1_*``). A run
     without ``preset_config`` (format 1) is labelled against today's defaults. The stack's
     Nones are read so in any format: format 2 was first written with None for the relevancy
-    device, the download switch and the image settings, which meant what they mean in format 1."""
+    device, the download switch and the image settings, which meant what they mean in format 1.
+    A flat agent configuration (formats 1 and 2) becomes the tree's sections (``nest_config``)."""
     out = dict(manifest)
     stack = out.get("stack")
     if isinstance(stack, dict):
@@ -203,17 +237,20 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
             stack = {**stack, "sightings": "auto"}
         out["stack"] = {**stack, **{k: v for k, v in FORMAT_1_STACK_NONE.items()
                                     if stack.get(k) is None}}
-    for key in ("config", "method_config"):
-        if isinstance(out.get(key), dict):
+    keys = [k for k in ("config", "method_config", "preset_config")
+            if isinstance(out.get(k), dict) and not _nested(out[k])]
+    if manifest.get("format", 1) < RUN_FORMAT:
+        for key in keys:
             out[key] = {**ADDED_SETTINGS, **out[key]}
-    if manifest.get("format", 1) >= RUN_FORMAT:
-        return out
-    for key in ("config", "method_config"):
-        config = out.get(key)
-        if isinstance(config, dict):
-            config = {**FORMAT_1_MISSING, **config}
-            config.update({k: v for k, v in FORMAT_1_NONE.items() if config.get(k) is None})
-            out[key] = config
+        if manifest.get("format", 1) < 2:
+            for key in keys:
+                if key != "preset_config":
+                    config = {**FORMAT_1_MISSING, **out[key]}
+                    config.update({k: v for k, v in FORMAT_1_NONE.items()
+                                   if config.get(k) is None})
+                    out[key] = config
+    for key in keys:
+        out[key] = nest_config(out[key])
     out["format"] = RUN_FORMAT
     return out
 
@@ -252,10 +289,12 @@ def _identity(key: str, manifest: dict[str, Any]) -> Any:
 
 
 def _set(value: Any) -> Any:
-    """``value`` without None entries at any depth (a setting that is None in both runs, such
-    as ``max_steps`` or a server option left to the back-end, is the same in both)."""
+    """``value`` without None entries or empty dicts at any depth (a setting that is None in
+    both runs, such as ``max_steps`` or a server option left to the back-end, is the same in
+    both; so are no overrides and overrides not recorded yet)."""
     if isinstance(value, dict):
-        return {k: _set(v) for k, v in value.items() if v is not None}
+        kept = {k: _set(v) for k, v in value.items() if v is not None}
+        return {k: v for k, v in kept.items() if v != {}}
     return value
 
 

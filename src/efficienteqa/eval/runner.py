@@ -240,7 +240,7 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
                                    flag="--judge"))
     if resolve(spec.method) is run_agent_method:
         config = method_config(spec.method, spec.config)
-        if config.confidence == "token" or config.answer == "direct":
+        if config.answer.confidence == "token" or config.answer.answer == "direct":
             require_logprobs(model)  # white-box ExploreEQA: refused once, not per episode
 
 

@@ -41,7 +41,8 @@ from functools import cache
 from typing import Any, TypeGuard
 
 from efficienteqa.eval.judge import score_value
-from efficienteqa.eval.records import upgrade
+from efficienteqa.eval.records import RUN_FORMAT, upgrade
+from efficienteqa.knobs import flatten
 
 # The back-ends a table states, in the order it states them, from the rows' ``backends``.
 BACKEND_KEYS = ("environment", "perception", "sightings", "vlm", "relevancy", "grouping",
@@ -228,15 +229,21 @@ METHOD_SETS: dict[str, set[str]] = {"explore-eqa": _EXPLORE_EQA,
 
 
 def settings(manifest: Mapping[str, Any]) -> dict[str, Any]:
-    """The run's configuration as one flat dict (AgentConfig, its stop rule, the stack, judge):
-    what ablations compare and labels name. ``stop.enabled`` becomes ``early_stop``. An older
+    """The run's configuration as one flat dict (the agent's sections' fields by their own
+    names, which are unique; the stack; the judge): what ablations compare and labels name.
+    ``stop.enabled`` becomes ``early_stop``, an override ``sfe.NAME``. An older
     run's settings are read as what they meant (``records.upgrade``)."""
     manifest = upgrade(dict(manifest))
-    config = dict(manifest.get("config") or {})
-    stop = dict(config.pop("stop", None) or {})
-    if "enabled" in stop:
-        stop["early_stop"] = stop.pop("enabled")
-    flat = {**config, **stop, **dict(manifest.get("stack") or {})}
+    flat: dict[str, Any] = {}
+    for section in (manifest.get("config") or {}).values():
+        for key, value in dict(section).items():
+            if isinstance(value, Mapping):  # overrides: "sfe.view_gain"
+                flat.update({f"{key}.{'.'.join(path)}": v for path, v in flatten(value).items()})
+            else:
+                flat[key] = value
+    if "enabled" in flat:
+        flat["early_stop"] = flat.pop("enabled")
+    flat.update(dict(manifest.get("stack") or {}))
     for key in ("judge", "closed_set", "assets"):
         if key in manifest:
             flat[key] = manifest[key]
@@ -247,7 +254,7 @@ def settings(manifest: Mapping[str, Any]) -> dict[str, Any]:
 def _default_settings() -> tuple[tuple[str, Any], ...]:
     from efficienteqa.agent import AgentConfig
 
-    return tuple(settings({"config": asdict(AgentConfig())}).items())
+    return tuple(settings({"config": asdict(AgentConfig()), "format": RUN_FORMAT}).items())
 
 
 @cache
@@ -255,7 +262,7 @@ def _paper_settings() -> tuple[tuple[str, Any], ...]:
     """The settings in which ``agent.PAPER_CONFIG`` differs from the defaults."""
     from efficienteqa.agent import PAPER_CONFIG
 
-    paper = settings({"config": asdict(PAPER_CONFIG)})
+    paper = settings({"config": asdict(PAPER_CONFIG), "format": RUN_FORMAT})
     return tuple((k, paper[k]) for k, default in _default_settings() if paper[k] != default)
 
 
@@ -274,7 +281,7 @@ def preset_settings(manifest: Mapping[str, Any]) -> dict[str, Any] | None:
     recorded them; None for a run that did not (format 1)."""
     manifest = upgrade(dict(manifest))
     config = manifest.get("preset_config")
-    return settings({"config": config}) if isinstance(config, Mapping) else None
+    return settings({"config": config, "format": RUN_FORMAT}) if isinstance(config, Mapping) else None
 
 
 def label(manifest: Mapping[str, Any]) -> str:
@@ -304,6 +311,20 @@ def _preset_label(method: str, preset: str | None) -> str:
     return PRESET_LABELS.get(preset, preset.removeprefix(f"{method}-"))
 
 
+# The order in which a label names settings: the order flat records gave them (settings added
+# late first, as ``records.ADDED_SETTINGS`` put them), so an old run's label reads as it did.
+LABEL_ORDER = ("reading", "matching", "gate_final", "step_weight", "explorer", "top_k",
+               "max_steps", "seed", "confidence", "answer_at", "refusal_retries",
+               "stop_clearance_m", "prompts", "distinct_views", "exploration", "answer",
+               "answer_every_step", "answer_probability", "token_answer", "gate", "steering",
+               "z_th", "min_step", "early_stop", "sigma_eps", "rule", "sigma_floor", "sim_abs",
+               "z_gated")
+
+
+def _label_rank(key: str) -> int:
+    return LABEL_ORDER.index(key) if key in LABEL_ORDER else len(LABEL_ORDER)
+
+
 def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (), *,
                    preset: str | None = None, baseline: Mapping[str, Any] | None = None) -> str:
     """``method`` plus the settings in ``flat`` (``settings``) that differ from ``baseline``,
@@ -324,7 +345,7 @@ def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (
             parts.append("paper configuration")
             skipped |= {k for k, _ in _paper_settings()}
         against = _default_settings()
-    for key, default in against:
+    for key, default in sorted(against, key=lambda kv: _label_rank(kv[0])):
         if key in flat and key not in skipped and flat[key] != default:
             if key == "early_stop":
                 parts.append("no early stop" if not flat[key] else "early stop")

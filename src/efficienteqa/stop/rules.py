@@ -32,6 +32,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from efficienteqa.knobs import knob
+from efficienteqa.stop.gate import GATES
+
 if TYPE_CHECKING:
     from efficienteqa.envs.base import Environment
 
@@ -106,25 +109,44 @@ def env_step_budget(env: Environment) -> int:
 
 @dataclass(frozen=True)
 class StopConfig:
-    """``z_th``: the outlier threshold; ``min_step``: no stop before this step; ``enabled``:
-    False runs to the budget (the ExploreEQA baselines); ``sigma_eps``: a spread at or below it
-    counts as zero (the guard: no z, no stop); ``rule``: ``paper`` (DESIGN 3.4; the paper preset)
-    or a rule beyond it (module docstring), default ``lookback+robust+floor+absolute``; ``sigma_floor``:
-    the floor of rules with ``floor`` (0.1, fitted to MiniLM's scale on training houses);
-    ``sim_abs``: the Sim that stops under rules with ``absolute`` (0.75, the same scale);
-    ``z_gated``: the threshold for a frame an answerability gate passed (``check``)."""
+    """The stop module's knobs (DESIGN 3.4), with the answerability gate beyond the paper
+    (DESIGN 9). Which threshold acts: with no gate, or the ``model`` gate (asked only once a
+    frame is an outlier), a frame stops at z > ``z_th``; a gate that judges every frame
+    (``rules``, ``sightings``, and ``auto`` where it picks one of those) stops a frame it passed
+    at z > ``z_gated`` and never one it turned down (``z_th_acts``)."""
 
-    z_th: float = Z_TH
-    min_step: int = MIN_STEP
-    enabled: bool = True
-    sigma_eps: float = 1e-9
-    rule: str = DEFAULT_STOP_RULE
-    sigma_floor: float = SIGMA_FLOOR
-    sim_abs: float = SIM_ABS
-    z_gated: float = Z_GATED
+    z_th: float = knob(Z_TH, help="The relevancy z-score a frame must exceed to stop the robot "
+                       "(the paper's Z_th), with no gate or the model gate; refused with a gate "
+                       "that judges every frame (see stop.z_gated).")
+    min_step: int = knob(MIN_STEP, alias="min_stop_step", help="Never stop before this step "
+                         f"(the agent's default {GATED_MIN_STEP}; the paper's: {PAPER_MIN_STEP}).")
+    enabled: bool = knob(True, alias="early_stop", off="no_early_stop",
+                         help="Stop early by relevancy (off: explore to the budget).")
+    sigma_eps: float = knob(1e-9, help="A spread of earlier Sims at or below this counts as "
+                            "zero: no z, no stop.")
+    rule: str = knob(DEFAULT_STOP_RULE, alias="stop_rule", help="paper (DESIGN 3.4: mean and "
+                     "std of the earlier frames) | lookback | robust | floor | absolute, or "
+                     "parts joined by '+'.")
+    sigma_floor: float = knob(SIGMA_FLOOR, beyond=True, help="The spread's floor under rules "
+                              "with 'floor' (fitted to MiniLM's scale on training houses).")
+    sim_abs: float = knob(SIM_ABS, beyond=True, help="The Sim that stops outright under rules "
+                          "with 'absolute' (MiniLM's scale).")
+    z_gated: float = knob(Z_GATED, beyond=True, help="The z-score a frame that a gate judging "
+                          "every frame (rules, sightings: the default) passed must exceed to "
+                          "stop the robot; stop.z_th acts elsewhere.")
+    gate: str = knob("auto", beyond=True, help="The answerability gate a relevancy stop must "
+                     "pass: auto (rules with a perception that describes objects, sightings "
+                     "with the VLM's sightings, else model) | rules (the question's target in "
+                     "the frame's description) | sightings | model (one yes/no call to the VLM "
+                     "per outlier) | none (the paper's stop).")
+    gate_final: bool = knob(True, beyond=True, help="Stop at a frame the rules gate finds "
+                            "answers outright (a count group wholly in view) without waiting for "
+                            "a relevancy outlier.")
 
     def __post_init__(self) -> None:
         rule_parts(self.rule)  # raises on an unknown name
+        if self.gate not in GATES:
+            raise ValueError(f"gate must be one of {GATES}, not {self.gate!r}")
         for name in ("z_th", "z_gated", "sigma_floor", "sim_abs"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be a finite number, got {getattr(self, name)}")

@@ -1,0 +1,27 @@
+"""The ``efficienteqa`` command: parse, build, call a library function, print.
+
+``run`` holds the agent's commands (ask, eval, judge, report), whose options are made from the
+configuration tree (``options``); ``tools`` the others (scenes, models, perception).
+"""
+
+from __future__ import annotations
+
+import sys
+
+from efficienteqa.cli import run, tools  # noqa: F401 - registers the commands
+from efficienteqa.cli.app import app, console
+from efficienteqa.errors import EfficientEQAError
+
+__all__ = ["app", "main"]
+
+
+def main() -> None:
+    """Entry point: user-fixable errors become one red line and exit code 1."""
+    try:
+        app()
+    except EfficientEQAError as exc:
+        console.print(f"[red]error:[/red] {exc}", highlight=False, soft_wrap=True)
+        sys.exit(1)
+    except KeyboardInterrupt:
+        console.print("[yellow]interrupted[/yellow]")
+        sys.exit(130)

@@ -1,0 +1,145 @@
+"""The options of an agent run, made from the configuration tree's fields (``knobs.leaves``).
+
+``@run_options(...)`` gives a command one typer option per value of ``runconfig.RunConfig``:
+``--stop.z-th`` (the flat ``--z-th`` of before the sections stays, hidden, for one release), grouped in
+``--help`` by section, each with its field's help and default, options beyond the paper marked.
+Left out, an option is None, so a value the user gave is told apart from a default, and
+``--config``/``--preset`` fill only what was left out (``presets.resolve``). The command itself
+receives ``run: presets.Resolved`` in their place.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import json
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import click
+import typer
+
+from efficienteqa.knobs import Leaf, leaves
+from efficienteqa.runconfig import SECTION_TITLES, RunConfig
+
+PRESET_HELP = ("A named configuration shipped with the package (efficienteqa/configs/NAME.toml): "
+               "paper (the paper's set-up: HM-EQA's first 100 in Habitat-Sim, GPT-4o at T=1 on "
+               "RGB, BLIP-2 ITM, Z_th 3, K 5) | paper-offline (the paper's algorithm on the "
+               "offline stack) | a main-table row: default, pixels, paper-offline-pixels, "
+               "explore-eqa, explore-eqa-blackbox, explore-eqa-verbalized-prompt, "
+               "explore-eqa-per-token, frontier-only, random, blind. Fills only options not given.")
+CONFIG_HELP = ("A TOML file with a table per group below, named as the options' first part "
+               "(a stop table holding z_th = 2 sets --stop.z-th), and base = \"PRESET\" to start "
+               "from a preset. Fills options not given on the command line, before --preset.")
+_SEP = "__"  # a path as a Python parameter name: stop__z_th
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def _shown(value: Any) -> str:
+    return f"{value:g}" if isinstance(value, float) else json.dumps(value) if isinstance(
+        value, dict) else str(value)
+
+
+def _parameter(leaf: Leaf, alias: bool = False) -> inspect.Parameter | None:
+    """The option of ``leaf``: ``--section.name``; with ``alias``, the hidden flat option it
+    had before the sections (``--z-th``), or None where it had none."""
+    flat = (leaf.alias or leaf.path[-1]) if len(leaf.path) == 2 else None
+    if alias and flat is None:
+        return None
+    dotted = ".".join(part.replace("_", "-") for part in leaf.path)
+    deep = len(leaf.path) > 2  # a constant an ``of=`` dict overrides
+    help_text = (leaf.help or f"The {'.'.join(leaf.path[1:])} constant.") + (
+        " Beyond the paper." if leaf.beyond or deep else "")
+    if leaf.default is not None and not alias:
+        help_text += f" (default: {_shown(leaf.default)})"
+    if leaf.kind is bool:
+        off = f"--{dotted.rsplit('.', 1)[0]}.no-{leaf.path[-1].replace('_', '-')}"
+        decls = ([f"{_flag(flat)}/{_flag(leaf.off or 'no_' + flat)}"] if alias and flat
+                 else [f"--{dotted}/{off}"])
+    else:
+        decls = [_flag(flat)] if alias and flat else [f"--{dotted}"]
+    kind: Any = str if leaf.kind is dict else leaf.kind
+    option = typer.Option(None, *decls, help=help_text, show_default=False, hidden=alias,
+                          rich_help_panel=SECTION_TITLES[leaf.path[0]] + (
+                              ": constants" if deep else ""),
+                          metavar="JSON" if leaf.kind is dict else None)
+    return inspect.Parameter(("alias" + _SEP if alias else "") + _SEP.join(leaf.path),
+                             inspect.Parameter.KEYWORD_ONLY, default=option,
+                             annotation=kind | None)
+
+
+def tree_leaves(sections: Iterable[str] | None = None,
+                only: dict[str, tuple[str, ...]] | None = None) -> list[Leaf]:
+    """The leaves of ``sections`` (default: all), and of the sections in ``only`` just the
+    fields it names."""
+    only = only or {}
+    return [leaf for leaf in leaves(RunConfig)
+            if (sections is None or leaf.path[0] in sections or leaf.path[0] in only)
+            and (leaf.path[0] not in only or leaf.path[1] in only[leaf.path[0]])]
+
+
+def run_options(sections: Iterable[str] | None = None,
+                only: dict[str, tuple[str, ...]] | None = None) -> Callable:
+    """Decorate a command ``f(run, **own)``: its parameters become ``own`` plus ``--preset``,
+    ``--config`` and one option per leaf (``tree_leaves``); ``run`` is the resolved tree."""
+    chosen = tree_leaves(sections, only)
+
+    def decorate(command: Callable) -> Callable:
+        own = [p for p in inspect.signature(command, eval_str=True).parameters.values()
+               if p.name != "run"]
+        named = [inspect.Parameter("preset", inspect.Parameter.KEYWORD_ONLY, annotation=str | None,
+                                   default=typer.Option(None, help=PRESET_HELP, show_default=False,
+                                                        rich_help_panel="Configuration")),
+                 inspect.Parameter("config_file", inspect.Parameter.KEYWORD_ONLY,
+                                   annotation=Path | None,
+                                   default=typer.Option(None, "--config", metavar="FILE",
+                                                        help=CONFIG_HELP, show_default=False,
+                                                        rich_help_panel="Configuration"))]
+        generated = [p for leaf in chosen for alias in (False, True)
+                     if (p := _parameter(leaf, alias)) is not None]
+
+        @functools.wraps(command)
+        def wrapper(**kwargs: Any) -> Any:
+            from efficienteqa.presets import resolve
+
+            given = given_values(chosen, kwargs)
+            run = resolve(given, kwargs.pop("preset"), kwargs.pop("config_file"))
+            return command(run=run, **kwargs)
+
+        params = [*own, *named, *generated]
+        wrapper.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+        wrapper.__annotations__ = {p.name: p.annotation for p in params}
+        return wrapper
+
+    return decorate
+
+
+def given_values(chosen: list[Leaf], kwargs: dict[str, Any]) -> dict[str, Any]:
+    """The values of ``chosen`` given on the command line, by dotted path, taken out of a
+    command's ``kwargs`` (a dotted option wins over its flat alias) and checked."""
+    from efficienteqa.presets import check_value
+
+    given: dict[str, Any] = {}
+    for leaf in chosen:
+        value = kwargs.pop(_SEP.join(leaf.path))
+        flat = kwargs.pop("alias" + _SEP + _SEP.join(leaf.path), None)
+        value = flat if value is None else value
+        if value is not None:
+            value = _json(value, leaf) if leaf.kind is dict else value
+            given[leaf.dotted] = check_value(leaf.dotted, value, "the command line")
+    return given
+
+
+def _json(text: str, leaf: Leaf) -> dict:
+    try:
+        value = json.loads(text)
+    except ValueError:
+        value = None
+    if not isinstance(value, dict):
+        raise click.BadParameter(f"give a JSON object, e.g. '{json.dumps(leaf.default)}'",
+                                 param_hint=f"--{leaf.dotted}")
+    return value

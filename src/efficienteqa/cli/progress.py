@@ -1,0 +1,61 @@
+"""What ``eval`` shows while it runs: a bar with the running scores, and the failures after."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from rich.console import Console
+
+
+@contextmanager
+def eval_progress(console: Console, method: str, total: int,
+                  out: Path) -> Iterator[Callable[[dict], None]]:
+    """A progress bar over ``total`` episodes (those already in ``out`` counted done); yields
+    the runner's ``on_episode``, which advances it and shows the scores so far."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from efficienteqa.eval.records import read_episodes
+
+    done_before = len(read_episodes(out / "episodes.jsonl").done)
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+               TextColumn("{task.fields[info]}"))
+    scores: dict[str, list[float]] = {"rule": [], "choice": [], "judge": []}
+    names = {"rule": "rule {:.1f}%", "choice": "letter {:.1f}%", "judge": "LLM-Match {:.1f}"}
+    with Progress(*columns, console=console) as progress:
+        task = progress.add_task(method, total=total, completed=min(done_before, total), info="")
+
+        def on_episode(row: dict) -> None:
+            for key, values in scores.items():
+                if row.get(key):
+                    values.append(row[key]["value"])
+            info = "  ".join(names[k].format(sum(v) / len(v)) for k, v in scores.items() if v)
+            if row["status"] != "done":
+                console.print(f"[yellow]{row['id']} failed:[/yellow] {row.get('error')}",
+                              highlight=False, soft_wrap=True)
+            progress.update(task, advance=1, info=info)
+
+        yield on_episode
+
+
+def say_failures(console: Console, out: Path, failed: int) -> None:
+    """The commonest errors of a run's failed episodes, and how to resume them."""
+    from efficienteqa.eval.records import read_episodes
+
+    why = Counter(str(r.get("error")) for r in read_episodes(out / "episodes.jsonl").rows()
+                  if r.get("status") != "done")
+    for error, count in why.most_common(3):
+        console.print(f"  {count} x {error}", highlight=False, soft_wrap=True)
+    console.print(f"[red]error:[/red] {failed} episode(s) failed (the commonest errors are "
+                  "above, all in episodes.jsonl); the same command resumes them",
+                  highlight=False, soft_wrap=True)

@@ -1,0 +1,270 @@
+"""The agent's commands: ask one question, evaluate a method on a dataset, grade, report."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import typer
+
+from efficienteqa.cli.app import app, console
+from efficienteqa.cli.options import run_options
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.geometry import Pose2D
+from efficienteqa.presets import Resolved
+from efficienteqa.runconfig import ASK_EVAL_FIELDS
+
+AGENT_SECTIONS = ("backends", "scene", "explore", "stop", "answer")
+
+
+def _parse_start(text: str | None) -> Pose2D | None:
+    if text is None:
+        return None
+    fix = "give it as X,Y,YAW_DEG in metres and degrees, e.g. 2.5,3,90"
+    try:
+        x, y, yaw_deg = (float(v) for v in text.split(","))
+    except ValueError:
+        raise EfficientEQAError(f"cannot read the start pose {text!r}", fix=fix) from None
+    if not all(math.isfinite(v) for v in (x, y, yaw_deg)):
+        raise EfficientEQAError(f"the start pose {text!r} is not finite", fix=fix)
+    return Pose2D(x, y, math.radians(yaw_deg))
+
+
+def _check_backends(run: Resolved) -> None:
+    """Bad back-ends fail before anything slow."""
+    from efficienteqa.stack import check_stack, parse_vlm
+
+    stack = run.run.backends
+    check_stack(stack)
+    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature,
+              **stack.server_options())
+
+
+@app.command("ask")
+@run_options(AGENT_SECTIONS, only={"eval": ASK_EVAL_FIELDS})
+def ask_command(
+    run: Resolved,
+    question: str | None = typer.Argument(None, help="The question, in free text (or --episode)."),
+    scene: str = typer.Option("synthetic:0", help="synthetic:SEED (a generated house) or "
+                              "hm3d:SCENE (with --scene.env habitat).", rich_help_panel="Question"),
+    episode: str | None = typer.Option(None, help="Ask question ID (or row N) of --eval.dataset, "
+                                       "in its scene, from its start pose.",
+                                       rich_help_panel="Question"),
+    start: str | None = typer.Option(None, help="Start pose X,Y,YAW_DEG (default: the scene's).",
+                                     rich_help_panel="Question"),
+    out: Path = typer.Option(Path("out/ask"), help="Folder for episode.json and report.html.",
+                             rich_help_panel="Output"),
+) -> None:
+    """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from efficienteqa.agent import StepRecord
+    from efficienteqa.ask import ask
+    from efficienteqa.envs.habitat.scenes import HabitatStart
+    from efficienteqa.records import check_writable
+    from efficienteqa.scenes import open_scene
+
+    r = run.run
+    if r.eval.method != "efficienteqa":
+        raise EfficientEQAError(f"ask runs efficienteqa; method {r.eval.method!r} is for eval",
+                                fix="use efficienteqa eval --method with this configuration")
+    _check_backends(run)
+    start_pose, habitat_start, reference, known_as = _parse_start(start), None, None, None
+    check_writable(out)  # before the episode, not after it
+    if episode is not None:
+        from efficienteqa.datasets import find_question, load_dataset
+
+        q = find_question(load_dataset(r.eval.dataset, path=r.eval.hm_eqa_path,
+                                       assets=r.scene.assets), episode)
+        question, scene, reference, known_as = q.question, q.scene, q.answer, q.original_question
+        habitat_start = HabitatStart.from_source(q.source)
+        start_pose = start_pose or (Pose2D(*q.start) if q.start is not None else None)
+    if not question:
+        raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
+                                'the sofa?", or --episode ID with --dataset')
+    with console.status(f"opening {scene}..."):
+        opened = open_scene(scene, r.scene.assets, env=r.scene.env, hm3d_root=r.scene.hm3d_root,
+                            start=habitat_start)
+    try:
+        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                   TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
+        with Progress(*columns, console=console) as progress:
+            task = progress.add_task("exploring", total=r.agent.budget(opened.env), info="")
+
+            def on_step(record: StepRecord, *_: object) -> None:
+                c = record.check
+                info = ("invalid frame" if c is None else
+                        f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
+                progress.update(task, completed=record.step, info=info)
+
+            done = ask(question, opened, out, stack=r.backends, config=r.agent,
+                       start=start_pose, on_step=on_step, known_as=known_as)
+    finally:
+        opened.env.close()
+    result, rec = done.result, done.record
+    oracle = rec.get("oracle_steps")
+    say = console.print
+    say(f"[bold]answer:[/bold] {result.answer or '(none)'}  (confidence "
+        f"{result.confidence:.2f})", highlight=False)
+    say(f"steps: {result.steps} of {result.budget}" + (f" (oracle {oracle})" if oracle else "")
+        + f"   stop: {result.stop_reason}   time: {result.wall_s:.0f} s", highlight=False)
+    reference = rec["reference"]["answer"] if rec.get("reference") else reference
+    if reference:
+        say(f"reference answer: {reference}", highlight=False)
+    shown = {k: v for k, v in rec["backends"].items() if v and k != "capabilities"}
+    say(f"back-ends: {', '.join(f'{k}={v}' for k, v in shown.items())}", highlight=False,
+        soft_wrap=True)
+    model = rec["model"]
+    say(f"model calls: {model['calls']}" + (f"   cost: ${model['cost_usd']:.4f}"
+                                            if model.get("cost_usd") else ""), highlight=False)
+    say(f"episode: {done.episode_json}\nreport:  {done.report_html}", highlight=False,
+        soft_wrap=True)
+
+
+def _judge_mode(mode: str | None, judge: str) -> str:
+    """The mode of ``judge`` for eval and judge alike: left out, ``eval.judge.DEFAULT_JUDGE_MODE``
+    ("auto": token probabilities for the small local models, the 1-5 grade otherwise)."""
+    from efficienteqa.eval.judge import DEFAULT_JUDGE_MODE, judge_mode
+
+    return judge_mode(mode or DEFAULT_JUDGE_MODE, judge)
+
+
+@app.command("judge")
+def judge_command(
+    runs: list[Path] = typer.Argument(..., help="Run folders written by `efficienteqa eval`."),
+    judge: str | None = typer.Option(None, help="The LLM-Match judge (a VLM spec). Default: eval's "
+                                     "judge model (the local model, RunSpec.judge).",
+                                     show_default=False),
+    judge_mode: str | None = typer.Option(None, help="grade | yes-prob | openeqa | auto "
+                                          "(default; see `eval --help`).", show_default=False),
+) -> None:
+    """Grade finished runs again with another judge (e.g. openai:gpt-4o); results are kept."""
+    from efficienteqa.eval.judge import DEFAULT_JUDGE
+    from efficienteqa.eval.runner import rejudge
+    from efficienteqa.stack import parse_vlm
+
+    judge = judge or DEFAULT_JUDGE  # the one default judge model, eval's
+    parse_vlm(judge, images=False, flag="--judge")
+    mode = _judge_mode(judge_mode, judge)
+    for folder in runs:
+        with console.status(f"grading {folder}..."):
+            n, score = rejudge(folder, judge, mode)
+        console.print(f"{folder}: {n} episodes graded by {judge} ({mode}): LLM-Match {score:.1f}",
+                      highlight=False, soft_wrap=True)
+
+
+def _judge_spec(run: Resolved) -> str | None:
+    """The run's LLM-Match judge (None: the rule judge alone, or none), checked."""
+    from efficienteqa.eval.methods import default_judge
+    from efficienteqa.stack import parse_vlm
+
+    e = run.run.eval
+    spec = e.judge or ("none" if e.closed_set else default_judge(e.dataset))
+    if spec == "rule" and not e.dataset.startswith("synthetic"):
+        raise EfficientEQAError(f"the rule judge grades synthetic questions only, not {e.dataset}",
+                                fix="give a judge model (--judge local:MODEL or openai:MODEL)")
+    spec = None if spec in ("none", "rule") else spec
+    if spec:
+        parse_vlm(spec, images=False, flag="--judge")
+    return spec
+
+
+@app.command("eval")
+@run_options()
+def eval_command(
+    run: Resolved,
+    out: Path = typer.Option(..., help="Run folder: run.json, episodes.jsonl, episodes/ (resumed "
+                             "when it exists).", rich_help_panel="Output"),
+) -> None:
+    """Run a method on a dataset, resumably: one JSON line per episode, graded by the rule judge
+    (synthetic) and by LLM-Match (with a judge model)."""
+    from efficienteqa.datasets import load_dataset
+    from efficienteqa.eval.methods import METHODS, RunSpec, resolve
+    from efficienteqa.eval.runner import run_eval
+    from efficienteqa.records import check_writable
+
+    r, e = run.run, run.run.eval
+    resolve(e.method)  # bad input fails before anything slow
+    _check_backends(run)
+    if e.closed_set and e.dataset != "hm-eqa":
+        raise EfficientEQAError(f"--closed-set is HM-EQA's multiple-choice mode; {e.dataset} has "
+                                "no choices", fix="use --dataset hm-eqa, or leave out --closed-set")
+    if e.closed_set and e.method in METHODS and e.method != "blind":
+        raise EfficientEQAError(f"method {e.method!r} answers open-ended only; --closed-set is "
+                                "answered by blind (or a module:function method that sets "
+                                "extra['letter'])", fix="use --method blind")
+    judge = _judge_spec(run)
+    check_writable(out)
+    questions = load_dataset(e.dataset, path=e.hm_eqa_path, limit=e.limit,
+                             closed_set=e.closed_set, assets=r.scene.assets)
+    spec = RunSpec(method=e.method, dataset=e.dataset, stack=r.backends, config=r.agent,
+                   closed_set=e.closed_set, judge=judge, judge_mode=_judge_mode(e.judge_mode,
+                                                                               judge or ""),
+                   preset=run.preset, preset_config=run.preset_run.agent, reports=e.reports,
+                   assets=r.scene.assets, env=r.scene.env,
+                   hm3d_root=str(r.scene.hm3d_root) if r.scene.hm3d_root is not None else None)
+    from efficienteqa.cli.progress import eval_progress
+
+    with eval_progress(console, e.method, len(questions), out) as on_episode:
+        result = run_eval(spec, questions, out, workers=e.workers, address=e.address,
+                          on_episode=on_episode)
+    console.print(f"{result.ran} episodes run, {result.skipped} already done, {result.failed} "
+                  f"failed, {result.wall_s:.0f} s ({result.episodes_per_hour:.0f} episodes/hour)",
+                  highlight=False)
+    console.print(f"results: {out / 'episodes.jsonl'}\nsummary: efficienteqa report {out}",
+                  highlight=False, soft_wrap=True)
+    if result.failed:  # a run with failed episodes is not a success (they resume on a re-run)
+        from efficienteqa.cli.progress import say_failures
+
+        say_failures(console, out, result.failed)
+        raise typer.Exit(1)
+
+
+@app.command("report")
+def report_command(
+    folders: list[Path] = typer.Argument(..., help="Run folders written by `efficienteqa eval --out`."),
+    out: Path | None = typer.Option(None, help="Folder for report.md, its plots and report.html "
+                                    "(default: the run folder itself for one run, else "
+                                    "FIRST_FOLDER/../report)."),
+    paired_against: Path | None = typer.Option(None, "--paired-against", help="A reference run: "
+                                               "each run's accuracy and steps against it, paired "
+                                               "over the questions both answered (bootstrap 95% CI)."),
+    markdown: bool = typer.Option(False, "--markdown", help="Print the Markdown table of the "
+                                  "runs (as the README's results blocks hold it) instead of "
+                                  "writing the report pages; each run folder still gets its "
+                                  "summary.json and report.html."),
+) -> None:
+    """Tables and plots across evaluation runs (the paper's Tables I-III in form): Markdown and HTML.
+    Every run folder also gets its summary.json and report.html (a published run, results/)."""
+    from rich.table import Table
+
+    from efficienteqa.eval.tables import (
+        markdown_table,
+        overview_rows,
+        paired_differences,
+        publish_run,
+        read_summaries,
+        run_folders,
+        write_run_report,
+    )
+
+    summaries = read_summaries(folders)
+    reference = None if paired_against is None else read_summaries([paired_against])[0]
+    differences = paired_differences(summaries, reference)
+    for folder, summary, difference in zip(run_folders(folders), summaries, differences):
+        publish_run(folder, summary, difference)
+    if markdown:
+        sys.stdout.write(markdown_table(summaries, differences))
+        return
+    single = out is None and len(folders) == 1
+    target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
+    md, page = write_run_report(summaries, target, stamp=not single)
+    header, rows = overview_rows(summaries)
+    table = Table()
+    for i, name in enumerate(header):  # names whole, numbers right-aligned
+        table.add_column(name, no_wrap=i < 2, justify="left" if i < 2 else "right")
+    for row in rows:
+        table.add_row(*row)
+    console.print(table)
+    console.print(f"markdown: {md}\nhtml:     {page}", highlight=False, soft_wrap=True)

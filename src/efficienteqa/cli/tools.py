@@ -1,0 +1,331 @@
+"""The commands beside the agent's: synthetic houses, local models, pixel perception."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import typer
+
+from efficienteqa.cli.app import console, models, perception, scenes
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.models.local.weights import DEFAULT_MODEL
+
+
+@scenes.command("generate")
+def scenes_generate(
+    seed: int = typer.Option(0, help="The house seed; a seed fully determines a house."),
+    out: Path = typer.Option(Path("out/scene"), help="Output folder."),
+    assets: str = typer.Option(DEFAULT_ASSETS, help="'sh3d' (furniture package) or 'builtin' (boxes)."),
+    cc_by: bool = typer.Option(False, "--cc-by", help="Also use the CC-BY catalogues "
+                               "(writes ATTRIBUTION.md)."),
+) -> None:
+    """Write house.json, questions.jsonl, map.png and views.png for one seed."""
+    from efficienteqa.scenes import write_scene
+
+    start = time.perf_counter()
+    with console.status(f"generating house {seed}..."):
+        files = write_scene(seed, out, assets, cc_by)
+    console.print(
+        f"house {seed}: {files.n_rooms} rooms, {files.n_objects} objects, "
+        f"{files.n_questions} questions in {time.perf_counter() - start:.1f} s"
+    )
+    for path in (files.house, files.questions, files.map_png, files.views_png):
+        console.print(f"  {path}")
+
+
+@models.command("install")
+def models_install(
+    names: list[str] = typer.Argument(None, help="Models to install (default: qwen2.5-coder-1.5b)."),
+    all_models: bool = typer.Option(False, "--all", help="Install every registered model."),
+) -> None:
+    """Download, assemble and verify model files into the cache, and make the llama.cpp
+    runtime that serves them importable (built once, 4-5 min, when no wheel is cached); idempotent."""
+    from efficienteqa.models.local import DEFAULT_MODEL, LOCAL_MODELS, ensure_llama_cpp, install_model
+
+    chosen = list(LOCAL_MODELS) if all_models else (names or [DEFAULT_MODEL])
+    unknown = [name for name in chosen if name not in LOCAL_MODELS]
+    if unknown:  # before anything slow
+        raise EfficientEQAError(f"unknown local model {unknown[0]!r}",
+                                fix=f"choose one of: {', '.join(LOCAL_MODELS)}")
+    # The runtime first: a missing compiler is one line before a gigabyte is downloaded.
+    ensure_llama_cpp(progress=True)
+    for name in chosen:
+        start = time.perf_counter()
+        path = install_model(name, progress=True)
+        console.print(f"{name}: {path} ({path.stat().st_size / 1e6:.0f} MB, "
+                      f"{time.perf_counter() - start:.1f} s)", highlight=False, soft_wrap=True)
+
+
+@models.command("runtime")
+def models_runtime() -> None:
+    """Make llama.cpp importable: the cached portable wheel, built once if absent (4-5 min)."""
+    from efficienteqa.models.local import ensure_llama_cpp
+
+    start = time.perf_counter()
+    ensure_llama_cpp(progress=True)
+    console.print(f"llama.cpp runtime ready ({time.perf_counter() - start:.1f} s)")
+
+
+@models.command("serve")
+def models_serve(
+    name: str = typer.Argument(DEFAULT_MODEL, help="The model to serve."),
+    port: int | None = typer.Option(None, help="Port on 127.0.0.1 (default 8765, or a free one)."),
+    threads: int = typer.Option(2, help="CPU threads."),
+    ctx: int = typer.Option(4096, help="Context length in tokens."),
+) -> None:
+    """Start (or reuse) the detached llama.cpp OpenAI-compatible server."""
+    from efficienteqa.models.local import serve
+
+    start = time.perf_counter()
+    with console.status(f"starting the llama.cpp server for {name}..."):
+        info = serve(name, port=port, threads=threads, ctx=ctx)
+    console.print(f"{name} at {info.base_url} (pid {info.pid}, ready in "
+                  f"{time.perf_counter() - start:.1f} s, log {info.log})", highlight=False, soft_wrap=True)
+
+
+@models.command("stop")
+def models_stop(name: str | None = typer.Argument(None, help="The model whose server to stop "
+                                                   "(default: every server).")) -> None:
+    """Stop local llama.cpp servers."""
+    from efficienteqa.models.local import stop
+
+    stopped = stop(name)
+    for info in stopped:
+        console.print(f"stopped {info.name} (pid {info.pid}, port {info.port})")
+    if not stopped:
+        console.print("no server running")
+
+
+@models.command("status")
+def models_status() -> None:
+    """Installed models and running servers."""
+    from rich.table import Table
+
+    from efficienteqa.models.local import LOCAL_MODELS, is_installed, running
+
+    servers = {info.name: info for info in running()}
+    table = Table("model", "installed", "server")
+    for name, entry in LOCAL_MODELS.items():
+        info = servers.get(name)
+        server = "-" if info is None else (f"{info.base_url} (pid {info.pid})"
+                                           + ("" if info.healthy() else " not answering"))
+        table.add_row(name, f"yes, {entry.size_mb} MB" if is_installed(name) else "no", server)
+    console.print(table)
+
+@perception.command("dataset")
+def perception_dataset(
+    seeds: str = typer.Option(..., help="House seeds, e.g. 3000-3199 (within 3000-3999, the "
+                              "houses reserved for perception; 3900-3909 validate)."),
+    out: Path = typer.Option(..., help="Output folder (shards and meta.json; runs merge)."),
+    frames_per_house: int = typer.Option(20, "--frames-per-house", help="Views per house."),
+    seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
+    workers: int = typer.Option(2, help="Rendering processes."),
+    recolour_share: float = typer.Option(0.5, "--recolour-share", help="Share of colourable "
+                                         "objects recoloured in training houses (3000-3899)."),
+) -> None:
+    """Render RGB-D frames with per-pixel category, colour and state labels at half size."""
+    from efficienteqa.perception.pixels.dataset import parse_seeds, render_dataset
+
+    houses = parse_seeds(seeds)
+    start = time.perf_counter()
+    meta = render_dataset(houses, out, frames_per_house, seed, workers=workers,
+                          recolour_share=recolour_share)
+    console.print(f"{len(houses)} houses, {len(houses) * frames_per_house} frames in "
+                  f"{(time.perf_counter() - start) / 60:.1f} min -> {out} ({meta['frames']} "
+                  "frames in all)", highlight=False, soft_wrap=True)
+
+
+@perception.command("train")
+def perception_train(
+    data: Path = typer.Option(..., help="A folder written by 'perception dataset'."),
+    out: Path = typer.Option(Path("src/efficienteqa/perception/pixels/weights/pixels.pt"),
+                             help="The weights file (.pt; its .json is written beside it)."),
+    steps: int = typer.Option(4000, help="Optimiser steps (fixes the result with --seed)."),
+    seed: int = typer.Option(0, help="Seed of initialisation and crops."),
+    batch: int = typer.Option(8, help="Crops per step."),
+    minutes: float = typer.Option(90.0, help="Stop early after this long (a guard; recorded)."),
+    threads: int = typer.Option(2, help="Torch CPU threads."),
+    widths: str = typer.Option("16,32,64,96,160", help="Channels of the 1/1 ... 1/16 levels."),
+    device: str = typer.Option("auto", help="auto (cuda where torch sees one) | cpu | cuda."),
+    resume: bool = typer.Option(False, "--resume", help="Continue from the checkpoint beside "
+                                "--out (same options and data)."),
+    checkpoint_every: int = typer.Option(250, "--checkpoint-every", help="Steps between "
+                                         "checkpoints (0: none)."),
+) -> None:
+    """Train the pixel network on rendered frames; validate on houses 3900-3909."""
+    from efficienteqa.perception.pixels.train import TrainConfig, check_data, check_writable, train
+
+    if steps < 1 or batch < 1 or threads < 1 or checkpoint_every < 0:
+        raise EfficientEQAError("--steps, --batch and --threads must be at least 1, "
+                                "--checkpoint-every at least 0")
+    try:
+        width_list = tuple(int(w) for w in widths.split(","))
+    except ValueError:
+        raise EfficientEQAError(f"cannot read --widths {widths!r}", fix="give 5 numbers such as "
+                                "16,32,64,96,160") from None
+    if len(width_list) != 5 or min(width_list) < 1:
+        raise EfficientEQAError(f"--widths needs 5 positive numbers, got {widths!r}")
+    check_data(data)
+    check_writable(out)
+    # DATA: the folder 'perception dataset' wrote (its houses are in the record's "data"); a
+    # path on this machine would mean nothing on another. --resume and --device do not change
+    # the result's recipe (the record says where it ran and whether it resumed).
+    command = " ".join(["efficienteqa", "perception", "train", "--data", "DATA", "--out",
+                        str(out), "--steps", str(steps), "--seed", str(seed), "--batch",
+                        str(batch), "--minutes", f"{minutes:g}", "--threads", str(threads),
+                        "--widths", ",".join(map(str, width_list)), "--device", device])
+    record = train(data, out, TrainConfig(steps=steps, seed=seed, batch=batch, minutes=minutes,
+                                          threads=threads, widths=width_list, device=device,
+                                          checkpoint_every=checkpoint_every, resume=resume),
+                   command=command)
+    val = record["validation"] or {}
+    figures = ", ".join(f"{k} {val[k]}" for k in ("pixel_accuracy", "mean_iou", "colour_accuracy",
+                                                  "state_accuracy") if val.get(k) is not None)
+    console.print(f"{record['steps_done']} steps in {record['minutes']:.1f} min -> {out}"
+                  + (f"; validation: {figures}" if figures else ""), highlight=False,
+                  soft_wrap=True)
+
+
+@perception.command("evaluate")
+def perception_evaluate(
+    seeds: str = typer.Option("100-129", help="Houses to measure on, e.g. 100-129 (the "
+                              "evaluation split); never the network's training houses."),
+    frames_per_house: int = typer.Option(8, "--frames-per-house", help="Views per house."),
+    seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
+    weights: Path | None = typer.Option(None, help="Weights to measure (default: the "
+                                        "committed ones)."),
+    out: Path | None = typer.Option(None, help="Write the figures here as JSON."),
+    poses: Path | None = typer.Option(None, help="Measure at the poses of recorded walks (a "
+                                      "file of experiments/walk_poses.py), frames spread "
+                                      "evenly over each house's walk."),
+) -> None:
+    """Measure pixel perception against the semantic sensor on held-out houses: objects in view
+    found and right per category, size and distance, recoloured objects and objects of meshes
+    held out of training apart; colour, state and the floor's room type."""
+    from rich.progress import Progress
+
+    from efficienteqa.datasets.synthetic import parse_seeds
+    from efficienteqa.perception.pixels.backend import PixelPerception
+    from efficienteqa.perception.pixels.evaluate import (
+        check_heldout,
+        evaluate,
+        heldout_frames,
+        markdown_table,
+        read_poses,
+        write_scores,
+    )
+    from efficienteqa.records import check_writable, code_version
+
+    try:
+        houses = parse_seeds(seeds)
+    except ValueError as exc:
+        raise EfficientEQAError(f"cannot read the house seeds {seeds!r} ({exc})",
+                                fix="give a range such as 100-129") from None
+    check_heldout(houses)
+    if frames_per_house < 1:
+        raise EfficientEQAError("--frames-per-house must be at least 1")
+    if out is not None:
+        check_writable(out.parent)
+    walks = read_poses(poses) if poses is not None else None
+    perception = PixelPerception.load(weights)
+    held_out = frozenset(perception.record.get("data", {}).get("heldout_model_keys", []))
+    frames = heldout_frames(houses, frames_per_house, seed, walks, held_out)
+    total = len(houses) * frames_per_house
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("frames", total=total)
+        scores = evaluate(frames, perception, progress=lambda n: bar.update(task, completed=n))
+    figures = scores.to_json()
+    if out is not None:
+        write_scores(scores, out, {"houses": seeds,
+                                   "frames_per_house": frames_per_house, "seed": seed,
+                                   "poses": "walks " + poses.name if poses else "training-style",
+                                   "weights": str(weights or "committed"),
+                                   "code_version": code_version()})
+    console.print(markdown_table(figures), highlight=False, soft_wrap=True)
+    console.print(f"{figures['frames']} frames of houses {seeds}; "
+                  f"floor room type {figures['floor_room_type']}; median "
+                  f"{figures['median_ms']} ms a frame" + (f" -> {out}" if out else ""),
+                  highlight=False, soft_wrap=True)
+
+
+@perception.command("thresholds")
+def perception_thresholds(
+    seeds: str = typer.Option("3900-3909", help="Validation houses to choose on (within "
+                              "3900-3909)."),
+    frames_per_house: int = typer.Option(10, "--frames-per-house", help="Views per house."),
+    seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
+    weights: Path | None = typer.Option(None, help="Weights to choose for (default: the "
+                                        "committed ones); their .json records the choice."),
+    write: bool = typer.Option(False, "--write", help="Record the thresholds in the weights' "
+                               ".json (else only print them)."),
+) -> None:
+    """Choose each category's region threshold on validation houses (best F1 of objects found
+    and regions right) and, with --write, record them with the weights."""
+    from dataclasses import replace
+
+    from rich.progress import Progress
+
+    from efficienteqa.perception.pixels.backend import WEIGHTS, PixelPerception
+    from efficienteqa.perception.pixels.dataset import VALIDATION_SEEDS, parse_seeds
+    from efficienteqa.perception.pixels.evaluate import heldout_frames
+    from efficienteqa.perception.pixels.thresholds import (
+        GRID,
+        MIN_OBJECTS,
+        choose,
+        collect,
+        overall,
+        write_thresholds,
+    )
+
+    houses = parse_seeds(seeds)
+    if houses.start not in VALIDATION_SEEDS or houses.stop - 1 not in VALIDATION_SEEDS:
+        raise EfficientEQAError(f"houses {seeds} are not validation houses",
+                                fix=f"choose on houses within {VALIDATION_SEEDS.start}-"
+                                    f"{VALIDATION_SEEDS.stop - 1}")
+    if frames_per_house < 1:
+        raise EfficientEQAError("--frames-per-house must be at least 1")
+    path = weights or WEIGHTS
+    unthresholded = PixelPerception.load(path).classify
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("frames", total=len(houses) * frames_per_house)
+        candidates = collect(heldout_frames(houses, frames_per_house, seed),
+                             lambda rgb, depth: replace(unthresholded(rgb, depth),
+                                                        min_confidence={}),
+                             progress=lambda n: bar.update(task, completed=n))
+    chosen = choose(candidates)
+    for category, c in chosen.items():
+        console.print(f"{category}: {c['threshold']:.2f} ({c['objects']} objects; found "
+                      f"{c['recall_at_default']:.0%} -> {c['recall']:.0%}, right "
+                      f"{c['precision_at_default']:.0%} -> {c['precision']:.0%})",
+                      highlight=False, soft_wrap=True)
+    before = overall(candidates, {})
+    after = overall(candidates, {c: v["threshold"] for c, v in chosen.items()})
+    console.print(f"all: found {before[0]:.1%} -> {after[0]:.1%}, right {before[1]:.1%} -> "
+                  f"{after[1]:.1%} (houses {seeds}, {frames_per_house} frames each)",
+                  highlight=False, soft_wrap=True)
+    if write:
+        about = {"houses": seeds, "frames_per_house": frames_per_house, "seed": seed,
+                 "grid": list(GRID), "min_objects": MIN_OBJECTS, "criterion": "best F1",
+                 "found_right_before": [round(v, 4) for v in before],
+                 "found_right_after": [round(v, 4) for v in after]}
+        console.print(f"recorded in {write_thresholds(path, chosen, about)}", highlight=False)
+
+
+@perception.command("table")
+def perception_table(
+    figures: Path = typer.Argument(..., help="A JSON file written by 'perception evaluate "
+                                   "--out'."),
+) -> None:
+    """Print the figures of a pixel-perception evaluation as the markdown table docs/perception.md
+    holds (a test checks the two agree)."""
+    import json
+
+    from efficienteqa.perception.pixels.evaluate import markdown_table
+
+    try:
+        data = json.loads(figures.read_text())
+    except (OSError, ValueError) as exc:
+        raise EfficientEQAError(f"cannot read {figures}: {exc}") from None
+    print(markdown_table(data))

@@ -1,0 +1,142 @@
+"""The configuration tree: one nested set of dataclasses owns every knob of a run, and the CLI,
+the configuration files and the record are all made from it. Every value is reachable by its
+dotted name from the command line and from a file; flat names of before the sections still
+read; old records nest to the same tree."""
+
+from __future__ import annotations
+
+import json
+import typing
+from dataclasses import asdict, fields
+from pathlib import Path
+
+import pytest
+import typer
+
+from efficienteqa.agent import AgentConfig
+from efficienteqa.cli import app
+from efficienteqa.cli.options import given_values, tree_leaves
+from efficienteqa.knobs import Leaf, build, flat_names, leaves
+from efficienteqa.presets import load_config
+from efficienteqa.runconfig import RunConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _other(leaf: Leaf) -> typing.Any:
+    """A value unlike ``leaf``'s default, of its type."""
+    if leaf.kind is bool:
+        return not leaf.default
+    if leaf.kind is int:
+        return (leaf.default or 0) + 1
+    if leaf.kind is float:
+        return (leaf.default or 0.0) + 0.5
+    if leaf.kind is dict:
+        return {"a": 1.5}
+    if leaf.kind is Path:
+        return Path("/somewhere")
+    return "other"
+
+
+def _cli(leaf: Leaf, value: typing.Any) -> list[str]:
+    flag = "--" + ".".join(p.replace("_", "-") for p in leaf.path)
+    if leaf.kind is bool:
+        head, name = flag.rsplit(".", 1)
+        return [flag if value else f"{head}.no-{name}"]
+    return [flag, json.dumps(value) if leaf.kind is dict else str(value)]
+
+
+def _toml(leaf: Leaf, value: typing.Any) -> str:
+    table = ".".join(leaf.path[:-1])
+    if leaf.kind is dict:
+        return f"[{'.'.join(leaf.path)}]\na = 1.5\n"
+    text = (str(value).lower() if leaf.kind is bool else json.dumps(str(value))
+            if leaf.kind in (str, Path) else repr(value))
+    return f"[{table}]\n{leaf.path[-1]} = {text}\n"
+
+
+def _parse(command: str, args: list[str]) -> dict:
+    click_app = typer.main.get_command(app)
+    ctx = click_app.commands[command].make_context(command, [*args, "--out", "x"],  # type: ignore[attr-defined]
+                                                   resilient_parsing=False)
+    chosen = tree_leaves() if command == "eval" else tree_leaves(
+        ("backends", "scene", "explore", "stop", "answer"), {"eval": ("dataset", "hm_eqa_path")})
+    return given_values(chosen, dict(ctx.params))
+
+
+def test_every_value_of_the_tree_is_reachable_by_its_dotted_name_from_cli_and_file(tmp_path):
+    every = leaves(RunConfig)
+    assert len(every) > 120  # the sfe and target constants included
+    for leaf in every:
+        value = _other(leaf)
+        assert _parse("eval", _cli(leaf, value)) == {leaf.dotted: value}, leaf.dotted
+        path = tmp_path / "c.toml"
+        path.write_text(_toml(leaf, value))
+        assert load_config(path) == {leaf.dotted: value}, leaf.dotted
+
+
+def test_ask_takes_every_value_but_the_evaluations():
+    names = {leaf.dotted for leaf in tree_leaves(("backends", "scene", "explore", "stop",
+                                                   "answer"), {"eval": ("dataset",
+                                                                        "hm_eqa_path")})}
+    assert {"eval.dataset", "stop.z_gated", "explore.sfe.view_gain"} <= names
+    assert not names & {"eval.method", "eval.judge", "eval.workers"}
+    assert _parse("ask", ["--stop.z-gated", "2"]) == {"stop.z_gated": 2.0}
+
+
+@pytest.mark.parametrize(("args", "path", "value"), [
+    (["--z-th", "2"], "stop.z_th", 2.0), (["--min-stop-step", "4"], "stop.min_step", 4),
+    (["--stop-rule", "paper"], "stop.rule", "paper"), (["--no-early-stop"], "stop.enabled", False),
+    (["--repeated-views"], "answer.distinct_views", False), (["--top-k", "3"], "answer.top_k", 3),
+    (["--no-cache"], "backends.cache", False), (["--vlm", "local:x"], "backends.vlm", "local:x"),
+    (["--method", "blind"], "eval.method", "blind"), (["--no-gate-final"], "stop.gate_final", False),
+])
+def test_the_flat_flags_of_before_the_sections_still_read(args, path, value):
+    assert _parse("eval", args) == {path: value}
+
+
+def test_the_dotted_name_wins_over_its_flat_alias():
+    assert _parse("eval", ["--top-k", "3", "--answer.top-k", "7"]) == {"answer.top_k": 7}
+
+
+def test_flat_names_are_unique_across_sections():
+    """A flat name (an old record's key, an alias) reads as one field only."""
+    seen: dict[str, str] = {}
+    for section in fields(RunConfig):
+        for f in fields(typing.get_type_hints(RunConfig)[section.name]):
+            for name in filter(None, (f.name, f.metadata.get("alias"))):
+                assert name not in seen, f"{name} in {seen.get(name)} and {section.name}"
+                seen[name] = section.name
+    assert flat_names(RunConfig)["min_stop_step"] == ("stop", "min_step")
+
+
+def test_every_field_has_help_and_the_gate_threshold_sits_beside_z_th():
+    shallow = [leaf for leaf in leaves(RunConfig) if len(leaf.path) == 2]
+    assert all(leaf.help for leaf in shallow), [leaf.dotted for leaf in shallow if not leaf.help]
+    stop = [leaf.path[1] for leaf in shallow if leaf.path[0] == "stop"]
+    assert {"z_th", "z_gated", "gate", "gate_final"} <= set(stop)
+    z_th = next(leaf for leaf in shallow if leaf.dotted == "stop.z_th")
+    assert "stop.z_gated" in z_th.help  # it says which applies when
+    beyond = {leaf.dotted for leaf in shallow if leaf.beyond}
+    assert {"stop.gate", "stop.z_gated", "explore.steering"} <= beyond
+    assert not beyond & {"stop.z_th", "answer.top_k", "explore.seed"}
+
+
+def test_every_committed_run_nests_to_a_tree_the_dataclasses_build():
+    """Old records (flat, formats 1 and 2) read as the tree's sections, and those build the
+    agent's configuration with nothing left over."""
+    from efficienteqa.eval.records import upgrade
+
+    runs = sorted((ROOT / "results").rglob("run.json"))
+    assert runs
+    for path in runs:
+        run = upgrade(json.loads(path.read_text()))
+        for key in ("config", "method_config", "preset_config"):
+            if isinstance(run.get(key), dict):
+                assert set(run[key]) <= {"explore", "stop", "answer"}, (path, key)
+                config = build(AgentConfig, run[key])
+                assert isinstance(config, AgentConfig)
+                if key == "config":
+                    again = asdict(config)  # the tree round-trips
+                    assert all(again[s][k] == v for s in run[key] for k, v in run[key][s].items()
+                               if not isinstance(v, dict)), path
