@@ -217,9 +217,7 @@ def _scorers() -> dict[str, Callable[[], object]]:
         return build_chat_model(ChatBackend(cache=True))
 
     def vlm(kind: str) -> Callable[[], object]:
-        from efficienteqa.explore import vlm_scorer as vs
-
-        return lambda: vs.ELICITATIONS[kind](model())
+        return lambda: ds.ELICITATIONS[kind](model())
 
     out: dict[str, Callable[[], object]] = {
         "random": lambda: ds.RandomDirections(seed=0),
@@ -231,7 +229,7 @@ def _scorers() -> dict[str, Callable[[], object]]:
                                                                          near_weight=1.0),
         "direction-logit": lambda: ts.LogitDirections(ts.LOGIT_WEIGHTS, name="direction-logit"),
     }
-    from efficienteqa.explore.vlm_scorer import ELICITATIONS
+    from experiments.direction_scorers import ELICITATIONS
 
     for kind in ELICITATIONS:
         out[kind] = vlm(kind)

@@ -41,8 +41,9 @@ def _other(leaf: Leaf) -> typing.Any:
 def _cli(leaf: Leaf, value: typing.Any) -> list[str]:
     flag = "--" + ".".join(p.replace("_", "-") for p in leaf.path)
     if leaf.kind is bool:
-        head, name = flag.rsplit(".", 1)
-        return [flag if value else f"{head}.no-{name}"]
+        head = flag.rsplit(".", 1)[0]
+        off = (leaf.off or "no_" + leaf.path[-1]).replace("_", "-")
+        return [flag if value else f"{head}.{off}"]
     return [flag, json.dumps(value) if leaf.kind is dict else str(value)]
 
 

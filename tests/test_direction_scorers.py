@@ -19,20 +19,21 @@ from efficienteqa.explore.text_scorers import (
     direction_features,
     direction_rooms,
 )
-from efficienteqa.explore.vlm_scorer import (
-    DebiasedDirections,
-    SampledDirections,
-    YesNoDirections,
-    first_letter,
-    relabelled,
-)
 from efficienteqa.geometry import Pose2D
 from efficienteqa.models.base import Message
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.observation import PromptPoint
 from efficienteqa.perception.base import ExploreRequest
 from efficienteqa.stack import Stack, explore_scorer_name
-from experiments.direction_scorers import KeywordDirections, NearestDirections
+from experiments.direction_scorers import (
+    DebiasedDirections,
+    KeywordDirections,
+    NearestDirections,
+    SampledDirections,
+    YesNoDirections,
+    first_letter,
+    relabelled,
+)
 
 QUESTION = "What is on the desk in the office?"
 TEXTS = {

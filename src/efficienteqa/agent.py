@@ -2,7 +2,8 @@
 
 Per step t (the start view is step 1; DESIGN 3.1):
 1. the frame's relevancy ``Sim(I_t, Q)`` is checked against the earlier frames (stop module);
-   an outlier after step 10 ends exploration;
+   an outlier from ``stop.min_step`` on (the paper's 10; 2 past the default gate) ends
+   exploration;
 2. otherwise the explore module fuses the frame into the map, asks the scorer for semantic
    values and picks the next pose, and the robot moves there.
 Then the K most relevant frames of the whole history answer the question (answer module).

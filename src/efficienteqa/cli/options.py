@@ -57,7 +57,7 @@ def _parameter(leaf: Leaf, alias: bool = False) -> inspect.Parameter | None:
     if leaf.default is not None and not alias:
         help_text += f" (default: {_shown(leaf.default)})"
     if leaf.kind is bool:
-        off = f"--{dotted.rsplit('.', 1)[0]}.no-{leaf.path[-1].replace('_', '-')}"
+        off = f"--{dotted.rsplit('.', 1)[0]}." + (leaf.off or "no_" + leaf.path[-1]).replace("_", "-")
         decls = ([f"{_flag(flat)}/{_flag(leaf.off or 'no_' + flat)}"] if alias and flat
                  else [f"--{dotted}/{off}"])
     else:

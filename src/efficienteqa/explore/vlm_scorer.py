@@ -19,13 +19,12 @@ change for text models. Every configuration, ``--prompts paper`` included, does 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from efficienteqa.explore.module import SemanticScore
-from efficienteqa.explore.text_scorers import DirectionFrame, DirectionTextScorer, Scores
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception.base import Perception
@@ -82,10 +81,10 @@ def explore_prompt(question: str, view: str, letters: Sequence[str],
     question next: llama.cpp reuses the evaluated prefix shared with the previous request, so
     within an episode only the view and the directions are new tokens."""
     return load_prompt("explore", PROMPTS).format(question=question, view=view,
-                                                  directions=_directions_text(letters, descriptions))
+                                                  directions=directions_text(letters, descriptions))
 
 
-def _directions_text(letters: Sequence[str], descriptions: Mapping[str, str] | None) -> str:
+def directions_text(letters: Sequence[str], descriptions: Mapping[str, str] | None) -> str:
     """One line per lettered direction for text models; the letters alone for VLMs."""
     if descriptions:
         return "\n".join(f"{x}: {descriptions.get(x) or 'no description'}" for x in letters)
@@ -143,7 +142,7 @@ def explore_token_scores(model: ChatModel, question: str, view: str,
     descriptions = directions if isinstance(directions, Mapping) else None
     prompt = load_prompt("explore_token", PROMPTS).format(
         question=question, view=view or ("the image" if images else "nothing visible"),
-        directions=_directions_text(letters, descriptions))
+        directions=directions_text(letters, descriptions))
     resp = model.chat([Message("user", prompt, tuple(images or ()))], max_tokens=8,
                       temperature=0.0, logprobs=TOP_LOGPROBS)
     tokens = resp.logprobs or []
@@ -164,7 +163,7 @@ def explore_image_scores(model: ChatModel, question: str, letters: Sequence[str]
     call of its own. ``token``: both read from token probabilities (the white-box baseline):
     the letter of a one-letter reply, and yes/no. ``info`` keeps both replies and usages."""
     letters = list(letters) or list(DEFAULT_LETTERS)
-    directions = _directions_text(letters, None)
+    directions = directions_text(letters, None)
     if token:
         require_logprobs(model)
         prompt = load_prompt("explore_choice", PROMPTS).format(
@@ -206,152 +205,3 @@ def worth_exploring(model: ChatModel, question: str, plain: np.ndarray, *, token
         resp = model.chat(message, max_tokens=max_tokens, temperature=0.0)
         p_yes, problems = parse_worth_exploring(resp.text or "")
     return p_yes, {"raw": resp.text or "", "problems": problems, "usage": usage_of(resp)}
-
-
-# Black-box elicitations of a text model over the direction texts (DESIGN 8), each a
-# ``DirectionTextScorer`` (explore/text_scorers.py): per-letter confidences from a frame's
-# question, view and direction texts. ``DirectionScorer`` makes any of them a SemanticScorer.
-
-
-class VCDirections:
-    """The current exploration call (``explore_scores``, verbalized confidence) as a direction
-    scorer: the reference the new elicitations must beat."""
-
-    name = "vc"
-
-    def __init__(self, model: ChatModel, m: int = M) -> None:
-        self.model, self.m = model, m
-
-    def letter_scores(self, frame: DirectionFrame) -> Scores:
-        s = explore_scores(self.model, frame.question, frame.view, dict(frame.directions), m=self.m)
-        return s.letters, {"problems": s.info.get("problems", []), "raw": s.info.get("raw")}
-
-
-class TokenDirections:
-    """The white-box reading (``explore_token_scores``): P(letter) from token probabilities."""
-
-    name = "token"
-
-    def __init__(self, model: ChatModel) -> None:
-        self.model = model
-
-    def letter_scores(self, frame: DirectionFrame) -> Scores:
-        s = explore_token_scores(self.model, frame.question, frame.view, dict(frame.directions))
-        return s.letters, {"problems": s.info.get("problems", []), "raw": s.info.get("raw")}
-
-
-def relabelled(directions: Mapping[str, str], shift: int) -> dict[str, str]:
-    """The directions in an order turned by ``shift`` and lettered afresh A, B, C...: new letter
-    -> original letter. Shift 0 is the identity."""
-    original = list(directions)
-    turned = original[shift % len(original):] + original[:shift % len(original)]
-    return {DEFAULT_LETTERS[i]: x for i, x in enumerate(turned)}
-
-
-def choice_prompt(question: str, view: str, directions: Mapping[str, str]) -> str:
-    return load_prompt("explore_choice", PROMPTS).format(
-        question=question, view=view or "nothing visible",
-        directions=_directions_text(list(directions), directions))
-
-
-class DebiasedDirections:
-    """Order-debiased single choice: the directions are shown in every cyclic order, lettered
-    afresh each time (so neither a position nor a letter is favoured), P(letter) is read from
-    the first reply token's probabilities, mapped back and averaged. One one-token call per
-    order (``len(letters)`` calls)."""
-
-    name = "debiased"
-
-    def __init__(self, model: ChatModel) -> None:
-        require_logprobs(model)
-        self.model = model
-
-    def letter_scores(self, frame: DirectionFrame) -> Scores:
-        letters = frame.letters
-        total = dict.fromkeys(letters, 0.0)
-        problems: list[str] = []
-        for shift in range(len(letters)):
-            names = relabelled(frame.directions, shift)
-            shown = {new: frame.directions[old] for new, old in names.items()}
-            resp = self.model.chat([Message("user", choice_prompt(frame.question, frame.view,
-                                                                  shown))],
-                                   max_tokens=1, temperature=0.0, logprobs=TOP_LOGPROBS)
-            if not resp.logprobs:
-                problems.append(f"order {shift}: no logprobs, counted uniform")
-            elif not letter_read(resp.logprobs, list(names)):
-                problems.append(f"order {shift}: no letter among the top logprobs, counted uniform")
-            probs = letter_probs_from_logprobs(resp.logprobs, list(names))
-            for new, old in names.items():
-                total[old] += probs[new] / len(letters)
-        return total, {"problems": problems}
-
-
-class SampledDirections:
-    """Sampled single choices counted as confidence: ``n`` replies at ``temperature`` (seeds
-    0..n-1, the cyclic orders of the directions in equal blocks, lettered afresh), the share of replies naming
-    each direction; a reply naming none counts for nothing (all unreadable: uniform)."""
-
-    name = "sampled"
-
-    def __init__(self, model: ChatModel, n: int = 6, temperature: float = 1.0) -> None:
-        self.model, self.n, self.temperature = model, n, temperature
-
-    def letter_scores(self, frame: DirectionFrame) -> Scores:
-        letters = frame.letters
-        votes = dict.fromkeys(letters, 0.0)
-        for k in range(self.n):  # orders in blocks: repeats of a prompt reuse its evaluation
-            names = relabelled(frame.directions, k * len(letters) // self.n)
-            shown = {new: frame.directions[old] for new, old in names.items()}
-            resp = self.model.chat([Message("user", choice_prompt(frame.question, frame.view,
-                                                                  shown))],
-                                   max_tokens=2, temperature=self.temperature, seed=k)
-            picked = first_letter(resp.text or "", list(names))
-            if picked is not None:
-                votes[names[picked]] += 1.0
-        if not any(votes.values()):
-            return {x: 1.0 / len(letters) for x in letters}, {
-                "problems": ["no reply named a direction: uniform"]}
-        return {x: v / sum(votes.values()) for x, v in votes.items()}, {"problems": []}
-
-
-def first_letter(reply: str, letters: Sequence[str]) -> str | None:
-    """The first of ``letters`` that a reply names as a word ("B", "B.", "(C)"), or None."""
-    for word in reply.replace("(", " ").replace(")", " ").split():
-        key = word.strip(".:;,!?*\"'").upper()
-        if key in letters:
-            return key
-    return None
-
-
-def direction_prompt(question: str, view: str, direction: str) -> str:
-    return load_prompt("explore_direction", PROMPTS).format(
-        question=question, view=view or "nothing visible", direction=direction or "no description")
-
-
-class YesNoDirections:
-    """One question per direction: "does this direction lead towards the answer?", read as
-    P(yes) over {yes, no} from the first reply token's probabilities (``DEFAULT_P_YES`` when
-    neither is among them, with a recorded problem). One one-token call per direction."""
-
-    name = "yes-no"
-
-    def __init__(self, model: ChatModel) -> None:
-        require_logprobs(model)
-        self.model = model
-
-    def letter_scores(self, frame: DirectionFrame) -> Scores:
-        scores, problems = {}, []
-        for x, text in frame.directions.items():
-            resp = self.model.chat([Message("user", direction_prompt(frame.question, frame.view,
-                                                                     text))],
-                                   max_tokens=1, temperature=0.0, logprobs=TOP_LOGPROBS)
-            if yes_prob_or_none(resp.logprobs) is None:
-                problems.append(f"{x}: no yes/no among the reply's tokens: P(yes) = {DEFAULT_P_YES}")
-            scores[x] = yes_prob_from_logprobs(resp.logprobs)
-        return scores, {"problems": problems}
-
-
-ELICITATIONS: dict[str, Callable[[ChatModel], DirectionTextScorer]] = {
-    "vc": VCDirections, "token": TokenDirections, "debiased": DebiasedDirections,
-    "sampled": SampledDirections, "yes-no": YesNoDirections,
-}
