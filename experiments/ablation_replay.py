@@ -259,7 +259,37 @@ def print_tables(result: dict[str, Any], stops: Sequence[tuple[str | None, float
               + (f"   {paper_k:.2f}" if paper_k else ""))
 
 
+def markdown_tables(result: dict[str, Any]) -> str:
+    """The Z_th and K tables of an ``ablation_replay.json`` as docs/RESULTS.md holds them (a test
+    checks the two agree): ``python -m experiments.ablation_replay --markdown FILE``."""
+    threshold = result.get("threshold", "z_th")
+    symbol = {"z_th": "Z_th", "z_gated": "z_gated"}.get(threshold, threshold)
+    z_rows = [r for r in result["z_th"]]
+    lines = [f"| stop (answer at K = {z_rows[0]['k']}) | accuracy % | steps | steps / budget | "
+             "relevancy stops % | paper: steps / LLM-Match |", "|---|---|---|---|---|---|"]
+    for r in z_rows:
+        paper = PAPER_Z.get(r["z_th"]) if r["rule"] is not None else None
+        name = "none (the budget)" if r["rule"] is None else f"{symbol} = {r['z_th']:g}"
+        lines.append(f"| {name} | {_fmt(r['accuracy'])} | {_fmt(r['mean_steps'])} | "
+                     f"{_fmt(r['steps_per_budget'], 2)} | {_fmt(r['relevancy_stop_share'], 0)} | "
+                     + (f"{paper[0]:.2f} / {paper[1]:.2f} |" if paper else "|"))
+    stops = [r["stop"] for r in z_rows]
+    heads = ["at the budget" if r["rule"] is None else f"{symbol} = {r['z_th']:g}" for r in z_rows]
+    lines += ["", "| K | " + " | ".join(heads) + " | paper (LLM-Match) |",
+              "|---" * (len(heads) + 2) + "|"]
+    for r in result["k"]:
+        paper_k = PAPER_K.get(r["k"])
+        lines.append(f"| {r['k']} | " + " | ".join(_fmt(r[s]) for s in stops)
+                     + (f" | {paper_k:.2f} |" if paper_k else " | |"))
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: Sequence[str] | None = None) -> None:
+    if argv is None:
+        argv = sys.argv[1:]
+    if argv[:1] == ["--markdown"]:
+        sys.stdout.write(markdown_tables(json.loads(Path(argv[1]).read_text())))
+        return
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run_dir", type=Path, help="a run of `efficienteqa eval --no-early-stop`")
     ap.add_argument("--z-th", type=_floats, default=[1.0, 2.0, 3.0, 4.0])

@@ -3,6 +3,8 @@ stop and retrieval equal the live ones; the replayed stop follows DESIGN 3.4 for
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -210,3 +212,26 @@ def test_the_z_th_rows_of_a_gated_run_vary_the_threshold_that_acts():
                                         stop_config_for(recorded, z_th=z)).step
                  for z in (1.0, 4.0)}
     assert len(set(untouched.values())) == 1  # varying Z_th under the gate changes nothing
+
+
+def test_the_published_ablation_tables_are_generated_from_their_files():
+    """docs/RESULTS.md's Z_th and K tables are what ``--markdown`` makes of the committed
+    ablation_replay.json files, every one of which comes from a clean commit."""
+    import re
+    from pathlib import Path
+
+    from experiments.ablation_replay import markdown_tables
+
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "docs" / "RESULTS.md").read_text()
+    blocks = re.findall(r"<!-- ablation: (\S+) -->\n(.*?)<!-- /ablation -->", text, re.S)
+    assert {path for path, _ in blocks} >= {"results/ablation-heldout/default/ablation_replay.json",
+                                            "results/ablation-heldout/default-v1/ablation_replay.json"}
+    for path, body in blocks:
+        result = json.loads((root / path).read_text())
+        assert body == markdown_tables(result), path
+        assert "dirty" not in result["code_version"], path
+    current = json.loads((root / "results/ablation-heldout/default/ablation_replay.json").read_text())
+    assert current["threshold"] == "z_gated"  # the default's gate: the threshold that acts
+    steps = [r["mean_steps"] for r in current["z_th"] if r["rule"] is not None]
+    assert steps == sorted(steps) and len(set(steps)) == len(steps)  # the knob acts
