@@ -141,3 +141,16 @@ def test_every_committed_run_nests_to_a_tree_the_dataclasses_build():
                     again = asdict(config)  # the tree round-trips
                     assert all(again[s][k] == v for s in run[key] for k, v in run[key][s].items()
                                if not isinstance(v, dict)), path
+
+
+def test_ask_help_shows_the_openai_server_form_and_every_section():
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1", "TERM": "dumb"}
+    out = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "ask", "--help"],
+                         capture_output=True, text=True, env=env, check=True).stdout
+    assert "openai:MODEL@BASE_URL" in out
+    assert "--stop.z-gated" in out and "--explore.sfe.view-gain" in out
+    assert "Beyond the paper." in out

@@ -74,7 +74,8 @@ class Stack:
     its weights) and ``allow_download`` (fetch them from the Hugging Face Hub when missing)."""
 
     vlm: str = knob(f"local:{DEFAULT_MODEL}", help="local:MODEL (the embedded llama.cpp "
-                    "server) | openai:MODEL[@BASE_URL] (any OpenAI-compatible server, e.g. "
+                    "server) | openai:MODEL (OpenAI) | openai:MODEL@BASE_URL (any "
+                    "OpenAI-compatible server, e.g. "
                     "openai:gpt-4o or openai:Qwen/Qwen2-VL-7B@http://localhost:8000/v1; key: see "
                     "backends.api_key_env).")
     perception: str = knob("semantic", help="semantic (object labels as text) | pixels (RGB-D "
