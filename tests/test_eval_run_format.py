@@ -258,3 +258,11 @@ def test_a_refused_resume_says_what_changed_without_a_urls_password(tmp_path):
     said = str(raised.value)
     assert "another stack (vlm: openai:m@http://10.0.0.1:8000/v1 -> openai:m@http://10.0.0.2:8000/v1)" in said
     assert "s3cret" not in said and "alice" not in said
+
+
+def test_a_refused_resume_names_each_changed_setting_by_its_path(tmp_path):
+    folder = tmp_path / "run"
+    resume(folder, main_table_spec("default"))
+    with pytest.raises(EfficientEQAError, match=r"another config \(answer\.top_k: 5 -> 3; "
+                                                r"stop\.z_gated: 1.0 -> 2.0\)"):
+        resume(folder, main_table_spec("default", top_k=3, z_gated=2.0))

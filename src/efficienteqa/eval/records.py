@@ -257,14 +257,18 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
 
 def _changes(keys: list[str], earlier: dict[str, Any], now: dict[str, Any],
              limit: int = 4) -> str:
-    """The settings that differ, as "name: was -> now" (a nested setting by its own name, e.g.
-    the stack's vlm when the server's URL changed); passwords in URLs are left out."""
+    """The settings that differ, as "name: was -> now" (a nested setting by its path within the
+    key, e.g. the stack's vlm when the server's URL changed, or the config's stop.gate);
+    passwords in URLs are left out."""
+    from efficienteqa.knobs import flatten
+
     said: list[str] = []
     for key in keys:
         before, after = _identity(key, earlier), _identity(key, now)
         if isinstance(before, dict) and isinstance(after, dict):
-            said += [f"{k}: {_shown(before.get(k))} -> {_shown(after.get(k))}"
-                     for k in sorted(set(before) | set(after)) if before.get(k) != after.get(k)]
+            was, now_ = flatten(before), flatten(after)
+            said += [f"{'.'.join(k)}: {_shown(was.get(k))} -> {_shown(now_.get(k))}"
+                     for k in sorted(set(was) | set(now_)) if was.get(k) != now_.get(k)]
         else:
             said.append(f"{key}: {_shown(before)} -> {_shown(after)}")
     return "; ".join(said[:limit]) + ("; ..." if len(said) > limit else "")
