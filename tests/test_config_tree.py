@@ -154,3 +154,29 @@ def test_ask_help_shows_the_openai_server_form_and_every_section():
     assert "openai:MODEL@BASE_URL" in out
     assert "--stop.z-gated" in out and "--explore.sfe.view-gain" in out
     assert "Beyond the paper." in out
+
+
+def test_constants_that_cannot_act_are_refused_in_one_line():
+    from efficienteqa.errors import EfficientEQAError
+    from efficienteqa.presets import resolve
+
+    assert resolve({"explore.sfe.view_gain": False}).run.explore.sfe == {"view_gain": False}
+    assert resolve({"explore.target.room_tries": 3}).run.explore.target == {"room_tries": 3}
+    for given, preset, words in (({"explorer": "random"}, None,
+                                  "explore.explorer random does not act: method efficienteqa "
+                                  "sets it"),
+                                 ({"answer.confidence": "token"}, "default", "sets it"),
+                                 ({"explore.sfe.view_gain": False}, "random",
+                                  "explores with 'random'"),
+                                 ({"explore.target.room_tries": 3, "steering": "none"}, None,
+                                  "does not steer"),
+                                 ({"explore.target.room_tries": 3}, "explore-eqa",
+                                  "explore-eqa never does")):
+        with pytest.raises(EfficientEQAError, match=words) as raised:
+            resolve(given, preset)
+        assert "\n" not in str(raised.value)
+    # ask runs the agent as configured: there the explorer acts, and so do its constants
+    run = resolve({"explorer": "frontier-only", "explore.sfe.view_gain": False}, by_method=False)
+    assert run.run.explore.explorer == "frontier-only"
+    with pytest.raises(EfficientEQAError, match="explores with 'random'"):
+        resolve({"explorer": "random", "explore.sfe.view_gain": False}, by_method=False)

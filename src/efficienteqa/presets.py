@@ -222,12 +222,14 @@ class Resolved:
 
 
 def resolve(given: Mapping[str, Any], preset: str | None = None,
-            config_file: Path | None = None) -> Resolved:
+            config_file: Path | None = None, *, by_method: bool = True) -> Resolved:
     """The run of the values ``given`` on the command line, filled from ``config_file`` then
     ``preset``. Where the named configuration grades with its own VLM (the paper preset's "the
     same GPT-4o grades") and the command line names another VLM but no judge, the judge follows
     that VLM, so the user's server grades too and no key goes to the configuration's server
-    unasked. Z_th given where the gate decides instead (``stop.rules.z_th_acts``) is refused."""
+    unasked. Z_th given where the gate decides instead (``stop.rules.z_th_acts``) is refused, and
+    so is a value the run would not use (``_check_acts``; ``by_method``: the run's episodes are
+    the method's configuration, as ``eval`` runs them; ``ask`` runs the agent as configured)."""
     from efficienteqa.stop.rules import z_th_acts
 
     named: dict[str, Any] = {}
@@ -248,8 +250,38 @@ def resolve(given: Mapping[str, Any], preset: str | None = None,
             f"judges every frame, and a frame it passes stops at --stop.z-gated "
             f"({run.stop.z_gated:g}), one it turns down never",
             fix="use --stop.z-gated, or --stop.gate model or none (Z_th then decides)")
+    _check_acts(run, values, by_method)
     name = Path(config_file).stem if config_file is not None else preset
     return Resolved(run, name, build_run(named))
+
+
+def _check_acts(run: RunConfig, values: Mapping[str, Any], by_method: bool) -> None:
+    """What the method sets (its explorer, confidence reading and answer source) is refused
+    when given otherwise, and the explorer's and the steering's constants act only where that
+    explorer and that steering run: each is refused in one line rather than ignored."""
+    from efficienteqa.eval.methods import effective_config
+
+    method = run.eval.method
+    agent = (effective_config(method, run.agent) if by_method else None) or run.agent
+    for path in ("explore.explorer", "answer.confidence", "answer.answer_at") if by_method else ():
+        section, name = path.split(".")
+        ran = getattr(getattr(agent, section), name)
+        if path in values and values[path] != ran:
+            raise EfficientEQAError(f"--{path.replace('_', '-')} {values[path]} does not act: "
+                                    f"method {method} sets it ({ran})",
+                                    fix="choose the method instead (--eval.method; efficienteqa, "
+                                    "explore-eqa, explore-eqa-blackbox, frontier-only, random)")
+    explorer, steering = agent.explore.explorer, agent.explore.steering
+    if run.explore.sfe and explorer not in ("sfe", "frontier-only"):
+        raise EfficientEQAError(f"--explore.sfe.* sets the frontier explorer's constants, and "
+                                f"this run explores with {explorer!r}",
+                                fix="leave them out, or use a frontier explorer (sfe, frontier-only)")
+    if run.explore.target and steering == "none":
+        raise EfficientEQAError("--explore.target.* sets the steering's constants, and this run "
+                                "does not steer by the question's target (explore.steering none"
+                                + ("" if steering == run.explore.steering else f"; {method} never does")
+                                + ")", fix="leave them out, or use --explore.steering target "
+                                "with --eval.method efficienteqa")
 
 
 def build_config(values: Mapping[str, Any] = {}) -> AgentConfig:  # noqa: B006 - read only

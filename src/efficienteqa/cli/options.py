@@ -83,9 +83,10 @@ def tree_leaves(sections: Iterable[str] | None = None,
 
 
 def run_options(sections: Iterable[str] | None = None,
-                only: dict[str, tuple[str, ...]] | None = None) -> Callable:
+                only: dict[str, tuple[str, ...]] | None = None, *, by_method: bool = True) -> Callable:
     """Decorate a command ``f(run, **own)``: its parameters become ``own`` plus ``--preset``,
-    ``--config`` and one option per leaf (``tree_leaves``); ``run`` is the resolved tree."""
+    ``--config`` and one option per leaf (``tree_leaves``); ``run`` is the resolved tree
+    (``by_method``: the command runs the method's configuration, ``presets.resolve``)."""
     chosen = tree_leaves(sections, only)
 
     def decorate(command: Callable) -> Callable:
@@ -107,7 +108,8 @@ def run_options(sections: Iterable[str] | None = None,
             from efficienteqa.presets import resolve
 
             given = given_values(chosen, kwargs)
-            run = resolve(given, kwargs.pop("preset"), kwargs.pop("config_file"))
+            run = resolve(given, kwargs.pop("preset"), kwargs.pop("config_file"),
+                          by_method=by_method)
             return command(run=run, **kwargs)
 
         params = [*own, *named, *generated]

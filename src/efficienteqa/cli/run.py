@@ -42,7 +42,7 @@ def _check_backends(run: Resolved) -> None:
 
 
 @app.command("ask")
-@run_options(AGENT_SECTIONS, only={"eval": ASK_EVAL_FIELDS})
+@run_options(AGENT_SECTIONS, only={"eval": ASK_EVAL_FIELDS}, by_method=False)
 def ask_command(
     run: Resolved,
     question: str | None = typer.Argument(None, help="The question, in free text (or --episode)."),
