@@ -12,7 +12,7 @@ it had before the tree (one release of aliases). Everything else derives from th
   dataclass's fields, so its constants are reachable (``--explore.sfe.view-gain``) while the
   dataclass it overrides stays the one the code builds;
 - ``build(cls, tree)`` makes the dataclass from a nested dict (left-out fields keep their
-  defaults); ``tree_of(obj)`` is the reverse;
+  defaults); ``dataclasses.asdict`` is the reverse (the record's form);
 - ``flat_names(cls)`` maps the flat names of the sections' own fields (``top_k``, and the
   aliases ``min_stop_step``...) to their paths: how older records and files are read;
 - ``with_leaves(obj, top_k=3)`` sets fields by their flat names.
@@ -116,11 +116,6 @@ def leaves(cls: type, prefix: Path_ = (), skip: tuple[str, ...] = (),
         out.append(Leaf((*prefix, f.name), kind, optional, default, meta.get("help", ""),
                         bool(meta.get("beyond")), meta.get("alias"), meta.get("off")))
     return out
-
-
-def tree_of(obj: Any) -> dict[str, Any]:
-    """A dataclass as its nested dict (the record's form)."""
-    return dataclasses.asdict(obj)
 
 
 def _overrides(cls: type, tree: Mapping[str, Any], where: str,
