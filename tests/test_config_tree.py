@@ -180,3 +180,33 @@ def test_constants_that_cannot_act_are_refused_in_one_line():
     assert run.run.explore.explorer == "frontier-only"
     with pytest.raises(EfficientEQAError, match="explores with 'random'"):
         resolve({"explorer": "random", "explore.sfe.view_gain": False}, by_method=False)
+
+
+@pytest.mark.parametrize("preset", ["default", "paper-offline", "explore-eqa-per-token", "paper"])
+def test_config_prints_a_file_that_reads_back_to_the_same_run(tmp_path, preset):
+    """`efficienteqa config` shows what a run would use, as a --config file: read back, the same
+    run (the method's own settings are comments, as eval refuses them given otherwise)."""
+    from efficienteqa.presets import load_config, resolve, to_toml
+
+    given = {"stop.z_gated": 2.0} if preset in ("default", "explore-eqa-per-token") else {
+        "stop.z_th": 2.0, "explore.sfe.view_gain": False, "explore.sfe.frontier.temp_free": 1.5,
+        "backends.vlm": 'openai:m@http://h/v1', "scene.hm3d_root": Path("/data/hm3d")}
+    run = resolve(given, preset).run
+    path = tmp_path / "run.toml"
+    path.write_text(to_toml(run))
+    assert resolve(load_config(path)).run == run
+
+
+def test_the_config_command_prints_the_run_it_would_make(tmp_path):
+    import subprocess
+    import sys
+
+    from efficienteqa.presets import load_config, resolve
+
+    out = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "config", "--preset",
+                          "explore-eqa", "--answer.top-k", "3"], capture_output=True, text=True,
+                         check=True).stdout
+    assert "[stop]\n" in out and "top_k = 3" in out and "(set by eval.method)" in out
+    path = tmp_path / "c.toml"
+    path.write_text(out)
+    assert resolve(load_config(path)).run == resolve({"top_k": 3}, "explore-eqa").run

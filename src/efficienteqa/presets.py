@@ -255,6 +255,11 @@ def resolve(given: Mapping[str, Any], preset: str | None = None,
     return Resolved(run, name, build_run(named))
 
 
+# What a method sets on the agent (``eval.methods.method_config``): given otherwise to ``eval``,
+# refused; in a configuration ``config`` prints, a comment.
+METHOD_SET = ("explore.explorer", "answer.confidence", "answer.answer_at")
+
+
 def _check_acts(run: RunConfig, values: Mapping[str, Any], by_method: bool) -> None:
     """What the method sets (its explorer, confidence reading and answer source) is refused
     when given otherwise, and the explorer's and the steering's constants act only where that
@@ -263,7 +268,7 @@ def _check_acts(run: RunConfig, values: Mapping[str, Any], by_method: bool) -> N
 
     method = run.eval.method
     agent = (effective_config(method, run.agent) if by_method else None) or run.agent
-    for path in ("explore.explorer", "answer.confidence", "answer.answer_at") if by_method else ():
+    for path in METHOD_SET if by_method else ():
         section, name = path.split(".")
         ran = getattr(getattr(agent, section), name)
         if path in values and values[path] != ran:
@@ -292,3 +297,48 @@ def build_config(values: Mapping[str, Any] = {}) -> AgentConfig:  # noqa: B006 -
 def build_stack(values: Mapping[str, Any] = {}) -> Stack:  # noqa: B006 - read only
     """The back-ends of ``values`` (``build_run``'s)."""
     return build_run(values).backends
+
+
+def to_toml(run: RunConfig) -> str:
+    """``run`` as a ``--config`` file: one table per section, every value (a None, which TOML
+    cannot hold, as a comment), the overrides of ``explore.sfe``/``explore.target`` as tables of
+    their own; ``load_config`` reads it back to the same run."""
+    import json
+    from dataclasses import asdict
+
+    from efficienteqa.stop.rules import z_th_acts
+
+    def value(v: Any) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, Mapping):
+            return "{" + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + "}"
+        return json.dumps(str(v), ensure_ascii=False)  # a TOML basic string
+
+    lines: list[str] = []
+    tables: list[tuple[str, Mapping[str, Any]]] = []
+
+    def table(name: str, values: Mapping[str, Any]) -> None:
+        lines.append(f"[{name}]")
+        for key, v in values.items():
+            leaf = leaf_index().get(f"{name}.{key}")
+            if isinstance(v, Mapping) and (leaf is None or leaf.kind is not dict):
+                if v:
+                    tables.append((f"{name}.{key}", v))
+            elif v is None:
+                lines.append(f"# {key} = (left to its default)")
+            elif f"{name}.{key}" in METHOD_SET:
+                lines.append(f"# {key} = {value(v)}  (set by eval.method)")
+            elif f"{name}.{key}" == "stop.z_th" and not z_th_acts(run.stop.gate):
+                lines.append(f"# {key} = {value(v)}  (does not act with the {run.stop.gate} gate)")
+            else:
+                lines.append(f"{key} = {value(v)}")
+        lines.append("")
+
+    for section, values in asdict(run).items():
+        table(section, values)
+    while tables:
+        table(*tables.pop(0))
+    return "\n".join(lines)

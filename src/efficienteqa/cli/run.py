@@ -268,3 +268,13 @@ def report_command(
         table.add_row(*row)
     console.print(table)
     console.print(f"markdown: {md}\nhtml:     {page}", highlight=False, soft_wrap=True)
+
+
+@app.command("config")
+@run_options()
+def config_command(run: Resolved) -> None:
+    """Print the run's whole configuration as a --config file (TOML, every value, the preset and
+    options given applied): what `eval` with the same options would run."""
+    from efficienteqa.presets import to_toml
+
+    sys.stdout.write(to_toml(run.run))
