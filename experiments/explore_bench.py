@@ -36,10 +36,10 @@ from efficienteqa.agent import AgentConfig
 from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
-from efficienteqa.explore.module import REFUSAL_RETRIES, SemanticScorer
+from efficienteqa.explore.module import SemanticScorer
 from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
-from efficienteqa.explore.registry import EXPLORATIONS
+from efficienteqa.explore.settings import EXPLORATIONS, REFUSAL_RETRIES
 from efficienteqa.knobs import with_leaves
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from efficienteqa.explore.frontiers import (
-    FrontierConfig,
     boundary_groups,
     close_and_facing,
     cluster,
@@ -19,6 +18,7 @@ from efficienteqa.explore.frontiers import (
     outward_normal,
     representative,
 )
+from efficienteqa.explore.settings import FrontierConfig
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState

@@ -10,7 +10,7 @@ import pytest
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.explore.module import REFUSAL_RETRIES
+from efficienteqa.explore.settings import REFUSAL_RETRIES
 from efficienteqa.knobs import with_leaves
 from efficienteqa.presets import (
     PRESETS,

@@ -15,8 +15,9 @@ from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.explore.base import Decision
-from efficienteqa.explore.module import REFUSAL_RETRIES, move
-from efficienteqa.explore.sfe import FrontierExplorer, SFEConfig, settle
+from efficienteqa.explore.module import move
+from efficienteqa.explore.settings import REFUSAL_RETRIES, SFEConfig
+from efficienteqa.explore.sfe import FrontierExplorer, settle
 from efficienteqa.geometry import CameraSpec, Pose2D
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.navgrid import OccupancyGrid, path_length

@@ -261,7 +261,7 @@ def _open_map(spec: GridSpec, xy: tuple[float, float]):
 
 @pytest.mark.parametrize("scan", [True, False])
 def test_in_a_hallway_with_the_named_room_unseen_the_robot_looks_down_it(scan):
-    from efficienteqa.explore.target import TargetConfig
+    from efficienteqa.explore.settings import TargetConfig
     from efficienteqa.geometry import Pose2D
 
     spec = GridSpec.covering(0.0, 0.0, 10.0, 4.0, resolution_m=0.1)

@@ -12,7 +12,8 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.frontiers import extract_frontiers, frontier_weights
 from efficienteqa.explore.random_walk import RandomExplorer
 from efficienteqa.explore.registry import make_explorer
-from efficienteqa.explore.sfe import PAPER_SFE, FrontierExplorer, SFEConfig, cut_path, sample_index
+from efficienteqa.explore.settings import PAPER_SFE, SFEConfig
+from efficienteqa.explore.sfe import FrontierExplorer, cut_path, sample_index
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.navgrid import OccupancyGrid, path_length

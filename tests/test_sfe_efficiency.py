@@ -8,16 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from efficienteqa.explore.frontiers import FrontierConfig
 from efficienteqa.explore.registry import exploration_options, make_explorer
-from efficienteqa.explore.sfe import (
-    PAPER_SFE,
-    FrontierExplorer,
-    SFEConfig,
-    idle,
-    ray_gain,
-    view_yaw,
-)
+from efficienteqa.explore.settings import PAPER_SFE, FrontierConfig, SFEConfig
+from efficienteqa.explore.sfe import FrontierExplorer, idle, ray_gain, view_yaw
 from efficienteqa.geometry import Pose2D
 from test_sfe import corridor, make_state
 

@@ -8,8 +8,9 @@ import math
 import numpy as np
 
 from efficienteqa.explore.base import Decision
+from efficienteqa.explore.settings import TargetConfig
 from efficienteqa.explore.sfe import FrontierExplorer, idle
-from efficienteqa.explore.target import TargetConfig, TargetExplorer
+from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState

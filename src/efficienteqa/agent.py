@@ -56,12 +56,12 @@ from efficienteqa.reading.target import TargetReading
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
 from efficienteqa.stop.gate import AnswerGate
 from efficienteqa.stop.rules import (
-    GATED_MIN_STEP,
     PAPER_MIN_STEP,
     RelevancyStopper,
     StopCheck,
     StopConfig,
     env_step_budget,
+    gated_stop,
 )
 from efficienteqa.vc.parse import AnswerResult
 
@@ -80,7 +80,7 @@ class AgentConfig:
     needed (DESIGN 9)."""
 
     explore: ExploreConfig = field(default_factory=ExploreConfig)
-    stop: StopConfig = field(default_factory=lambda: StopConfig(min_step=GATED_MIN_STEP))
+    stop: StopConfig = field(default_factory=gated_stop)
     answer: AnswerConfig = field(default_factory=AnswerConfig)
 
     @classmethod

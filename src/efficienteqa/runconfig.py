@@ -3,7 +3,7 @@
 ==========  ===========================  ================================================
 section     dataclass                    what it holds
 ==========  ===========================  ================================================
-backends    ``stack.Stack``              the VLM, perception, sightings, relevancy, server
+backends    ``backends.Stack``           the VLM, perception, sightings, relevancy, server
 scene       ``SceneConfig``              the simulator and its assets
 explore     ``explore.config``           DESIGN 3.2-3.3 and the steering (``sfe``, ``target``)
 stop        ``stop.rules.StopConfig``    DESIGN 3.4 and the answerability gate (DESIGN 9)
@@ -23,14 +23,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from efficienteqa.agent import AgentConfig
 from efficienteqa.answer.config import AnswerConfig
+from efficienteqa.backends import Stack
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.explore.config import ExploreConfig
 from efficienteqa.knobs import knob
-from efficienteqa.stack import Stack
-from efficienteqa.stop.rules import StopConfig
+from efficienteqa.stop.rules import StopConfig, gated_stop
+
+if TYPE_CHECKING:
+    from efficienteqa.agent import AgentConfig
 
 # The dataset of `ask --episode` and `eval` when neither the command line nor a preset names one.
 DEFAULT_DATASET = "synthetic"
@@ -93,12 +96,14 @@ class RunConfig:
     backends: Stack = field(default_factory=Stack)
     scene: SceneConfig = field(default_factory=SceneConfig)
     explore: ExploreConfig = field(default_factory=ExploreConfig)
-    stop: StopConfig = field(default_factory=lambda: AgentConfig().stop)
+    stop: StopConfig = field(default_factory=gated_stop)  # AgentConfig's
     answer: AnswerConfig = field(default_factory=AnswerConfig)
     eval: EvalConfig = field(default_factory=EvalConfig)
 
     @property
     def agent(self) -> AgentConfig:
+        from efficienteqa.agent import AgentConfig  # the agent's code: imported when run
+
         return AgentConfig(explore=self.explore, stop=self.stop, answer=self.answer)
 
 

@@ -10,11 +10,13 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from efficienteqa.explore.module import REFUSAL_RETRIES
-from efficienteqa.explore.prompting import PROMPT_CONFIGS
-from efficienteqa.explore.registry import EXPLORATIONS, exploration_options
-from efficienteqa.explore.sfe import SFEConfig
-from efficienteqa.explore.target import TargetConfig
+from efficienteqa.explore.settings import (
+    EXPLORATIONS,
+    PROMPT_SETS,
+    REFUSAL_RETRIES,
+    SFEConfig,
+    TargetConfig,
+)
 from efficienteqa.knobs import knob, make
 from efficienteqa.reading.aliases import MATCHINGS
 from efficienteqa.reading.reader import READINGS
@@ -73,7 +75,7 @@ class ExploreConfig:
             raise ValueError(f"stop_clearance_m must be 0 or more, not {self.stop_clearance_m}")
         for name, allowed in (("explorer", EXPLORERS), ("steering", STEERINGS),
                               ("exploration", tuple(EXPLORATIONS)),
-                              ("prompts", tuple(PROMPT_CONFIGS)), ("reading", READINGS),
+                              ("prompts", PROMPT_SETS), ("reading", READINGS),
                               ("matching", MATCHINGS)):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, not {getattr(self, name)!r}")
@@ -83,7 +85,7 @@ class ExploreConfig:
         overrides (frontier explorers only)."""
         if self.explorer not in ("sfe", "frontier-only"):
             return {}
-        base = SFEConfig(**exploration_options(self.explorer, self.exploration))
+        base = SFEConfig(**EXPLORATIONS[self.exploration])
         sfe = make(SFEConfig, {"stop_clearance_m": self.stop_clearance_m, **self.sfe}, base)
         return {f: getattr(sfe, f) for f in SFEConfig.__dataclass_fields__ if f != "use_values"}
 

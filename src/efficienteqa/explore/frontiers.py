@@ -7,65 +7,21 @@ World vectors are (x, y) metres; a cell offset ``(di, dj)`` is the world directi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
 from efficienteqa.explore.base import Frontier
+from efficienteqa.explore.settings import FrontierConfig
 from efficienteqa.geometry import Pose2D, wrap_angle
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.state import MapState
 
 _FOUR_CONNECTED = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
 _EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
-# DESIGN 3.2: the value terms are off for the first 2 steps (step 1 is the start view), in the
-# frontier weights and in what the explore module hands the explorer.
-VALUE_WARMUP_STEPS = 2
-
-
-@dataclass(frozen=True)
-class FrontierConfig:
-    """Frontier detection and weighting constants (DESIGN 3.2 defaults; lengths in metres)."""
-
-    # detection
-    min_unexplored_neighbours: int = 3  # a frontier cell has 3-4 unexplored 8-neighbours
-    max_unexplored_neighbours: int = 4
-    cluster_above_cells: int = 10  # DBSCAN (min 2) only with more cells than this
-    # DBSCAN eps in cells. ExploreEQA's is 1: then frontier cells along a diagonal (staircase)
-    # boundary touch only corner to corner and are all dropped as noise; the edges of a view
-    # wedge through a doorway are such boundaries, and 2 of 10 houses stopped exploring at
-    # step 4 with most of the floor unexplored. 1.5 keeps them (8-connected groups).
-    cluster_eps_cells: float = 1.5
-    # Cells DBSCAN leaves isolated are noise only when alone on their stretch of the island's
-    # boundary (False: all dropped, as ExploreEQA does). Along a boundary slanted at any angle but 0,
-    # 45 or 90 deg (the edge of a view wedge, of the floor seen through a doorway) only one
-    # cell per stair step has 3-4 unexplored neighbours, two or more cells apart, so no eps
-    # below 2 links them: the whole boundary was dropped, and with nothing else left the
-    # episode ended as "explored" with rooms unseen (DESIGN 3.2). Frontier-only to the
-    # budget, explorer seeds house*1000+0..2: early "no frontier" stops with reachable floor
-    # unseen 1/90 -> 0/90 (held-out houses 2000-2029), 1/63 -> 0/63 (training houses 0-20;
-    # 2 new ones in house 11 end with all the floor reachable without passing a closed door
-    # explored); explore_bench steering (held-out, 30 questions x 3) 13.28 -> 11.58 steps.
-    isolated_along_boundary: bool = True
-    normal_window_cells: int = 2  # half-size of the square window the outward normal averages
-    # weight: exp(r_unexp/t_unexp) * exp(r_free/t_free) * exp(V/t_value) * exp(v_dir/t_dir) * exp(-d/d0)
-    unexplored_ray_m: float = 3.0
-    free_ray_m: float = 1.0
-    value_ray_m: float = 3.0
-    temp_unexplored: float = 0.2
-    temp_free: float = 2.0
-    temp_value: float = 0.5
-    temp_dir_value: float = 0.5
-    distance_scale_m: float = 10.0
-    value_off_steps: int = VALUE_WARMUP_STEPS  # value terms are off while step <= this
-    # close-and-facing penalty
-    close_m: float = 0.5
-    facing_deg: float = 30.0
-    close_facing_factor: float = 1e-3
-
-
 # ----- detection ----------------------------------------------------------------------------
+
+
 def unexplored_neighbour_count(unexplored: np.ndarray) -> np.ndarray:
     """Number (0-8) of unexplored 8-neighbours of each cell; cells outside the grid count."""
     pad = np.pad(unexplored.astype(np.int8), 1, constant_values=1)

@@ -15,8 +15,8 @@ import numpy as np
 
 from efficienteqa.envs.base import Environment
 from efficienteqa.explore.base import Decision, Explorer
-from efficienteqa.explore.frontiers import VALUE_WARMUP_STEPS
 from efficienteqa.explore.prompting import PromptConfig, prompt_points
+from efficienteqa.explore.settings import REFUSAL_RETRIES, VALUE_WARMUP_STEPS
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
@@ -116,7 +116,6 @@ class ExploreModule:
                                     step)
 
 
-REFUSAL_RETRIES = 3  # re-plans within one step after a refused move
 
 
 @dataclass

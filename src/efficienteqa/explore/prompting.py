@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from efficienteqa.explore.settings import PROMPT_SETS
 from efficienteqa.mapping.navgrid import OccupancyGrid
 from efficienteqa.mapping.state import MapState
 from efficienteqa.observation import PromptPoint
@@ -48,7 +49,7 @@ class PromptConfig:
 
 
 PAPER_PROMPTS = PromptConfig(min_m=2.0, merge_m=1.0)
-PROMPT_CONFIGS = {"default": PromptConfig(), "paper": PAPER_PROMPTS}
+PROMPT_CONFIGS = dict(zip(PROMPT_SETS, (PromptConfig(), PAPER_PROMPTS), strict=True))
 
 
 def project_floor_points(xy: np.ndarray, cam_to_world: np.ndarray, intrinsics: np.ndarray

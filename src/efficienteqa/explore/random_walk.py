@@ -8,7 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from efficienteqa.explore.base import Decision
-from efficienteqa.explore.sfe import SFEConfig, cut_path, settle
+from efficienteqa.explore.settings import SFEConfig
+from efficienteqa.explore.sfe import cut_path, settle
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.state import MapState
 

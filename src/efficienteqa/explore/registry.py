@@ -10,7 +10,8 @@ from typing import Any
 
 from efficienteqa.explore.base import Explorer
 from efficienteqa.explore.random_walk import RandomConfig, RandomExplorer
-from efficienteqa.explore.sfe import PAPER_SFE, FrontierExplorer, SFEConfig
+from efficienteqa.explore.settings import EXPLORATIONS, SFEConfig
+from efficienteqa.explore.sfe import FrontierExplorer
 from efficienteqa.registry import Registry
 
 
@@ -35,9 +36,6 @@ EXPLORERS.register("random", _random)
 def make_explorer(name: str, **config: Any) -> Explorer:
     """The explorer registered as ``name``; ``config`` overrides its config fields."""
     return EXPLORERS.build(name, **config)
-
-
-EXPLORATIONS: dict[str, dict[str, Any]] = {"default": {}, "paper": PAPER_SFE}
 
 
 def exploration_options(explorer: str, exploration: str) -> dict[str, Any]:

@@ -10,85 +10,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
 from efficienteqa.explore.base import Decision, Frontier
 from efficienteqa.explore.frontiers import (
-    FrontierConfig,
     frontier_cells,
     frontier_weights,
     frontiers_from_cells,
 )
+from efficienteqa.explore.settings import SFEConfig
 from efficienteqa.geometry import Pose2D, wrap_angle
 from efficienteqa.mapping.navgrid import OccupancyGrid, path_length, truncate_path
 from efficienteqa.mapping.state import MapState
-
-
-@dataclass(frozen=True)
-class SFEConfig:
-    """Frontier explorer constants (metres unless named otherwise)."""
-
-    frontier: FrontierConfig = field(default_factory=FrontierConfig)
-    use_values: bool = True  # False: the "frontier-only" baseline
-    backoff_m: float = 1.5  # stand this far behind the frontier, against its normal
-    # Planning clearance: a 0.2 m robot plus half a 0.1 m map cell, since the map cannot place
-    # a wall more precisely (0.2 m ran into walls; blocked moves are reported back anyway).
-    robot_radius_m: float = 0.25
-    snap_m: float = 0.5  # robot off the navigable cells: snap this far, else plan at radius 0
-    max_stand_shift_m: float = 1.0  # a standing point moved further than this: unreachable
-    max_step_m: float = 3.0  # longest move per step, along the path
-    reached_m: float = 0.3  # committed target reached within this
-    vanish_m: float = 1.0  # committed frontier gone: no frontier cell within this
-    face_min_m: float = 0.2  # closer to the frontier than this: keep the path direction
-    # A frontier reached and looked at may keep its unexplored side (occluded behind a sofa,
-    # or seen too obliquely). The close-and-facing rule cannot catch it at a 1.5 m back-off:
-    # it gets a second look from the frontier itself, then is never chosen again.
-    looked_m: float = 1.0
-    looked_factor: float = 1e-3  # their weight, as reported
-    max_looks: int = 2  # looked at this often (from the back-off, then up close): never again
-    tight_radius_m: float = 0.1  # second try when nothing is reachable at robot_radius_m
-    # Stop where the map leaves room: a move's end with less clearance than this is moved, by
-    # at most settle_m, to a reachable cell that has it (0: stop where the path is cut). The
-    # map's 0.1 m cells put a wall up to a cell nearer than it shows: ends at 0.25 m from the
-    # mapped wall were refused by the environment in 7% of frontier-only steps (development
-    # houses 0-9); 0.45 m left 1.3%, mostly objects the map had not seen.
-    stop_clearance_m: float = 0.45
-    settle_m: float = 0.25  # below reached_m: a settled end still reaches its target
-    # Beyond the paper (DESIGN 8); PAPER_SFE turns every one off. Measured with explore_bench
-    # steering on training houses 0-3 (12 questions x 2 explorer seeds, frontier-only / oracle
-    # SFE mean steps until the evidence is in view): paper explorer 28.2 / 22.4; the defaults below
-    # (skip_idle, approach_unreachable, view_gain) 22.3 / 18.0, floor covered 63% -> 79%.
-    # Options measured and dropped: docs/exploration.md, "Tried and dropped".
-    # When no frontier is left to choose (none has a reachable cell within max_stand_shift_m
-    # of its standing point, as a sliver of floor seen through a doorway, or every one was
-    # looked at max_looks times), head for the reachable cell nearest one's standing point,
-    # however far, instead of ending the episode with budget left: going closer maps the way
-    # in (False: "no reachable frontier" ends it, as in the paper).
-    approach_unreachable: bool = True
-    # Where a move ends, turn to the view wedge (the explored window: +-view_half_deg out to
-    # view_range_m) with the most unexplored cells in sight, unless facing the frontier sees
-    # at least view_keep_share of that (False: face the frontier, as the paper): on arrival the
-    # robot looks into the unseen part of the room, not at a sliver behind a chair.
-    view_gain: bool = True
-    view_range_m: float = 5.0
-    view_half_deg: float = 40.0
-    view_keep_share: float = 0.8
-    # A decision that would take the same view again (stay within reached_m, turn less than
-    # idle_turn_deg) counts as a look at its frontier and is made again (False: such a step
-    # is spent, as the paper's loop would).
-    skip_idle: bool = True
-    idle_turn_deg: float = 30.0
-    idle_retries: int = 4
-
-
-# DESIGN 3.2's explorer: every SFEConfig option beyond it off (the paper preset; the stepping
-# options stop_clearance_m and the refusal retries are set apart, by AgentConfig).
-PAPER_SFE: dict[str, Any] = {"skip_idle": False, "approach_unreachable": False,
-                             "view_gain": False}
 
 
 @dataclass

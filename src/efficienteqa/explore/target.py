@@ -42,11 +42,12 @@ target's things, back-projected with the depth), as the pixel perception does fr
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from efficienteqa.explore.base import Decision, Frontier
+from efficienteqa.explore.settings import TargetConfig
 from efficienteqa.explore.sfe import FrontierExplorer, cut_path, idle, settle
 from efficienteqa.geometry import Pose2D, wrap_angle
 from efficienteqa.mapping.coverage import hull_mask, room_coverage
@@ -59,70 +60,6 @@ CAMERA_HEIGHT_M = 1.5
 CONNECTORS = frozenset({"hallway"})  # rooms that lead to others: never ruled out
 TOP_OF_VIEW_DEG = 22.0  # 30 deg down, half the 104 deg vertical field of view up
 OVERHEAD_WORDS = ("ceiling", "chandelier", "pendant")  # words of things hung from the ceiling
-
-
-@dataclass(frozen=True)
-class TargetConfig:
-    """``inspect_m``: the distance to stand from a thing to inspect it, by question kind
-    (a count group must fit in one frame; a small item on a surface needs to be near);
-    ``merge_m``: sightings of one category this close are one thing; ``room_tries``: steps
-    spent heading for the named room without entering it before giving up on it for
-    ``room_rest`` steps; ``inspect_tries``: steps spent on one inspection at most."""
-
-    inspect: bool = True
-    look_around: bool = True
-    go_to_room: bool = True
-    end_search: bool = True
-    inspect_m: dict[str, float] = field(default_factory=lambda: {
-        "identification": 1.3, "count": 2.4, "default": 1.8})
-    merge_m: float = 0.6
-    reached_m: float = 0.4
-    room_tries: int = 6
-    room_rest: int = 6
-    inspect_tries: int = 4
-    min_room_cells: int = 10
-    # Frontier weights by the room the frontier lies in: x in_target in the named room,
-    # x elsewhere in a room the frames named that is not it (a bathroom cannot hold the
-    # office's desk), unchanged in connecting rooms (CONNECTORS) and where no frame named one.
-    room_prior: bool = True
-    in_target: float = 100.0
-    elsewhere: float = 1e-6
-    frontier_room_m: float = 0.5  # a frontier's room: the most seen floor this close
-    # A frontier also has the room ahead_m beyond it on its unexplored side: none seen there
-    # (a doorway into unseen rooms) keeps its weight where one inside a room seen is ruled
-    # out (0: by the room it lies in alone, as before).
-    ahead_m: float = 0.0
-    here_m: float = 1.0  # the robot's room: the most seen floor this close (none under it)
-    # While the named room is unseen, look around in a hallway (CONNECTORS), at points at
-    # least scan_apart_m apart: doorways along it show the rooms they lead to. Off: on training
-    # houses 0-20 (50 room-naming questions, explore_bench steering, one explorer seed, stop
-    # off) first sight came at 2.70x the oracle without these look-arounds against 2.87x with
-    # them (sooner in 20 questions, later in 3): the frontier moves along a hallway show its
-    # doorways anyway.
-    scan_connectors: bool = False
-    scan_apart_m: float = 4.0
-    # A room is searched once its views covered search_coverage of it (mapping.coverage: the
-    # explored share of the hull of its seen floor; 0: after one look-around, as before), or
-    # after search_moves further viewpoints, each search_view_m from the centre of the part
-    # not yet covered; a viewpoint that raised the coverage by less than search_gain ends it
-    # (the rest is out of sight, behind a bathtub). Training houses 0-20, 21 "no" existence
-    # questions: one look-around covers 0.74-0.97 (median 0.87); 0.85 sends the rooms below
-    # it to further viewpoints (mean steps 11.1 -> 11.9 before the gain rule).
-    search_coverage: float = 0.85
-    search_moves: int = 3
-    search_view_m: float = 1.5
-    search_gain: float = 0.02
-    # Where the question names no room: search the rooms of Target.likely_rooms in their order
-    # (``goal_room``) as a named room is searched (False: the frontiers alone).
-    likely_rooms: bool = True
-    # Look up (no tilt in this environment: from further back): for a thing hung from the
-    # ceiling the move into the named room ends overhead_view_m from its middle, facing it,
-    # where the top of the view (TOP_OF_VIEW_DEG) reaches a ceiling 1.1 m above the camera.
-    look_up: bool = True
-    overhead_view_m: float = 2.8
-    # After a move of the steering's own, the frontier explorer chooses afresh instead of
-    # keeping the frontier it committed to before (False: it keeps it, as before).
-    fresh_frontier: bool = True
 
 
 @dataclass

@@ -152,6 +152,12 @@ class StopConfig:
                 raise ValueError(f"{name} must be a finite number, got {getattr(self, name)}")
 
 
+def gated_stop() -> StopConfig:
+    """The agent's default stop: the gated floor (``min_step`` 2), since the default gate judges
+    every frame (DESIGN 9); the paper's floor of 10 is ``StopConfig``'s own default."""
+    return StopConfig(min_step=GATED_MIN_STEP)
+
+
 @dataclass(frozen=True)
 class StopCheck:
     """One frame's check. ``mu``/``sigma`` are over the earlier frames (None until two exist);
