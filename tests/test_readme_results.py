@@ -209,8 +209,7 @@ def test_published_runs_keep_their_heavy_episode_folders_out_of_git():
 DIRTY_TO_RERUN = frozenset({
     "e2e-heldout/paper", "main-heldout/default-v2",
     "main-heldout/explore-eqa-per-token", "main-heldout/frontier-only-v1",
-    "main-heldout/frontier-only-v2", "main-heldout/paper-offline",
-    "main-heldout/paper-offline-pixels"})
+    "main-heldout/frontier-only-v2", "main-heldout/paper-offline-pixels"})
 
 
 def test_published_runs_come_from_clean_commits():
