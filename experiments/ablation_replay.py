@@ -356,7 +356,7 @@ def main(argv: Sequence[str] | None = None) -> None:
                if ln.get("prompt_match") is not None}
     check = {"checked": len(checked), "matched": sum(checked.values()),
              "mismatched": sorted(e for e, ok in checked.items() if not ok)}
-    summary = {"identity": identity, "run": str(args.run_dir), "method": manifest.get("method"),
+    summary = {"identity": identity, "run": args.run_dir.name, "method": manifest.get("method"),
                "dataset": manifest.get("dataset"), "stack": asdict(answerer.stack) if answerer
                else manifest["stack"], "episodes": len(records), "skipped": skipped,
                "rules": rules, "z_th": args.z_th, "k": ks, "stop_k": stop_k,
