@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from efficienteqa.explore.registry import exploration_options, make_explorer
+from efficienteqa.explore.registry import make_explorer
 from efficienteqa.explore.settings import PAPER_SFE, FrontierConfig, SFEConfig
 from efficienteqa.explore.sfe import FrontierExplorer, idle, ray_gain, view_yaw
 from efficienteqa.geometry import Pose2D
@@ -106,9 +106,12 @@ def test_approach_unreachable_goes_on_after_every_frontier_was_looked_at():
 
 
 def test_the_paper_exploration_switches_every_option_off():
-    paper = SFEConfig(**exploration_options("sfe", "paper"))
+    from efficienteqa.explore.config import ExploreConfig
+
+    options = ExploreConfig(exploration="paper").explorer_options()
+    paper = SFEConfig(**options)
     assert not (paper.skip_idle or paper.approach_unreachable or paper.view_gain)
     assert paper.frontier == FrontierConfig()
-    assert exploration_options("random", "paper") == {}
-    assert make_explorer("frontier-only", **exploration_options("frontier-only", "paper")
-                         ).config == replace(paper, use_values=False)
+    assert ExploreConfig(explorer="random", exploration="paper").explorer_options() == {}
+    frontier = ExploreConfig(explorer="frontier-only", exploration="paper").explorer_options()
+    assert make_explorer("frontier-only", **frontier).config == replace(paper, use_values=False)

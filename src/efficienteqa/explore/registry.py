@@ -1,7 +1,6 @@
 """The explorer registry: ``make_explorer(name, **config)`` builds "sfe", "frontier-only" or
 "random"; ``config`` holds fields of the explorer's config dataclass (``SFEConfig`` or
-``RandomConfig``). ``EXPLORATIONS`` names sets of frontier-explorer options: "default" (the
-dataclass defaults) and "paper" (DESIGN 3.2's explorer, every option beyond it off).
+``RandomConfig``); ``explore.config.ExploreConfig.explorer_options`` gives those of a run.
 """
 
 from __future__ import annotations
@@ -10,7 +9,7 @@ from typing import Any
 
 from efficienteqa.explore.base import Explorer
 from efficienteqa.explore.random_walk import RandomConfig, RandomExplorer
-from efficienteqa.explore.settings import EXPLORATIONS, SFEConfig
+from efficienteqa.explore.settings import SFEConfig
 from efficienteqa.explore.sfe import FrontierExplorer
 from efficienteqa.registry import Registry
 
@@ -36,9 +35,3 @@ EXPLORERS.register("random", _random)
 def make_explorer(name: str, **config: Any) -> Explorer:
     """The explorer registered as ``name``; ``config`` overrides its config fields."""
     return EXPLORERS.build(name, **config)
-
-
-def exploration_options(explorer: str, exploration: str) -> dict[str, Any]:
-    """The config fields that ``exploration`` (a key of ``EXPLORATIONS``) sets on
-    ``explorer``: none for explorers other than "sfe" and "frontier-only"."""
-    return dict(EXPLORATIONS[exploration]) if explorer in ("sfe", "frontier-only") else {}
