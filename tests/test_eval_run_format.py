@@ -24,16 +24,23 @@ from efficienteqa.stack import Stack, parse_vlm
 
 ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = ROOT / "results" / "main-heldout"
+# Format-1 run.json files of two runs that left results/ (made by uncommitted trees): the
+# default of 9bccb3c and white-box ExploreEQA reading per-token probabilities, at 6ade1d2.
+FORMAT_1 = ROOT / "tests" / "data" / "format-1"
 # The settings whose default format 1 recorded as None, each typed as its documented default.
 TYPED_DEFAULTS = {"answer_every_step": False, "answer_probability": "product",
                   "token_answer": "short", "refusal_retries": 3, "stop_clearance_m": 0.45}
 
 
+def format_1(row: str) -> Path:
+    return FORMAT_1 / f"{row}.{RUN_FILE}"
+
+
 def published_copy(tmp_path: Path, row: str) -> Path:
-    """A copy of a published run's run.json (format 1) in a folder of its own."""
+    """A copy of a format-1 run.json in a folder of its own."""
     folder = tmp_path / row
     folder.mkdir()
-    shutil.copy(PUBLISHED / row / RUN_FILE, folder / RUN_FILE)
+    shutil.copy(format_1(row), folder / RUN_FILE)
     return folder
 
 
@@ -48,8 +55,8 @@ def main_table_spec(row: str, **config: object) -> RunSpec:
 
 
 def published_spec(**config: object) -> RunSpec:
-    """The command that made the published previous default (results/main-heldout/default-v2):
-    the default row as it was, its question read by rules and matched as words."""
+    """The command that made the default of 9bccb3c (``format_1("default-v2")``): the default
+    row as it was, its question read by rules and matched as words."""
     return main_table_spec("default", reading="rules", matching="words", gate_final=False,
                            **config)
 
@@ -59,8 +66,8 @@ def resume(folder: Path, spec: RunSpec) -> None:
 
 
 def test_the_published_format_1_run_is_none_where_a_default_was_meant():
-    """The premise: results/ holds format-1 runs that record None for these settings."""
-    run = json.loads((PUBLISHED / "default-v2" / RUN_FILE).read_text())
+    """The premise: format-1 runs recorded None for these settings."""
+    run = json.loads(format_1("default-v2").read_text())
     assert "format" not in run and run["stack"]["temperature"] is None
     assert all(run["config"][k] is None for k in TYPED_DEFAULTS)
 
@@ -88,7 +95,7 @@ def test_another_value_than_the_one_a_format_1_run_meant_is_another_run(tmp_path
 
 
 def test_a_format_1_run_reads_as_the_values_it_ran_with():
-    run = upgrade(json.loads((PUBLISHED / "explore-eqa-per-token" / RUN_FILE).read_text()))
+    run = upgrade(json.loads(format_1("explore-eqa-per-token").read_text()))
     assert run["format"] == RUN_FORMAT and run["stack"]["temperature"] == 0.0
     answer, explore = run["config"]["answer"], run["config"]["explore"]  # the tree's sections
     assert (answer["answer_probability"], answer["token_answer"]) == ("per-token", "short")
@@ -199,7 +206,7 @@ def test_the_stacks_defaults_are_values_a_user_can_type():
 
 
 def test_a_format_1_run_that_did_not_record_the_stacks_defaults_reads_as_them(tmp_path):
-    run = json.loads((PUBLISHED / "default-v2" / RUN_FILE).read_text())
+    run = json.loads(format_1("default-v2").read_text())
     assert not set(STACK_DEFAULTS) & set(run["stack"])  # the premise: recorded before they existed
     assert upgrade(run)["stack"] == {**run["stack"], "temperature": 0.0, "sightings": "auto",
                                      **STACK_DEFAULTS}

@@ -207,9 +207,7 @@ def test_published_runs_keep_their_heavy_episode_folders_out_of_git():
 # Published runs made by trees with uncommitted changes, from before every published run had
 # to come from a clean commit; each is to be re-run. No other may join them.
 DIRTY_TO_RERUN = frozenset({
-    "e2e-heldout/paper", "main-heldout/default-v2",
-    "main-heldout/explore-eqa-per-token", "main-heldout/frontier-only-v1",
-    "main-heldout/frontier-only-v2", "main-heldout/paper-offline-pixels"})
+    "main-heldout/explore-eqa-per-token", "main-heldout/paper-offline-pixels"})
 
 
 def test_published_runs_come_from_clean_commits():
