@@ -181,7 +181,7 @@ def explore_episode(env: SyntheticEnv, config: AgentConfig, question: str = "Wha
             moved.append(record)
 
     try:
-        result = agent.run(env, question, on_step=hook)
+        result = agent.run(env, question, on_step=hook, budget=config.budget(env))
     except _Seen:
         pass
     else:

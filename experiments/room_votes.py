@@ -181,7 +181,8 @@ def walk_episode(env: Any, question: str, votes: bool) -> tuple[int, list[dict[s
                        "floor_xy": xy, "floor_room": np.array(rooms),
                        "here": room_type_of(here) if here else ""})
 
-    result = built.agent.run(env, question, on_step=hook)
+    result = built.agent.run(env, question, on_step=hook,
+                              budget=built.agent.config.budget(env))
     return result.steps, frames
 
 

@@ -90,7 +90,8 @@ def run_one(env: Any, question: str, evidence: list[int], start: Pose2D | None,
         seen[record.step] = evidence_visible(obs.instance, evidence) if evidence else False
 
     t = time.perf_counter()
-    result = built.agent.run(env, question, start=start, on_step=hook)
+    result = built.agent.run(env, question, start=start, on_step=hook,
+                              budget=built.agent.config.budget(env))
     first = next((s for s in sorted(seen) if seen[s]), None)
     last = result.records[-1]
     tested = last.check.tested_step if last.check is not None and last.check.tested_step else last.step

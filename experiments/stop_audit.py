@@ -72,7 +72,8 @@ def walk(env: Any, stack: Stack, config: AgentConfig, question: str, evidence: l
         if evidence and obs.instance is not None:
             pixels[record.step] = evidence_pixels(obs.instance, evidence)
 
-    result = built.agent.run(env, question, start=start, on_step=hook)
+    result = built.agent.run(env, question, start=start, on_step=hook,
+                              budget=built.agent.config.budget(env))
     last = result.records[-1]
     tested = (last.check.tested_step if last.check is not None and last.check.tested_step
               else last.step)

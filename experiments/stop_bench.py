@@ -87,7 +87,8 @@ def walk(env: SyntheticEnv, questions: list[Question], explorer: str, seed: int)
                        "seen": [bool(evidence_visible(obs.instance, q.evidence))
                                 for q in questions]})
 
-    result = built.agent.run(env, questions[0].question, on_step=hook)
+    result = built.agent.run(env, questions[0].question, on_step=hook,
+                              budget=built.agent.config.budget(env))
     return {"frames": frames, "end_step": len(result.records), "end_reason": result.stop_reason,
             "budget": result.budget, "backends": built.backends}
 

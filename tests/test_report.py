@@ -75,7 +75,7 @@ def test_chromium_shows_the_map_and_the_relevancy_curve(report, tmp_path):
     subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
                     "--disable-background-networking", "--disable-component-update",
                     "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}",
-                    "--hide-scrollbars", "--window-size=1100,1500", f"--screenshot={shot}",
+                    "--hide-scrollbars", "--window-size=1100,2000", f"--screenshot={shot}",
                     report.report_html.as_uri()],
                    check=True, capture_output=True, timeout=120)
     rgb = np.asarray(Image.open(shot).convert("RGB")).astype(int)

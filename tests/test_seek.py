@@ -3,6 +3,7 @@ eligible-frame stop and the target steering (DESIGN 9)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -201,8 +202,9 @@ def test_steering_walks_up_to_the_shelf_and_stops_on_what_stands_on_it(house4):
     steered, seen = _walk(env, q, "target")
     assert steered.stop_reason == "relevancy" and seen[-1]  # the stop frame shows the vase
     assert any(r.decision == "inspect bookshelf" for r in steered.records)
-    plain, seen = _walk(env, q, "none")  # the same walk without steering never sees it
-    assert not any(seen) and plain.steps > steered.steps
+    plain, seen = _walk(env, q, "none")  # the same walk without steering sees it later
+    assert (seen.index(True) + 1 if any(seen) else math.inf) > steered.steps
+    assert plain.steps > steered.steps
 
 
 @needs_egl

@@ -30,7 +30,8 @@ from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answe
 from efficienteqa.answer.confident import confident_probability
 from efficienteqa.answer.config import AnswerConfig
 from efficienteqa.answer.rag import RagAnswerer, TopK, View
-from efficienteqa.envs.base import Environment, Observation
+from efficienteqa.envs.base import Environment, Observation, SimulatedScene
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.base import Decision
 from efficienteqa.explore.config import ExploreConfig
 from efficienteqa.explore.module import (
@@ -46,6 +47,7 @@ from efficienteqa.explore.sfe import FrontierExplorer
 from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.knobs import with_leaves
+from efficienteqa.mapping.extent import volume_around
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.tsdf import VolumeSpec
@@ -62,6 +64,7 @@ from efficienteqa.stop.rules import (
     StopConfig,
     env_step_budget,
     gated_stop,
+    step_budget,
 )
 from efficienteqa.vc.parse import AnswerResult
 
@@ -89,8 +92,10 @@ class AgentConfig:
         ``AgentConfig.of(top_k=10, gate="none")``."""
         return with_leaves(cls(), **values)
 
-    def budget(self, env: Environment) -> int:
-        """The episode's step budget: ``max_steps``, or the scene's (``stop.env_step_budget``)."""
+    def budget(self, env: Environment) -> int | None:
+        """The step budget an evaluation gives an episode in ``env``: ``max_steps``, or the
+        scene's (``stop.env_step_budget``); None where the environment knows no floor area (a
+        robot, a recording): the agent then budgets by the floor it has seen."""
         steps = self.explore.max_steps
         return steps if steps is not None else env_step_budget(env)
 
@@ -122,6 +127,7 @@ class StepRecord:
     n_frontiers: int = 0
     decision: str = ""
     blocked: bool = False  # the step's move was refused, every try: the robot stayed
+    short: bool = False  # the move ended away from its goal (a robot's navigation stopped short)
     refused: int = 0  # moves the environment refused during this step (re-planned or not)
     calls: list[int] = field(default_factory=list)  # indices into the model exchanges
     timings_ms: dict[str, float] = field(default_factory=dict)
@@ -164,13 +170,26 @@ class EpisodeResult:
 StepHook = Callable[[StepRecord, Observation, ExploreStep | None], None]
 
 
-def mapper_for(env: Environment, start_xy: tuple[float, float], **options: Any) -> Mapper:
-    """A map over the scene's bounds with the floor at the bottom of the bounds; ``options``
-    go to ``Mapper`` (e.g. ``explored_window``)."""
+def mapper_for(env: SimulatedScene, start_xy: tuple[float, float], **options: Any) -> Mapper:
+    """A map over a simulated scene's bounds with the floor at the bottom of the bounds, for
+    experiments that compare maps with the scene's truth; ``options`` go to ``Mapper`` (e.g.
+    ``explored_window``). The agent's own map is ``map_around``: no scene box."""
     lo, hi = env.bounds
     floor_z = float(lo[2])
     return Mapper(VolumeSpec.around(lo[:2], hi[:2], floor_z=floor_z), floor_z=floor_z,
                   start_xy=start_xy, **options)
+
+
+def map_around(start_xy: tuple[float, float], size_m: float) -> Mapper:
+    """The agent's map: a ``size_m`` square around the start, the floor at z = 0."""
+    return Mapper(volume_around(start_xy, size_m), floor_z=0.0, start_xy=start_xy)
+
+
+def seen_budget(state: MapState) -> int:
+    """DESIGN 3.1's budget on the free floor ``state`` has seen: what a robot that knows no
+    floor area budgets by (it grows as the map does)."""
+    cell = state.spec.resolution_m
+    return step_budget(max(float(state.free.sum()) * cell * cell, cell * cell))
 
 
 class Agent:
@@ -200,6 +219,18 @@ class Agent:
             raise ValueError(f"config asks for the {self.config.explore.reading!r} reading and "
                              f"{self.config.explore.matching!r} matching, and no such reading was given")
 
+    def _map(self, env: Environment, start_xy: tuple[float, float]) -> Mapper:
+        """The episode's empty map: around the start, or (``map_extent`` "scene", to re-run a
+        run recorded before format 4) over a simulated scene's box."""
+        explore = self.config.explore
+        if explore.map_extent == "start":
+            return map_around(start_xy, explore.map_size_m)
+        if not isinstance(env, SimulatedScene):
+            raise EfficientEQAError("explore.map-extent scene maps a simulated scene's box, and "
+                                    "this environment has none",
+                                    fix="use --explore.map-extent start")
+        return mapper_for(env, start_xy)
+
     def _phase(self, name: str) -> AbstractContextManager[None]:
         return self.exchanges.in_phase(name) if self.exchanges is not None else nullcontext()
 
@@ -223,15 +254,21 @@ class Agent:
         return len(self.exchanges.exchanges) if self.exchanges is not None else 0
 
     def run(self, env: Environment, question: str, start: Pose2D | None = None,
-            on_step: StepHook | None = None) -> EpisodeResult:
+            on_step: StepHook | None = None, budget: int | None = None) -> EpisodeResult:
+        """One episode in ``env``. The agent reads only what a robot gives: observations and
+        what each move did. ``budget``: the step budget an evaluation sets (its scene's, see
+        ``AgentConfig.budget``); else ``explore.max_steps``; else ``step_budget`` of the free
+        floor the map has seen so far, re-read every step."""
         question = check_question(question)
         cfg = self.config
         t0 = time.perf_counter()
+        fixed = budget if budget is not None else cfg.explore.max_steps
+        if fixed is not None and fixed < 1:
+            raise ValueError(f"the step budget must be at least 1, not {fixed}")
         obs, _ = env.reset(options={"start": start} if start is not None else None)
         reset = getattr(self.perception, "reset", None)  # a perception that keeps what it saw
         if reset is not None:  # over an episode (pixels' room votes) starts afresh
             reset()
-        budget = cfg.budget(env)
         explorer = make_explorer(cfg.explore.explorer, **cfg.explore.explorer_options())
         if cfg.explore.steering == "target" and isinstance(explorer, FrontierExplorer):
             explorer = TargetExplorer(explorer, cfg.explore.target_config())
@@ -242,7 +279,7 @@ class Agent:
         prompts = PROMPT_CONFIGS[cfg.explore.prompts]
         if self.perception.modality == "text":  # no circles are drawn: none can overlap
             prompts = replace(prompts, min_px=0.0)
-        explore = ExploreModule(mapper_for(env, (obs.pose.x, obs.pose.y)), explorer,
+        explore = ExploreModule(self._map(env, (obs.pose.x, obs.pose.y)), explorer,
                                 self.scorer, seed=cfg.explore.seed, prompts=prompts, target=target)
         sightings = (getattr(self.perception, "sightings", None)
                      if isinstance(explorer, Steered) else None)
@@ -259,7 +296,11 @@ class Agent:
         records: list[StepRecord] = []
         decision: Decision | None = None
         stop_reason = "budget"
-        for step in range(1, budget + 1):
+        budget = fixed if fixed is not None else seen_budget(explore.mapper.state(
+            (obs.pose.x, obs.pose.y)))
+        step = 0
+        while step < budget:
+            step += 1
             record = StepRecord(step, (obs.pose.x, obs.pose.y, obs.pose.yaw),
                                 valid=obs.invalid_fraction < MAX_INVALID_FRACTION)
             records.append(record)
@@ -314,6 +355,8 @@ class Agent:
             record.timings_ms["explore"] = 1e3 * (time.perf_counter() - t)
             record.calls = self._calls_since(n_calls)
             decision = out.decision
+            if fixed is None:
+                budget = max(step + 1, seen_budget(out.state))
             _fill(record, out)
             _notify(on_step, record, obs, out)
             if decision.done:
@@ -323,6 +366,7 @@ class Agent:
             moved = move(env, explore, obs.pose, decision, step, cfg.explore.refusal_retries)
             record.timings_ms["env"] = 1e3 * (time.perf_counter() - t)
             obs, record.refused, record.blocked = moved.obs, moved.refused, moved.blocked
+            record.short = bool(moved.info.get("short"))  # planned on from where it ended
             if moved.decision is not decision:  # re-planned after a refusal
                 decision = moved.decision
                 _fill_decision(record, decision)

@@ -61,7 +61,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
     stack, config = stack or Stack(), config or AgentConfig()
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
     try:
-        if start is not None and not opened.env.is_navigable(start.x, start.y):
+        navigable = getattr(opened.env, "is_navigable", None)  # a simulated scene's truth
+        if start is not None and navigable is not None and not navigable(start.x, start.y):
             raise EfficientEQAError(f"the start ({start.x:g}, {start.y:g}) is not on the floor "
                                     f"of {opened.name}",
                                     fix="pick a point on the floor (see the house's map: "
@@ -86,7 +87,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
                 on_step(record, obs, out_step)
 
         try:
-            result = built.agent.run(opened.env, question, start=start, on_step=hook)
+            result = built.agent.run(opened.env, question, start=start, on_step=hook,
+                                     budget=config.budget(opened.env))
         except Exception as error:  # keep what was explored and paid for, then fail as before
             partial = failed_record(question, error, records=steps, config=config,
                                     backends=built.backends, scene=opened.name,

@@ -1,12 +1,19 @@
 """The environment contract (Gymnasium-like, DESIGN 4), in the canonical frame.
 
-``reset(seed=, options=) -> (obs, info)``; ``step(target_pose) -> (obs, reward, terminated,
-truncated, info)``. An action is the next pose: the adapter teleports the robot there (the
-planner guarantees a collision-free path of at most 3 m) and observes.
+``Environment`` is what a robot gives: ``reset(seed=, options=) -> (obs, info)`` and
+``step(target_pose) -> (obs, reward, terminated, truncated, info)``. An action is the next
+pose, a goal (the planner asks for a collision-free path of at most 3 m); the observation holds
+the pose the robot reports afterwards, wherever it ended, and ``info`` says what the move did
+(``move_info``): ``blocked`` (refused or failed: the robot did not move), ``short`` (it ended
+away from the goal). The agent reads nothing else.
+
+``SimulatedScene`` adds what only a simulator knows (navigability, extent, floor area): the
+evaluation reads it (start poses, the benchmark's step budget, ground truth), the agent never.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -55,8 +62,23 @@ class SceneLabels(Protocol):
     def room_at(self, x: float, y: float) -> str | None: ...
 
 
+# A move that ends farther than this from its goal (metres, or radians of heading) fell short.
+SHORT_M, SHORT_RAD = 0.25, 0.35
+
+
+def move_info(goal: Pose2D, reached: Pose2D, blocked: bool) -> dict[str, Any]:
+    """``step``'s info about a move to ``goal`` that ended at ``reached``: ``blocked`` (the
+    robot did not move), ``short`` (it moved, but ended away from the goal), ``reached``."""
+    away = math.hypot(reached.x - goal.x, reached.y - goal.y)
+    turn = abs(math.remainder(reached.yaw - goal.yaw, math.tau))
+    return {"blocked": blocked, "short": not blocked and (away > SHORT_M or turn > SHORT_RAD),
+            "reached": (reached.x, reached.y, reached.yaw)}
+
+
 @runtime_checkable
 class Environment(Protocol):
+    """What a robot gives the agent: frames with their camera pose, and moves to pose goals."""
+
     camera: CameraSpec
 
     def reset(
@@ -69,6 +91,13 @@ class Environment(Protocol):
 
     def observe(self) -> Observation: ...
 
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class SimulatedScene(Environment, Protocol):
+    """An environment that is a simulated scene: what evaluation may read beside the agent."""
+
     def is_navigable(self, x: float, y: float) -> bool: ...
 
     @property
@@ -78,5 +107,3 @@ class Environment(Protocol):
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min_xyz, max_xyz) of the scene in metres."""
         ...
-
-    def close(self) -> None: ...

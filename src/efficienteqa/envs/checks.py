@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from efficienteqa.envs.base import Environment, Observation
+from efficienteqa.envs.base import Environment, Observation, SimulatedScene
 from efficienteqa.geometry import Pose2D, backproject
 
 
@@ -25,7 +25,7 @@ def check_arrays(obs: Observation, env: Environment) -> None:
     assert np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) and np.isclose(np.linalg.det(rot), 1.0)
 
 
-def check_observation(obs: Observation, env: Environment) -> None:
+def check_observation(obs: Observation, env: SimulatedScene) -> None:
     """A synthetic frame: the camera straight above the robot, every point in the house's box."""
     check_arrays(obs, env)
     assert np.allclose(obs.cam_to_world[:3, 3][:2], [obs.pose.x, obs.pose.y], atol=1e-6)
@@ -37,8 +37,8 @@ def check_observation(obs: Observation, env: Environment) -> None:
         assert np.all(pts >= lo - slack) and np.all(pts <= hi + slack), "points outside bounds"
 
 
-def check_env(env: Environment, moves: list[Pose2D],
-              check: Callable[[Observation, Environment], None] = check_observation) -> None:
+def check_env(env: SimulatedScene, moves: list[Pose2D],
+              check: Callable[[Observation, SimulatedScene], None] = check_observation) -> None:
     """Reset, observe, and step through ``moves`` (navigable poses), checking every frame with
     ``check`` (an adapter whose frames differ in kind passes its own)."""
     obs, info = env.reset(seed=0)

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.mapping.extent import MAP_SIZE_M
 from efficienteqa.records import write_json
 
 RUN_FILE = "run.json"
@@ -40,8 +41,12 @@ TRANSPORT = ("timeout_s", "retries")  # stack settings that are not part of a ru
 # value the run used, and the run names the configuration it started from ("preset", with
 # what that alone set, "preset_config"). 3: the agent's settings are the configuration tree's
 # sections ("explore", "stop" with its gate, "answer"), where 1 and 2 held them flat beside a
-# nested "stop" (``nest_config``).
-RUN_FORMAT = 3
+# nested "stop" (``nest_config``). 4: the agent's map lies around the start
+# (``explore.map_extent`` "start"); earlier runs mapped the simulated scene's box ("scene").
+RUN_FORMAT = 4
+# Settings added with a format, by section, and what a run of an earlier format ran with (the
+# size of a map around the start does not act on a map of the scene's box).
+ADDED_IN_FORMAT_4 = {("explore", "map_extent"): "scene", ("explore", "map_size_m"): MAP_SIZE_M}
 # What a format-1 run's None (or a run recorded before the setting existed) meant, by
 # AgentConfig field: written out, not read from today's defaults, since a later default does
 # not change what an old run ran with.
@@ -251,6 +256,13 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
                     out[key] = config
     for key in keys:
         out[key] = nest_config(out[key])
+    if manifest.get("format", 1) < 4:  # noted, so a label does not name them as changes
+        out["unrecorded"] = sorted(name for _, name in ADDED_IN_FORMAT_4)
+        for key in ("config", "method_config", "preset_config"):
+            if isinstance(out.get(key), dict):
+                out[key] = {**out[key]}
+                for (section, name), value in ADDED_IN_FORMAT_4.items():
+                    out[key][section] = {name: value, **out[key].get(section, {})}
     out["format"] = RUN_FORMAT
     return out
 

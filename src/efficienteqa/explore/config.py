@@ -18,22 +18,34 @@ from efficienteqa.explore.settings import (
     TargetConfig,
 )
 from efficienteqa.knobs import knob, make
+from efficienteqa.mapping.extent import MAP_SIZE_M, MIN_MAP_RADIUS_M
 from efficienteqa.reading.aliases import MATCHINGS
 from efficienteqa.reading.reader import READINGS
 
 EXPLORERS = ("sfe", "frontier-only", "random")
 STEERINGS = ("none", "target")
+MAP_EXTENTS = ("start", "scene")
 
 
 @dataclass(frozen=True)
 class ExploreConfig:
-    """Where the robot goes next. ``max_steps`` None: the scene's budget of DESIGN 3.1,
-    ``int(sqrt(floor area) * 3)``, a number only the scene knows."""
+    """Where the robot goes next. ``max_steps`` None: the budget the evaluation gives (DESIGN
+    3.1's ``int(sqrt(floor area) * 3)``, a number only a simulated scene knows), else, on a
+    robot, the same rule on the floor the map has seen so far."""
 
     explorer: str = knob("sfe", help="sfe (semantic frontier exploration) | frontier-only | "
                          "random; set by the method.")
     seed: int = knob(0, help="Seed of the explorer's frontier sampling.")
-    max_steps: int | None = knob(None, help="Step budget (default: int(sqrt(floor area) * 3)).")
+    max_steps: int | None = knob(None, help="Step budget (default: int(sqrt(floor area) * 3) "
+                                 "of the scene's floor in evaluation; of the floor seen so far "
+                                 "where the environment knows no area, as on a robot).")
+    map_extent: str = knob("start", beyond=True, help="Where the map lies: start (a square of "
+                           "explore.map-size-m around the start: all a robot can know) | scene "
+                           "(the simulated scene's box, as runs recorded before run format 4; "
+                           "needs a simulator).")
+    map_size_m: float = knob(MAP_SIZE_M, beyond=True, help="Side (m) of the square map around "
+                             "the start: the robot knows no house box, so its map must hold "
+                             "whatever it may reach.")
     exploration: str = knob("default", beyond=True, help="The frontier explorer's options "
                             "beyond the paper: default (on) | paper (DESIGN 3.2's explorer, every "
                             "one off); explore.sfe.* sets them one by one.")
@@ -67,6 +79,9 @@ class ExploreConfig:
         if self.max_steps is not None and self.max_steps < 1:
             raise ValueError(f"max_steps must be at least 1 (or left out for the default "
                              f"budget), not {self.max_steps}")
+        if not self.map_size_m >= 2 * MIN_MAP_RADIUS_M:
+            raise ValueError(f"map_size_m must be at least {2 * MIN_MAP_RADIUS_M:g}, not "
+                             f"{self.map_size_m}")
         if self.seed < 0:
             raise ValueError(f"seed must be 0 or more, not {self.seed}")
         if self.refusal_retries < 0:
@@ -74,6 +89,7 @@ class ExploreConfig:
         if not self.stop_clearance_m >= 0:
             raise ValueError(f"stop_clearance_m must be 0 or more, not {self.stop_clearance_m}")
         for name, allowed in (("explorer", EXPLORERS), ("steering", STEERINGS),
+                              ("map_extent", MAP_EXTENTS),
                               ("exploration", tuple(EXPLORATIONS)),
                               ("prompts", PROMPT_SETS), ("reading", READINGS),
                               ("matching", MATCHINGS)):

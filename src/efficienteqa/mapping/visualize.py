@@ -85,8 +85,9 @@ def _disk(draw: ImageDraw.ImageDraw, uv: np.ndarray, r: float, **kw: object) -> 
 def map_image(state: MapState, values: np.ndarray | None = None,
               frontiers: Sequence[FrontierMark] = (), trajectory: Sequence[Pose2D] = (),
               target_xy: Sequence[float] | None = None, prompts: Sequence[PromptPoint] = (),
-              scale: int = 4) -> np.ndarray:
-    """(rows*scale, cols*scale, 3) uint8 top-down picture of ``state`` (north up).
+              scale: int = 4, crop_m: float | None = 1.0) -> np.ndarray:
+    """(rows*scale, cols*scale, 3) uint8 top-down picture of ``state`` (north up), cut to what
+    the map knows plus ``crop_m`` metres (None: the whole grid).
 
     Cells: unobserved dark grey, free light grey, explored free light green, occupied black;
     ``values`` (same shape as the grid) as a yellow-to-red heat overlay whose opacity grows with
@@ -129,4 +130,26 @@ def map_image(state: MapState, values: np.ndarray | None = None,
         x0, y0, x1, y1 = draw.textbbox((0, 0), q.letter, font=font)
         draw.text((uv[0] - 0.5 - (x0 + x1) / 2, uv[1] - 0.5 - (y0 + y1) / 2), q.letter,
                   fill=(0, 0, 0), font=font)
-    return np.asarray(image).copy()
+    picture = np.asarray(image)
+    if crop_m is not None:
+        picture = picture[_known_window(state, trajectory, crop_m, scale)]
+    return picture.copy()
+
+
+def _known_window(state: MapState, trajectory: Sequence[Pose2D], margin_m: float,
+                  scale: int) -> tuple[slice, slice]:
+    """The image rows and columns of what the map knows (and the trajectory), plus
+    ``margin_m``: the agent's map is a square around the start far larger than a house."""
+    spec = state.spec
+    rows, cols = np.nonzero(state.explored | state.free | state.occupied)
+    if trajectory:
+        i, j = spec.world_to_cell(np.array([[p.x, p.y] for p in trajectory]))
+        rows, cols = np.concatenate([rows, np.ravel(i)]), np.concatenate([cols, np.ravel(j)])
+    if rows.size == 0:
+        return slice(None), slice(None)
+    pad = math.ceil(margin_m / spec.resolution_m)
+    n_rows, n_cols = spec.shape
+    top = max(0, n_rows - 1 - int(rows.max()) - pad)  # the picture is north up: rows flipped
+    bottom = min(n_rows, n_rows - int(rows.min()) + pad)
+    left, right = max(0, int(cols.min()) - pad), min(n_cols, int(cols.max()) + 1 + pad)
+    return slice(top * scale, bottom * scale), slice(left * scale, right * scale)

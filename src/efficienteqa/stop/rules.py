@@ -28,15 +28,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from efficienteqa.knobs import knob
 from efficienteqa.stop.gate import GATES
-
-if TYPE_CHECKING:
-    from efficienteqa.envs.base import Environment
 
 Z_TH = 3.0
 PAPER_MIN_STEP = 10  # DESIGN 3.4: never before the 10th step
@@ -98,13 +94,17 @@ def step_budget(floor_area_m2: float, per_sqrt_m2: float = STEPS_PER_SQRT_M2) ->
     return max(1, int(math.sqrt(floor_area_m2) * per_sqrt_m2))
 
 
-def env_step_budget(env: Environment) -> int:
-    """The step budget of an episode in ``env``, the one place it is computed: ``step_budget``
-    of the environment's ``budget_area_m2`` where it names one (Habitat: by its
+def env_step_budget(env: object) -> int | None:
+    """The step budget of an episode in a simulated scene, the one place it is computed:
+    ``step_budget`` of the environment's ``budget_area_m2`` where it names one (Habitat: by its
     ``budget_area`` option, ExploreEQA's x-z bounding box of the whole navmesh unless asked
-    for the floor), else of its ``floor_area_m2`` (the synthetic houses)."""
+    for the floor), else of its ``floor_area_m2`` (the synthetic houses). None for an
+    environment that knows no area (a robot, a recording). The evaluation reads it, never the
+    agent."""
     area = getattr(env, "budget_area_m2", None)
-    return step_budget(env.floor_area_m2 if area is None else float(area))
+    if area is None:
+        area = getattr(env, "floor_area_m2", None)
+    return None if area is None else step_budget(float(area))
 
 
 @dataclass(frozen=True)

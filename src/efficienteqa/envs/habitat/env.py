@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from efficienteqa.envs.base import move_info
 from efficienteqa.envs.habitat import frames
 from efficienteqa.envs.habitat.labels import HabitatLabels
 from efficienteqa.envs.habitat.scenes import DATASET_CONFIG, HabitatStart, SceneFiles
@@ -201,7 +202,8 @@ class HabitatEnv:
         if target is not None:
             self._teleport(action, target)
         self.steps += 1
-        return self.observe(), 0.0, False, False, self._info(blocked=target is None)
+        return self.observe(), 0.0, False, False, {
+            **self._info(blocked=target is None), **move_info(action, self.pose, target is None)}
 
     def observe(self) -> Observation:
         raw = self.sim.get_sensor_observations()

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy import ndimage
 
+from efficienteqa.envs.base import move_info
 from efficienteqa.envs.synthetic.build import build_geometry
 from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house, navigation_grid
@@ -74,7 +75,8 @@ class SyntheticEnv:
         if not blocked:
             self.pose = action
         self.steps += 1
-        return self.observe(), 0.0, False, False, self._info(blocked=blocked)
+        return self.observe(), 0.0, False, False, {**self._info(blocked=blocked),
+                                                   **move_info(action, self.pose, blocked)}
 
     def observe(self, pose: Pose2D | None = None) -> Observation:
         """The frame at the robot's pose (or at ``pose``, without moving)."""
