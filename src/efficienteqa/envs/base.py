@@ -95,6 +95,23 @@ class Environment(Protocol):
 
 
 @runtime_checkable
+class Recording(Environment, Protocol):
+    """A walk recorded beforehand (OpenEQA's episodic memory): the robot cannot choose where
+    to go. ``reset`` gives the first frame; ``step`` ignores its goal and gives the next frame,
+    with ``terminated`` True once there is none (the observation is then the last frame
+    again). ``length`` is the number of frames. The agent walks it in order: it maps each
+    frame, stops reading at a relevancy outlier, and answers from the top-K frames."""
+
+    @property
+    def length(self) -> int: ...
+
+
+def is_recording(env: object) -> bool:
+    """Whether ``env`` replays a recorded walk (``Recording``) rather than moving a robot."""
+    return isinstance(env, Recording) and bool(getattr(env, "recorded", False))
+
+
+@runtime_checkable
 class SimulatedScene(Environment, Protocol):
     """An environment that is a simulated scene: what evaluation may read beside the agent."""
 
