@@ -39,6 +39,11 @@ if TYPE_CHECKING:
 DEFAULT_DATASET = "synthetic"
 
 
+# The synthetic houses' noise profiles (envs/synthetic/noise.py; named here so the configuration
+# stays free of numpy, and a test holds the two lists equal).
+NOISE_PROFILES = ("none", "robot", "robot-depth", "robot-odometry", "robot-moves", "robot-camera")
+
+
 @dataclass(frozen=True)
 class SceneConfig:
     """Where the scenes come from."""
@@ -49,6 +54,15 @@ class SceneConfig:
                        "furniture package) | builtin (boxes).")
     hm3d_root: Path | None = knob(None, help="Folder holding the HM3D scene folders, e.g. "
                                   "00800-TEEsavR23oF/ (see docs/habitat.md).")
+    noise: str = knob("none", beyond=True, help="A robot's imperfections in the synthetic "
+                      "houses: none | robot (depth noise and holes, odometry drift, moves that "
+                      "fall short or fail, a camera off its calibration) | robot-depth | "
+                      "robot-odometry | robot-moves | robot-camera (one at a time).")
+
+    def __post_init__(self) -> None:
+        if self.noise not in NOISE_PROFILES:
+            raise ValueError(f"noise must be one of {', '.join(NOISE_PROFILES)}, not "
+                             f"{self.noise!r}")
 
 
 @dataclass(frozen=True)

@@ -85,7 +85,7 @@ FIX_HABITAT = "run hm3d scenes with --env habitat --hm3d-root FOLDER (see docs/h
 
 def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic",
                hm3d_root: Path | str | None = None, start: HabitatStart | None = None,
-               oracle: bool = True) -> Scene:
+               oracle: bool = True, noise: str = "none") -> Scene:
     """``synthetic:SEED`` -> the generated house with its questions (with oracle steps unless
     ``oracle`` is False: datasets carry their own);
     ``hm3d:SCENE`` with ``env="habitat"`` -> the HM3D scene under ``hm3d_root`` in Habitat-Sim,
@@ -93,6 +93,9 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
     kind, _, arg = spec.partition(":")
     if env not in ENVS:
         raise EfficientEQAError(f"unknown environment {env!r}", fix=f"use one of {', '.join(ENVS)}")
+    if noise != "none" and kind != "synthetic":
+        raise EfficientEQAError(f"noise profile {noise!r} is for the synthetic houses, not "
+                                f"{spec!r}", fix="leave out --scene.noise")
     if kind == "hm3d":
         if env != "habitat" or hm3d_root is None:
             raise EfficientEQAError(f"scene {spec!r} needs Habitat-Sim and the HM3D scenes",
@@ -114,5 +117,10 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
         raise EfficientEQAError(f"scene {spec!r} needs an integer seed of 0 or more",
                                 fix="e.g. --scene synthetic:0")
     synthetic = SyntheticEnv.from_seed(seed, assets)
-    return Scene(synthetic, f"synthetic:{seed} ({assets})",
-                 synthetic_questions(synthetic, oracle=oracle))
+    questions = synthetic_questions(synthetic, oracle=oracle)
+    if noise != "none":  # a robot's imperfections (envs/synthetic/noise.py)
+        from efficienteqa.envs.synthetic.noise import NoisyEnv, profile
+
+        return Scene(NoisyEnv(synthetic, profile(noise), seed=seed),
+                     f"synthetic:{seed} ({assets}, noise {noise})", questions)
+    return Scene(synthetic, f"synthetic:{seed} ({assets})", questions)

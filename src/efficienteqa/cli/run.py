@@ -85,6 +85,7 @@ def ask_command(
                                 'the sofa?", or --episode ID with --dataset')
     with console.status(f"opening {scene}..."):
         opened = open_scene(scene, r.scene.assets, env=r.scene.env, hm3d_root=r.scene.hm3d_root,
+                            noise=r.scene.noise,
                             start=habitat_start)
     try:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
@@ -202,7 +203,7 @@ def eval_command(
                    closed_set=e.closed_set, judge=judge, judge_mode=_judge_mode(e.judge_mode,
                                                                                judge or ""),
                    preset=run.preset, preset_config=run.preset_run.agent, reports=e.reports,
-                   assets=r.scene.assets, env=r.scene.env,
+                   assets=r.scene.assets, env=r.scene.env, noise=r.scene.noise,
                    hm3d_root=str(r.scene.hm3d_root) if r.scene.hm3d_root is not None else None)
     from efficienteqa.cli.progress import eval_progress
 

@@ -68,6 +68,7 @@ class RunSpec:
     closed_set: bool = False
     env: str = "synthetic"
     hm3d_root: str | None = None
+    noise: str = "none"  # the synthetic houses' noise profile (envs/synthetic/noise.py)
     # The named configuration the options started from (``--preset NAME``, or ``--config
     # FILE``'s path; None: the defaults) and what it alone sets: a table labels the run by
     # what it changed against that (DESIGN 6).
@@ -156,7 +157,7 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
 
     config = method_config(spec.method, spec.config)
     scene = open_scene(q.scene, spec.assets, env=spec.env, hm3d_root=spec.hm3d_root,
-                       start=HabitatStart.from_source(q.source), oracle=False)
+                       start=HabitatStart.from_source(q.source), oracle=False, noise=spec.noise)
     try:
         if q.scene.startswith("synthetic:"):
             check_question(scene, q)

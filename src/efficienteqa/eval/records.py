@@ -33,7 +33,7 @@ EPISODES_FILE = "episodes.jsonl"
 RUN_IDENTITY = ("method", "dataset", "closed_set", "config", "stack", "judge", "judge_mode")
 # Also compared where the earlier run recorded them: which houses and simulator the scenes are
 # (runs recorded before these keys existed resume as before).
-SCENE_IDENTITY = ("assets", "env", "hm3d_root")
+SCENE_IDENTITY = ("assets", "env", "hm3d_root", "noise")
 LOCK_FILE = ".lock"
 TRANSPORT = ("timeout_s", "retries")  # stack settings that are not part of a run's identity
 # run.json's format. 1 (no "format" key): settings whose default was decided elsewhere were

@@ -199,7 +199,7 @@ def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = ()) -> dic
                   "stack": asdict(spec.stack),
                   "preset": spec.preset, "preset_config": asdict(spec.preset_config),
                   "judge": spec.judge, "judge_mode": spec.judge_mode, "assets": spec.assets,
-                  "env": spec.env, "hm3d_root": spec.hm3d_root,
+                  "env": spec.env, "hm3d_root": spec.hm3d_root, "noise": spec.noise,
                   "questions": n_questions, **scene_seeds(scenes),
                   "code_version": code_version(), "created": time.time(), "machine": machine()})
 

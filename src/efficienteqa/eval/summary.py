@@ -244,7 +244,7 @@ def settings(manifest: Mapping[str, Any]) -> dict[str, Any]:
     if "enabled" in flat:
         flat["early_stop"] = flat.pop("enabled")
     flat.update(dict(manifest.get("stack") or {}))
-    for key in ("judge", "closed_set", "assets"):
+    for key in ("judge", "closed_set", "assets", "noise"):
         if key in manifest:
             flat[key] = manifest[key]
     return flat
@@ -359,6 +359,8 @@ def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (
                 parts.append(f"{LABEL_NAMES.get(key, key)}={_fmt_setting(flat[key])}")
     if flat.get("closed_set"):
         parts.append("closed-set")
+    if flat.get("noise") not in (None, "none"):  # a robot's imperfections in the houses
+        parts.append(f"noise={flat['noise']}")
     return " ".join(parts)
 
 
