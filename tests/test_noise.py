@@ -136,3 +136,17 @@ def test_noise_is_refused_where_it_cannot_act():
 
     with pytest.raises(EfficientEQAError, match="for the synthetic houses"):
         open_scene("hm3d:abc", env="habitat", hm3d_root="/nowhere", noise="robot")
+
+
+@needs_egl
+def test_a_question_of_the_split_is_asked_in_its_house_under_noise():
+    from efficienteqa.datasets import load_dataset
+    from efficienteqa.datasets.synthetic import check_question
+    from efficienteqa.scenes import open_scene
+
+    q = load_dataset("synthetic", limit=1)[0]
+    scene = open_scene(q.scene, oracle=False, noise="robot")
+    try:
+        check_question(scene, q)  # the same house, the same question: no error
+    finally:
+        scene.env.close()

@@ -223,12 +223,14 @@ def check_question(scene: Scene, question: EvalQuestion) -> None:
     the scene was opened with them.
     """
     from efficienteqa.envs.synthetic.env import SyntheticEnv
+    from efficienteqa.envs.synthetic.noise import NoisyEnv
 
-    if not isinstance(scene.env, SyntheticEnv):
+    env = scene.env.env if isinstance(scene.env, NoisyEnv) else scene.env  # the house under noise
+    if not isinstance(env, SyntheticEnv):
         raise EfficientEQAError(f"{question.id} is asked in a synthetic house, not in {scene.name}",
                                 fix=f"open {question.scene}")
     seed = question.source.get("house_seed")
-    if seed is not None and scene.env.house.seed != seed:
+    if seed is not None and env.house.seed != seed:
         raise EfficientEQAError(f"{question.id} belongs to house {seed}, not {scene.name}",
                                 fix=f"open {question.scene}")
     wording = question.original_question  # a re-phrasing is not the generator's: its original is
