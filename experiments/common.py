@@ -79,11 +79,16 @@ def evidence_distance(env: SyntheticEnv, q: Question) -> EvidenceDistance:
     return EvidenceDistance(env.grid, field_m, ROBOT_RADIUS_M)
 
 
-def truth_floor(env: SyntheticEnv, mapper: Mapper | None = None) -> np.ndarray:
-    """Ground-truth free floor sampled at the cell centres of the agent's map of ``env``."""
-    from efficienteqa.agent import mapper_for
+def truth_floor(env: SyntheticEnv, mapper: Mapper | None = None,
+                config: AgentConfig | None = None) -> np.ndarray:
+    """Ground-truth free floor sampled at the cell centres of the agent's map of ``env`` (as
+    ``config`` lays it out: around the start, or over the scene's box)."""
+    from efficienteqa.agent import map_around, mapper_for
 
-    mapper = mapper or mapper_for(env, (env.house.start.x, env.house.start.y))
+    explore = (config or AgentConfig()).explore
+    start = (env.start.x, env.start.y)
+    mapper = mapper or (map_around(start, explore.map_size_m) if explore.map_extent == "start"
+                        else mapper_for(env, start))
     xs, ys = mapper.spec.centres()
     i, j = env.grid.spec.world_to_cell(np.stack([xs, ys], axis=-1))
     ok = env.grid.spec.contains((i, j))
@@ -151,7 +156,7 @@ def explore_episode(env: SyntheticEnv, config: AgentConfig, question: str = "Wha
     answerer = RagAnswerer(StubChatModel(lambda messages: "unknown"), RuleGrouper(), m=1,
                            direct=True)
     agent = Agent(perception, scorer, WordOverlapScorer(), answerer, config)
-    floor = truth_floor(env) if coverage else None
+    floor = truth_floor(env, config=config) if coverage else None
     ep = Episode()
     moved: list[StepRecord] = []  # steps whose decision sent the robot on (filled in after)
 

@@ -190,7 +190,7 @@ def steering_questions(args: argparse.Namespace):
         for seed, qs in by_house.items():
             with SyntheticEnv.from_seed(seed, args.assets) as env:
                 for q in qs:
-                    yield seed, env, env_step_budget(env), q
+                    yield seed, _noisy(env, args.noise, seed), env_step_budget(env), q
         return
     for seed in seed_set(args.seeds):
         with SyntheticEnv.from_seed(seed, args.assets) as env:
@@ -198,7 +198,17 @@ def steering_questions(args: argparse.Namespace):
             # A few questions per house, their order turned by the seed: many houses, every kind.
             turn = seed % len(asked) if asked else 0
             for q in (asked[turn:] + asked[:turn])[:args.per_house]:
-                yield seed, env, env_step_budget(env), q
+                yield seed, _noisy(env, args.noise, seed), env_step_budget(env), q
+
+
+def _noisy(env: SyntheticEnv, noise: str, seed: int) -> SyntheticEnv:
+    """``env`` as a robot with the noise profile ``noise`` sees it (envs/synthetic/noise.py);
+    the evidence and the oracle stay the simulator's."""
+    if noise == "none":
+        return env
+    from efficienteqa.envs.synthetic.noise import NoisyEnv, profile
+
+    return NoisyEnv(env, profile(noise), seed=seed)  # type: ignore[return-value]
 
 
 def cmd_steering(args: argparse.Namespace) -> None:
@@ -496,6 +506,8 @@ def main() -> None:
                         help="the frontier explorer's options beyond DESIGN 3.2: default, or "
                              "paper (every one off; with --stop-clearance 0 --refusal-retries 0 "
                              "--prompt paper: the paper preset)")
+    parser.add_argument("--noise", default="none", help="a robot's imperfections: a noise "
+                        "profile of envs/synthetic/noise.py (none, robot, robot-depth, ...)")
     parser.add_argument("--out", default="out/bench")
     parser.add_argument("--stop-clearance", type=float, default=None,
                         help="metres of map clearance the planner wants where a move ends "
