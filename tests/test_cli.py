@@ -317,3 +317,16 @@ def test_judge_grades_with_evals_default_judge_unless_told(tmp_path, monkeypatch
     # RunSpec, made without the CLI, resolves the same default mode for the same judges.
     assert [RunSpec("blind", "hm-eqa", judge=j).judge_mode for j in ("local:m", "openai:gpt-4o")] == [
         "yes-prob", "grade"]
+
+
+def test_an_errors_brackets_are_printed_as_text(tmp_path, monkeypatch, capsys):
+    """The one-line error is plain text: rich read "[section]" (or 'efficienteqa[ray]') in a
+    fix as markup and dropped it."""
+    from efficienteqa import cli
+
+    monkeypatch.setattr(sys, "argv", ["efficienteqa", "config", "--config", str(tmp_path / "no.toml")])
+    with pytest.raises(SystemExit) as exited:
+        cli.main()
+    assert exited.value.code == 1
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 1 and "give a TOML file of [section] tables" in lines[0], lines

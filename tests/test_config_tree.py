@@ -214,12 +214,12 @@ def test_the_config_command_prints_the_run_it_would_make(tmp_path):
 
 def test_the_cli_makes_its_options_without_loading_the_agent():
     """The configuration's dataclasses are light: making the CLI's options from them loads no
-    numba, scipy or agent code (they are imported when a command runs)."""
+    numba, scipy, rerun or agent code (they are imported when a command runs)."""
     import subprocess
     import sys
 
     code = ("import sys, efficienteqa.cli, typer.main; typer.main.get_command(efficienteqa.cli.app); "
-            "print(sorted(m for m in ('numba', 'scipy', 'torch', 'efficienteqa.agent', "
-            "'efficienteqa.stack') if m in sys.modules))")
+            "print(sorted(m for m in ('numba', 'scipy', 'torch', 'rerun', 'efficienteqa.agent', "
+            "'efficienteqa.stack', 'efficienteqa.report.rerun_log') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

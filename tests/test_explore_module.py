@@ -77,3 +77,7 @@ def test_semantic_values_are_painted_from_the_scorer(catalog):
     a = first.prompts[0]
     i, j = module.mapper.spec.world_to_cell(a.xy)
     assert values[i, j] > 0
+    # Each step carries the smoothed map as painted by then (for pictures), warm-up included.
+    assert all(o.values is not None for o in outs)
+    assert outs[-1].values == pytest.approx(module.values.smoothed())
+    assert first.values[i, j] > 0 and first.values.sum() < outs[-1].values.sum()

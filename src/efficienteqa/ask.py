@@ -22,6 +22,7 @@ from efficienteqa.report.episode import episode_record, failed_record
 from efficienteqa.report.evidence import EvidenceWatch
 from efficienteqa.report.frames import FrameCollector
 from efficienteqa.report.html import write_report
+from efficienteqa.report.rerun_log import RerunLog
 from efficienteqa.scenes import Scene, open_scene
 from efficienteqa.stack import Stack, build_agent
 
@@ -52,13 +53,31 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         config: AgentConfig | None = None, start: Pose2D | None = None,
         on_step: StepHook | None = None, model: ChatModel | None = None,
         relevancy: RelevancyScorer | None = None, assets: str = DEFAULT_ASSETS,
-        report: bool = True, known_as: str | None = None) -> AskResult:
+        report: bool = True, known_as: str | None = None,
+        rerun: str | Path | RerunLog | None = None) -> AskResult:
     """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
     ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``
     (left open for the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests
     inject stubs). ``known_as``: the wording of the scene's own question that ``question``
-    re-phrases (the paraphrase split), whose evidence and reference the record then carries."""
+    re-phrases (the paraphrase split), whose evidence and reference the record then carries.
+    ``rerun``: also log the episode to rerun (``report.rerun_log``): a ``.rrd`` file, ``live``
+    (a viewer spawned here), or a ``RerunLog`` made beforehand; finished and closed here, also
+    when the episode fails (the recording then holds the steps done)."""
     stack, config = stack or Stack(), config or AgentConfig()
+    shown = (RerunLog.of(rerun, question, config)
+             if rerun is not None and not isinstance(rerun, RerunLog) else rerun)
+    try:
+        return _ask(question, scene, out, stack, config, start, on_step, model, relevancy,
+                    assets, report, known_as, shown)
+    finally:
+        if shown is not None:
+            shown.close()  # a no-op after finish
+
+
+def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: AgentConfig,
+         start: Pose2D | None, on_step: StepHook | None, model: ChatModel | None,
+         relevancy: RelevancyScorer | None, assets: str, report: bool, known_as: str | None,
+         shown: RerunLog | None) -> AskResult:
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
     try:
         navigable = getattr(opened.env, "is_navigable", None)  # a simulated scene's truth
@@ -83,6 +102,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
             watch(record, obs, out_step)
             if report:
                 frames(record, obs, out_step)
+            if shown is not None:
+                shown(record, obs, out_step)
             if on_step is not None:
                 on_step(record, obs, out_step)
 
@@ -111,6 +132,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
                                 reference=reference,
                                 evidence=watch.fields(result.retrieved, stop_step))
         episode_json = write_json(out / "episode.json", record)
+        if shown is not None:
+            shown.finish(result)
         html = (write_report(out / "report.html", record, map_url(result), frames.frames,
                              frames.descriptions) if report else None)
         return AskResult(result, record, episode_json, html)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import sys
 
+from rich.markup import escape
+
 from efficienteqa.cli import run, tools  # noqa: F401 - registers the commands
 from efficienteqa.cli.app import app, console
 from efficienteqa.errors import EfficientEQAError
@@ -20,7 +22,8 @@ def main() -> None:
     try:
         app()
     except EfficientEQAError as exc:
-        console.print(f"[red]error:[/red] {exc}", highlight=False, soft_wrap=True)
+        # escaped: a fix such as pip install 'efficienteqa[ray]' is text, not rich markup
+        console.print(f"[red]error:[/red] {escape(str(exc))}", highlight=False, soft_wrap=True)
         sys.exit(1)
     except KeyboardInterrupt:
         console.print("[yellow]interrupted[/yellow]")

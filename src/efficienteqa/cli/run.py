@@ -55,6 +55,10 @@ def ask_command(
                                      rich_help_panel="Question"),
     out: Path = typer.Option(Path("out/ask"), help="Folder for episode.json and report.html.",
                              rich_help_panel="Output"),
+    rerun: str | None = typer.Option(None, help="Also log the episode to rerun: a FILE.rrd to "
+                                     "open with `rerun FILE.rrd`, or live (spawn the viewer "
+                                     "here; needs a screen). Needs the rerun extra.",
+                                     rich_help_panel="Output"),
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -83,6 +87,10 @@ def ask_command(
     if not question:
         raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
                                 'the sofa?", or --episode ID with --dataset')
+    if rerun is not None:  # rerun missing, no viewer, an unwritable file: before the scene opens
+        from efficienteqa.report.rerun_log import check_target
+
+        check_target(rerun)
     with console.status(f"opening {scene}..."):
         opened = open_scene(scene, r.scene.assets, env=r.scene.env, hm3d_root=r.scene.hm3d_root,
                             noise=r.scene.noise,
@@ -100,7 +108,7 @@ def ask_command(
                 progress.update(task, completed=record.step, info=info)
 
             done = ask(question, opened, out, stack=r.backends, config=r.agent,
-                       start=start_pose, on_step=on_step, known_as=known_as)
+                       start=start_pose, on_step=on_step, known_as=known_as, rerun=rerun)
     finally:
         opened.env.close()
     result, rec = done.result, done.record
@@ -121,6 +129,8 @@ def ask_command(
                                             if model.get("cost_usd") else ""), highlight=False)
     say(f"episode: {done.episode_json}\nreport:  {done.report_html}", highlight=False,
         soft_wrap=True)
+    if rerun is not None and rerun != "live":
+        say(f"rerun:   {rerun}   (open it: rerun {rerun})", highlight=False, soft_wrap=True)
 
 
 def _judge_mode(mode: str | None, judge: str) -> str:

@@ -61,6 +61,9 @@ class ExploreStep:
     lsv: dict[str, float]
     gsv: float | None
     score: SemanticScore | None
+    # The smoothed semantic value map after this step's painting (what the explorer reads from
+    # the warm-up on), for pictures; None without a scorer.
+    values: np.ndarray | None = None
 
 
 class ExploreModule:
@@ -98,10 +101,10 @@ class ExploreModule:
                 lsv = lsv_from_confidences(score.letters, letters)
                 gsv = gsv_from_yes(score.p_yes)
                 self.values.paint([p.xy for p in prompts], [lsv[p.letter] * gsv for p in prompts])
-        use_values = self.scorer is not None and step > VALUE_WARMUP_STEPS
+        values = self.values.smoothed() if self.scorer is not None else None
         decision = self.explorer.decide(state, obs.pose,
-                                        self.values.smoothed() if use_values else None, step)
-        return ExploreStep(step, state, decision, prompts, lsv, gsv, score)
+                                        values if step > VALUE_WARMUP_STEPS else None, step)
+        return ExploreStep(step, state, decision, prompts, lsv, gsv, score, values)
 
     def blocked(self, pose_xy: tuple[float, float], radius_m: float = 0.3) -> None:
         """The environment refused a move there: keep the planner away from it."""
