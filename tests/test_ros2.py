@@ -4,6 +4,7 @@ messages, ``tf2_ros`` and Nav2's simple commander, behind which a simulated robo
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 from pathlib import Path
@@ -246,10 +247,11 @@ def test_frames_that_stop_coming_after_a_move_are_one_line(robot, open_env, hous
 
 def test_without_ros_2_the_adapter_refuses_in_one_line(monkeypatch):
     from efficienteqa.envs.ros2.env import Ros2Env
+    from efficienteqa.scenes import open_scene
 
     _drop_ros_modules()
     monkeypatch.setitem(sys.modules, "rclpy", None)  # not importable, as where ROS 2 is not sourced
-    for opening in (Ros2Env,):
+    for opening in (Ros2Env, lambda: open_scene("ros2").env):
         with pytest.raises(EfficientEQAError, match="ROS 2 is not sourced") as error:
             opening()
         assert "source /opt/ros/" in str(error.value) and "\n" not in str(error.value)
@@ -377,3 +379,29 @@ def test_an_agent_episode_runs_through_the_adapter(robot, open_env):
         assert any(math.dist(record.pose[:2], (e.x, e.y)) < 1e-6
                    and math.cos(record.pose[2] - e.yaw) == pytest.approx(1.0) for e in ends)
     assert len(result.retrieved) == min(5, config.answer.top_k)
+
+
+@needs_egl
+def test_ask_opens_ros2_from_a_parameters_file_and_writes_the_episode(robot, tmp_path):
+    from efficienteqa.agent import AgentConfig
+    from efficienteqa.ask import ask
+    from efficienteqa.scenes import open_scene
+    from efficienteqa.stack import Stack
+
+    robot(color_topic="/head/rgb", info_topic="/head/rgb_info")
+    params = tmp_path / "robot.toml"
+    params.write_text('color_topic = "/head/rgb"\ninfo_topic = "/head/rgb_info"\n')
+    scene = open_scene(f"ros2:{params}")
+    try:
+        assert (scene.name, scene.backend, scene.questions) == ("ros2:robot.toml", "ros2", [])
+        done = ask("What colour is the bed?", scene, tmp_path / "out",
+                   stack=Stack(perception="rgb", grouping="rules"), model=_image_model(),
+                   relevancy=BrightnessScorer(), config=AgentConfig.of(max_steps=3, gate="none"),
+                   report=False)
+    finally:
+        scene.env.close()
+    record = json.loads(done.episode_json.read_text())
+    assert record["backends"]["environment"] == "ros2" and record["answer"] == "blue"
+    assert record["steps"] == len(record["per_step"]) == 3
+    with pytest.raises(EfficientEQAError, match="not a Habitat scene"):
+        open_scene("ros2", env="habitat")
