@@ -4,8 +4,10 @@ messages, ``tf2_ros`` and Nav2's simple commander, behind which a simulated robo
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
+import subprocess
 import sys
 from pathlib import Path
 
@@ -405,3 +407,15 @@ def test_ask_opens_ros2_from_a_parameters_file_and_writes_the_episode(robot, tmp
     assert record["steps"] == len(record["per_step"]) == 3
     with pytest.raises(EfficientEQAError, match="not a Habitat scene"):
         open_scene("ros2", env="habitat")
+
+
+@pytest.mark.skipif(importlib.util.find_spec("rclpy") is not None,
+                    reason="ROS 2 is sourced here: the command would open the live robot")
+def test_ask_on_ros2_without_ros_2_is_one_line(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "ask", "Where is the sofa?",
+                             "--scene", "ros2", "--out", str(tmp_path)], capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 1, (result.stdout, result.stderr)
+    assert "ROS 2 is not sourced" in result.stdout
+    assert len(result.stdout.strip().splitlines()) == 1
+    assert "Traceback" not in result.stdout + result.stderr
