@@ -1,5 +1,5 @@
-"""Scenes by name: generate a synthetic house with its questions and pictures, or open an HM3D
-scene in Habitat-Sim."""
+"""Scenes by name: generate a synthetic house with its questions and pictures, open an HM3D
+scene in Habitat-Sim, or a live robot on ROS 2."""
 
 from __future__ import annotations
 
@@ -89,7 +89,9 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
     """``synthetic:SEED`` -> the generated house with its questions (with oracle steps unless
     ``oracle`` is False: datasets carry their own);
     ``hm3d:SCENE`` with ``env="habitat"`` -> the HM3D scene under ``hm3d_root`` in Habitat-Sim,
-    starting at ``start`` (HM-EQA's pose for the question)."""
+    starting at ``start`` (HM-EQA's pose for the question);
+    ``ros2`` or ``ros2:PARAMS.toml`` -> the robot on the live ROS 2 graph, with the parameters
+    of the TOML file (``envs.ros2.params``) or the defaults; it has no questions."""
     kind, _, arg = spec.partition(":")
     if env not in ENVS:
         raise EfficientEQAError(f"unknown environment {env!r}", fix=f"use one of {', '.join(ENVS)}")
@@ -103,9 +105,17 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
         from efficienteqa.envs.habitat.env import open_habitat_scene
 
         return Scene(open_habitat_scene(Path(hm3d_root), arg, start), f"hm3d:{arg} (habitat-sim)")
+    if kind == "ros2":
+        if env == "habitat":
+            raise EfficientEQAError(f"scene {spec!r} is a live robot, not a Habitat scene",
+                                    fix="run it without --env habitat")
+        from efficienteqa.envs.ros2.env import open_ros2
+
+        return Scene(open_ros2(arg or None), f"ros2:{Path(arg).name}" if arg else "ros2")
     if kind != "synthetic":
         raise EfficientEQAError(f"unknown scene {spec!r}",
-                                fix="use synthetic:SEED, or hm3d:SCENE with --env habitat")
+                                fix="use synthetic:SEED, hm3d:SCENE with --env habitat, or "
+                                    "ros2[:PARAMS.toml] (a live robot)")
     if env != "synthetic":
         raise EfficientEQAError(f"scene {spec!r} is a generated house, not a Habitat scene",
                                 fix="run synthetic scenes with --env synthetic (the default)")

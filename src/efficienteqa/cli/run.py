@@ -46,8 +46,9 @@ def _check_backends(run: Resolved) -> None:
 def ask_command(
     run: Resolved,
     question: str | None = typer.Argument(None, help="The question, in free text (or --episode)."),
-    scene: str = typer.Option("synthetic:0", help="synthetic:SEED (a generated house) or "
-                              "hm3d:SCENE (with --scene.env habitat).", rich_help_panel="Question"),
+    scene: str = typer.Option("synthetic:0", help="synthetic:SEED (a generated house), "
+                              "hm3d:SCENE (with --scene.env habitat) or ros2[:PARAMS.toml] (a "
+                              "live robot on ROS 2 with Nav2).", rich_help_panel="Question"),
     episode: str | None = typer.Option(None, help="Ask question ID (or row N) of --eval.dataset, "
                                        "in its scene, from its start pose.",
                                        rich_help_panel="Question"),

@@ -1,0 +1,1 @@
+"""A live robot on ROS 2 (an RGB-D camera, tf and Nav2), imported lazily: see ``env``."""

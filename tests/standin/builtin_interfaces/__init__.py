@@ -1,0 +1,1 @@
+"""``builtin_interfaces`` of the stand-in ROS 2 (see ``rclpy``'s docstring)."""
