@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
+from efficienteqa.envs.base import Environment, SceneLabels, is_recording
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.errors import EfficientEQAError
@@ -52,15 +53,27 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         config: AgentConfig | None = None, start: Pose2D | None = None,
         on_step: StepHook | None = None, model: ChatModel | None = None,
         relevancy: RelevancyScorer | None = None, assets: str = DEFAULT_ASSETS,
-        report: bool = True, known_as: str | None = None) -> AskResult:
+        report: bool = True, known_as: str | None = None, record: Path | None = None,
+        record_depth: str = "32FC1") -> AskResult:
     """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
     ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``
     (left open for the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests
     inject stubs). ``known_as``: the wording of the scene's own question that ``question``
-    re-phrases (the paraphrase split), whose evidence and reference the record then carries."""
+    re-phrases (the paraphrase split), whose evidence and reference the record then carries.
+    ``record``: write the episode's frames there as a recorded walk (``envs.recorded.write``:
+    an .mcap file, else a folder; depth as ``record_depth``, 32FC1 or 16UC1), with the scene's
+    labels where it has them, for ``recorded:PATH`` to replay."""
+    from efficienteqa.envs.recorded.write import WalkRecorder, check_record_path
+
+    if record is not None:
+        check_record_path(record, record_depth)  # before the scene is built
     stack, config = stack or Stack(), config or AgentConfig()
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
+    recorder: WalkRecorder | None = None
     try:
+        if start is not None and is_recording(opened.env):
+            raise EfficientEQAError("a recorded walk starts where it was recorded",
+                                    fix="leave out --start")
         navigable = getattr(opened.env, "is_navigable", None)  # a simulated scene's truth
         if start is not None and navigable is not None and not navigable(start.x, start.y):
             raise EfficientEQAError(f"the start ({start.x:g}, {start.y:g}) is not on the floor "
@@ -77,14 +90,19 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         watch = EvidenceWatch(truth.evidence if truth is not None else None)
 
         steps: list[StepRecord] = []
+        if record is not None:
+            recorder = WalkRecorder(record, labels=scene_labels(opened.env),
+                                    depth_encoding=record_depth)
 
-        def hook(record: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
-            steps.append(record)
-            watch(record, obs, out_step)
+        def hook(step: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
+            if recorder is not None:
+                recorder.add(obs)
+            steps.append(step)
+            watch(step, obs, out_step)
             if report:
-                frames(record, obs, out_step)
+                frames(step, obs, out_step)
             if on_step is not None:
-                on_step(record, obs, out_step)
+                on_step(step, obs, out_step)
 
         try:
             result = built.agent.run(opened.env, question, start=start, on_step=hook,
@@ -106,14 +124,27 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         stop_step = (last.check.tested_step or last.step
                      if result.stop_reason == "relevancy" and last is not None
                      and last.check is not None else None)
-        record = episode_record(result, config=config, backends=built.backends,
-                                scene=opened.name, exchanges=built.model.exchanges,
-                                reference=reference,
-                                evidence=watch.fields(result.retrieved, stop_step))
-        episode_json = write_json(out / "episode.json", record)
-        html = (write_report(out / "report.html", record, map_url(result), frames.frames,
+        episode = episode_record(result, config=config, backends=built.backends,
+                                 scene=opened.name, exchanges=built.model.exchanges,
+                                 reference=reference,
+                                 evidence=watch.fields(result.retrieved, stop_step))
+        episode_json = write_json(out / "episode.json", episode)
+        html = (write_report(out / "report.html", episode, map_url(result), frames.frames,
                              frames.descriptions) if report else None)
-        return AskResult(result, record, episode_json, html)
+        return AskResult(result, episode, episode_json, html)
     finally:
+        if recorder is not None:
+            recorder.close()
         if isinstance(scene, str):
             opened.env.close()
+
+
+def scene_labels(env: Environment) -> SceneLabels | None:
+    """The environment's semantic sensor, where it has one."""
+    labels = getattr(env, "scene_labels", None)
+    if labels is None:
+        return None
+    try:
+        return labels()
+    except EfficientEQAError:  # a recording without labels
+        return None

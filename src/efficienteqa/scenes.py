@@ -64,11 +64,13 @@ def write_scene(seed: int, out: Path, assets: str = DEFAULT_ASSETS, cc_by: bool 
 @dataclass
 class Scene:
     """An opened scene: the environment, its name for records, and its known questions (the
-    generated ones of a synthetic house; none for HM3D scenes)."""
+    generated ones of a synthetic house; none for HM3D scenes and recorded walks). ``note``: one
+    line on what opening it found (a recording's frames, and those dropped)."""
 
     env: Environment
     name: str
     questions: list[Question] = field(default_factory=list)
+    note: str = ""
 
     @property
     def backend(self) -> str:
@@ -89,10 +91,18 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
     """``synthetic:SEED`` -> the generated house with its questions (with oracle steps unless
     ``oracle`` is False: datasets carry their own);
     ``hm3d:SCENE`` with ``env="habitat"`` -> the HM3D scene under ``hm3d_root`` in Habitat-Sim,
-    starting at ``start`` (HM-EQA's pose for the question)."""
+    starting at ``start`` (HM-EQA's pose for the question);
+    ``recorded:PATH`` -> a recorded walk (an .mcap file as ROS 2 records one, or a walk folder;
+    ``envs.recorded``), whatever ``env`` names: a recording needs no simulator."""
     kind, _, arg = spec.partition(":")
     if env not in ENVS:
         raise EfficientEQAError(f"unknown environment {env!r}", fix=f"use one of {', '.join(ENVS)}")
+    if kind == "recorded":
+        from efficienteqa.envs.recorded import open_recording
+
+        walk = open_recording(arg)
+        fmt = "mcap" if walk.source.name.lower().endswith(".mcap") else "folder"
+        return Scene(walk, f"recorded:{arg} ({fmt})", note=walk.note)
     if kind == "hm3d":
         if env != "habitat" or hm3d_root is None:
             raise EfficientEQAError(f"scene {spec!r} needs Habitat-Sim and the HM3D scenes",
@@ -102,7 +112,8 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
         return Scene(open_habitat_scene(Path(hm3d_root), arg, start), f"hm3d:{arg} (habitat-sim)")
     if kind != "synthetic":
         raise EfficientEQAError(f"unknown scene {spec!r}",
-                                fix="use synthetic:SEED, or hm3d:SCENE with --env habitat")
+                                fix="use synthetic:SEED, recorded:FILE.mcap, recorded:FOLDER, "
+                                    "or hm3d:SCENE with --env habitat")
     if env != "synthetic":
         raise EfficientEQAError(f"scene {spec!r} is a generated house, not a Habitat scene",
                                 fix="run synthetic scenes with --env synthetic (the default)")
