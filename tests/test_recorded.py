@@ -472,3 +472,55 @@ def test_ask_records_a_walk_and_ask_and_eval_replay_it(vlm, tmp_path):
     record = json.loads((tmp_path / "replay" / "episode.json").read_text())
     assert record["stop_reason"] in ("ended", "relevancy")
     assert record["backends"]["perception"] == "semantic-sensor"
+
+
+@needs_egl
+def test_eval_answers_a_file_of_questions_about_a_recording(vlm, small_env, tmp_path):
+    """``--eval.dataset FILE.jsonl``: rows with a question, a scene (a recording's path relative
+    to the file) and, optionally, the reference answer; a row without one is run, not graded."""
+    server = vlm()
+    folder = tmp_path / "walks"
+    with WalkRecorder(folder / "walk.mcap", labels=small_env.scene_labels()) as recorder:
+        for obs in _walk(small_env, 5):
+            recorder.add(obs)
+    questions = folder / "questions.jsonl"
+    questions.write_text(json.dumps({"question": QUESTION, "answer": "white",
+                                     "scene": "recorded:walk.mcap", "id": "bed"}) + "\n"
+                         + json.dumps({"question": "Is there a sofa?",
+                                       "scene": "recorded:walk.mcap"}) + "\n")
+    env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
+    run = _cli("eval", "--eval.dataset", str(questions), "--eval.judge", "none",
+               "--backends.vlm", f"openai:test-vlm@{server.base_url}", "--backends.relevancy",
+               "overlap", "--explore.matching", "words", "--out", str(tmp_path / "run"), env=env)
+    assert run.returncode == 0, run.stdout + run.stderr
+    rows = [json.loads(line) for line in (tmp_path / "run" / "episodes.jsonl").read_text()
+            .splitlines()]
+    assert [r["id"] for r in rows] == ["bed", "questions/001"]
+    assert all(r["status"] == "done" and r["scene"] == f"recorded:{folder / 'walk.mcap'}"
+               for r in rows)
+    assert all(r["budget"] == 5 and r["stop_reason"] in ("ended", "relevancy") for r in rows)
+    assert rows[0]["reference"] == "white" and rows[1]["reference"] == ""
+    assert all(r["backends"]["environment"] == "recorded (mcap)" for r in rows)
+
+
+def test_a_question_without_a_reference_is_run_and_not_graded(tmp_path):
+    from efficienteqa.datasets import load_dataset
+    from efficienteqa.eval.methods import RunSpec
+    from efficienteqa.eval.runner import _judge
+
+    questions = tmp_path / "q.jsonl"
+    questions.write_text('{"question": "Is the stove on?", "scene": "recorded:w.mcap"}\n'
+                         '{"question": "Where is the cat?", "scene": "recorded:/abs/w.mcap", '
+                         '"answer": "on the sofa", "id": "cat"}\n')
+    first, second = load_dataset(str(questions))
+    assert (first.id, first.scene, first.answer) == ("q/000", f"recorded:{tmp_path / 'w.mcap'}", "")
+    assert (second.id, second.scene, second.answer) == ("cat", "recorded:/abs/w.mcap", "on the sofa")
+    # A judge that cannot be built: grading the row without a reference would fail.
+    spec = RunSpec("efficienteqa", str(questions), judge="openai:no-such-model@http://127.0.0.1:9/v1")
+    assert _judge(spec, first, "yes") is None
+    for text, message in (("{}", "needs a question and a scene"), ("nope", "is not JSON"),
+                          ('{"question": "a?", "scene": "recorded:w.mcap", "id": "x"}\n' * 2,
+                           "id 'x' is used twice")):
+        questions.write_text(text)
+        with pytest.raises(EfficientEQAError, match=message):
+            load_dataset(str(questions))
