@@ -524,3 +524,20 @@ def test_a_question_without_a_reference_is_run_and_not_graded(tmp_path):
         questions.write_text(text)
         with pytest.raises(EfficientEQAError, match=message):
             load_dataset(str(questions))
+
+
+def test_rooms_of_any_shape_hold_their_floor_points_edges_included():
+    from efficienteqa.envs.recorded.labels import RecordedLabels
+
+    l_shape = [(0, 0), (4, 0), (4, 2), (2, 2), (2, 4), (0, 4)]
+    labels = RecordedLabels.from_json({"format": "efficienteqa-labels/1", "objects": [], "rooms": [
+        {"name": "hall", "polygon": l_shape}, {"name": "study", "polygon": [(2, 2), (4, 2), (4, 4),
+                                                                           (2, 4)]}]}, "test")
+    assert [labels.room_at(x, y) for x, y in ((1, 3), (3, 1), (3, 3), (5, 1), (-0.1, 1))] == [
+        "hall", "hall", "study", None, None]
+    assert labels.room_at(2, 3) == "hall" and labels.room_at(0, 0) == "hall"  # edges: the first
+    assert labels.room_at(4, 3) == "study" and labels.room_at(3, 4) == "study"
+    assert labels.rooms()[0] == ("hall", [(float(x), float(y)) for x, y in l_shape])
+    with pytest.raises(EfficientEQAError, match="cannot read the object labels of test"):
+        RecordedLabels.from_json({"format": "efficienteqa-labels/1", "rooms": [
+            {"name": "x", "polygon": [(0, 0), (1, 1)]}]}, "test")

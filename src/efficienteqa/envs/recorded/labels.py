@@ -17,10 +17,8 @@ recording has neither and is read with the pixel or image perceptions.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
-
-import numpy as np
 
 from efficienteqa.envs.base import DoorSides, ObjectLabel, SceneLabels
 from efficienteqa.errors import EfficientEQAError
@@ -28,12 +26,19 @@ from efficienteqa.errors import EfficientEQAError
 LABELS_FORMAT = "efficienteqa-labels/1"
 
 
-def _inside(polygon: np.ndarray, x: float, y: float) -> bool:
-    """Whether (x, y) lies in the polygon or on its edges. An axis-aligned box (the synthetic
-    houses' rooms) is tested as a box, exactly."""
-    xs, ys = polygon[:, 0], polygon[:, 1]
-    if len(polygon) == 4 and len(set(xs.tolist())) == 2 and len(set(ys.tolist())) == 2:
-        return bool(xs.min() <= x <= xs.max() and ys.min() <= y <= ys.max())
+Point = tuple[float, float]
+
+
+def _box(polygon: list[Point]) -> tuple[float, float, float, float] | None:
+    """(x0, y0, x1, y1) of an axis-aligned box (the synthetic houses' rooms), else None."""
+    xs, ys = {x for x, _ in polygon}, {y for _, y in polygon}
+    if len(polygon) != 4 or len(xs) != 2 or len(ys) != 2:
+        return None
+    return min(xs), min(ys), max(xs), max(ys)
+
+
+def _inside(polygon: list[Point], x: float, y: float) -> bool:
+    """Whether (x, y) lies in the polygon or on its edges (even-odd rule)."""
     inside = False
     n = len(polygon)
     for k in range(n):
@@ -51,16 +56,22 @@ class RecordedLabels:
     """``SceneLabels`` read back from a recording."""
 
     def __init__(self, objects: Mapping[int, ObjectLabel],
-                 rooms: Iterable[tuple[str, np.ndarray]] = ()) -> None:
+                 rooms: Iterable[tuple[str, Sequence[Sequence[float]]]] = ()) -> None:
         self._objects = dict(objects)
-        self._rooms = [(name, np.asarray(p, dtype=np.float64)) for name, p in rooms]
+        self._rooms = [(name, [(float(p[0]), float(p[1])) for p in polygon])
+                       for name, polygon in rooms]
+        self._boxes = [(name, _box(polygon)) for name, polygon in self._rooms]
 
     def label(self, instance_id: int) -> ObjectLabel | None:
         return self._objects.get(int(instance_id))
 
     def room_at(self, x: float, y: float) -> str | None:
-        for name, polygon in self._rooms:
-            if _inside(polygon, x, y):
+        """The first room whose polygon holds (x, y), edges included (a box: tested exactly)."""
+        for (name, box), (_, polygon) in zip(self._boxes, self._rooms):
+            if box is not None:
+                if box[0] <= x <= box[2] and box[1] <= y <= box[3]:
+                    return name
+            elif _inside(polygon, x, y):
                 return name
         return None
 
@@ -71,8 +82,8 @@ class RecordedLabels:
     def objects(self) -> dict[int, ObjectLabel]:
         return dict(self._objects)
 
-    def rooms(self) -> list[tuple[str, list[tuple[float, float]]]]:
-        return [(name, [(float(x), float(y)) for x, y in p]) for name, p in self._rooms]
+    def rooms(self) -> list[tuple[str, list[Point]]]:
+        return [(name, list(polygon)) for name, polygon in self._rooms]
 
     @classmethod
     def from_json(cls, data: Any, source: str) -> RecordedLabels:
@@ -91,8 +102,8 @@ class RecordedLabels:
                                                     o.get("state"), o.get("room"), sides)
             rooms = []
             for r in data.get("rooms") or []:
-                polygon = np.asarray(r["polygon"], dtype=np.float64)
-                if polygon.ndim != 2 or polygon.shape[1] != 2 or len(polygon) < 3:
+                polygon = [(float(x), float(y)) for x, y in r["polygon"]]
+                if len(polygon) < 3:
                     raise ValueError(f"room {r.get('name')!r} has no polygon of 3 or more points")
                 rooms.append((str(r["name"]), polygon))
         except (KeyError, TypeError, ValueError, IndexError) as error:
