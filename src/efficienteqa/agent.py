@@ -95,9 +95,13 @@ class AgentConfig:
 
     def budget(self, env: Environment) -> int | None:
         """The step budget an evaluation gives an episode in ``env``: ``max_steps``, or the
-        scene's (``stop.env_step_budget``); None where the environment knows no floor area (a
-        robot, a recording): the agent then budgets by the floor it has seen."""
+        scene's (``stop.env_step_budget``); for a recording, its length (or ``max_steps`` when
+        fewer); None where the environment knows no floor area (a robot): the agent then
+        budgets by the floor it has seen."""
         steps = self.explore.max_steps
+        if is_recording(env):
+            length: int = env.length  # type: ignore[attr-defined]
+            return min(steps, length) if steps is not None else length
         return steps if steps is not None else env_step_budget(env)
 
 

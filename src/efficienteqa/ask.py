@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
+from efficienteqa.envs.base import Environment, SceneLabels, is_recording
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.errors import EfficientEQAError
@@ -54,7 +55,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         on_step: StepHook | None = None, model: ChatModel | None = None,
         relevancy: RelevancyScorer | None = None, assets: str = DEFAULT_ASSETS,
         report: bool = True, known_as: str | None = None,
-        rerun: str | Path | RerunLog | None = None) -> AskResult:
+        rerun: str | Path | RerunLog | None = None, record: Path | None = None,
+        record_depth: str = "32FC1") -> AskResult:
     """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
     ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``
     (left open for the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests
@@ -62,13 +64,20 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
     re-phrases (the paraphrase split), whose evidence and reference the record then carries.
     ``rerun``: also log the episode to rerun (``report.rerun_log``): a ``.rrd`` file, ``live``
     (a viewer spawned here), or a ``RerunLog`` made beforehand; finished and closed here, also
-    when the episode fails (the recording then holds the steps done)."""
+    when the episode fails (the recording then holds the steps done).
+    ``record``: write the episode's frames there as a recorded walk (``envs.recorded.write``:
+    an .mcap file, else a folder; depth as ``record_depth``, 32FC1 or 16UC1), with the scene's
+    labels where it has them, for ``recorded:PATH`` to replay."""
+    from efficienteqa.envs.recorded.write import check_record_path
+
+    if record is not None:
+        check_record_path(record, record_depth)  # before the scene is built
     stack, config = stack or Stack(), config or AgentConfig()
     shown = (RerunLog.of(rerun, question, config)
              if rerun is not None and not isinstance(rerun, RerunLog) else rerun)
     try:
         return _ask(question, scene, out, stack, config, start, on_step, model, relevancy,
-                    assets, report, known_as, shown)
+                    assets, report, known_as, shown, record, record_depth)
     finally:
         if shown is not None:
             shown.close()  # a no-op after finish
@@ -77,9 +86,15 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
 def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: AgentConfig,
          start: Pose2D | None, on_step: StepHook | None, model: ChatModel | None,
          relevancy: RelevancyScorer | None, assets: str, report: bool, known_as: str | None,
-         shown: RerunLog | None) -> AskResult:
+         shown: RerunLog | None, record: Path | None, record_depth: str) -> AskResult:
+    from efficienteqa.envs.recorded.write import WalkRecorder
+
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
+    recorder: WalkRecorder | None = None
     try:
+        if start is not None and is_recording(opened.env):
+            raise EfficientEQAError("a recorded walk starts where it was recorded",
+                                    fix="leave out --start")
         navigable = getattr(opened.env, "is_navigable", None)  # a simulated scene's truth
         if start is not None and navigable is not None and not navigable(start.x, start.y):
             raise EfficientEQAError(f"the start ({start.x:g}, {start.y:g}) is not on the floor "
@@ -96,16 +111,21 @@ def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: Age
         watch = EvidenceWatch(truth.evidence if truth is not None else None)
 
         steps: list[StepRecord] = []
+        if record is not None:
+            recorder = WalkRecorder(record, labels=scene_labels(opened.env),
+                                    depth_encoding=record_depth)
 
-        def hook(record: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
-            steps.append(record)
-            watch(record, obs, out_step)
+        def hook(step: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
+            if recorder is not None:
+                recorder.add(obs)
+            steps.append(step)
+            watch(step, obs, out_step)
             if report:
-                frames(record, obs, out_step)
+                frames(step, obs, out_step)
             if shown is not None:
-                shown(record, obs, out_step)
+                shown(step, obs, out_step)
             if on_step is not None:
-                on_step(record, obs, out_step)
+                on_step(step, obs, out_step)
 
         try:
             result = built.agent.run(opened.env, question, start=start, on_step=hook,
@@ -127,16 +147,29 @@ def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: Age
         stop_step = (last.check.tested_step or last.step
                      if result.stop_reason == "relevancy" and last is not None
                      and last.check is not None else None)
-        record = episode_record(result, config=config, backends=built.backends,
-                                scene=opened.name, exchanges=built.model.exchanges,
-                                reference=reference,
-                                evidence=watch.fields(result.retrieved, stop_step))
-        episode_json = write_json(out / "episode.json", record)
+        episode = episode_record(result, config=config, backends=built.backends,
+                                 scene=opened.name, exchanges=built.model.exchanges,
+                                 reference=reference,
+                                 evidence=watch.fields(result.retrieved, stop_step))
+        episode_json = write_json(out / "episode.json", episode)
         if shown is not None:
             shown.finish(result)
-        html = (write_report(out / "report.html", record, map_url(result), frames.frames,
+        html = (write_report(out / "report.html", episode, map_url(result), frames.frames,
                              frames.descriptions) if report else None)
-        return AskResult(result, record, episode_json, html)
+        return AskResult(result, episode, episode_json, html)
     finally:
+        if recorder is not None:
+            recorder.close()
         if isinstance(scene, str):
             opened.env.close()
+
+
+def scene_labels(env: Environment) -> SceneLabels | None:
+    """The environment's semantic sensor, where it has one."""
+    labels = getattr(env, "scene_labels", None)
+    if labels is None:
+        return None
+    try:
+        return labels()
+    except EfficientEQAError:  # a recording without labels
+        return None

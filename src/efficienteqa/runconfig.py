@@ -74,7 +74,8 @@ class EvalConfig:
                        "| blind | frontier-only | random | module:function.")
     dataset: str = knob(DEFAULT_DATASET, help="synthetic (the fixed split) | "
                         "synthetic-paraphrase (its first 48 re-phrased) | synthetic:SEEDS (e.g. "
-                        "synthetic:0-9) | hm-eqa.")
+                        "synthetic:0-9) | hm-eqa | FILE.jsonl (your own questions, each with its "
+                        "scene, e.g. recorded:walk.mcap).")
     hm_eqa_path: Path | None = knob(None, help="Folder with HM-EQA's questions.csv and "
                                     "scene_init_poses.csv (default: downloaded).")
     limit: int | None = knob(None, help="Only the first N questions of the dataset.")
@@ -83,7 +84,7 @@ class EvalConfig:
     judge: str | None = knob(None, help="The LLM-Match judge (a VLM spec), or rule / none for "
                              "no model (synthetic questions are always graded by the rule judge "
                              "too). Default: rule for synthetic datasets, the local model for "
-                             "hm-eqa.")
+                             "the others (questions without a reference answer are not graded).")
     judge_mode: str | None = knob(None, help="grade (1-5 by the project's rubric) | yes-prob (1 "
                                   "+ 4 P(yes) for 'same answer?') | openeqa (OpenEQA's LLM-Match "
                                   "protocol; the paper preset's) | auto (default: yes-prob for "

@@ -64,11 +64,13 @@ def write_scene(seed: int, out: Path, assets: str = DEFAULT_ASSETS, cc_by: bool 
 @dataclass
 class Scene:
     """An opened scene: the environment, its name for records, and its known questions (the
-    generated ones of a synthetic house; none for HM3D scenes)."""
+    generated ones of a synthetic house; none for HM3D scenes and recorded walks). ``note``: one
+    line on what opening it found (a recording's frames, and those dropped)."""
 
     env: Environment
     name: str
     questions: list[Question] = field(default_factory=list)
+    note: str = ""
 
     @property
     def backend(self) -> str:
@@ -91,13 +93,21 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
     ``hm3d:SCENE`` with ``env="habitat"`` -> the HM3D scene under ``hm3d_root`` in Habitat-Sim,
     starting at ``start`` (HM-EQA's pose for the question);
     ``ros2`` or ``ros2:PARAMS.toml`` -> the robot on the live ROS 2 graph, with the parameters
-    of the TOML file (``envs.ros2.params``) or the defaults; it has no questions."""
+    of the TOML file (``envs.ros2.params``) or the defaults; it has no questions;
+    ``recorded:PATH`` -> a recorded walk (an .mcap file as ROS 2 records one, or a walk folder;
+    ``envs.recorded``), whatever ``env`` names: a recording needs no simulator."""
     kind, _, arg = spec.partition(":")
     if env not in ENVS:
         raise EfficientEQAError(f"unknown environment {env!r}", fix=f"use one of {', '.join(ENVS)}")
     if noise != "none" and kind != "synthetic":
         raise EfficientEQAError(f"noise profile {noise!r} is for the synthetic houses, not "
                                 f"{spec!r}", fix="leave out --scene.noise")
+    if kind == "recorded":
+        from efficienteqa.envs.recorded import open_recording
+
+        walk = open_recording(arg)
+        fmt = "mcap" if walk.source.name.lower().endswith(".mcap") else "folder"
+        return Scene(walk, f"recorded:{arg} ({fmt})", note=walk.note)
     if kind == "hm3d":
         if env != "habitat" or hm3d_root is None:
             raise EfficientEQAError(f"scene {spec!r} needs Habitat-Sim and the HM3D scenes",
@@ -114,8 +124,9 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
         return Scene(open_ros2(arg or None), f"ros2:{Path(arg).name}" if arg else "ros2")
     if kind != "synthetic":
         raise EfficientEQAError(f"unknown scene {spec!r}",
-                                fix="use synthetic:SEED, hm3d:SCENE with --env habitat, or "
-                                    "ros2[:PARAMS.toml] (a live robot)")
+                                fix="use synthetic:SEED, recorded:FILE.mcap, recorded:FOLDER, "
+                                    "hm3d:SCENE with --env habitat, or ros2[:PARAMS.toml] (a "
+                                    "live robot)")
     if env != "synthetic":
         raise EfficientEQAError(f"scene {spec!r} is a generated house, not a Habitat scene",
                                 fix="run synthetic scenes with --env synthetic (the default)")

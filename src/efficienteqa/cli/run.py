@@ -47,8 +47,10 @@ def ask_command(
     run: Resolved,
     question: str | None = typer.Argument(None, help="The question, in free text (or --episode)."),
     scene: str = typer.Option("synthetic:0", help="synthetic:SEED (a generated house), "
-                              "hm3d:SCENE (with --scene.env habitat) or ros2[:PARAMS.toml] (a "
-                              "live robot on ROS 2 with Nav2).", rich_help_panel="Question"),
+                              "recorded:WALK.mcap or recorded:FOLDER (a recorded walk, read in "
+                              "order), hm3d:SCENE (with --scene.env habitat) or "
+                              "ros2[:PARAMS.toml] (a live robot on ROS 2 with Nav2).",
+                              rich_help_panel="Question"),
     episode: str | None = typer.Option(None, help="Ask question ID (or row N) of --eval.dataset, "
                                        "in its scene, from its start pose.",
                                        rich_help_panel="Question"),
@@ -60,12 +62,17 @@ def ask_command(
                                      "open with `rerun FILE.rrd`, or live (spawn the viewer "
                                      "here; needs a screen). Needs the rerun extra.",
                                      rich_help_panel="Output"),
+    record: Path | None = typer.Option(None, help="Also write the episode's frames as a recorded "
+                                       "walk: FILE.mcap (ROS 2 topics and TF) or a FOLDER; "
+                                       "replay it with --scene recorded:FILE.mcap.",
+                                       rich_help_panel="Output"),
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from efficienteqa.agent import StepRecord
     from efficienteqa.ask import ask
+    from efficienteqa.envs.base import is_recording
     from efficienteqa.envs.habitat.scenes import HabitatStart
     from efficienteqa.records import check_writable
     from efficienteqa.scenes import open_scene
@@ -77,6 +84,10 @@ def ask_command(
     _check_backends(run)
     start_pose, habitat_start, reference, known_as = _parse_start(start), None, None, None
     check_writable(out)  # before the episode, not after it
+    if record is not None:
+        from efficienteqa.envs.recorded.write import check_record_path
+
+        check_record_path(record)
     if episode is not None:
         from efficienteqa.datasets import find_question, load_dataset
 
@@ -85,6 +96,9 @@ def ask_command(
         question, scene, reference, known_as = q.question, q.scene, q.answer, q.original_question
         habitat_start = HabitatStart.from_source(q.source)
         start_pose = start_pose or (Pose2D(*q.start) if q.start is not None else None)
+    if start_pose is not None and scene.startswith("recorded:"):
+        raise EfficientEQAError("a recorded walk starts where it was recorded",
+                                fix="leave out --start")
     if not question:
         raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
                                 'the sofa?", or --episode ID with --dataset')
@@ -96,11 +110,14 @@ def ask_command(
         opened = open_scene(scene, r.scene.assets, env=r.scene.env, hm3d_root=r.scene.hm3d_root,
                             noise=r.scene.noise,
                             start=habitat_start)
+    if opened.note:
+        console.print(opened.note, highlight=False, soft_wrap=True)
     try:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
         with Progress(*columns, console=console) as progress:
-            task = progress.add_task("exploring", total=r.agent.budget(opened.env), info="")
+            what = "reading frames" if is_recording(opened.env) else "exploring"
+            task = progress.add_task(what, total=r.agent.budget(opened.env), info="")
 
             def on_step(record: StepRecord, *_: object) -> None:
                 c = record.check
@@ -109,7 +126,8 @@ def ask_command(
                 progress.update(task, completed=record.step, info=info)
 
             done = ask(question, opened, out, stack=r.backends, config=r.agent,
-                       start=start_pose, on_step=on_step, known_as=known_as, rerun=rerun)
+                       start=start_pose, on_step=on_step, known_as=known_as, rerun=rerun,
+                       record=record)
     finally:
         opened.env.close()
     result, rec = done.result, done.record
@@ -132,6 +150,9 @@ def ask_command(
         soft_wrap=True)
     if rerun is not None and rerun != "live":
         say(f"rerun:   {rerun}   (open it: rerun {rerun})", highlight=False, soft_wrap=True)
+    if record is not None:
+        say(f"recorded: {record} (replay: --scene recorded:{record})", highlight=False,
+            soft_wrap=True)
 
 
 def _judge_mode(mode: str | None, judge: str) -> str:

@@ -6,6 +6,8 @@
 - ``synthetic:SEEDS``: the questions of any houses ("synthetic:3", "synthetic:0-9",
   "synthetic:1,4,7"), generated live once and cached.
 - ``hm-eqa``: ExploreEQA's HM-EQA questions (open-vocabulary; ``closed_set`` for the A-D mode).
+- ``FILE.jsonl``: your own questions, each with its scene (e.g. a recorded walk;
+  ``questions_file``).
 """
 
 from __future__ import annotations
@@ -21,8 +23,11 @@ DATASETS = {
     "synthetic-paraphrase": "the main table's 48 questions re-phrased by hand (same episodes)",
     "synthetic:SEEDS": "live questions of any houses: synthetic:3, synthetic:0-9, synthetic:1,4,7",
     "hm-eqa": "HM-EQA (500 questions on HM3D; needs the Habitat back-end to run)",
+    "FILE.jsonl": "your own questions, one JSON line each: question, scene (recorded:WALK.mcap), "
+                  "answer (optional)",
 }
-_FIX = "use one of: synthetic, synthetic-paraphrase, synthetic:3, synthetic:0-9, synthetic:1,4,7, hm-eqa"
+_FIX = ("use one of: synthetic, synthetic-paraphrase, synthetic:3, synthetic:0-9, synthetic:1,4,7, "
+        "hm-eqa, or a FILE.jsonl of questions")
 
 __all__ = ["DATASETS", "EvalQuestion", "find_question", "load_dataset"]
 
@@ -39,6 +44,13 @@ def load_dataset(name: str, *, path: Path | None = None, limit: int | None = Non
     if limit is not None and limit < 0:
         raise EfficientEQAError(f"limit must be >= 0, got {limit}", fix="pass --limit N with N >= 0")
     kind, colon, arg = name.strip().partition(":")
+    from efficienteqa.datasets.questions_file import is_questions_file, load_questions_file
+
+    if is_questions_file(name):
+        if closed_set:
+            raise EfficientEQAError(f"dataset {name!r} has no closed-set mode", fix="use hm-eqa")
+        questions = load_questions_file(Path(name.strip()))
+        return questions if limit is None else questions[:limit]
     if closed_set and kind != "hm-eqa":
         raise EfficientEQAError(f"dataset {name!r} has no closed-set mode", fix="use hm-eqa")
     if kind == "hm-eqa" and not colon:

@@ -85,7 +85,9 @@ def _choice(q: EvalQuestion, extra: dict[str, Any]) -> dict[str, Any] | None:
 
 
 def _judge(spec: RunSpec, q: EvalQuestion, answer: str) -> dict[str, Any] | None:
-    if spec.judge is None:
+    """LLM-Match's judgement, where there is a judge and a reference answer to grade against
+    (a question of your own may have none: it is run, not graded)."""
+    if spec.judge is None or not q.answer.strip():
         return None
     judge = build_judge(spec.judge, spec.judge_mode)
     return judge.judge(q.question, q.answer, answer, extra=q.alternatives).to_dict()
@@ -223,10 +225,18 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
 
             import_habitat_sim()
             check_root(spec.hm3d_root)
-        unknown = sorted(kinds - {"synthetic", "hm3d"})
+        unknown = sorted(kinds - {"synthetic", "hm3d", "recorded"})
         if unknown:
             raise EfficientEQAError(f"no environment back-end opens {', '.join(unknown)} scenes",
                                     fix="use --dataset synthetic or hm-eqa")
+        from efficienteqa.envs.recorded import parse_spec
+
+        for scene in sorted({q.scene for q in todo if q.scene.startswith("recorded:")}):
+            path = parse_spec(scene.partition(":")[2])[0]
+            if not path.exists():
+                raise EfficientEQAError(f"recording {path} of {spec.dataset} does not exist",
+                                        fix="give recordings' paths relative to the questions "
+                                            "file, or absolute")
     from efficienteqa.eval.methods import method_config
     from efficienteqa.models.backends import build_chat_model
     from efficienteqa.stack import parse_vlm

@@ -55,6 +55,10 @@ class HabitatLabels:
     def room_at(self, x: float, y: float) -> str | None:
         return None  # HM3D-Semantics has no room names
 
+    def objects(self) -> dict[int, ObjectLabel]:
+        """Every object's label by instance id (what a recording of the scene carries)."""
+        return dict(self._labels)
+
     def instance_buffer(self, semantic: np.ndarray) -> np.ndarray:
         """The raw semantic sensor image -> canonical instance ids (int32, 0 = structure)."""
         raw = np.asarray(semantic).astype(np.int64)

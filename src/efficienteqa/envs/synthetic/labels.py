@@ -37,3 +37,12 @@ class HouseLabels:
     def room_at(self, x: float, y: float) -> str | None:
         room = self._layout.room_at(x, y)
         return room.name if room is not None else None
+
+    def objects(self) -> dict[int, ObjectLabel]:
+        """Every object's label by instance id (what a recording of the house carries)."""
+        return dict(self._labels)
+
+    def rooms(self) -> list[tuple[str, list[tuple[float, float]]]]:
+        """Each room's name and floor polygon (its wall centre lines), in ``room_at``'s order."""
+        return [(r.name, [(r.x0, r.y0), (r.x1, r.y0), (r.x1, r.y1), (r.x0, r.y1)])
+                for r in self._layout.rooms]

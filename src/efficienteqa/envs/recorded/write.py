@@ -1,0 +1,209 @@
+"""Write an episode's frames as a recorded walk: an MCAP file as ROS 2 records one, or a folder.
+
+``WalkRecorder(path)`` is a step hook (``agent.StepHook``): each step's frame is written as it
+is read, with the time it was read as its stamp. In an MCAP file (``path`` ending in .mcap),
+one message per step on each of:
+
+==========================================  =================================================
+``/camera/color/image_raw``                 sensor_msgs/msg/Image, rgb8
+``/camera/aligned_depth_to_color/image_raw`` sensor_msgs/msg/Image, 32FC1 metres (exact) or
+                                            16UC1 millimetres (``depth_encoding``)
+``/camera/color/camera_info``               sensor_msgs/msg/CameraInfo (K in OpenCV's convention)
+``/tf``                                     tf2_msgs/msg/TFMessage: ``map`` ->
+                                            ``camera_color_optical_frame``
+``/efficienteqa/instance``                  sensor_msgs/msg/Image, 32SC1 instance ids (only
+                                            where the environment has an instance sensor)
+==========================================  =================================================
+
+and, at the end, one ``/efficienteqa/labels`` (std_msgs/msg/String, ``labels.LABELS_FORMAT``
+JSON) where the environment has a semantic sensor. Any other path is a folder in
+``folder``'s layout. Both read back with ``open_recording``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+from PIL import Image
+
+from efficienteqa.envs.base import SceneLabels
+from efficienteqa.envs.recorded import rosmsg
+from efficienteqa.envs.recorded.folder import LABELS_FILE, POSES_FILE
+from efficienteqa.envs.recorded.labels import labels_json
+from efficienteqa.envs.recorded.rosbag import INSTANCE_TOPIC, LABELS_TOPIC, require_mcap
+from efficienteqa.envs.recorded.tf import quaternion_of
+from efficienteqa.envs.recorded.walk import opencv_intrinsics
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.observation import Observation
+
+COLOUR_TOPIC = "/camera/color/image_raw"
+DEPTH_TOPIC = "/camera/aligned_depth_to_color/image_raw"
+INFO_TOPIC = "/camera/color/camera_info"
+TF_TOPIC = "/tf"
+WORLD_FRAME = "map"
+CAMERA_FRAME = "camera_color_optical_frame"
+DEPTH_ENCODINGS = ("32FC1", "16UC1")
+MAX_MM = 65535  # 16UC1: deeper than 65.535 m is written as no depth
+
+
+def is_mcap(path: Path) -> bool:
+    return path.suffix.lower() == ".mcap"
+
+
+def check_record_path(path: Path, depth_encoding: str = "32FC1") -> None:
+    """One line, before any work, when ``path`` cannot take a recording: it exists (a file, or
+    a folder that is not empty), its folder cannot be written, or MCAP is not installed."""
+    if depth_encoding not in DEPTH_ENCODINGS:
+        raise EfficientEQAError(f"unknown depth encoding {depth_encoding!r}",
+                                fix=f"use one of {', '.join(DEPTH_ENCODINGS)}")
+    if path.exists() and (path.is_file() or any(path.iterdir())):
+        raise EfficientEQAError(f"{path} exists; a recording is never written over",
+                                fix="remove it or give another path")
+    if is_mcap(path):
+        require_mcap()
+    parent = path.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise EfficientEQAError(f"cannot write to {parent}: {error.strerror or error}",
+                                fix="give another path") from None
+
+
+def depth_bytes(depth_m: np.ndarray, encoding: str) -> bytes:
+    if encoding == "16UC1":
+        mm = np.rint(depth_m.astype(np.float64) * 1000.0)
+        mm[(mm > MAX_MM) | ~np.isfinite(mm) | (mm < 0)] = 0
+        return mm.astype("<u2").tobytes()
+    return depth_m.astype("<f4").tobytes()
+
+
+class WalkRecorder:
+    """Writes frames to ``path`` (.mcap: ROS 2 MCAP; else a folder). ``labels``: the
+    environment's semantic sensor, written at the end; ``clock``: nanoseconds of each frame's
+    stamp (made strictly increasing)."""
+
+    def __init__(self, path: Path, *, labels: SceneLabels | None = None,
+                 depth_encoding: str = "32FC1", clock: Callable[[], int] = time.time_ns) -> None:
+        check_record_path(path, depth_encoding)
+        self.path, self.labels, self.depth_encoding, self.clock = path, labels, depth_encoding, clock
+        self.frames = 0
+        self._last = -1
+        self._seen: set[int] = set()
+        self._closed = False
+        if is_mcap(path):
+            from mcap_ros2.writer import Writer
+
+            self._stream: IO[bytes] | None = open(path, "wb")  # noqa: SIM115 - closed by close()
+            self._writer: Any = Writer(self._stream)
+            self._schemas = {name: self._writer.register_msgdef(name, text)
+                             for name, text in rosmsg.DEFINITIONS.items()}
+        else:
+            self._stream = None
+            for sub in ("rgb", "depth"):
+                (path / sub).mkdir(parents=True, exist_ok=True)
+            self._poses = open(path / POSES_FILE, "w")  # noqa: SIM115 - closed by close()
+
+    def __call__(self, record: object, obs: Observation, out: object = None) -> None:
+        """The step hook: writes the step's frame."""
+        self.add(obs)
+
+    def add(self, obs: Observation, stamp_ns: int | None = None) -> None:
+        stamp = self.clock() if stamp_ns is None else int(stamp_ns)
+        stamp = max(stamp, self._last + 1)
+        self._last = stamp
+        if obs.instance is not None:
+            self._seen.update(int(i) for i in np.unique(obs.instance) if i > 0)
+        if self._stream is not None:
+            self._mcap(obs, stamp)
+        else:
+            self._folder(obs, stamp)
+        self.frames += 1
+
+    def _mcap(self, obs: Observation, stamp: int) -> None:
+        h, w = obs.depth_m.shape
+        s, write = self._schemas, self._writer.write_message
+        head = rosmsg.header(stamp, CAMERA_FRAME)
+
+        def image(encoding: str, step: int, data: bytes) -> dict[str, Any]:
+            return {"header": head, "height": h, "width": w, "encoding": encoding,
+                    "is_bigendian": 0, "step": step, "data": data}
+
+        size = 4 if self.depth_encoding == "32FC1" else 2
+        write(COLOUR_TOPIC, s[rosmsg.IMAGE], image("rgb8", 3 * w,
+                                                   np.ascontiguousarray(obs.rgb).tobytes()),
+              log_time=stamp, publish_time=stamp)
+        write(DEPTH_TOPIC, s[rosmsg.IMAGE], image(self.depth_encoding, size * w,
+                                                  depth_bytes(obs.depth_m, self.depth_encoding)),
+              log_time=stamp, publish_time=stamp)
+        fx, fy, cx, cy = opencv_intrinsics(obs.intrinsics)
+        write(INFO_TOPIC, s[rosmsg.CAMERA_INFO], {
+            "header": head, "height": h, "width": w, "distortion_model": "plumb_bob",
+            "d": [0.0] * 5, "k": [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            "r": [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            "p": [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            "binning_x": 0, "binning_y": 0,
+            "roi": {"x_offset": 0, "y_offset": 0, "height": 0, "width": 0, "do_rectify": False}},
+              log_time=stamp, publish_time=stamp)
+        t, q = obs.cam_to_world[:3, 3], quaternion_of(obs.cam_to_world[:3, :3])
+        write(TF_TOPIC, s[rosmsg.TF_MESSAGE], {"transforms": [{
+            "header": rosmsg.header(stamp, WORLD_FRAME), "child_frame_id": CAMERA_FRAME,
+            "transform": {"translation": {"x": float(t[0]), "y": float(t[1]), "z": float(t[2])},
+                          "rotation": {"x": float(q[0]), "y": float(q[1]), "z": float(q[2]),
+                                       "w": float(q[3])}}}]},
+              log_time=stamp, publish_time=stamp)
+        if obs.instance is not None:
+            write(INSTANCE_TOPIC, s[rosmsg.IMAGE],
+                  image(rosmsg.INSTANCE_ENCODING, 4 * w, obs.instance.astype("<i4").tobytes()),
+                  log_time=stamp, publish_time=stamp)
+
+    def _folder(self, obs: Observation, stamp: int) -> None:
+        name = f"{self.frames:06d}"
+        Image.fromarray(np.ascontiguousarray(obs.rgb)).save(self.path / "rgb" / f"{name}.png",
+                                                            compress_level=1)
+        if self.depth_encoding == "16UC1":
+            depth = f"depth/{name}.png"
+            mm = np.frombuffer(depth_bytes(obs.depth_m, "16UC1"), "<u2").reshape(obs.depth_m.shape)
+            Image.fromarray(mm).save(self.path / depth, compress_level=1)
+        else:
+            depth = f"depth/{name}.npy"
+            np.save(self.path / depth, obs.depth_m.astype(np.float32))
+        fx, fy, cx, cy = opencv_intrinsics(obs.intrinsics)
+        row: dict[str, Any] = {"rgb": f"rgb/{name}.png", "depth": depth,
+                               "cam_to_world": obs.cam_to_world.tolist(),
+                               "fx": fx, "fy": fy, "cx": cx, "cy": cy, "stamp": stamp / 1e9}
+        if obs.instance is not None:
+            (self.path / "instance").mkdir(exist_ok=True)
+            row["instance"] = f"instance/{name}.npy"
+            np.save(self.path / row["instance"], obs.instance.astype(np.int32))
+        self._poses.write(json.dumps(row) + "\n")
+        self._poses.flush()
+
+    def close(self) -> None:
+        """Writes the labels and finishes the file (a walk cut short is still a walk)."""
+        if self._closed:
+            return
+        self._closed = True
+        labels = labels_json(self.labels, self._seen) if self.labels is not None else None
+        if self._stream is not None:
+            if labels is not None:
+                stamp = self._last + 1 if self._last >= 0 else self.clock()
+                self._writer.write_message(LABELS_TOPIC, self._schemas[rosmsg.STRING],
+                                           {"data": json.dumps(labels)}, log_time=stamp,
+                                           publish_time=stamp)
+            self._writer.finish()
+            self._stream.close()
+        else:
+            self._poses.close()
+            if labels is not None:
+                (self.path / LABELS_FILE).write_text(json.dumps(labels))
+
+    def __enter__(self) -> WalkRecorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
