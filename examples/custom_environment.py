@@ -4,7 +4,11 @@
     python examples/custom_environment.py --vlm openai:MODEL@http://127.0.0.1:8000/v1
 
 The agent reads observations (RGB, metric depth along the optical axis, intrinsics, a
-camera-to-world pose in OpenCV axes: x right, y down, z forward) and asks for poses. This file
+camera-to-world pose in OpenCV axes: x right, y down, z forward) and what each move did
+(``envs.base.move_info``: blocked, short, where it ended), and asks for poses. A robot's driver
+needs nothing else; ``is_navigable``, ``floor_area_m2`` and ``bounds`` below are a simulator's
+truth, which the evaluation reads (a start pose's check, the benchmark's step budget) and the
+agent never does. This file
 is a whole environment in plain numpy: one room, 6 m by 4 m with walls 2.5 m high, and a red box
 on the floor, ray-cast at every step. It has no object labels, so a vision-language model reads
 its frames (``--perception rgb``); relevancy is the VLM's own yes/no (``vlm-match``).
@@ -20,6 +24,7 @@ import numpy as np
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.ask import ask
+from efficienteqa.envs.base import move_info
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.observation import Observation
 from efficienteqa.scenes import Scene
@@ -45,10 +50,10 @@ class BoxRoom:
         return self.observe(), {}
 
     def step(self, action: Pose2D) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
-        refused = not self.is_navigable(action.x, action.y)
-        if not refused:
+        blocked = not self.is_navigable(action.x, action.y)
+        if not blocked:
             self.pose = action
-        return self.observe(), 0.0, False, False, {"refused": refused}
+        return self.observe(), 0.0, False, False, move_info(action, self.pose, blocked)
 
     def is_navigable(self, x: float, y: float) -> bool:
         margin = 0.25  # the robot's radius
