@@ -1,6 +1,8 @@
 """The llama.cpp server process: started detached on 127.0.0.1 for one model, known afterwards by
 its pid file (``cache_dir("server")/<model>.json``, log beside it), health-checked with
-``GET /v1/models``, stopped by its process id (SIGTERM, then SIGKILL)."""
+``GET /v1/models``, stopped by its process id (SIGTERM, then SIGKILL). A server started on
+demand (``ensure_server``) stops by itself once no process has used it for a while
+(``keeper``)."""
 
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from pathlib import Path
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.models.local import keeper
 from efficienteqa.models.local.runtime import ensure_llama_cpp
 from efficienteqa.models.local.weights import DEFAULT_MODEL, model_path
 
@@ -58,6 +61,11 @@ def _pid_file(name: str) -> Path:
 
 def _log_file(name: str) -> Path:
     return cache_dir("server") / f"{name}.log"
+
+
+def lease_file(name: str) -> Path:
+    """The lock file whose shared holders keep ``name``'s server up (``keeper``)."""
+    return cache_dir("server") / f"{name}.lease"
 
 
 # ---------------------------------------------------------------------------- processes
@@ -216,10 +224,11 @@ def _wait_healthy(info: ServerInfo, timeout_s: float, proc: subprocess.Popen | N
 
 
 def serve(name: str = DEFAULT_MODEL, port: int | None = None, threads: int = 2, ctx: int = 4096,
-          timeout_s: float = 180.0) -> ServerInfo:
+          timeout_s: float = 180.0, idle_s: float = 0.0) -> ServerInfo:
     """Start llama.cpp's OpenAI-compatible server for ``name`` on 127.0.0.1, detached, and wait
     until ``GET /v1/models`` answers; reuse a running server of the same model (on ``port``
-    when one is given). A lock file keeps concurrent callers from starting two."""
+    when one is given). A lock file keeps concurrent callers from starting two. ``idle_s`` > 0:
+    a server started here stops once unused that long (``keeper``); 0 keeps it."""
     model = model_path(name)
     with (cache_dir("server") / f"{name}.lock").open("w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
@@ -246,10 +255,26 @@ def serve(name: str = DEFAULT_MODEL, port: int | None = None, threads: int = 2, 
                           log=str(log), proc_start=_proc_start(proc.pid))
         _pid_file(name).write_text(json.dumps(asdict(info)))
         _wait_healthy(info, timeout_s, proc)
+        if idle_s > 0:
+            keeper = [sys.executable, "-m", "efficienteqa.models.local.keeper", name, str(idle_s)]
+            with _log_file(f"{name}.keeper").open("ab") as out:
+                subprocess.Popen(keeper, stdin=subprocess.DEVNULL, stdout=out,
+                                 stderr=subprocess.STDOUT, start_new_session=True, close_fds=True)
         return info
 
 
 def ensure_server(name: str = DEFAULT_MODEL) -> str:
     """The base URL (``http://127.0.0.1:PORT/v1``) of a healthy server for ``name``, starting one
-    when needed: what the default back-end calls."""
-    return serve(name).base_url
+    when needed: what the default back-end calls. This process holds the server's lease until
+    it exits, so the server cannot stop under it; a server started here stops by itself after
+    ``keeper.idle_seconds()`` unused, and says so in one line."""
+    idle_s = keeper.idle_seconds()
+    keeper.hold_lease(lease_file(name))
+    before = status(name)
+    info = serve(name, idle_s=idle_s)
+    if before is None or before.pid != info.pid:
+        after = (f"stops after {idle_s / 60:g} min unused" if idle_s > 0 else
+                 "keeps running")
+        print(f"efficienteqa: started the local model server for {name} on {HOST}:{info.port}; "
+              f"it {after} (efficienteqa models stop ends it now)", file=sys.stderr)
+    return info.base_url
