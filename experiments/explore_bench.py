@@ -109,6 +109,7 @@ def agent_config(args: argparse.Namespace) -> AgentConfig:
     its seed and the budget are set per episode)."""
     given = {"stop_clearance_m": args.stop_clearance, "refusal_retries": args.refusal_retries}
     return AgentConfig.of(exploration=args.exploration, prompts=args.prompts, steering="none",
+                       map_extent=args.map_extent,
                        **{k: v for k, v in given.items() if v is not None})
 
 
@@ -506,6 +507,9 @@ def main() -> None:
                         help="the frontier explorer's options beyond DESIGN 3.2: default, or "
                              "paper (every one off; with --stop-clearance 0 --refusal-retries 0 "
                              "--prompt paper: the paper preset)")
+    parser.add_argument("--map-extent", default="start", choices=["start", "scene"],
+                        help="the agent's map: around the start (what a robot can do) or over "
+                        "the house's box (runs before run format 4)")
     parser.add_argument("--noise", default="none", help="a robot's imperfections: a noise "
                         "profile of envs/synthetic/noise.py (none, robot, robot-depth, ...)")
     parser.add_argument("--out", default="out/bench")

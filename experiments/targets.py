@@ -56,7 +56,7 @@ def explore_rows(args: argparse.Namespace) -> list[dict[str, Any]]:
     whether its question names a room."""
     ns = argparse.Namespace(split=0, seeds=args.seeds, assets="sh3d", per_house=args.per_house,
                             stop_clearance=None, refusal_retries=None, exploration="default",
-                            prompts="default")
+                            prompts="default", map_extent="start", noise="none")
     rows: list[dict[str, Any]] = []
     for seed, env, budget, q in bench.steering_questions(ns):
         if len(rows) >= args.questions:
@@ -74,7 +74,7 @@ def location_rows(args: argparse.Namespace, skip: set[str]) -> list[dict[str, An
     """Rows of the location questions ("Where is the X?": no room named) of the same houses,
     beyond those already run (``skip``): up to ``--location`` of them, the houses in order."""
     ns = argparse.Namespace(stop_clearance=None, refusal_retries=None, exploration="default",
-                            prompts="default")
+                            prompts="default", map_extent="start")
     rows: list[dict[str, Any]] = []
     for seed in seed_set(args.seeds):
         if len(rows) >= args.location:
