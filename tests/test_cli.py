@@ -85,6 +85,19 @@ def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
         assert not (tmp_path / "out").exists()  # nothing was run
 
 
+@pytest.mark.parametrize("command", ["ask", "eval"])
+def test_relevancy_weights_that_do_not_exist_fail_at_once(command, tmp_path):
+    """Fault trial N.15: a traceback after 16 s of loading MiniLM; now one line before any
+    scene, model or output folder."""
+    question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
+    result = _run(command, *question, "--backends.relevancy", "minilm",
+                  "--backends.relevancy-weights", "/nonexistent", "--out", str(tmp_path / "out"))
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "relevancy weights '/nonexistent' are not a folder" in result.stdout
+    assert len(result.stdout.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
     """``--preset paper``: HM-EQA's first 100 in Habitat-Sim with GPT-4o at T = 1, BLIP-2 and
     Z_th 3; an option given on the command line wins. Without Habitat-Sim the run stops before
