@@ -149,6 +149,38 @@ def test_a_tiny_net_learns_and_its_weights_round_trip(data, tmp_path):
         load_weights(path)
 
 
+def test_weights_that_match_their_checksum_but_not_the_network_are_one_line(tmp_path):
+    """Fault trial N.5: a .pt and .json that agree on the sha256 but not on the network (other
+    widths or vocabulary in the .json, or bytes that are no state dict in the .pt) ended in
+    ``RuntimeError: size mismatch`` or ``UnpicklingError`` tracebacks."""
+    from efficienteqa.perception.pixels.net import metadata_path, sha256_of
+
+    vocab = build_vocabulary()
+    path = tmp_path / "pixels.pt"
+    json_path = save_weights(path, PixelNet(vocab, TINY), vocab, {})
+    meta = json.loads(json_path.read_text())
+
+    def broken(**changes):
+        json_path.write_text(json.dumps({**meta, "sha256": sha256_of(path), **changes}))
+        with pytest.raises(EfficientEQAError) as err:
+            load_weights(path)
+        assert "\n" not in str(err.value) and "Traceback" not in str(err.value)
+        return str(err.value)
+
+    assert "do not fit the network pixels.json describes: Error(s) in loading state_dict" in \
+        broken(widths=[4, 8, 8, 8, 16])
+    vocabulary = {**meta["vocabulary"], "colours": meta["vocabulary"]["colours"][:-1]}
+    assert "do not fit the network" in broken(vocabulary=vocabulary)
+    assert "widths must be whole numbers" in broken(widths=[4, 8, 8, 8, 10**9])
+    assert "widths must be whole numbers" in broken(widths=[4, 8, 8, 8, "8"])
+    assert "widths needs 5 numbers" in broken(widths=[4, 8])
+    path.write_bytes(np.random.default_rng(0).bytes(4096))
+    assert "do not fit the network" in broken()
+    torch.save([1, 2, 3], path)
+    assert "do not fit the network" in broken()
+    assert metadata_path(path) == json_path
+
+
 @needs_egl
 def test_train_writes_weights_and_validation_figures(data, tmp_path):
     out = tmp_path / "pixels.pt"
