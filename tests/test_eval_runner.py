@@ -329,6 +329,55 @@ def test_lines_that_are_not_an_episode_are_skipped_and_foreign_ones_left_out(tmp
     assert sorted(episodes.by_id) == ["toy/000", "toy/001"] and episodes.foreign == 1
 
 
+def test_lines_of_no_question_of_the_run_are_not_counted(tmp_path):
+    """Fault trial 1.11: valid lines whose id is none of the run's questions were counted:
+    the report said "3 of 2" and took its accuracy over them. run.json lists the run's
+    questions, every command's (a larger --limit adds its own), and only these count; the
+    others are skipped and said to be, as torn lines are."""
+    from efficienteqa.eval.records import RUN_FILE, read_run
+    from efficienteqa.eval.tables import read_summaries
+
+    run_eval(spec(), questions(2), tmp_path, prepare=False)
+    with (tmp_path / EPISODES_FILE).open("a") as f:
+        for row in ({"id": 5}, {"id": None}, {"id": "synthetic/99999/q0", "status": "done"},
+                    {"id": "toy/999", "method": "eval_stubs:echo", "status": "done"}):
+            f.write(json.dumps(row) + "\n")
+    _, episodes = read_run(tmp_path)
+    assert sorted(episodes.by_id) == ["toy/000", "toy/001"]
+    assert (episodes.torn, episodes.foreign) == (2, 2)
+    (summary,) = read_summaries([tmp_path])
+    assert (summary.n, summary.planned, summary.torn) == (2, 2, 4)
+    assert run_eval(spec(), questions(3), tmp_path, prepare=False).ran == 1  # --limit 3
+    run_eval(spec(), questions(1), tmp_path, prepare=False)  # --limit 1 forgets none
+    run = json.loads((tmp_path / RUN_FILE).read_text())
+    assert run["question_ids"] == ["toy/000", "toy/001", "toy/002"] and run["questions"] == 3
+    (summary,) = read_summaries([tmp_path])
+    assert (summary.n, summary.planned, summary.torn) == (3, 3, 4)
+
+
+def test_the_progress_bar_counts_only_the_questions_asked(tmp_path):
+    """Fault trial 1.11: a done line of another id counted as done before, so the bar of a
+    resumed run ended at "9/8"."""
+    import io
+
+    from rich.console import Console
+
+    from efficienteqa.cli.progress import eval_progress, say_failures
+
+    append_episode(tmp_path / EPISODES_FILE, {"id": "toy/000", "status": "done"})
+    append_episode(tmp_path / EPISODES_FILE, {"id": "synthetic/99999/q0", "status": "done"})
+    append_episode(tmp_path / EPISODES_FILE, {"id": "other", "status": "failed", "error": "E1"})
+    shown = io.StringIO()
+    console = Console(file=shown, width=100)
+    with eval_progress(console, "echo", ["toy/000", "toy/001"], tmp_path) as on_episode:
+        on_episode({"id": "toy/001", "status": "failed", "error": "E2"})
+    append_episode(tmp_path / EPISODES_FILE, {"id": "toy/001", "status": "failed", "error": "E2"})
+    say_failures(console, tmp_path, 1, ["toy/000", "toy/001"])
+    text = shown.getvalue()
+    assert "2/2" in text and "3/2" not in text
+    assert "1 x E2" in text and "E1" not in text
+
+
 def test_a_second_run_into_the_same_folder_fails_at_once(tmp_path):
     from efficienteqa.eval.records import run_lock
 

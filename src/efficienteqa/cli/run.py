@@ -239,7 +239,8 @@ def eval_command(
                    hm3d_root=str(r.scene.hm3d_root) if r.scene.hm3d_root is not None else None)
     from efficienteqa.cli.progress import eval_progress
 
-    with eval_progress(console, e.method, len(questions), out) as on_episode:
+    ids = [q.id for q in questions]
+    with eval_progress(console, e.method, ids, out) as on_episode:
         result = run_eval(spec, questions, out, workers=e.workers, address=e.address,
                           on_episode=on_episode)
     console.print(f"{result.ran} episodes run, {result.skipped} already done, {result.failed} "
@@ -250,7 +251,7 @@ def eval_command(
     if result.failed:  # a run with failed episodes is not a success (they resume on a re-run)
         from efficienteqa.cli.progress import say_failures
 
-        say_failures(console, out, result.failed)
+        say_failures(console, out, result.failed, ids)
         raise typer.Exit(1)
 
 

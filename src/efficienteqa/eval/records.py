@@ -73,7 +73,7 @@ class Episodes:
 
     by_id: dict[str, dict[str, Any]] = field(default_factory=dict)
     torn: int = 0  # unreadable lines (a run killed mid-write, or not an episode's line)
-    foreign: int = 0  # lines of another method (``read_run``), left out
+    foreign: int = 0  # lines of another method or of none of the run's questions (``read_run``)
 
     @property
     def done(self) -> set[str]:
@@ -146,7 +146,8 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
     method, dataset, configuration or back-end) is refused rather than mixed."""
     run_file = out / RUN_FILE
     if run_file.exists():
-        earlier = upgrade(_read_manifest(run_file))
+        recorded = _read_manifest(run_file)
+        earlier = upgrade(recorded)
         differs = [k for k in RUN_IDENTITY if _identity(k, earlier) != _identity(k, manifest)]
         differs += [k for k in SCENE_IDENTITY if k in earlier and earlier[k] != manifest.get(k)]
         if differs:
@@ -155,12 +156,27 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
                 f"{out} holds a run with another {', '.join(differs)}"
                 + (f" ({changed})" if changed else ""),
                 fix="use a new --out folder for a new configuration, or the run's own settings")
+        _add_questions(run_file, recorded, manifest.get("question_ids"))
     elif read_episodes(out / EPISODES_FILE).by_id:
         raise EfficientEQAError(f"{out} holds episodes but no {RUN_FILE}, so what ran them is "
                                 "unknown", fix="use a new --out folder")
     else:
         write_json(run_file, manifest)
     return read_episodes(out / EPISODES_FILE)
+
+
+def _add_questions(run_file: Path, recorded: dict[str, Any], ids: Any) -> None:
+    """A resumed run's question set grows by the questions of this command (a larger --limit):
+    ``run.json`` lists every question any command of the run asked (``question_ids``), and
+    their number (``questions``), so a report counts exactly these. A run recorded before
+    runs listed their questions keeps its run.json as it is: which questions its earlier
+    commands asked is not known."""
+    listed = recorded.get("question_ids")
+    if not isinstance(listed, list) or not isinstance(ids, list):
+        return
+    union = list(dict.fromkeys([*listed, *ids]))
+    if len(union) != len(listed):
+        write_json(run_file, {**recorded, "question_ids": union, "questions": len(union)})
 
 
 @contextmanager
@@ -315,15 +331,21 @@ def _set(value: Any) -> Any:
 
 
 def read_run(out: Path) -> tuple[dict[str, Any], Episodes]:
-    """A run folder for reports: its manifest and its episodes."""
+    """A run folder for reports: its manifest and its episodes, less the lines that are not
+    the run's (``Episodes.foreign``): another method's, and, where run.json lists the run's
+    questions (``question_ids``), those of no question it asked, which a report would
+    otherwise count as episodes ("9 of 8") and in its accuracy."""
     run_file = out / RUN_FILE
     if not run_file.exists():
         raise EfficientEQAError(f"{out} is not an evaluation run (no {RUN_FILE})",
                                 fix="pass folders written by `efficienteqa eval --out`")
     manifest = upgrade(_read_manifest(run_file))
     episodes = read_episodes(out / EPISODES_FILE)
-    for key, row in list(episodes.by_id.items()):  # lines another method's run appended
-        if row.get("method") not in (None, manifest.get("method")):
+    ids = manifest.get("question_ids")
+    asked = {i for i in ids if isinstance(i, str)} if isinstance(ids, list) else None
+    for key, row in list(episodes.by_id.items()):
+        if (row.get("method") not in (None, manifest.get("method"))
+                or (asked is not None and key not in asked)):
             del episodes.by_id[key]
             episodes.foreign += 1
     return manifest, episodes

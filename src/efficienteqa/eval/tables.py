@@ -222,7 +222,8 @@ def _intro(summaries: Sequence[RunSummary], stamp: bool) -> list[str]:
     torn = sum(s.torn for s in summaries)
     if torn:
         intro.append(f"{torn} line(s) in episodes.jsonl were skipped: unreadable (a run killed "
-                     "mid-write) or another method's; see the Runs tables.")
+                     "mid-write), another method's or of no question of the run; see the Runs "
+                     "tables.")
     if not summaries:
         intro.append("No runs were given.")
     return intro
