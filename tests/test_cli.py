@@ -198,6 +198,21 @@ def _stub_env():
     return {**os.environ, "PYTHONPATH": os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")])}
 
 
+@pytest.mark.parametrize("name", ["run.json", "episodes.jsonl"])
+def test_a_run_file_that_is_a_folder_is_one_line_before_the_work(name, tmp_path):
+    """Fault trial 2.16: ``IsADirectoryError`` tracebacks; now one line from eval and report."""
+    (tmp_path / "run" / name).mkdir(parents=True)
+    if name == "episodes.jsonl":
+        (tmp_path / "run" / "run.json").write_text("{}")  # a run for report to read
+    for args in (("eval", "--method", "eval_stubs:echo", "--limit", "1", "--judge", "none",
+                  "--out", str(tmp_path / "run")), ("report", str(tmp_path / "run"))):
+        result = _run(*args, env=_stub_env())
+        assert result.returncode == 1, result.stdout + result.stderr
+        assert f"{name}: Is a directory" in result.stdout, result.stdout
+        assert "Traceback" not in result.stdout + result.stderr
+        assert "episodes run" not in result.stdout
+
+
 def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(tmp_path):
     """``--preset paper-offline``: agent.PAPER_CONFIG with the VLM's semantic values on the
     synthetic questions and the default stack; tables name it as the committed paper row."""

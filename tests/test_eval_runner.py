@@ -409,6 +409,69 @@ def test_a_full_disk_is_one_line_and_a_short_write_is_finished(tmp_path, monkeyp
         append_episode(tmp_path / "e.jsonl", {"id": "b", "status": "done"})
 
 
+@pytest.mark.parametrize("name", ["run.json", EPISODES_FILE])
+def test_a_run_file_that_is_a_folder_is_one_line(tmp_path, name):
+    """Fault trial 2.16: ``IsADirectoryError`` tracebacks from eval and report."""
+    from efficienteqa.eval.records import read_run
+
+    run_eval(spec(), questions(1), tmp_path, prepare=False)
+    (tmp_path / name).unlink()
+    (tmp_path / name).mkdir()
+    for call in (lambda: run_eval(spec(), questions(2), tmp_path, prepare=False),
+                 lambda: read_run(tmp_path)):
+        with pytest.raises(EfficientEQAError, match=f"cannot read .*{name}: Is a directory"):
+            call()
+
+
+def _unwritable(monkeypatch, after: int = 0) -> None:
+    """``episodes.jsonl`` made unwritable (``chattr +i``) after ``after`` opens. Simulated:
+    these tests run as root, which a chmod does not stop, so the open raises as it would."""
+    import errno
+
+    from efficienteqa.eval import records
+
+    real, opens = records._open_for_append, []
+
+    def open_for_append(path):
+        opens.append(path)
+        if len(opens) > after:
+            raise PermissionError(errno.EPERM, "Operation not permitted")
+        return real(path)
+
+    monkeypatch.setattr(records, "_open_for_append", open_for_append)
+
+
+def test_an_unwritable_episodes_file_is_refused_before_any_episode(tmp_path, monkeypatch):
+    """Fault trial 2.16: an immutable episodes.jsonl on resume ran an episode, then lost its
+    result to a ``PermissionError`` traceback. The resume is refused before any episode."""
+    from efficienteqa.eval import runner
+
+    run_eval(spec(), questions(1), tmp_path, prepare=False)
+    _unwritable(monkeypatch)
+    ran = []
+    monkeypatch.setattr(runner, "run_episode", lambda *args: ran.append(args))
+    with pytest.raises(EfficientEQAError, match="cannot write .*episodes.jsonl: Operation not "
+                                                "permitted .make it writable"):
+        run_eval(spec(), questions(3), tmp_path, prepare=False)
+    assert not ran
+
+
+def test_a_line_that_cannot_be_written_names_its_episode_and_resumes(tmp_path, monkeypatch):
+    """Fault trial 2.16: episodes.jsonl made unwritable during a run. The episode whose line
+    could not be written is named in one line, and the same command runs it again."""
+    _unwritable(monkeypatch, after=1)  # toy/000's line is written, then no more
+    with pytest.raises(EfficientEQAError) as err:
+        run_eval(spec(), questions(3), tmp_path, prepare=False)
+    message = str(err.value)
+    assert "Operation not permitted; the result of episode toy/001 is not saved" in message
+    assert "the same command resumes the run" in message and "\n" not in message
+    assert [r["id"] for r in lines(tmp_path)] == ["toy/000"]
+    monkeypatch.undo()
+    again = run_eval(spec(), questions(3), tmp_path, prepare=False)
+    assert (again.ran, again.skipped) == (2, 1)
+    assert sorted(r["id"] for r in lines(tmp_path)) == [q.id for q in questions(3)]
+
+
 def test_a_run_resumes_with_another_timeout_or_retries_but_not_another_server(tmp_path):
     run_eval(spec(), questions(1), tmp_path, prepare=False)
     assert run_eval(spec(stack=Stack(timeout_s=5.0, retries=0)), questions(2), tmp_path,

@@ -283,16 +283,20 @@ def report_command(
         write_run_report,
     )
 
+    from efficienteqa.records import check_writable
+
     summaries = read_summaries(folders)
     reference = None if paired_against is None else read_summaries([paired_against])[0]
     differences = paired_differences(summaries, reference)
+    single = out is None and len(folders) == 1
+    target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
+    if not markdown:
+        check_writable(target)  # before any file is written
     for folder, summary, difference in zip(run_folders(folders), summaries, differences):
         publish_run(folder, summary, difference)
     if markdown:
         sys.stdout.write(markdown_table(summaries, differences))
         return
-    single = out is None and len(folders) == 1
-    target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
     md, page = write_run_report(summaries, target, stamp=not single)
     header, rows = overview_rows(summaries)
     table = Table()
