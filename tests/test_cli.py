@@ -6,6 +6,7 @@ import sys
 import pytest
 
 from conftest import needs_egl, needs_small_model
+from efficienteqa.errors import EfficientEQAError
 
 
 def _run(*args, env=None):
@@ -188,6 +189,56 @@ def test_an_unwritable_out_folder_fails_before_the_work(command, tmp_path):
     assert result.returncode == 1, result.stdout + result.stderr
     assert "cannot write to" in result.stdout and "Traceback" not in result.stdout + result.stderr
     assert "exploring" not in result.stdout
+
+
+def test_ask_does_not_replace_another_questions_episode_nor_run_beside_another(tmp_path):
+    """Fault trial N.11: two asks into one --out both succeeded and the folder kept only the
+    second. A folder that another ask holds is refused at once (its lock, as eval's), and one
+    that holds another question's episode unless --overwrite; the same question replaces its
+    own, and the default folder (out/ask) is a scratch folder each ask replaces. A bad seed
+    stops each run that gets past these checks, before any scene or model."""
+    from efficienteqa.eval.records import run_lock
+
+    def ask(*args):
+        result = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "ask", *args,
+                                 "--scene", "synthetic:x"], capture_output=True, text=True,
+                                cwd=tmp_path, timeout=300)
+        assert result.returncode == 1 and "Traceback" not in result.stdout + result.stderr
+        assert len(result.stdout.strip().splitlines()) == 1, result.stdout
+        return result.stdout
+
+    for folder in (tmp_path / "named", tmp_path / "out" / "ask"):
+        folder.mkdir(parents=True)
+        (folder / "episode.json").write_text(json.dumps({"question": "What is on the desk?"}))
+    named = str(tmp_path / "named")
+    assert "named holds the episode of another question: 'What is on the desk?'" in ask(
+        "Where is the sofa?", "--out", named)
+    passed = "needs an integer seed"
+    assert passed in ask("Where is the sofa?", "--out", named, "--overwrite")
+    assert passed in ask("what is on the  DESK?", "--out", named)  # the same question
+    assert passed in ask("Where is the sofa?")  # out/ask
+    with run_lock(tmp_path / "named"):
+        assert f"another run is writing to {named}" in ask("What is on the desk?", "--out", named)
+    assert json.loads((tmp_path / "named" / "episode.json").read_text())["question"] == \
+        "What is on the desk?"
+
+
+def test_an_ask_folder_whose_files_cannot_be_written_is_refused_before_the_work(tmp_path):
+    """Fault trial 2.16 for ask: episode.json or report.html a folder was found only when the
+    explored episode was written; an episode.json that cannot be read is nobody's known
+    question, so it is not replaced without --overwrite."""
+    from efficienteqa.cli.run import check_ask_folder
+
+    for name in ("episode.json", "report.html"):
+        (tmp_path / name).mkdir()
+        with pytest.raises(EfficientEQAError, match=f"{name} is a folder"):
+            check_ask_folder(tmp_path, "Where is the sofa?", overwrite=True)
+        (tmp_path / name).rmdir()
+    (tmp_path / "episode.json").write_text("[1, 2")
+    with pytest.raises(EfficientEQAError, match="holds the episode of another question .use"):
+        check_ask_folder(tmp_path, "Where is the sofa?", overwrite=False)
+    check_ask_folder(tmp_path, "Where is the sofa?", overwrite=True)
+    check_ask_folder(tmp_path / "new", "Where is the sofa?", overwrite=False)
 
 
 def _stub_env():
