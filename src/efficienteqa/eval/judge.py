@@ -135,7 +135,7 @@ _NUMBER = r"[-+]?\d+(?:\.\d+)?"
 # over at most MAX_DIGITS digits, so parsing stays linear in the reply (an absurd reply of
 # 30,000 digits took 45 s).
 MAX_DIGITS = 32
-_LONG_DIGITS = re.compile(r"\d{%d,}" % (MAX_DIGITS + 1))
+_LONG_DIGITS = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
 _JSON_SCORE = re.compile(r'"score"\s*:\s*"?(' + _NUMBER + ")", re.IGNORECASE)
 # A curly quote ends at the next opening one too: otherwise every unclosed "“" scans to the end
 # of its line again, quadratic in a reply of many (17 s for 100,000).
