@@ -13,7 +13,7 @@ setup-dev:
 	@scripts/setup.sh --dev
 
 demo: setup
-	$(VENV)/bin/efficienteqa ask "$(QUESTION)" --scene synthetic:$(SEED) --out out/demo
+	$(VENV)/bin/efficienteqa ask "$(QUESTION)" --scene synthetic:$(SEED) --out out/demo --overwrite
 
 scene: setup
 	$(VENV)/bin/efficienteqa scenes generate --seed $(SEED) --out out/scene

@@ -145,6 +145,18 @@ def test_verbalized_token_probability_of_an_empty_reply_is_zero():
     assert (result.answer, result.confidence) == ("", 0.0) and result.problems
 
 
+@pytest.mark.parametrize("question", ["", "   "])
+def test_an_empty_question_is_answered_with_the_general_example(question):
+    """Fault trial 3.3: the catch-all example's pattern "." matched no empty question, so an
+    empty question (the library's; the command line refuses one) ended in ``AssertionError:
+    the last pattern matches every question``. It gets the general example and an answer."""
+    from efficienteqa.answer.calls import verbalized_token_probability
+
+    assert answer_example(question).splitlines()[1] == "a book; 60"
+    result = verbalized_token_probability(StubChatModel(["a chair; 90"]), question, ["a chair"])
+    assert result.answer == "a chair" and 0.0 < result.confidence <= 1.0
+
+
 def test_answer_with_confidence_malformed_and_images():
     stub = StubChatModel(["", "kitchen"])
     frames = [np.zeros((4, 4, 3), np.uint8)] * 2

@@ -6,6 +6,7 @@ import sys
 import pytest
 
 from conftest import needs_egl, needs_small_model
+from efficienteqa.errors import EfficientEQAError
 
 
 def _run(*args, env=None):
@@ -83,6 +84,19 @@ def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
         assert result.returncode == 1, (args, result.stdout, result.stderr)
         assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
         assert not (tmp_path / "out").exists()  # nothing was run
+
+
+@pytest.mark.parametrize("command", ["ask", "eval"])
+def test_relevancy_weights_that_do_not_exist_fail_at_once(command, tmp_path):
+    """Fault trial N.15: a traceback after 16 s of loading MiniLM; now one line before any
+    scene, model or output folder."""
+    question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
+    result = _run(command, *question, "--backends.relevancy", "minilm",
+                  "--backends.relevancy-weights", "/nonexistent", "--out", str(tmp_path / "out"))
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "relevancy weights '/nonexistent' are not a folder" in result.stdout
+    assert len(result.stdout.strip().splitlines()) == 1 and "Traceback" not in result.stderr
+    assert not (tmp_path / "out").exists()
 
 
 def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
@@ -177,12 +191,77 @@ def test_an_unwritable_out_folder_fails_before_the_work(command, tmp_path):
     assert "exploring" not in result.stdout
 
 
+def test_ask_does_not_replace_another_questions_episode_nor_run_beside_another(tmp_path):
+    """Fault trial N.11: two asks into one --out both succeeded and the folder kept only the
+    second. A folder that another ask holds is refused at once (its lock, as eval's), and one
+    that holds another question's episode unless --overwrite; the same question replaces its
+    own, and the default folder (out/ask) is a scratch folder each ask replaces. A bad seed
+    stops each run that gets past these checks, before any scene or model."""
+    from efficienteqa.eval.records import run_lock
+
+    def ask(*args):
+        result = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "ask", *args,
+                                 "--scene", "synthetic:x"], capture_output=True, text=True,
+                                cwd=tmp_path, timeout=300)
+        assert result.returncode == 1 and "Traceback" not in result.stdout + result.stderr
+        assert len(result.stdout.strip().splitlines()) == 1, result.stdout
+        return result.stdout
+
+    for folder in (tmp_path / "named", tmp_path / "out" / "ask"):
+        folder.mkdir(parents=True)
+        (folder / "episode.json").write_text(json.dumps({"question": "What is on the desk?"}))
+    named = str(tmp_path / "named")
+    assert "named holds the episode of another question: 'What is on the desk?'" in ask(
+        "Where is the sofa?", "--out", named)
+    passed = "needs an integer seed"
+    assert passed in ask("Where is the sofa?", "--out", named, "--overwrite")
+    assert passed in ask("what is on the  DESK?", "--out", named)  # the same question
+    assert passed in ask("Where is the sofa?")  # out/ask
+    with run_lock(tmp_path / "named"):
+        assert f"another run is writing to {named}" in ask("What is on the desk?", "--out", named)
+    assert json.loads((tmp_path / "named" / "episode.json").read_text())["question"] == \
+        "What is on the desk?"
+
+
+def test_an_ask_folder_whose_files_cannot_be_written_is_refused_before_the_work(tmp_path):
+    """Fault trial 2.16 for ask: episode.json or report.html a folder was found only when the
+    explored episode was written; an episode.json that cannot be read is nobody's known
+    question, so it is not replaced without --overwrite."""
+    from efficienteqa.cli.run import check_ask_folder
+
+    for name in ("episode.json", "report.html"):
+        (tmp_path / name).mkdir()
+        with pytest.raises(EfficientEQAError, match=f"{name} is a folder"):
+            check_ask_folder(tmp_path, "Where is the sofa?", overwrite=True)
+        (tmp_path / name).rmdir()
+    (tmp_path / "episode.json").write_text("[1, 2")
+    with pytest.raises(EfficientEQAError, match="holds the episode of another question .use"):
+        check_ask_folder(tmp_path, "Where is the sofa?", overwrite=False)
+    check_ask_folder(tmp_path, "Where is the sofa?", overwrite=True)
+    check_ask_folder(tmp_path / "new", "Where is the sofa?", overwrite=False)
+
+
 def _stub_env():
     import os
     from pathlib import Path
 
     tests = str(Path(__file__).parent)
     return {**os.environ, "PYTHONPATH": os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")])}
+
+
+@pytest.mark.parametrize("name", ["run.json", "episodes.jsonl"])
+def test_a_run_file_that_is_a_folder_is_one_line_before_the_work(name, tmp_path):
+    """Fault trial 2.16: ``IsADirectoryError`` tracebacks; now one line from eval and report."""
+    (tmp_path / "run" / name).mkdir(parents=True)
+    if name == "episodes.jsonl":
+        (tmp_path / "run" / "run.json").write_text("{}")  # a run for report to read
+    for args in (("eval", "--method", "eval_stubs:echo", "--limit", "1", "--judge", "none",
+                  "--out", str(tmp_path / "run")), ("report", str(tmp_path / "run"))):
+        result = _run(*args, env=_stub_env())
+        assert result.returncode == 1, result.stdout + result.stderr
+        assert f"{name}: Is a directory" in result.stdout, result.stdout
+        assert "Traceback" not in result.stdout + result.stderr
+        assert "episodes run" not in result.stdout
 
 
 def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(tmp_path):

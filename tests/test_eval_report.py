@@ -16,9 +16,15 @@ from typer.testing import CliRunner
 
 from efficienteqa import cli
 from efficienteqa.agent import AgentConfig
+from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
 from efficienteqa.eval.summary import RunSummary, ablations, distinct_labels, summarise
-from efficienteqa.eval.tables import SEMANTIC_WARNING, read_summaries, write_folders_report
+from efficienteqa.eval.tables import (
+    SEMANTIC_WARNING,
+    read_summaries,
+    write_folders_report,
+    write_run_report,
+)
 from efficienteqa.knobs import with_leaves
 from efficienteqa.records import write_json
 from efficienteqa.stop.rules import StopConfig
@@ -330,3 +336,30 @@ def test_a_recorded_label_reads_as_todays():
     new = {**BACKENDS, "answer": ANSWER_LABELS["paper"]}
     s = summarise(manifest(), [episode(0, backends=old), episode(1, backends=new)])
     assert s.backends["answer"] == [ANSWER_LABELS["paper"]]
+
+
+def test_a_report_that_cannot_be_written_is_one_line(tmp_path):
+    """Fault trial 2.16: ``report --out`` on a read-only disk ended in an ``OSError``
+    traceback. Root writes past permissions, so files and folders in the way stand in for the
+    read-only disk: each write that fails is one line naming the file."""
+    from efficienteqa.eval.tables import publish_run, read_summaries
+
+    folder = write_run(tmp_path / "run", manifest(), MIXED[:2])
+    (summary,) = read_summaries([folder])
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(EfficientEQAError, match="cannot write to .*file/rep: Not a directory"):
+        write_run_report([summary], tmp_path / "file" / "rep")
+    (tmp_path / "rep" / "report.md").mkdir(parents=True)
+    with pytest.raises(EfficientEQAError, match="cannot write .*report.md: Is a directory "
+                                                r"\(choose another --out folder\)"):
+        write_run_report([summary], tmp_path / "rep")
+    (folder / "summary.json").mkdir()
+    with pytest.raises(EfficientEQAError, match="summary.json: Is a directory .make the run "
+                                                "folder writable"):
+        publish_run(folder, summary)
+    (folder / "summary.json").rmdir()
+    result = CliRunner().invoke(cli.app, ["report", str(folder), "--out",
+                                          str(tmp_path / "file" / "rep")])
+    assert isinstance(result.exception, EfficientEQAError)  # main() prints it as one line
+    assert "cannot write to" in str(result.exception) and not (folder / "summary.json").exists()
+

@@ -329,6 +329,55 @@ def test_lines_that_are_not_an_episode_are_skipped_and_foreign_ones_left_out(tmp
     assert sorted(episodes.by_id) == ["toy/000", "toy/001"] and episodes.foreign == 1
 
 
+def test_lines_of_no_question_of_the_run_are_not_counted(tmp_path):
+    """Fault trial 1.11: valid lines whose id is none of the run's questions were counted:
+    the report said "3 of 2" and took its accuracy over them. run.json lists the run's
+    questions, every command's (a larger --limit adds its own), and only these count; the
+    others are skipped and said to be, as torn lines are."""
+    from efficienteqa.eval.records import RUN_FILE, read_run
+    from efficienteqa.eval.tables import read_summaries
+
+    run_eval(spec(), questions(2), tmp_path, prepare=False)
+    with (tmp_path / EPISODES_FILE).open("a") as f:
+        for row in ({"id": 5}, {"id": None}, {"id": "synthetic/99999/q0", "status": "done"},
+                    {"id": "toy/999", "method": "eval_stubs:echo", "status": "done"}):
+            f.write(json.dumps(row) + "\n")
+    _, episodes = read_run(tmp_path)
+    assert sorted(episodes.by_id) == ["toy/000", "toy/001"]
+    assert (episodes.torn, episodes.foreign) == (2, 2)
+    (summary,) = read_summaries([tmp_path])
+    assert (summary.n, summary.planned, summary.torn) == (2, 2, 4)
+    assert run_eval(spec(), questions(3), tmp_path, prepare=False).ran == 1  # --limit 3
+    run_eval(spec(), questions(1), tmp_path, prepare=False)  # --limit 1 forgets none
+    run = json.loads((tmp_path / RUN_FILE).read_text())
+    assert run["question_ids"] == ["toy/000", "toy/001", "toy/002"] and run["questions"] == 3
+    (summary,) = read_summaries([tmp_path])
+    assert (summary.n, summary.planned, summary.torn) == (3, 3, 4)
+
+
+def test_the_progress_bar_counts_only_the_questions_asked(tmp_path):
+    """Fault trial 1.11: a done line of another id counted as done before, so the bar of a
+    resumed run ended at "9/8"."""
+    import io
+
+    from rich.console import Console
+
+    from efficienteqa.cli.progress import eval_progress, say_failures
+
+    append_episode(tmp_path / EPISODES_FILE, {"id": "toy/000", "status": "done"})
+    append_episode(tmp_path / EPISODES_FILE, {"id": "synthetic/99999/q0", "status": "done"})
+    append_episode(tmp_path / EPISODES_FILE, {"id": "other", "status": "failed", "error": "E1"})
+    shown = io.StringIO()
+    console = Console(file=shown, width=100)
+    with eval_progress(console, "echo", ["toy/000", "toy/001"], tmp_path) as on_episode:
+        on_episode({"id": "toy/001", "status": "failed", "error": "E2"})
+    append_episode(tmp_path / EPISODES_FILE, {"id": "toy/001", "status": "failed", "error": "E2"})
+    say_failures(console, tmp_path, 1, ["toy/000", "toy/001"])
+    text = shown.getvalue()
+    assert "2/2" in text and "3/2" not in text
+    assert "1 x E2" in text and "E1" not in text
+
+
 def test_a_second_run_into_the_same_folder_fails_at_once(tmp_path):
     from efficienteqa.eval.records import run_lock
 
@@ -358,6 +407,69 @@ def test_a_full_disk_is_one_line_and_a_short_write_is_finished(tmp_path, monkeyp
     monkeypatch.setattr(records.os, "write", full)
     with pytest.raises(EfficientEQAError, match="No space left on device"):
         append_episode(tmp_path / "e.jsonl", {"id": "b", "status": "done"})
+
+
+@pytest.mark.parametrize("name", ["run.json", EPISODES_FILE])
+def test_a_run_file_that_is_a_folder_is_one_line(tmp_path, name):
+    """Fault trial 2.16: ``IsADirectoryError`` tracebacks from eval and report."""
+    from efficienteqa.eval.records import read_run
+
+    run_eval(spec(), questions(1), tmp_path, prepare=False)
+    (tmp_path / name).unlink()
+    (tmp_path / name).mkdir()
+    for call in (lambda: run_eval(spec(), questions(2), tmp_path, prepare=False),
+                 lambda: read_run(tmp_path)):
+        with pytest.raises(EfficientEQAError, match=f"cannot read .*{name}: Is a directory"):
+            call()
+
+
+def _unwritable(monkeypatch, after: int = 0) -> None:
+    """``episodes.jsonl`` made unwritable (``chattr +i``) after ``after`` opens. Simulated:
+    these tests run as root, which a chmod does not stop, so the open raises as it would."""
+    import errno
+
+    from efficienteqa.eval import records
+
+    real, opens = records._open_for_append, []
+
+    def open_for_append(path):
+        opens.append(path)
+        if len(opens) > after:
+            raise PermissionError(errno.EPERM, "Operation not permitted")
+        return real(path)
+
+    monkeypatch.setattr(records, "_open_for_append", open_for_append)
+
+
+def test_an_unwritable_episodes_file_is_refused_before_any_episode(tmp_path, monkeypatch):
+    """Fault trial 2.16: an immutable episodes.jsonl on resume ran an episode, then lost its
+    result to a ``PermissionError`` traceback. The resume is refused before any episode."""
+    from efficienteqa.eval import runner
+
+    run_eval(spec(), questions(1), tmp_path, prepare=False)
+    _unwritable(monkeypatch)
+    ran = []
+    monkeypatch.setattr(runner, "run_episode", lambda *args: ran.append(args))
+    with pytest.raises(EfficientEQAError, match="cannot write .*episodes.jsonl: Operation not "
+                                                "permitted .make it writable"):
+        run_eval(spec(), questions(3), tmp_path, prepare=False)
+    assert not ran
+
+
+def test_a_line_that_cannot_be_written_names_its_episode_and_resumes(tmp_path, monkeypatch):
+    """Fault trial 2.16: episodes.jsonl made unwritable during a run. The episode whose line
+    could not be written is named in one line, and the same command runs it again."""
+    _unwritable(monkeypatch, after=1)  # toy/000's line is written, then no more
+    with pytest.raises(EfficientEQAError) as err:
+        run_eval(spec(), questions(3), tmp_path, prepare=False)
+    message = str(err.value)
+    assert "Operation not permitted; the result of episode toy/001 is not saved" in message
+    assert "the same command resumes the run" in message and "\n" not in message
+    assert [r["id"] for r in lines(tmp_path)] == ["toy/000"]
+    monkeypatch.undo()
+    again = run_eval(spec(), questions(3), tmp_path, prepare=False)
+    assert (again.ran, again.skipped) == (2, 1)
+    assert sorted(r["id"] for r in lines(tmp_path)) == [q.id for q in questions(3)]
 
 
 def test_a_run_resumes_with_another_timeout_or_retries_but_not_another_server(tmp_path):

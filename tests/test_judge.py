@@ -257,6 +257,46 @@ def test_trim_keeps_abbreviations_and_initialisms(text):
         assert trimmed == text
 
 
+DIGITS = "9" * 100_000
+
+
+@pytest.mark.parametrize("reply, expected", [
+    ("A: " + DIGITS, "out of range"), ("Score: " + DIGITS, "out of range"),
+    (DIGITS + "/5", "out of range"), ('{"score": ' + DIGITS + "}", "out of range"),
+    ("4." + "0" * 100_000, 4), ("“" * 100_000, "no score"), ("“a " * 30_000 + "4", 4),
+])
+def test_an_absurdly_long_reply_parses_at_once(reply, expected):
+    """Fault trial 3.4: patterns that backtracked into each digit run (or rescanned from each
+    unclosed quote) made parsing quadratic: 30,000 digits took 45 s. Runs are cut to
+    ``MAX_DIGITS``, still out of range; 100,000 characters take well under a second."""
+    import time
+
+    start = time.perf_counter()
+    score, problems = parse_score(reply)
+    assert time.perf_counter() - start < 0.5
+    if isinstance(expected, int):
+        assert (score, problems) == (expected, [])
+    else:
+        assert score is None and expected in problems[0]
+
+
+def test_an_absurdly_long_number_is_trimmed_and_ruled_at_once():
+    """Fault trial 3.4: ``trim_response`` backtracked into each word (12 s for 30,000 digits),
+    and the rule judges converted every digit to an int (a ValueError past Python's 4,300)."""
+    import time
+
+    from efficienteqa.eval.synthetic_judge import rule_judgement
+
+    start = time.perf_counter()
+    assert trim_response("It is " + DIGITS + ". And") == "It is " + DIGITS + "."
+    assert trim_response("a" * 100_000 + ", b") == "a" * 100_000 + ", b"
+    ruled = rule_score("How many chairs are there?", "3", DIGITS)
+    judged = rule_judgement("How many chairs are there?", "count", ["3"], DIGITS)
+    assert time.perf_counter() - start < 1.0
+    assert ruled is not None and ruled.score == 1 and judged.score == 1
+    assert rule_judgement("How many chairs?", "count", ["3"], "0" * 5000 + "3").score == 5
+
+
 @pytest.mark.parametrize("yes, no", [
     ("\u2581Yes", "\u2581No"), ("Yes.", "No."), ("\u0120yes", "\u0120no"), (" YES", " NO"),
     ('"Yes', '"No'), ("Yes!", "No!"),

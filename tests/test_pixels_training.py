@@ -149,6 +149,103 @@ def test_a_tiny_net_learns_and_its_weights_round_trip(data, tmp_path):
         load_weights(path)
 
 
+def _shard(path, house, frames=2):
+    """A shard of ``frames`` blank frames of ``house``, in the arrays ``render_dataset`` writes."""
+    np.savez_compressed(path, rgb=np.zeros((frames, 240, 320, 3), np.uint8),
+                        depth=np.ones((frames, 240, 320), np.float32),
+                        category=np.ones((frames, 240, 320), np.uint8),
+                        colour=np.full((frames, 240, 320), IGNORE, np.uint8),
+                        state=np.full((frames, 240, 320), IGNORE, np.uint8),
+                        house=np.full(frames, house, np.int32))
+
+
+def test_a_torn_shard_or_mistyped_meta_is_one_line_before_training(tmp_path):
+    """Fault trial N.4: a shard cut in half ended ``perception train`` in ``BadZipFile: File is
+    not a zip file``, and meta.json's ``houses`` of another type in a ``TypeError``. Both are
+    one line naming the file."""
+    from efficienteqa.perception.pixels.train import check_data
+
+    data = tmp_path / "data"
+    data.mkdir()
+    meta = {"vocabulary": build_vocabulary().to_json(), "houses": [3000, 3900]}
+    (data / "meta.json").write_text(json.dumps(meta))
+    _shard(data / "houses-3000-3000.npz", 3000)
+    _shard(data / "houses-3900-3900.npz", 3900)
+    whole = (data / "houses-3900-3900.npz").read_bytes()
+    (data / "houses-3900-3900.npz").write_bytes(whole[:len(whole) // 2])
+    config = TrainConfig(steps=1000, batch=1, crop=(32, 48), widths=TINY, threads=1)
+    with pytest.raises(EfficientEQAError) as err:
+        train(data, tmp_path / "w.pt", config, log=sys.stdout)
+    message = str(err.value)
+    assert "houses-3900-3900.npz is not a readable shard of frames" in message
+    assert "\n" not in message and "renders the missing shards only" in message
+    assert not (tmp_path / "w.ckpt").exists() and not (tmp_path / "w.pt").exists()
+    (data / "houses-3900-3900.npz").write_bytes(b"not a zip file")  # read as a pickle: refused
+    with pytest.raises(EfficientEQAError, match="is not a readable shard of frames"):
+        load_shards(data)
+    for houses in (5, None, ["3000"], [[3000]]):
+        (data / "meta.json").write_text(json.dumps({**meta, "houses": houses}))
+        with pytest.raises(EfficientEQAError, match="'houses' must be a list of house seeds"):
+            check_data(data)
+
+
+def test_validation_frames_are_read_before_training(tmp_path, monkeypatch):
+    """Fault trial N.4: the validation houses' frames were read only once every step was done,
+    so a shard whose arrays could not be read cost the whole training. They are read first."""
+    from efficienteqa.perception.pixels import train as training
+
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "meta.json").write_text(json.dumps({"vocabulary": build_vocabulary().to_json(),
+                                                "houses": [3000, 3900]}))
+    _shard(data / "houses-3000-3000.npz", 3000)
+    _shard(data / "houses-3900-3900.npz", 3900)
+
+    def load(folder, houses=None):
+        if houses == [3900]:
+            raise EfficientEQAError("the validation shard cannot be read")
+        return load_shards(folder, houses)
+
+    monkeypatch.setattr(training, "load_shards", load)
+    log = tmp_path / "log.txt"
+    with log.open("w") as out, pytest.raises(EfficientEQAError, match="validation shard"):
+        train(data, tmp_path / "w.pt", TrainConfig(steps=2, batch=1, crop=(32, 48), widths=TINY,
+                                                   threads=1), log=out)
+    assert "step" not in log.read_text()
+
+
+def test_weights_that_match_their_checksum_but_not_the_network_are_one_line(tmp_path):
+    """Fault trial N.5: a .pt and .json that agree on the sha256 but not on the network (other
+    widths or vocabulary in the .json, or bytes that are no state dict in the .pt) ended in
+    ``RuntimeError: size mismatch`` or ``UnpicklingError`` tracebacks."""
+    from efficienteqa.perception.pixels.net import metadata_path, sha256_of
+
+    vocab = build_vocabulary()
+    path = tmp_path / "pixels.pt"
+    json_path = save_weights(path, PixelNet(vocab, TINY), vocab, {})
+    meta = json.loads(json_path.read_text())
+
+    def broken(**changes):
+        json_path.write_text(json.dumps({**meta, "sha256": sha256_of(path), **changes}))
+        with pytest.raises(EfficientEQAError) as err:
+            load_weights(path)
+        assert "\n" not in str(err.value) and "Traceback" not in str(err.value)
+        return str(err.value)
+
+    assert "do not fit the network pixels.json describes: Error(s) in loading state_dict" in \
+        broken(widths=[4, 8, 8, 8, 16])
+    vocabulary = {**meta["vocabulary"], "colours": meta["vocabulary"]["colours"][:-1]}
+    assert "do not fit the network" in broken(vocabulary=vocabulary)
+    assert "widths must be whole numbers" in broken(widths=[4, 8, 8, 8, 10**9])
+    assert "widths must be whole numbers" in broken(widths=[4, 8, 8, 8, "8"])
+    assert "widths needs 5 numbers" in broken(widths=[4, 8])
+    path.write_bytes(np.random.default_rng(0).bytes(4096))
+    assert "do not fit the network" in broken()
+    torch.save([1, 2, 3], path)
+    assert "do not fit the network" in broken()
+    assert metadata_path(path) == json_path
+
+
 @needs_egl
 def test_train_writes_weights_and_validation_figures(data, tmp_path):
     out = tmp_path / "pixels.pt"

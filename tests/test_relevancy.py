@@ -298,3 +298,31 @@ def test_minilm_scores_the_best_line_of_a_description():
     assert best > scorer.score(QUESTION, text="a bed in the bedroom")
     one_line = scorer.score_many(QUESTION, ["a sofa", lines, "a toilet"])
     assert one_line[1] == pytest.approx(best) and len(one_line) == 3
+
+
+def test_relevancy_weights_that_are_no_folder_fail_before_any_model_loads(tmp_path):
+    """Fault trial N.15: ``--backends.relevancy-weights /nonexistent`` with MiniLM ended, 16 s
+    later, in a Hugging Face traceback (the path read as a repo id). ``check_stack`` refuses it
+    in one line before torch loads; an image scorer still takes a Hub model id."""
+    from efficienteqa.backends import Stack
+    from efficienteqa.stack import check_relevancy_weights, check_stack
+
+    for kind in ("minilm", "minilm-match", "blip2-itm"):
+        with pytest.raises(EfficientEQAError, match="'/nonexistent' are not a folder") as err:
+            check_stack(Stack(relevancy=kind, relevancy_weights="/nonexistent", device="cpu"))
+        assert "\n" not in str(err.value)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(EfficientEQAError, match="are not a folder"):
+        check_relevancy_weights("minilm", str(tmp_path / "file"))
+    check_relevancy_weights("minilm", str(tmp_path))  # a folder: its loader reads it
+    check_relevancy_weights("blip2-itm", "Salesforce/blip2-itm-vit-g")  # a Hub id
+    check_relevancy_weights("overlap", "/nonexistent")  # reads no weights
+
+
+def test_a_folder_without_a_minilm_model_is_one_line(tmp_path):
+    """Fault trial N.15: a folder that holds no sentence-transformers model is one line naming
+    it, not sentence-transformers' ``ValueError: Unrecognized model``."""
+    pytest.importorskip("sentence_transformers", reason="needs the 'minilm' extra")
+    with pytest.raises(EfficientEQAError, match="cannot load the MiniLM weights in") as err:
+        MiniLMScorer.from_package(tmp_path)
+    assert "\n" not in str(err.value) and str(tmp_path) in str(err.value)

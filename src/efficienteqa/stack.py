@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -101,6 +102,7 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
 # Relevancy scorers that read a frame's description, and the ones that need no weights of their
 # own: known by name, so a stack that cannot work is refused before any scene is built.
 TEXT_RELEVANCY = ("minilm", "minilm-match", "overlap")
+_HUB_ID = re.compile(r"[\w.-]+(?:/[\w.-]+)?")  # a Hugging Face model id: NAME or OWNER/NAME
 IMAGE_RELEVANCY = ("blip2-itm", "clip", "siglip")
 
 
@@ -137,6 +139,8 @@ def check_stack(stack: Stack) -> None:
         from efficienteqa.relevancy.base import resolve_device
 
         resolve_device(stack.device)
+    if stack.relevancy_weights is not None:
+        check_relevancy_weights(stack.relevancy, stack.relevancy_weights)
     SIGHTINGS.check(stack.sightings)
     if stack.sightings == "perception" and stack.perception == "rgb":
         raise EfficientEQAError("rgb perception gives no sightings of its own",
@@ -146,6 +150,21 @@ def check_stack(stack: Stack) -> None:
             f"relevancy scorer {stack.relevancy!r} reads text, but --perception rgb gives images",
             fix="use --relevancy vlm-match (the VLM judges each frame) or blip2-itm (BLIP-2 "
                 "weights), or --perception semantic")
+
+
+def check_relevancy_weights(kind: str, weights: str) -> None:
+    """One line, before torch or any model loads, when ``weights`` names no folder a scorer of
+    ``kind`` could load: MiniLM reads only a local sentence-transformers folder (a missing one
+    failed after some 16 s of loading, in a Hugging Face traceback); an image scorer also takes
+    a Hub model id ("Salesforce/blip2-itm-vit-g"), which its loader looks up."""
+    if kind not in (*MINILM_KINDS, *IMAGE_RELEVANCY) or Path(weights).is_dir():
+        return
+    if kind in IMAGE_RELEVANCY and not Path(weights).exists() and _HUB_ID.fullmatch(weights):
+        return
+    raise EfficientEQAError(f"relevancy weights {weights!r} are not a folder",
+                            fix="give the folder that holds the relevancy model's weights, or "
+                                "leave out --backends.relevancy-weights"
+                                + (" for the installed MiniLM" if kind in MINILM_KINDS else ""))
 
 
 def _semantic(env: Environment, **_: Any) -> Perception:

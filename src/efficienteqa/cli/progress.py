@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -11,10 +11,11 @@ from rich.console import Console
 
 
 @contextmanager
-def eval_progress(console: Console, method: str, total: int,
+def eval_progress(console: Console, method: str, ids: Collection[str],
                   out: Path) -> Iterator[Callable[[dict], None]]:
-    """A progress bar over ``total`` episodes (those already in ``out`` counted done); yields
-    the runner's ``on_episode``, which advances it and shows the scores so far."""
+    """A progress bar over the episodes ``ids`` (those already done in ``out`` counted; a line
+    of another id is none of them, or the bar read "9/8"); yields the runner's
+    ``on_episode``, which advances it and shows the scores so far."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -26,14 +27,14 @@ def eval_progress(console: Console, method: str, total: int,
 
     from efficienteqa.eval.records import read_episodes
 
-    done_before = len(read_episodes(out / "episodes.jsonl").done)
+    done_before = len(read_episodes(out / "episodes.jsonl").done & set(ids))
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
                TextColumn("{task.fields[info]}"))
     scores: dict[str, list[float]] = {"rule": [], "choice": [], "judge": []}
     names = {"rule": "rule {:.1f}%", "choice": "letter {:.1f}%", "judge": "LLM-Match {:.1f}"}
     with Progress(*columns, console=console) as progress:
-        task = progress.add_task(method, total=total, completed=min(done_before, total), info="")
+        task = progress.add_task(method, total=len(ids), completed=done_before, info="")
 
         def on_episode(row: dict) -> None:
             for key, values in scores.items():
@@ -48,12 +49,14 @@ def eval_progress(console: Console, method: str, total: int,
         yield on_episode
 
 
-def say_failures(console: Console, out: Path, failed: int) -> None:
-    """The commonest errors of a run's failed episodes, and how to resume them."""
+def say_failures(console: Console, out: Path, failed: int, ids: Collection[str]) -> None:
+    """The commonest errors of the failed episodes among ``ids`` (the questions of this
+    command), and how to resume them."""
     from efficienteqa.eval.records import read_episodes
 
+    asked = set(ids)
     why = Counter(str(r.get("error")) for r in read_episodes(out / "episodes.jsonl").rows()
-                  if r.get("status") != "done")
+                  if r.get("status") != "done" and r["id"] in asked)
     for error, count in why.most_common(3):
         console.print(f"  {count} x {error}", highlight=False, soft_wrap=True)
     console.print(f"[red]error:[/red] {failed} episode(s) failed (the commonest errors are "

@@ -16,6 +16,8 @@ from efficienteqa.presets import Resolved
 from efficienteqa.runconfig import ASK_EVAL_FIELDS
 
 AGENT_SECTIONS = ("backends", "scene", "explore", "stop", "answer")
+ASK_OUT = Path("out/ask")  # ask's folder without --out: a scratch folder each ask replaces
+EPISODE_FILE = "episode.json"
 
 
 def _parse_start(text: str | None) -> Pose2D | None:
@@ -41,6 +43,36 @@ def _check_backends(run: Resolved) -> None:
               **stack.server_options())
 
 
+def _same_question(a: str, b: str) -> bool:
+    return " ".join(a.lower().split()) == " ".join(b.lower().split())
+
+
+def check_ask_folder(out: Path, question: str, overwrite: bool) -> None:
+    """Before any work: ``out`` can take this ask's episode. Its episode.json and report.html
+    must be files to write, and an episode of another question there is not replaced unless
+    ``overwrite`` (two asks into one --out left only the second, without a word). The same
+    question asked again replaces its own episode: that is running it again."""
+    import json
+
+    for name in (EPISODE_FILE, "report.html"):
+        if (out / name).is_dir():
+            raise EfficientEQAError(f"{out / name} is a folder",
+                                    fix="remove it, or use another --out folder")
+    path = out / EPISODE_FILE
+    if overwrite or not path.exists():
+        return
+    try:
+        earlier = json.loads(path.read_text()).get("question")
+    except (OSError, ValueError, AttributeError):  # unreadable: whose it is is not known
+        earlier = None
+    if isinstance(earlier, str) and _same_question(earlier, question):
+        return
+    asked = (f": {earlier[:60]!r}" + ("..." if len(earlier) > 60 else "")
+             if isinstance(earlier, str) else "")
+    raise EfficientEQAError(f"{out} holds the episode of another question{asked}",
+                            fix="use another --out folder, or --overwrite to replace it")
+
+
 @app.command("ask")
 @run_options(AGENT_SECTIONS, only={"eval": ASK_EVAL_FIELDS}, by_method=False)
 def ask_command(
@@ -56,8 +88,13 @@ def ask_command(
                                        rich_help_panel="Question"),
     start: str | None = typer.Option(None, help="Start pose X,Y,YAW_DEG (default: the scene's).",
                                      rich_help_panel="Question"),
-    out: Path = typer.Option(Path("out/ask"), help="Folder for episode.json and report.html.",
-                             rich_help_panel="Output"),
+    out: Path | None = typer.Option(None, help="Folder for episode.json and report.html "
+                                    f"(default {ASK_OUT}, which each ask replaces). A folder "
+                                    "given here that holds another question's episode is "
+                                    "refused, unless --overwrite.", show_default=False,
+                                    rich_help_panel="Output"),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace the episode of another "
+                                   "question in --out.", rich_help_panel="Output"),
     rerun: str | None = typer.Option(None, help="Also log the episode to rerun: a FILE.rrd to "
                                      "open with `rerun FILE.rrd`, or live (spawn the viewer "
                                      "here; needs a screen). Needs the rerun extra.",
@@ -74,10 +111,13 @@ def ask_command(
     from efficienteqa.ask import ask
     from efficienteqa.envs.base import is_recording
     from efficienteqa.envs.habitat.scenes import HabitatStart
+    from efficienteqa.eval.records import run_lock
     from efficienteqa.records import check_writable
     from efficienteqa.scenes import open_scene
 
     r = run.run
+    if out is None:  # the scratch folder: each ask without --out replaces its episode
+        out, overwrite = ASK_OUT, True
     if r.eval.method != "efficienteqa":
         raise EfficientEQAError(f"ask runs efficienteqa; method {r.eval.method!r} is for eval",
                                 fix="use efficienteqa eval --method with this configuration")
@@ -106,30 +146,32 @@ def ask_command(
         from efficienteqa.report.rerun_log import check_target
 
         check_target(rerun)
-    with console.status(f"opening {scene}..."):
-        opened = open_scene(scene, r.scene.assets, env=r.scene.env, hm3d_root=r.scene.hm3d_root,
-                            noise=r.scene.noise,
-                            start=habitat_start)
-    if opened.note:
-        console.print(opened.note, highlight=False, soft_wrap=True)
-    try:
-        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
-        with Progress(*columns, console=console) as progress:
-            what = "reading frames" if is_recording(opened.env) else "exploring"
-            task = progress.add_task(what, total=r.agent.budget(opened.env), info="")
+    with run_lock(out):  # a second ask into the folder fails at once, not after exploring
+        check_ask_folder(out, question, overwrite)
+        with console.status(f"opening {scene}..."):
+            opened = open_scene(scene, r.scene.assets, env=r.scene.env,
+                                hm3d_root=r.scene.hm3d_root, noise=r.scene.noise,
+                                start=habitat_start)
+        if opened.note:
+            console.print(opened.note, highlight=False, soft_wrap=True)
+        try:
+            columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                       TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
+            with Progress(*columns, console=console) as progress:
+                what = "reading frames" if is_recording(opened.env) else "exploring"
+                task = progress.add_task(what, total=r.agent.budget(opened.env), info="")
 
-            def on_step(record: StepRecord, *_: object) -> None:
-                c = record.check
-                info = ("invalid frame" if c is None else
-                        f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
-                progress.update(task, completed=record.step, info=info)
+                def on_step(record: StepRecord, *_: object) -> None:
+                    c = record.check
+                    info = ("invalid frame" if c is None else
+                            f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
+                    progress.update(task, completed=record.step, info=info)
 
-            done = ask(question, opened, out, stack=r.backends, config=r.agent,
-                       start=start_pose, on_step=on_step, known_as=known_as, rerun=rerun,
-                       record=record)
-    finally:
-        opened.env.close()
+                done = ask(question, opened, out, stack=r.backends, config=r.agent,
+                           start=start_pose, on_step=on_step, known_as=known_as, rerun=rerun,
+                           record=record)
+        finally:
+            opened.env.close()
     result, rec = done.result, done.record
     oracle = rec.get("oracle_steps")
     say = console.print
@@ -239,7 +281,8 @@ def eval_command(
                    hm3d_root=str(r.scene.hm3d_root) if r.scene.hm3d_root is not None else None)
     from efficienteqa.cli.progress import eval_progress
 
-    with eval_progress(console, e.method, len(questions), out) as on_episode:
+    ids = [q.id for q in questions]
+    with eval_progress(console, e.method, ids, out) as on_episode:
         result = run_eval(spec, questions, out, workers=e.workers, address=e.address,
                           on_episode=on_episode)
     console.print(f"{result.ran} episodes run, {result.skipped} already done, {result.failed} "
@@ -250,7 +293,7 @@ def eval_command(
     if result.failed:  # a run with failed episodes is not a success (they resume on a re-run)
         from efficienteqa.cli.progress import say_failures
 
-        say_failures(console, out, result.failed)
+        say_failures(console, out, result.failed, ids)
         raise typer.Exit(1)
 
 
@@ -281,17 +324,20 @@ def report_command(
         run_folders,
         write_run_report,
     )
+    from efficienteqa.records import check_writable
 
     summaries = read_summaries(folders)
     reference = None if paired_against is None else read_summaries([paired_against])[0]
     differences = paired_differences(summaries, reference)
+    single = out is None and len(folders) == 1
+    target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
+    if not markdown:
+        check_writable(target)  # before any file is written
     for folder, summary, difference in zip(run_folders(folders), summaries, differences):
         publish_run(folder, summary, difference)
     if markdown:
         sys.stdout.write(markdown_table(summaries, differences))
         return
-    single = out is None and len(folders) == 1
-    target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
     md, page = write_run_report(summaries, target, stamp=not single)
     header, rows = overview_rows(summaries)
     table = Table()

@@ -89,8 +89,11 @@ def score_value(score: int | None) -> float:
 
 # --- trimming -----------------------------------------------------------------------------------
 
-# A period followed by a space or the end, with the word it ends ("T.V", "e.g", "mug").
-_PERIOD = re.compile(r"([\w.]*)\.(?=\s|$)")
+# Runs of word characters and periods: a sentence ends at the period that closes one, when a
+# space or the end of the text follows ("T.V", "e.g", "mug" before it). Read run by run, in one
+# pass: a pattern that backtracks into each run ("([\w.]*)\.(?=\s|$)") took time quadratic in
+# its length (12 s for 30,000 digits).
+_RUN = re.compile(r"[\w.]+")
 # Abbreviations that end in a period inside a sentence.
 _ABBREVIATIONS = frozenset({"dr", "mr", "mrs", "ms", "st", "prof", "sr", "jr", "vs", "etc",
                             "approx", "fig", "cf", "ca", "inc", "ltd", "co", "mt", "ft", "sq"})
@@ -101,11 +104,14 @@ def _sentence_ends(text: str) -> list[int]:
     and does not close an abbreviation ("Dr.", "etc."), an initialism ("e.g.", "T.V.", a single
     letter) or sit inside a number ("3.5")."""
     ends = []
-    for match in _PERIOD.finditer(text):
-        word = match.group(1)
+    for run in _RUN.finditer(text):
+        end = run.end()
+        if not run.group().endswith(".") or (end < len(text) and not text[end].isspace()):
+            continue
+        word = run.group()[:-1]
         if "." in word or (len(word) == 1 and word.isalpha()) or word.lower() in _ABBREVIATIONS:
             continue
-        ends.append(match.end())
+        ends.append(end)
     return ends
 
 
@@ -124,8 +130,16 @@ def trim_response(text: str) -> str:
 # --- parsing ------------------------------------------------------------------------------------
 
 _NUMBER = r"[-+]?\d+(?:\.\d+)?"
+# A grade has one digit. A longer run is cut to MAX_DIGITS before the rules read the reply: still
+# a number far out of range (a problem, not a grade), and each rule's pattern then backtracks
+# over at most MAX_DIGITS digits, so parsing stays linear in the reply (an absurd reply of
+# 30,000 digits took 45 s).
+MAX_DIGITS = 32
+_LONG_DIGITS = re.compile(rf"\d{{{MAX_DIGITS + 1},}}")
 _JSON_SCORE = re.compile(r'"score"\s*:\s*"?(' + _NUMBER + ")", re.IGNORECASE)
-_QUOTED = re.compile(r'"[^"\n]*"|“[^”\n]*”')
+# A curly quote ends at the next opening one too: otherwise every unclosed "“" scans to the end
+# of its line again, quadratic in a reply of many (17 s for 100,000).
+_QUOTED = re.compile(r'"[^"\n]*"|“[^“”\n]*”')
 _SCALE = re.compile(r"\b1\s*(?:-|–|to|and)\s*5\b")
 _MARKED = re.compile(
     r"\b(?:score|rating|grade|rate)\b[^\d\n]{0,20}?(" + _NUMBER + ")"  # Score: **4**; rate it a 4
@@ -165,6 +179,7 @@ def parse_score(text: str) -> tuple[int | None, list[str]]:
     value), be whole and lie in 1-5; otherwise that is a problem, not a guess."""
     if not text or not text.strip():
         return None, ["empty reply"]
+    text = _LONG_DIGITS.sub(lambda run: run.group()[:MAX_DIGITS], text)
     found = _JSON_SCORE.findall(text)
     if found:
         return _read(found)

@@ -136,9 +136,15 @@ def same_answer(a: str, b: str) -> bool:
     return bool(strip) and strip == [w for w in words(b) if w not in ARTICLES]
 
 
+# A count has a few digits. A longer number is read as its first MAX_COUNT_DIGITS (leading
+# zeros dropped): as far from any count as the whole, and converted in bounded time (Python
+# refuses to convert a string of more than 4,300 digits).
+MAX_COUNT_DIGITS = 18
+
+
 def number_value(word: str) -> int | None:
     if word.isdigit():
-        return int(word)
+        return int(word.lstrip("0")[:MAX_COUNT_DIGITS] or "0")
     return NUMBER_WORDS.index(word) if word in NUMBER_WORDS else None
 
 

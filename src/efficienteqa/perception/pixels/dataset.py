@@ -38,6 +38,8 @@ import os
 import subprocess
 import sys
 import time
+import zipfile
+import zlib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -49,7 +51,7 @@ from efficienteqa.envs.synthetic.colours import PALETTE
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
 from efficienteqa.envs.synthetic.layout import ROOM_PROGRAM, SECOND_NAMES
 from efficienteqa.envs.synthetic.vocabulary import SURFACE_CATEGORIES, VOCABULARY
-from efficienteqa.errors import EfficientEQAError
+from efficienteqa.errors import EfficientEQAError, first_line
 from efficienteqa.geometry import Pose2D, backproject
 from efficienteqa.perception.pixels.net import IGNORE, VOID, WALL, Vocabulary, half_size
 from efficienteqa.perception.pixels.segment import FLOOR_PREFIX
@@ -58,6 +60,8 @@ from efficienteqa.perception.semantic import FLOOR_TOLERANCE_M
 PERCEPTION_SEEDS = range(3000, 4000)  # every house perception may train or tune on
 TRAIN_SEEDS = range(3000, 3900)
 VALIDATION_SEEDS = range(3900, 3910)
+# What reading a damaged .npz raises: numpy's own errors, the zip archive's and the deflate data's.
+SHARD_ERRORS = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
 STATES = ("on", "off", "open", "closed")
 SHARD_HOUSES = 5
 SURFACE_RANGE_M = (0.8, 1.6)
@@ -414,16 +418,28 @@ def _tqdm_progress(total: int) -> ProgressFn:
 
 
 def load_shards(data: Path, houses: Sequence[int] | None = None) -> dict[str, np.ndarray]:
-    """All frames under ``data`` (of ``houses`` only, when given), concatenated."""
+    """All frames under ``data`` (of ``houses`` only, when given), concatenated. A shard that
+    cannot be read whole (a copy cut short, a disk error) is one line naming it: rendering into
+    the folder again renders only the shards that are missing."""
     parts = []
     for path in sorted(Path(data).glob("houses-*.npz")):
         if path.name.endswith(".tmp.npz"):
             continue
-        with np.load(path) as shard:
-            keep = np.ones(len(shard["house"]), bool) if houses is None else np.isin(
-                shard["house"], list(houses))
-            if keep.any():
-                parts.append({k: shard[k][keep] for k in shard.files})
+        try:
+            with np.load(path) as shard:
+                keep = np.ones(len(shard["house"]), bool) if houses is None else np.isin(
+                    shard["house"], list(houses))
+                if keep.any():
+                    parts.append({k: shard[k][keep] for k in shard.files})
+        except SHARD_ERRORS as exc:
+            raise EfficientEQAError(f"{path} is not a readable shard of frames ({first_line(exc)})",
+                                    fix="delete it and run the efficienteqa perception dataset "
+                                        "command that made the folder again: it renders the "
+                                        "missing shards only") from None
     if not parts:
         return {}
-    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    try:
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    except (KeyError, ValueError) as exc:
+        raise EfficientEQAError(f"the shards in {data} do not fit together ({first_line(exc)})",
+                                fix="render the frames into a new folder") from None

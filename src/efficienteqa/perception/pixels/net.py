@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import pickle
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,13 +30,16 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from efficienteqa.errors import EfficientEQAError
+from efficienteqa.errors import EfficientEQAError, first_line
 from efficienteqa.perception.pixels.segment import FLOOR_PREFIX
 
 DEPTH_SCALE_M = 5.0  # depth channel = metres / this
 VOID, WALL = 0, 1  # category indices of "no surface" and non-floor structure
 IGNORE = 255  # label value the losses skip
 DEFAULT_WIDTHS = (16, 32, 48, 64, 96)  # stem (1/1), 1/2, 1/4, 1/8, 1/16
+# The most channels a level of a network read from disk may have: metadata naming more is
+# refused before a network that size is allocated.
+MAX_WIDTH = 4096
 WEIGHTS_FORMAT = 1
 
 
@@ -234,7 +238,9 @@ def save_weights(path: Path, net: PixelNet, vocab: Vocabulary, meta: dict[str, A
 
 def load_weights(path: Path) -> tuple[PixelNet, Vocabulary, dict[str, Any]]:
     """The network (float32, eval mode), its vocabulary and its metadata; the file's sha256 must
-    match the metadata's."""
+    match the metadata's. A pair whose checksum matches but whose metadata does not describe the
+    network in the file (other widths or vocabulary, or a file that holds no state dict) is one
+    line too: the checksum proves the two files belong together, not that they are right."""
     path, json_path = Path(path), metadata_path(Path(path))
     fix = "train them: efficienteqa perception train --data DIR --out PATH"
     if not path.is_file() or not json_path.is_file():
@@ -245,13 +251,21 @@ def load_weights(path: Path) -> tuple[PixelNet, Vocabulary, dict[str, Any]]:
         vocab = Vocabulary.from_json(meta["vocabulary"])
         widths = tuple(meta["widths"])
         expected = meta["sha256"]
+        if not all(type(w) is int and 0 < w <= MAX_WIDTH for w in widths):  # a bool is no width
+            raise ValueError(f"widths must be whole numbers from 1 to {MAX_WIDTH}, not {widths}")
     except (ValueError, KeyError, TypeError) as exc:
         raise EfficientEQAError(f"unreadable weights metadata {json_path}: {exc}", fix=fix) from None
     if sha256_of(path) != expected:
         raise EfficientEQAError(f"pixel perception weights {path} do not match the sha256 in "
                                 f"{json_path.name}", fix="restore both files from the package")
-    net = PixelNet(vocab, widths)
-    state = torch.load(path, map_location="cpu", weights_only=True)
-    net.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in state.items()})
+    try:
+        net = PixelNet(vocab, widths)
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        net.load_state_dict({k: v.float() if v.is_floating_point() else v for k, v in state.items()})
+    except (pickle.UnpicklingError, RuntimeError, ValueError, TypeError, AttributeError,
+            EOFError) as exc:  # not a state dict, or another network's (size mismatch)
+        raise EfficientEQAError(f"pixel perception weights {path} do not fit the network "
+                                f"{json_path.name} describes: {first_line(exc)}",
+                                fix=f"restore both files from the package, or {fix}") from None
     net.eval()
     return net, vocab, meta

@@ -110,6 +110,9 @@ def check_data(data: Path) -> dict[str, Any]:
     try:
         meta: dict[str, Any] = json.loads(meta_path.read_text())
         Vocabulary.from_json(meta["vocabulary"])
+        houses = meta.get("houses")
+        if not isinstance(houses, list) or not all(type(h) is int for h in houses):
+            raise ValueError(f"'houses' must be a list of house seeds, not {houses!r}"[:200])
     except (ValueError, KeyError, TypeError) as exc:
         raise EfficientEQAError(f"unreadable {meta_path}: {exc}", fix=fix) from None
     if not [h for h in meta.get("houses", []) if h not in VALIDATION_SEEDS]:
@@ -311,6 +314,8 @@ def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: s
     frames = load_shards(data, train_houses)
     if not frames:
         raise EfficientEQAError(f"{data} holds no frames of its training houses")
+    # read before training, not after it: a damaged shard of them must not cost the training
+    val = load_shards(data, val_houses) if val_houses else {}
     sampler = CropSampler(frames, vocab, config.crop, rng)
     weights = weights_of_counts(sampler.crop_counts(WEIGHT_CROPS, len(vocab.categories))).to(device)
     net = PixelNet(vocab, config.widths).to(device)
@@ -385,7 +390,6 @@ def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: s
     del sampler, frames
     validation: dict[str, Any] | None = None
     if val_houses:
-        val = load_shards(data, val_houses)
         validation = evaluate(net, val, vocab, batch=32 if device.type == "cuda" else 4,
                               device=device)
         brief = {k: v for k, v in validation.items() if k != "iou_per_category"}
