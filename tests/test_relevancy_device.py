@@ -152,7 +152,7 @@ def test_the_options_reach_the_stack(command, monkeypatch, tmp_path):
     monkeypatch.setattr(efficienteqa.ask, "ask", fake_ask)
     monkeypatch.setattr(efficienteqa.eval.runner, "run_eval", fake_run_eval)
     monkeypatch.setattr(efficienteqa.scenes, "open_scene", lambda *a, **k: SimpleNamespace(
-        env=SimpleNamespace(close=lambda: None)))
+        env=SimpleNamespace(close=lambda: None), note=""))
     head = (["ask", "Where is the sofa?", "--max-steps", "3"] if command == "ask"
             else ["eval", "--limit", "1"])
     given = ["--relevancy", "blip2-itm", "--perception", "rgb", "--vlm", "openai:gpt-4o",
