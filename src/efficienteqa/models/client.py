@@ -499,17 +499,32 @@ class OpenAIChatClient:
         if probe and self.config.max_retries > PROBE_RETRIES:
             client = client.with_options(max_retries=PROBE_RETRIES)
         try:
-            reply = client.chat.completions.create(**arguments)
+            raw = client.chat.completions.with_raw_response.create(**arguments)
         except openai.OpenAIError as error:
             raise self._error(error) from None  # the SDK's chain repeats the reply, key included
-        except UnicodeDecodeError as error:  # the SDK decodes the body as UTF-8
-            raise EfficientEQAError(f"model server at {self.url} sent a reply that is not UTF-8 "
-                                    f"(byte {error.start})", fix="check base_url and the "
-                                    "server's log") from None
+        try:
+            reply = raw.parse()
+        except ValueError:  # labelled JSON but not JSON (JSONDecodeError), or not UTF-8 text:
+            raise self._unreadable(raw.http_response.content) from None  # a proxy, a bad server
         if not isinstance(reply, ChatCompletion):  # the SDK hands back a body it cannot decode
             raise EfficientEQAError(f"model server at {self.url} sent a reply that is not JSON: "
                                     f"{self._redact(_one_line(str(reply), 120))}", fix="check base_url")
         return reply.to_dict(mode="json")
+
+    def _unreadable(self, body: bytes) -> EfficientEQAError:
+        """A 2xx body that is not JSON, in one line saying what came instead: the SDK raises
+        ``JSONDecodeError`` from its own parser for a body labelled JSON (a login page from a
+        proxy, an empty body, bytes it decodes as UTF-16), with the body out of reach."""
+        where, fix = f"model server at {self.url}", "check base_url and the server's log"
+        if not body.strip():
+            return EfficientEQAError(f"{where} sent an empty reply", fix=fix)
+        try:
+            text = body.decode("utf-8")
+        except UnicodeDecodeError as error:
+            return EfficientEQAError(f"{where} sent a reply that is not UTF-8 (byte {error.start}):"
+                                     f" {body[:24]!r}", fix=fix)
+        return EfficientEQAError(f"{where} sent a reply that is not JSON: "
+                                 f"{self._redact(_one_line(text, 120))}", fix=fix)
 
     def _error(self, error: openai.OpenAIError) -> EfficientEQAError:
         """The SDK's error as one line naming the server, the tries and what to do."""

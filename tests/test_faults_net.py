@@ -1,0 +1,98 @@
+"""Fault trials of the model server's side (the shared FAULT-TRIALS list; issue "No traceback
+anywhere"), run as a user runs them: the ``efficienteqa`` command in a subprocess against the
+test server (tests/vlm_server.py) on loopback, its cache in a folder of the test's own. The bar:
+one clear error line or a normal run, no traceback, no secret in any file written."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from vlm_server import BROKEN, Options, servers
+
+# `efficienteqa eval` of the trials' short name B: the blind method on the fixed synthetic
+# split, answers grouped by rules, two episodes.
+BLIND = ["eval", "--eval.method", "blind", "--eval.dataset", "synthetic", "--backends.grouping",
+         "rules", "--backends.no-cache", "--eval.limit", "2"]
+
+
+@pytest.fixture
+def vlm():
+    with servers() as start:
+        yield start
+
+
+@pytest.fixture
+def env(tmp_path) -> dict[str, str]:
+    """The command's environment: a cache of the test's own, no OpenAI key."""
+    out = {k: v for k, v in os.environ.items() if k != "OPENAI_API_KEY"}
+    return {**out, "EFFICIENTEQA_CACHE": str(tmp_path / "cache"), "COLUMNS": "300"}
+
+
+def cli(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "efficienteqa.cli", *args], capture_output=True,
+                          text=True, env=env, timeout=300)
+
+
+def one_error_line(result: subprocess.CompletedProcess[str]) -> str:
+    """The command failed with exit 1 and one ``error:`` line, and no traceback."""
+    assert "Traceback" not in result.stdout + result.stderr, result.stderr[-3000:]
+    assert result.returncode == 1, result.stdout + result.stderr
+    errors = [line for line in result.stdout.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1, result.stdout
+    return errors[0]
+
+
+# ---------------------------------------------------------------- 2.19, N.13: 200s that are no JSON
+
+@pytest.mark.parametrize("broken", sorted(BROKEN))
+def test_eval_against_a_200_that_is_not_json_fails_in_one_line(vlm, env, tmp_path, broken):
+    server = vlm(Options(broken=broken))
+    result = cli(*BLIND, "--backends.vlm", f"openai:fake@{server.base_url}",
+                 "--out", str(tmp_path / "run"), env=env)
+    line = one_error_line(result)
+    assert f"model server at {server.base_url}/chat/completions sent" in line
+    assert not (tmp_path / "run" / "episodes.jsonl").exists()  # the probe, before any episode
+
+
+def test_ask_and_judge_against_a_200_that_is_not_json_fail_in_one_line(vlm, env, tmp_path):
+    html = vlm(Options(broken="html200json"))
+    result = cli("ask", "What is on the desk in the office?", "--scene", "synthetic:0",
+                 "--scene.assets", "builtin", "--explore.max-steps", "2", "--backends.no-cache",
+                 "--backends.vlm", f"openai:fake@{html.base_url}", "--out", str(tmp_path / "ask"),
+                 env=env)
+    assert "sent a reply that is not JSON: <!DOCTYPE html>" in one_error_line(result)
+    ok = vlm(Options())
+    run = tmp_path / "run"
+    done = cli(*BLIND, "--backends.vlm", f"openai:fake@{ok.base_url}", "--out", str(run), env=env)
+    assert done.returncode == 0, done.stdout + done.stderr
+    garbage = vlm(Options(broken="garbage"))
+    result = cli("judge", str(run), "--judge", f"openai:fake@{garbage.base_url}", env=env)
+    assert "sent a reply that is not UTF-8 (byte 0)" in one_error_line(result)
+
+
+def test_a_server_that_breaks_after_the_probe_fails_the_episodes_not_the_run(vlm, env, tmp_path):
+    """Past the probe, such a reply is a failed call: its episode fails with the one line, the
+    run goes on, and ends with the count of failed episodes (they resume on a re-run)."""
+    server = vlm(Options(broken="empty200", broken_after=2))
+    run = tmp_path / "run"
+    result = cli(*BLIND, "--backends.vlm", f"openai:fake@{server.base_url}", "--out", str(run),
+                 env=env)
+    assert "2 episode(s) failed" in one_error_line(result)
+    rows = [json.loads(line) for line in (run / "episodes.jsonl").read_text().splitlines()]
+    assert [r["status"] for r in rows] == ["failed", "failed"]
+    assert all("sent an empty reply" in r["error"] for r in rows)
+
+
+def test_the_test_server_answers_a_normal_blind_run(vlm, env, tmp_path):
+    server = vlm(Options())
+    result = cli(*BLIND, "--backends.vlm", f"openai:fake@{server.base_url}",
+                 "--out", str(tmp_path / "run"), env=env)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "2 episodes run" in result.stdout
+    assert Path(tmp_path / "run" / "episodes.jsonl").read_text().count("\n") == 2
