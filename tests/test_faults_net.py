@@ -96,3 +96,27 @@ def test_the_test_server_answers_a_normal_blind_run(vlm, env, tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     assert "2 episodes run" in result.stdout
     assert Path(tmp_path / "run" / "episodes.jsonl").read_text().count("\n") == 2
+
+
+# ---------------------------------------------------------------- 5.5: cache entries of other types
+
+def test_cache_entries_of_another_type_are_dropped_and_asked_again(vlm, env, tmp_path):
+    import sqlite3
+
+    server = vlm(Options())
+    cached = [a for a in BLIND if a != "--backends.no-cache"]
+    vlm_flag = ["--backends.vlm", f"openai:fake@{server.base_url}"]
+    first = cli(*cached, *vlm_flag, "--out", str(tmp_path / "first"), env=env)
+    assert first.returncode == 0, first.stdout + first.stderr
+    cache = tmp_path / "cache" / "responses" / "responses.sqlite"
+    with sqlite3.connect(cache) as db:  # trial 5.5's nulltokens and wrongtypes
+        db.execute("UPDATE responses SET response = CASE WHEN rowid % 2 THEN "
+                   """'{"text": "B", "model": "fake", "prompt_tokens": null}' ELSE """
+                   """'{"text": {"a": 1}, "model": "fake", "prompt_tokens": "many"}' END""")
+    asked = len(server.requests)
+    again = cli(*cached, *vlm_flag, "--out", str(tmp_path / "again"), env=env)
+    assert again.returncode == 0 and "Traceback" not in again.stderr, again.stdout + again.stderr
+    assert "2 episodes run, 0 already done, 0 failed" in again.stdout
+    assert "dropped an unreadable response-cache entry (TypeError: " in again.stderr
+    assert str(cache) in again.stderr
+    assert len(server.requests) > asked  # the calls were made again
