@@ -120,3 +120,49 @@ def test_cache_entries_of_another_type_are_dropped_and_asked_again(vlm, env, tmp
     assert "dropped an unreadable response-cache entry (TypeError: " in again.stderr
     assert str(cache) in again.stderr
     assert len(server.requests) > asked  # the calls were made again
+
+
+# ---------------------------------------------------------------- N.6: a cache folder that cannot be written
+
+@pytest.fixture(params=["chmod", "file"])
+def unwritable_cache(request, tmp_path) -> Path:
+    """A cache folder that cannot be made: under a folder of mode 0o555 (root ignores that
+    mode, so that case is skipped as root), or under a file (a path nobody can make a folder
+    at, like a read-only file system; also checked by hand on a read-only tmpfs)."""
+    if request.param == "chmod":
+        if os.geteuid() == 0:
+            pytest.skip("root writes into a folder of mode 0o555")
+        locked = tmp_path / "locked"
+        locked.mkdir(mode=0o555)
+        request.addfinalizer(lambda: locked.chmod(0o755))
+        return locked / "cache"
+    (tmp_path / "afile").write_text("")
+    return tmp_path / "afile" / "cache"
+
+
+def test_a_cache_folder_that_cannot_be_written_costs_the_cache_not_the_run(vlm, env, tmp_path,
+                                                                          unwritable_cache):
+    env["EFFICIENTEQA_CACHE"] = str(unwritable_cache)
+    vlm_flag = ["--backends.vlm", f"openai:fake@{vlm(Options()).base_url}"]
+    for i, cache_flag in enumerate(["--backends.cache", "--backends.no-cache"]):
+        run = cli(*[a for a in BLIND if a != "--backends.no-cache"], cache_flag, *vlm_flag,
+                  "--out", str(tmp_path / f"run{i}"), env=env)
+        assert run.returncode == 0 and "Traceback" not in run.stderr, run.stdout + run.stderr
+        assert "2 episodes run, 0 already done, 0 failed" in run.stdout
+        said = run.stderr.splitlines()
+        assert len([s for s in said if s.startswith("cannot keep the probe")]) == 1, said
+        assert str(unwritable_cache / "probes") in run.stderr
+        off = [s for s in said if s.startswith("response cache off")]
+        assert len(off) == (cache_flag == "--backends.cache"), said
+    asked = cli("ask", "What is on the desk in the office?", "--scene", "synthetic:0",
+                "--scene.assets", "builtin", "--explore.max-steps", "2", *vlm_flag,
+                "--out", str(tmp_path / "ask"), env=env)
+    assert asked.returncode == 0 and "Traceback" not in asked.stderr, asked.stdout + asked.stderr
+    assert (tmp_path / "ask" / "episode.json").is_file()
+    # what cannot do without the cache says so in one line, before any work
+    houses = cli(*BLIND, *vlm_flag, "--eval.dataset", "synthetic:0", "--out", str(tmp_path / "h"),
+                 env=env)
+    line = one_error_line(houses)
+    assert f"cannot create the cache folder {unwritable_cache}" in line
+    assert "set EFFICIENTEQA_CACHE to a writable folder" in line
+    assert not unwritable_cache.exists()

@@ -130,8 +130,14 @@ class ResponseCache:
     @property
     def path(self) -> Path:
         if self._path is None:
-            self._path = cache_dir("responses") / "responses.sqlite"
+            self._path = self.default_path()
         return self._path
+
+    @staticmethod
+    def default_path() -> Path:
+        """``cache_dir("responses")/responses.sqlite``, its folder created (an
+        ``EfficientEQAError`` when it cannot be)."""
+        return cache_dir("responses") / "responses.sqlite"
 
     def _connection(self) -> sqlite3.Connection:
         conn = getattr(self._local, "conn", None)
