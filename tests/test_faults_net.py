@@ -166,3 +166,53 @@ def test_a_cache_folder_that_cannot_be_written_costs_the_cache_not_the_run(vlm, 
     assert f"cannot create the cache folder {unwritable_cache}" in line
     assert "set EFFICIENTEQA_CACHE to a writable folder" in line
     assert not unwritable_cache.exists()
+
+
+# ---------------------------------------------------------------- 4.4: a password in the server's URL
+
+PASSWORD = "URLSECRETPW-4f9c1e"
+
+
+def files_holding(folder: Path, secret: str) -> list[str]:
+    return [str(p) for p in folder.rglob("*")
+            if p.is_file() and not p.is_symlink() and secret.encode() in p.read_bytes()]
+
+
+def test_a_password_in_the_servers_url_is_never_written_or_printed(vlm, env, tmp_path):
+    """Fault trial 4.4: the password of ``http://user:PASSWORD@host/v1`` was stored verbatim in
+    run.json, episodes.jsonl, the episode records and the kept probe, and printed in error
+    lines. It is written and printed as ``***``; the user and host stay, so the run still names
+    its server and resumes with the command that made it."""
+    server = vlm(Options())
+    url = server.base_url.replace("http://", f"http://alice:{PASSWORD}@")
+    shown = server.base_url.replace("http://", "http://alice:***@")
+    spec = f"openai:fake@{url}"
+    agent = ["eval", "--eval.method", "efficienteqa", "--eval.dataset", "synthetic:0",
+             "--eval.limit", "1", "--scene.assets", "builtin", "--explore.max-steps", "2",
+             "--eval.reports", "--backends.vlm", spec, "--eval.judge", spec,
+             "--out", str(tmp_path / "agent")]
+    runs = [cli(*agent, env=env), cli(*agent, env=env),  # the second resumes: nothing to run
+            cli(*[a for a in BLIND if a != "--backends.no-cache"], "--backends.vlm", spec,
+                "--out", str(tmp_path / "blind"), env=env),
+            cli("ask", "What is on the desk in the office?", "--scene", "synthetic:0",
+                "--scene.assets", "builtin", "--explore.max-steps", "2", "--backends.vlm", spec,
+                "--out", str(tmp_path / "ask"), env=env),
+            cli("judge", str(tmp_path / "agent"), "--judge", spec, env=env)]
+    for run in runs:
+        assert run.returncode == 0, run.stdout + run.stderr
+    assert "0 episodes run, 1 already done" in runs[1].stdout
+    assert [r["status"] for r in map(json.loads, (tmp_path / "agent" / "episodes.jsonl")
+                                     .read_text().splitlines())] == ["done"]
+    record = json.loads((tmp_path / "agent" / "run.json").read_text())
+    assert record["stack"]["vlm"] == f"openai:fake@{shown}" and record["judge"] == record["stack"]["vlm"]
+    assert list((tmp_path / "agent" / "episodes").rglob("episode.json"))
+    assert list((tmp_path / "cache" / "probes").glob("*.json"))
+    assert (tmp_path / "cache" / "responses" / "responses.sqlite").is_file()
+    dead = cli(*BLIND, "--backends.vlm", "openai:fake@http://alice:" + PASSWORD + "@127.0.0.1:9/v1",
+               "--backends.retries", "0", "--out", str(tmp_path / "dead"), env=env)
+    assert "model server at http://alice:***@127.0.0.1:9/v1/chat/completions unreachable" in \
+        one_error_line(dead)
+    said = "".join(r.stdout + r.stderr for r in [*runs, dead])
+    assert PASSWORD not in said and f"vlm_backend={record['stack']['vlm']}" in said
+    assert files_holding(tmp_path, PASSWORD) == []
+    assert server.requests and not server.image_errors

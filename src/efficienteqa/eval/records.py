@@ -26,6 +26,7 @@ from typing import Any
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.mapping.extent import MAP_SIZE_M
 from efficienteqa.records import write_json
+from efficienteqa.redact import redacted
 
 RUN_FILE = "run.json"
 EPISODES_FILE = "episodes.jsonl"
@@ -104,8 +105,9 @@ def read_episodes(path: Path) -> Episodes:
 
 def append_episode(path: Path, row: dict[str, Any]) -> None:
     """Append one line atomically enough for one writer: a single ``write`` of the whole line,
-    then ``fsync``. A file that ends mid-line (a killed writer) gets a newline first."""
-    data = (json.dumps(row, allow_nan=False, separators=(",", ":")) + "\n").encode()
+    then ``fsync``. A file that ends mid-line (a killed writer) gets a newline first. Passwords
+    in URLs are written as ``***`` (``redact``)."""
+    data = (json.dumps(redacted(row), allow_nan=False, separators=(",", ":")) + "\n").encode()
     path.parent.mkdir(parents=True, exist_ok=True)
     fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     try:
@@ -134,7 +136,7 @@ def compact_episodes(path: Path) -> int:
     tmp = path.with_name(path.name + ".tmp")
     with tmp.open("w") as f:
         for row in episodes.rows():
-            f.write(json.dumps(row, allow_nan=False, separators=(",", ":")) + "\n")
+            f.write(json.dumps(redacted(row), allow_nan=False, separators=(",", ":")) + "\n")
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
@@ -295,10 +297,11 @@ def _shown(value: Any) -> str:
 def _identity(key: str, manifest: dict[str, Any]) -> Any:
     """What of ``manifest[key]`` identifies the run: a model server's timeout and retries change
     how long a call may take, not what it answers, so a run resumes with others; the judge's
-    mode counts only where there is a judge."""
+    mode counts only where there is a judge. A URL's password is not recorded (``redact``), so
+    it is not compared: the run resumes with the command that made it."""
     if key == "judge_mode" and manifest.get("judge") is None:
         return None
-    value = _set(manifest.get(key))
+    value = _set(redacted(manifest.get(key)))
     if key == "stack" and isinstance(value, dict):
         value = {k: v for k, v in value.items() if k not in TRANSPORT}
     return value

@@ -63,6 +63,7 @@ from efficienteqa.eval.summary import (
     summarise,
     summary_record,
 )
+from efficienteqa.redact import redact_urls, redacted
 
 SEMANTIC_WARNING = ("Perception is semantic-sensor: the agent reads the simulator's object labels as "
                     "text, not pixels, so these are not image-model numbers.")
@@ -240,8 +241,8 @@ def write_run_report(summaries: Sequence[RunSummary], out: Path, *, stamp: bool 
             if isinstance(block, Figure):
                 (out / block.name).write_text(block.svg + "\n")
     md, page = out / "report.md", out / "report.html"
-    md.write_text(to_markdown(sections, intro))
-    page.write_text(to_html(sections, intro))
+    md.write_text(redact_urls(to_markdown(sections, intro)))  # a run recorded before redaction
+    page.write_text(redact_urls(to_html(sections, intro)))
     return md, page
 
 
@@ -277,9 +278,10 @@ def publish_run(folder: Path, summary: RunSummary, difference: PairedDifference 
     folder: with ``run.json`` and ``episodes.jsonl``, what a published run under ``results/``
     holds. Returns the summary's path."""
     path = Path(folder) / SUMMARY_FILE
-    path.write_text(json.dumps(summary_record(summary, difference), indent=1, sort_keys=True,
-                               ensure_ascii=False) + "\n")
-    (Path(folder) / REPORT_HTML).write_text(to_html(build_sections([summary]), _intro([summary], False)))
+    path.write_text(json.dumps(redacted(summary_record(summary, difference)), indent=1,
+                               sort_keys=True, ensure_ascii=False) + "\n")
+    (Path(folder) / REPORT_HTML).write_text(redact_urls(to_html(build_sections([summary]),
+                                                                _intro([summary], False))))
     return path
 
 

@@ -44,6 +44,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatResponse, Message, TokenLogprob, Usage
 from efficienteqa.models.cache import ResponseCache, request_key
 from efficienteqa.records import write_json
+from efficienteqa.redact import redact_urls
 
 if TYPE_CHECKING:
     import openai
@@ -218,7 +219,7 @@ class OpenAIChatClient:
         self._lock = threading.Lock()
 
     def __repr__(self) -> str:
-        return f"OpenAIChatClient(model={self.name!r}, base_url={self.config.base_url!r})"
+        return f"OpenAIChatClient(model={self.name!r}, base_url={redact_urls(self.config.base_url)!r})"
 
     @property
     def capabilities(self) -> Capabilities:
@@ -226,7 +227,8 @@ class OpenAIChatClient:
 
     @property
     def url(self) -> str:
-        return self.config.base_url.rstrip("/") + "/chat/completions"
+        """The endpoint as errors and warnings name it (a password in it as ``***``)."""
+        return redact_urls(self.config.base_url.rstrip("/") + "/chat/completions")
 
     def close(self) -> None:
         if self._sdk is not None:
@@ -360,7 +362,7 @@ class OpenAIChatClient:
     def _probe_path(self) -> Path:
         """Where this server's probe is kept; the folder is made only when it is written, so a
         read-only cache costs the keeping, not the run."""
-        ident = f"{self.config.base_url.rstrip('/')}|{self.name}"
+        ident = f"{redact_urls(self.config.base_url.rstrip('/'))}|{self.name}"
         folder = Path(self.config.probe_dir) if self.config.probe_dir else cache_path("probes")
         return folder / f"{hashlib.sha256(ident.encode()).hexdigest()[:24]}.json"
 
