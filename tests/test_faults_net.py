@@ -216,3 +216,97 @@ def test_a_password_in_the_servers_url_is_never_written_or_printed(vlm, env, tmp
     assert PASSWORD not in said and f"vlm_backend={record['stack']['vlm']}" in said
     assert files_holding(tmp_path, PASSWORD) == []
     assert server.requests and not server.image_errors
+
+
+# ---------------------------------------------------------------- 4.7, N.14: a local Ray run
+
+def descendants(pid: int) -> set[int]:
+    """``pid`` and every process under it (Ray's GCS, raylet, agents and workers)."""
+    children: dict[int, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except (OSError, ValueError):
+            continue
+        parent = int(stat.rsplit(")", 1)[1].split()[1])
+        children.setdefault(parent, []).append(int(entry.name))
+    found, todo = set(), [pid]
+    while todo:
+        found.add(todo[-1])
+        todo += [c for c in children.get(todo.pop(), []) if c not in found]
+    return found
+
+
+def listening(pids: set[int]) -> set[tuple[str, str]]:
+    """(process name, address) of each TCP socket the processes listen on, from /proc/net."""
+    import ipaddress
+
+    addresses = {}
+    for table in ("tcp", "tcp6"):
+        for row in Path(f"/proc/net/{table}").read_text().splitlines()[1:]:
+            field = row.split()
+            if field[3] != "0A":  # LISTEN
+                continue
+            raw = bytes.fromhex(field[1].split(":")[0])  # 32-bit words in host (little) order
+            ip = ipaddress.ip_address(b"".join(raw[i:i + 4][::-1] for i in range(0, len(raw), 4)))
+            addresses[field[9]] = str(ip)
+    found = set()
+    for pid in pids:
+        try:
+            name = Path(f"/proc/{pid}/comm").read_text().strip()
+            links = [os.readlink(f"/proc/{pid}/fd/{fd}") for fd in os.listdir(f"/proc/{pid}/fd")]
+        except OSError:  # the process ended
+            continue
+        found |= {(name, addresses[link[8:-1]]) for link in links
+                  if link.startswith("socket:[") and link[8:-1] in addresses}
+    return found
+
+
+def is_loopback(address: str) -> bool:
+    import ipaddress
+
+    ip = ipaddress.ip_address(address)
+    return ip.is_loopback or bool(getattr(ip, "ipv4_mapped", None) and ip.ipv4_mapped.is_loopback)
+
+
+@pytest.mark.slow
+def test_a_local_ray_run_listens_on_loopback_and_writes_no_key(vlm, env, tmp_path):
+    """Fault trials 4.7 and N.14 with two Ray workers: Ray's GCS, raylet and workers listened on
+    all interfaces, and the key of --backends.api-key-env EFFICIENTEQA_AUTH (a name that does not
+    look secret) was written to Ray's world-readable runtime_env_agent.log. Now every socket of
+    the run's processes is on loopback, the workers still send the key (the server refuses any
+    other), and no file of Ray's session, the run or the cache holds it."""
+    import importlib.util
+    import shutil
+    import tempfile
+    import time
+
+    if importlib.util.find_spec("ray") is None:
+        pytest.skip("Ray is not installed")
+    key = "sk-FAKE-rel5-ZZ9Q8W7-netfaults"
+    server = vlm(Options(api_key=key, hang_s=0.5, hang_after=2))  # the episodes' calls wait
+    temp = Path(tempfile.mkdtemp(prefix="eqa-ray-"))  # short: Ray's unix sockets' paths
+    env.update(EFFICIENTEQA_AUTH=key, RAY_TMPDIR=str(temp))
+    env.pop("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", None)
+    args = [*BLIND, "--eval.limit", "4", "--eval.workers", "2", "--backends.api-key-env",
+            "EFFICIENTEQA_AUTH", "--backends.vlm", f"openai:fake@{server.base_url}",
+            "--out", str(tmp_path / "run")]
+    try:
+        with (tmp_path / "stdout").open("w") as out, (tmp_path / "stderr").open("w") as err:
+            run = subprocess.Popen([sys.executable, "-m", "efficienteqa.cli", *args], stdout=out,
+                                   stderr=err, env=env, text=True)
+            sockets: set[tuple[str, str]] = set()
+            while run.poll() is None:
+                sockets |= listening(descendants(run.pid))
+                time.sleep(0.1)
+        said = (tmp_path / "stdout").read_text() + (tmp_path / "stderr").read_text()
+        assert run.returncode == 0 and "4 episodes run" in said, said
+        assert {"gcs_server", "raylet"} <= {name for name, _ in sockets}, sockets
+        assert [s for s in sockets if not is_loopback(s[1])] == []
+        assert len(server.requests) >= 6 and {r.status for r in server.requests} == {200}
+        assert any("runtime_env" in p.name for p in temp.rglob("*"))  # Ray did log here
+        assert files_holding(temp, key) == [] and files_holding(tmp_path, key) == []
+    finally:
+        shutil.rmtree(temp, ignore_errors=True)

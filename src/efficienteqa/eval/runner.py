@@ -44,6 +44,12 @@ Progress = Callable[[dict[str, Any]], None]
 log = logging.getLogger(__name__)
 # Environment variables whose names say they hold a secret (matched case-insensitively).
 SECRET_MARKS = ("KEY", "TOKEN", "SECRET", "PASSWORD", "PASSWD", "CREDENTIAL")
+# Ray binds its servers (GCS, raylet, every worker) to all interfaces unless its node's IP is the
+# loopback one, which it takes only with its "clusters" off: this variable, read when ray is
+# imported (ray._private.ray_constants; Ray's default on macOS and Windows). A local run needs
+# no other machine to reach it; a cluster is opened on purpose (--eval.address, docs/SCALING.md).
+# Set before the first import only: a process that imported Ray already keeps Ray's default.
+RAY_LOOPBACK = ("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 
 
 def episode_folder(out: Path, episode_id: str) -> Path:
@@ -285,6 +291,8 @@ def _sequential(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path) -> Itera
 
 def _on_ray(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path, workers: int,
             address: str | None) -> Iterator[dict[str, Any]]:
+    if address is None and "ray" not in sys.modules:
+        os.environ.setdefault(*RAY_LOOPBACK)
     try:
         import ray
     except ImportError:
