@@ -472,11 +472,19 @@ def test_broken_cache_does_not_fail_the_call(serve, tmp_path, caplog):
     assert "response cache unavailable" in caplog.text
 
 
-@pytest.mark.parametrize("entry", ["{not json", '{"text": "B", "model": 7, "logprobs": [1]}',
-                                   '[1, 2]', '{"bogus": 1}'])
+@pytest.mark.parametrize("entry", [
+    "{not json", '{"text": "B", "model": 7, "logprobs": [1]}', '[1, 2]', '{"bogus": 1}',
+    # fault trial 5.5: valid JSON, fields of another type
+    '{"text": "B", "model": "m", "prompt_tokens": null, "completion_tokens": null}',
+    '{"text": {"a": 1}, "model": "m", "prompt_tokens": "many"}',
+    '{"text": "B", "model": "m", "logprobs": [{"token": "B", "logprob": null}]}',
+    '{"text": "B", "model": "m", "logprobs": [{"token": "B", "logprob": -1, "top": [["A"]]}]}',
+    '{"text": "B", "model": "m", "cached": 1, "raw": []}'])
 def test_a_bad_cache_entry_is_a_miss_and_is_dropped(serve, tmp_path, caplog, entry):
     """Another version of the code may write into the shared cache; an entry this one
-    cannot read costs one model call, once, not every episode that hits it."""
+    cannot read costs one model call, once, not every episode that hits it. Its fields'
+    types are checked on reading (a null token count failed every episode at the usage sum,
+    with no word of the cache), and the warning names the cache file."""
     server = serve()
     client = make_client(server, tmp_path, cache=True)
     client.chat(ask())  # stores the reply
@@ -485,7 +493,20 @@ def test_a_bad_cache_entry_is_a_miss_and_is_dropped(serve, tmp_path, caplog, ent
     fresh = make_client(server, tmp_path, cache=True)
     assert fresh.chat(ask()).text == "B" and len(server.requests) == 2  # a miss, called again
     assert "dropped an unreadable response-cache entry" in caplog.text
+    assert str(tmp_path / "responses.sqlite") in caplog.text
     assert make_client(server, tmp_path, cache=True).chat(ask()).cached  # the new reply is kept
+
+
+def test_the_cache_checks_the_type_of_every_field_of_a_response():
+    from dataclasses import fields
+
+    from efficienteqa.models.base import ChatResponse, TokenLogprob
+    from efficienteqa.models.cache import FIELD_TYPES, response_from_json, response_to_json
+
+    assert set(FIELD_TYPES) == {f.name for f in fields(ChatResponse)}
+    full = ChatResponse("B", "m", 3, 1, 0.5, False, [TokenLogprob("B", -0.1, (("A", -2.0),))],
+                        {"id": "x"}, "stop")
+    assert response_from_json(response_to_json(full)) == full
 
 
 def test_a_reply_that_is_not_utf8_is_one_line(serve, tmp_path):

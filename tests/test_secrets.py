@@ -102,6 +102,37 @@ def test_ray_is_given_no_secret_but_the_settings_workers_need(tmp_path, monkeypa
     assert "PYTHONPATH" in env
 
 
+@pytest.mark.parametrize("address", [None, "ray://head.example:10001"])
+def test_the_variable_named_as_the_key_reaches_no_runtime_env_whatever_its_name(
+        tmp_path, monkeypatch, secrets, address):
+    """Fault trial N.14: --backends.api-key-env EFFICIENTEQA_AUTH named a variable that neither
+    looks secret nor is OPENAI_API_KEY, and Ray logged it with the runtime_env."""
+    monkeypatch.setenv("EFFICIENTEQA_AUTH", FAKE_KEY)
+    ray = FakeRay()
+    monkeypatch.setitem(sys.modules, "ray", ray)
+    keyed = RunSpec(method="eval_stubs:echo", dataset="toy", judge="openai:j@http://127.0.0.1:9/v1",
+                    stack=Stack(vlm="openai:m@http://127.0.0.1:9/v1", api_key_env="EFFICIENTEQA_AUTH"))
+    run_eval(keyed, questions(2), tmp_path / "run", workers=2, address=address, prepare=False)
+    [options] = ray.inits
+    assert FAKE_KEY not in repr(options) + repr(ray.handed)
+    assert "EFFICIENTEQA_AUTH" not in options["runtime_env"]["env_vars"]
+    assert "EFFICIENTEQA_CACHE" in options["runtime_env"]["env_vars"]  # the others still go
+
+
+def test_a_urls_password_is_redacted_and_its_user_and_host_kept():
+    from efficienteqa.redact import redact_urls, redacted
+
+    assert redact_urls("openai:m@http://alice:pw@10.0.0.1:8000/v1") == \
+        "openai:m@http://alice:***@10.0.0.1:8000/v1"
+    assert redact_urls("at https://u:p@ss@h/v1/chat and http://b:q@h2?x=1 or x@y") == \
+        "at https://u:***@h/v1/chat and http://b:***@h2?x=1 or x@y"  # an "@" in a password
+    assert redact_urls("https://:tok@h/v1") == "https://:***@h/v1"
+    for plain in ("http://h:8000/v1", "http://alice@h/v1", "local:qwen", "a:b@c"):
+        assert redact_urls(plain) == plain
+    assert redacted({"vlm": "http://a:b@h", "n": [1, ("http://c:d@h",)], "http://e:f@h": None}) == \
+        {"vlm": "http://a:***@h", "n": [1, ["http://c:***@h"]], "http://e:***@h": None}
+
+
 def test_secret_names():
     assert all(map(is_secret_name, ["OPENAI_API_KEY", "HF_TOKEN", "aws_secret_access_key",
                                     "DB_PASSWORD", "EFFICIENTEQA_HUB_TOKEN"]))

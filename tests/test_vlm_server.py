@@ -19,7 +19,7 @@ from efficienteqa.models.base import Message
 from efficienteqa.models.client import RequestRejected, encode_image
 from efficienteqa.vc.parse import parse_candidates, parse_letters, parse_worth_exploring
 from efficienteqa.vc.prompts import load_prompt
-from vlm_server import STYLES, check_image, classify, servers, tokens_of
+from vlm_server import BROKEN, STYLES, check_image, classify, servers, tokens_of
 
 SECRET = "sk-test-vlm-server-SECRET-0123"
 QUESTION = "What colour is the sofa in the living room?"
@@ -215,6 +215,26 @@ def test_a_dead_or_hung_server_fails_the_probe_in_one_line(vlm):
     unknown = vlm(models=("other-model",))
     with pytest.raises(RequestRejected, match="does not exist"):
         build_chat_model(backend(unknown))
+
+
+WHAT_CAME = {"garbage": r"not UTF-8 \(byte 0\): b'\\xfe\\xff", "empty200": "an empty reply",
+             "html200json": "not JSON: <!DOCTYPE html><html><body><h1>Sign in"}
+
+
+@pytest.mark.parametrize("broken", sorted(BROKEN))
+def test_a_200_that_is_not_the_json_it_says_is_one_line_naming_the_server(vlm, broken):
+    """Fault trials 2.19 and N.13: the SDK's own ``JSONDecodeError`` for a body labelled JSON
+    that is not (a proxy's login page, nothing, bytes read as UTF-16) was a traceback at the
+    probe; it is one line saying what came. After the probe it fails the call (the episode)."""
+    server = vlm(broken=broken)
+    with pytest.raises(EfficientEQAError, match=WHAT_CAME[broken]) as raised:
+        build_chat_model(backend(server))
+    assert f"model server at {server.base_url}/chat/completions sent" in str(raised.value)
+    assert "\n" not in str(raised.value) and "check base_url" in str(raised.value)
+    later = vlm(broken=broken, broken_after=2)
+    client = build_chat_model(backend(later))  # the probe's two requests are answered
+    with pytest.raises(EfficientEQAError, match=WHAT_CAME[broken]):
+        client.chat([Message("user", prompts()["match"])])
 
 
 # ---------------------------------------------------------------- (4) the image cap

@@ -47,6 +47,11 @@ from PIL import Image
 STYLES = ("exact", "markdown", "preamble", "json", "reasoning", "refuse")
 # vLLM's answer to more images than --limit-mm-per-prompt allows (HTTP 400).
 VLLM_IMAGE_LIMIT = "At most {n} image(s) may be provided in one request."
+# Bodies sent as "200 application/json" that are no JSON (``Options.broken``): bytes that a JSON
+# reader takes for UTF-16 (a byte-order mark, then no JSON), a login page, nothing.
+BROKEN = {"garbage": b"\xfe\xff\x00\x7b\x9c\x80\x00\x7d",
+          "html200json": b"<!DOCTYPE html><html><body><h1>Sign in</h1></body></html>",
+          "empty200": b""}
 
 
 @dataclass
@@ -67,6 +72,10 @@ class Options:
     ``cut``: a reply longer than ``max_tokens`` tokens is cut there with finish_reason
     "length". ``api_key``: when set, any other ``Authorization`` gets HTTP 401.
     ``models``: when set, another model name gets HTTP 404.
+    ``broken``: a body that is not the JSON its ``application/json`` label says (a broken
+    server or a misconfigured proxy; ``BROKEN``): "garbage" (bytes that are not UTF-8),
+    "html200json" (a login page), "empty200" (no body), all with status 200, to every request
+    after the first ``broken_after`` (0: every request; 2: the capability probe passes).
     """
 
     style: str = "exact"
@@ -83,10 +92,14 @@ class Options:
     cut: bool = False
     api_key: str | None = None
     models: tuple[str, ...] | None = None
+    broken: str | None = None
+    broken_after: int = 0
 
     def __post_init__(self) -> None:
         if self.style not in STYLES:
             raise ValueError(f"style {self.style!r} is not one of {STYLES}")
+        if self.broken is not None and self.broken not in BROKEN:
+            raise ValueError(f"broken {self.broken!r} is not one of {tuple(BROKEN)}")
         if self.logprobs not in ("return", "ignore", "reject"):
             raise ValueError(f"logprobs {self.logprobs!r}")
 
@@ -431,9 +444,9 @@ class VLMServer:
                 status, payload, extra = server.answer(headers, body, self.path)
                 self._send(status, payload, extra)
 
-            def _send(self, status: int, payload: dict[str, Any],
+            def _send(self, status: int, payload: dict[str, Any] | bytes,
                       extra: dict[str, str] | None = None) -> None:
-                data = json.dumps(payload).encode()
+                data = payload if isinstance(payload, bytes) else json.dumps(payload).encode()
                 try:
                     self.send_response(status)
                     self.send_header("content-type", "application/json")
@@ -473,12 +486,14 @@ class VLMServer:
         return status, {"error": {"message": message, "type": kind, "code": status}}, {}
 
     def answer(self, headers: dict[str, str], body: dict[str, Any], path: str
-               ) -> tuple[int, dict[str, Any], dict[str, str]]:
+               ) -> tuple[int, dict[str, Any] | bytes, dict[str, str]]:
         o = self.options
         seen = Seen(headers, body)
         with self._lock:
             self.requests.append(seen)
             number = len(self.requests)
+        if o.broken is not None and number > o.broken_after:
+            return 200, BROKEN[o.broken], {}
         result = self._answer(seen, body, path, number, o)
         seen.status = result[0]
         return result

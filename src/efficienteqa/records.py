@@ -19,6 +19,7 @@ import numpy as np
 
 import efficienteqa
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.redact import redacted
 
 
 def code_version() -> str:
@@ -62,10 +63,11 @@ def check_writable(folder: Path) -> None:
 
 
 def write_json(path: Path, data: dict[str, Any]) -> Path:
-    """Written atomically (temporary file, then rename): a reader never sees half a file."""
+    """Written atomically (temporary file, then rename): a reader never sees half a file.
+    Passwords in URLs are written as ``***`` (``redact``)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
     with os.fdopen(fd, "w") as f:
-        json.dump(data, f, indent=1, allow_nan=False)
+        json.dump(redacted(data), f, indent=1, allow_nan=False)
     os.replace(tmp, path)
     return path

@@ -13,6 +13,7 @@ from rich.markup import escape
 from efficienteqa.cli import run, tools  # noqa: F401 - registers the commands
 from efficienteqa.cli.app import app, console
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.redact import redact_urls
 
 __all__ = ["app", "main"]
 
@@ -22,8 +23,10 @@ def main() -> None:
     try:
         app()
     except EfficientEQAError as exc:
-        # escaped: a fix such as pip install 'efficienteqa[ray]' is text, not rich markup
-        console.print(f"[red]error:[/red] {escape(str(exc))}", highlight=False, soft_wrap=True)
+        # escaped: a fix such as pip install 'efficienteqa[ray]' is text, not rich markup; a
+        # URL's password (e.g. in a --backends.vlm the error quotes) is not printed
+        console.print(f"[red]error:[/red] {escape(redact_urls(str(exc)))}", highlight=False,
+                      soft_wrap=True)
         sys.exit(1)
     except KeyboardInterrupt:
         console.print("[yellow]interrupted[/yellow]")

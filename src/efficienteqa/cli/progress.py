@@ -9,6 +9,8 @@ from pathlib import Path
 
 from rich.console import Console
 
+from efficienteqa.redact import redact_urls
+
 
 @contextmanager
 def eval_progress(console: Console, method: str, ids: Collection[str],
@@ -42,8 +44,9 @@ def eval_progress(console: Console, method: str, ids: Collection[str],
                     values.append(row[key]["value"])
             info = "  ".join(names[k].format(sum(v) / len(v)) for k, v in scores.items() if v)
             if row["status"] != "done":
-                console.print(f"[yellow]{row['id']} failed:[/yellow] {row.get('error')}",
-                              highlight=False, soft_wrap=True)
+                console.print(f"[yellow]{row['id']} failed:[/yellow] "
+                              f"{redact_urls(str(row.get('error')))}", highlight=False,
+                              soft_wrap=True)
             progress.update(task, advance=1, info=info)
 
         yield on_episode
@@ -58,7 +61,7 @@ def say_failures(console: Console, out: Path, failed: int, ids: Collection[str])
     why = Counter(str(r.get("error")) for r in read_episodes(out / "episodes.jsonl").rows()
                   if r.get("status") != "done" and r["id"] in asked)
     for error, count in why.most_common(3):
-        console.print(f"  {count} x {error}", highlight=False, soft_wrap=True)
+        console.print(f"  {count} x {redact_urls(error)}", highlight=False, soft_wrap=True)
     console.print(f"[red]error:[/red] {failed} episode(s) failed (the commonest errors are "
                   "above, all in episodes.jsonl); the same command resumes them",
                   highlight=False, soft_wrap=True)

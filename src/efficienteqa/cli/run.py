@@ -13,6 +13,7 @@ from efficienteqa.cli.options import run_options
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
 from efficienteqa.presets import Resolved
+from efficienteqa.redact import redact_urls
 from efficienteqa.runconfig import ASK_EVAL_FIELDS
 
 AGENT_SECTIONS = ("backends", "scene", "explore", "stop", "answer")
@@ -183,8 +184,8 @@ def ask_command(
     if reference:
         say(f"reference answer: {reference}", highlight=False)
     shown = {k: v for k, v in rec["backends"].items() if v and k != "capabilities"}
-    say(f"back-ends: {', '.join(f'{k}={v}' for k, v in shown.items())}", highlight=False,
-        soft_wrap=True)
+    say(redact_urls(f"back-ends: {', '.join(f'{k}={v}' for k, v in shown.items())}"),
+        highlight=False, soft_wrap=True)
     model = rec["model"]
     say(f"model calls: {model['calls']}" + (f"   cost: ${model['cost_usd']:.4f}"
                                             if model.get("cost_usd") else ""), highlight=False)
@@ -225,8 +226,8 @@ def judge_command(
     for folder in runs:
         with console.status(f"grading {folder}..."):
             n, score = rejudge(folder, judge, mode)
-        console.print(f"{folder}: {n} episodes graded by {judge} ({mode}): LLM-Match {score:.1f}",
-                      highlight=False, soft_wrap=True)
+        console.print(f"{folder}: {n} episodes graded by {redact_urls(judge)} ({mode}): "
+                      f"LLM-Match {score:.1f}", highlight=False, soft_wrap=True)
 
 
 def _judge_spec(run: Resolved) -> str | None:
@@ -336,7 +337,7 @@ def report_command(
     for folder, summary, difference in zip(run_folders(folders), summaries, differences):
         publish_run(folder, summary, difference)
     if markdown:
-        sys.stdout.write(markdown_table(summaries, differences))
+        sys.stdout.write(redact_urls(markdown_table(summaries, differences)))
         return
     md, page = write_run_report(summaries, target, stamp=not single)
     header, rows = overview_rows(summaries)

@@ -26,6 +26,7 @@ from typing import Any
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.mapping.extent import MAP_SIZE_M
 from efficienteqa.records import write_json
+from efficienteqa.redact import redacted
 
 RUN_FILE = "run.json"
 EPISODES_FILE = "episodes.jsonl"
@@ -126,8 +127,8 @@ def append_episode(path: Path, row: dict[str, Any]) -> None:
     """Append one line atomically enough for one writer: a single ``write`` of the whole line,
     then ``fsync``. A file that ends mid-line (a killed writer) gets a newline first. A file
     that cannot be opened or written (a full disk, a file made read-only) is one line naming
-    the episode whose line is lost."""
-    data = (json.dumps(row, allow_nan=False, separators=(",", ":")) + "\n").encode()
+    the episode whose line is lost. Passwords in URLs are written as ``***`` (``redact``)."""
+    data = (json.dumps(redacted(row), allow_nan=False, separators=(",", ":")) + "\n").encode()
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd = _open_for_append(path)
@@ -169,7 +170,7 @@ def compact_episodes(path: Path) -> int:
     tmp = path.with_name(path.name + ".tmp")
     with tmp.open("w") as f:
         for row in episodes.rows():
-            f.write(json.dumps(row, allow_nan=False, separators=(",", ":")) + "\n")
+            f.write(json.dumps(redacted(row), allow_nan=False, separators=(",", ":")) + "\n")
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
@@ -351,10 +352,11 @@ def _shown(value: Any) -> str:
 def _identity(key: str, manifest: dict[str, Any]) -> Any:
     """What of ``manifest[key]`` identifies the run: a model server's timeout and retries change
     how long a call may take, not what it answers, so a run resumes with others; the judge's
-    mode counts only where there is a judge."""
+    mode counts only where there is a judge. A URL's password is not recorded (``redact``), so
+    it is not compared: the run resumes with the command that made it."""
     if key == "judge_mode" and manifest.get("judge") is None:
         return None
-    value = _set(manifest.get(key))
+    value = _set(redacted(manifest.get(key)))
     if key == "stack" and isinstance(value, dict):
         value = {k: v for k, v in value.items() if k not in TRANSPORT}
     return value

@@ -23,7 +23,7 @@ import platform
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -44,6 +44,12 @@ Progress = Callable[[dict[str, Any]], None]
 log = logging.getLogger(__name__)
 # Environment variables whose names say they hold a secret (matched case-insensitively).
 SECRET_MARKS = ("KEY", "TOKEN", "SECRET", "PASSWORD", "PASSWD", "CREDENTIAL")
+# Ray binds its servers (GCS, raylet, every worker) to all interfaces unless its node's IP is the
+# loopback one, which it takes only with its "clusters" off: this variable, read when ray is
+# imported (ray._private.ray_constants; Ray's default on macOS and Windows). A local run needs
+# no other machine to reach it; a cluster is opened on purpose (--eval.address, docs/SCALING.md).
+# Set before the first import only: a process that imported Ray already keeps Ray's default.
+RAY_LOOPBACK = ("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 
 
 def episode_folder(out: Path, episode_id: str) -> Path:
@@ -290,6 +296,8 @@ def _sequential(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path) -> Itera
 
 def _on_ray(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path, workers: int,
             address: str | None) -> Iterator[dict[str, Any]]:
+    if address is None and "ray" not in sys.modules:
+        os.environ.setdefault(*RAY_LOOPBACK)
     try:
         import ray
     except ImportError:
@@ -301,7 +309,7 @@ def _on_ray(spec: RunSpec, todo: Sequence[EvalQuestion], out: Path, workers: int
             note = _cluster_key_note(spec, address)
             if note:
                 log.warning(note)
-        ray.init(address=address, **ray_init_options(workers, address))
+        ray.init(address=address, **ray_init_options(workers, address, _key_names(spec)))
     try:
         task = ray.remote(num_cpus=1, max_retries=3)(run_episode)
         pending: dict[Any, EvalQuestion] = {}
@@ -327,16 +335,20 @@ def is_secret_name(name: str) -> bool:
     return any(mark in name.upper() for mark in SECRET_MARKS)
 
 
-def ray_init_options(workers: int, address: str | None) -> dict[str, Any]:
+def ray_init_options(workers: int, address: str | None,
+                     keys: Collection[str] = ()) -> dict[str, Any]:
     """``ray.init``'s options for a Ray this runner starts or joins.
 
     Workers must import the same code and use the same caches as this process, so its
     ``PYTHONPATH``, ``EFFICIENTEQA_*`` and ``XDG_CACHE_HOME`` go in ``runtime_env``. No secret
     does: Ray writes the runtime_env in plain text to its session logs (world-readable), so any
-    variable whose name looks secret is left out. A local Ray's workers inherit this process's
-    environment, OPENAI_API_KEY included; a cluster's nodes must have it set by their user."""
-    env = {k: v for k, v in os.environ.items()  # never a secret-named one: Ray logs them all
-           if (k.startswith("EFFICIENTEQA_") or k == "XDG_CACHE_HOME") and not is_secret_name(k)}
+    variable whose name looks secret is left out, and so are ``keys``, the variables the run's
+    models read their keys from (``--backends.api-key-env``, named as the user likes, e.g.
+    EFFICIENTEQA_AUTH). A local Ray's workers inherit this process's environment, keys
+    included; a cluster's nodes must have them set by their user."""
+    env = {k: v for k, v in os.environ.items()  # never a secret: Ray logs them all
+           if (k.startswith("EFFICIENTEQA_") or k == "XDG_CACHE_HOME") and not is_secret_name(k)
+           and k not in keys}
     env["PYTHONPATH"] = os.pathsep.join(p for p in [os.getcwd(), *sys.path] if p)
     options: dict[str, Any] = {"runtime_env": {"env_vars": env}, "log_to_driver": False,
                                "configure_logging": False}
@@ -345,9 +357,8 @@ def ray_init_options(workers: int, address: str | None) -> dict[str, Any]:
     return options
 
 
-def _cluster_key_note(spec: RunSpec, address: str) -> str | None:
-    """One line for a run on a Ray at ``address`` whose models read an API key: the key is not
-    sent to the workers, they read it from their own node's environment."""
+def _key_names(spec: RunSpec) -> set[str]:
+    """The environment variables the run's models (its VLM and its judge) read their keys from."""
     from efficienteqa.stack import parse_vlm
 
     names = set()
@@ -360,6 +371,13 @@ def _cluster_key_note(spec: RunSpec, address: str) -> str | None:
             continue  # not a model spec (e.g. "rule"); a bad one fails in the episode
         if backend.key_env is not None:
             names.add(backend.key_env)
+    return names
+
+
+def _cluster_key_note(spec: RunSpec, address: str) -> str | None:
+    """One line for a run on a Ray at ``address`` whose models read an API key: the key is not
+    sent to the workers, they read it from their own node's environment."""
+    names = _key_names(spec)
     if not names:
         return None
     return (f"Ray at {address}: {', '.join(sorted(names))} is not sent to the workers; "

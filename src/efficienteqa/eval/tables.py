@@ -63,6 +63,7 @@ from efficienteqa.eval.summary import (
     summarise,
     summary_record,
 )
+from efficienteqa.redact import redact_urls, redacted
 
 SEMANTIC_WARNING = ("Perception is semantic-sensor: the agent reads the simulator's object labels as "
                     "text, not pixels, so these are not image-model numbers.")
@@ -246,8 +247,8 @@ def write_run_report(summaries: Sequence[RunSummary], out: Path, *, stamp: bool 
             if isinstance(block, Figure):
                 _write(out / block.name, block.svg + "\n", fix)
     md, page = out / "report.md", out / "report.html"
-    _write(md, to_markdown(sections, intro), fix)
-    _write(page, to_html(sections, intro), fix)
+    _write(md, redact_urls(to_markdown(sections, intro)), fix)  # runs recorded before redaction
+    _write(page, redact_urls(to_html(sections, intro)), fix)
     return md, page
 
 
@@ -293,10 +294,10 @@ def publish_run(folder: Path, summary: RunSummary, difference: PairedDifference 
     holds. Returns the summary's path."""
     path = Path(folder) / SUMMARY_FILE
     fix = "make the run folder writable: report writes its summary.json and report.html there"
-    _write(path, json.dumps(summary_record(summary, difference), indent=1, sort_keys=True,
-                            ensure_ascii=False) + "\n", fix)
-    _write(Path(folder) / REPORT_HTML, to_html(build_sections([summary]), _intro([summary], False)),
-           fix)
+    _write(path, json.dumps(redacted(summary_record(summary, difference)), indent=1,
+                            sort_keys=True, ensure_ascii=False) + "\n", fix)
+    _write(Path(folder) / REPORT_HTML, redact_urls(to_html(build_sections([summary]),
+                                                           _intro([summary], False))), fix)
     return path
 
 

@@ -12,6 +12,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatModel
 from efficienteqa.models.client import ClientConfig, OpenAIChatClient
 from efficienteqa.models.local.weights import DEFAULT_MODEL
+from efficienteqa.redact import redact_urls
 from efficienteqa.registry import Registry
 
 OPENAI_URL = "https://api.openai.com/v1"
@@ -102,7 +103,7 @@ def _local(backend: ChatBackend) -> ChatModel:
 def _openai(backend: ChatBackend) -> ChatModel:
     prompt_price, completion_price = PRICES.get(backend.model, (0.0, 0.0))
     base_url = backend.base_url or OPENAI_URL
-    model_spec = f"openai:{backend.model}" + (f"@{base_url}" if backend.base_url else "")
+    model_spec = f"openai:{backend.model}" + (f"@{redact_urls(base_url)}" if backend.base_url else "")
     client = OpenAIChatClient(ClientConfig(
         base_url=base_url, model=backend.model, api_key_env=backend.key_env,
         capabilities=Capabilities(images=backend.images, logprobs=backend.logprobs,
@@ -111,7 +112,7 @@ def _openai(backend: ChatBackend) -> ChatModel:
         cache=backend.cache, timeout_s=backend.timeout_s, max_retries=backend.retries,
         temperature=backend.temperature, image_format=backend.image_format or "jpeg",
         image_max_side=backend.image_max_side, image_detail=backend.image_detail,
-        cache_server=base_url,
+        cache_server=redact_urls(base_url),  # a password in the URL is no part of the server
         unreachable_fix=f"check that the server of {backend.flag} {model_spec} is running and "
                         "that the "
                         "URL is right (it usually ends in /v1)"))

@@ -21,7 +21,7 @@ import logging
 import sqlite3
 import threading
 import time
-from dataclasses import asdict, fields, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -71,16 +71,45 @@ def response_to_json(response: ChatResponse) -> str:
     return json.dumps(asdict(response), ensure_ascii=False)
 
 
+# The JSON types of a stored response's fields. An entry of another type (a null token count,
+# a text that is an object) is refused here: served, it would fail every episode that hits it,
+# far from the cache (the usage sum, a parser), and every resume the same way.
+_NUMBER = (int, float)
+FIELD_TYPES: dict[str, tuple[type, ...]] = {
+    "text": (str,), "model": (str,), "prompt_tokens": (int,), "completion_tokens": (int,),
+    "latency_s": _NUMBER, "cached": (bool,), "logprobs": (list, type(None)), "raw": (dict,),
+    "finish_reason": (str, type(None))}
+
+
+def _typed(name: str, value: Any, types: tuple[type, ...]) -> Any:
+    """``value`` when it is of ``types`` (a bool is no number here), else a ``TypeError``."""
+    if not isinstance(value, types) or (isinstance(value, bool) and bool not in types):
+        raise TypeError(f"{name} is {type(value).__name__}: {str(value)[:40]!r}")
+    return value
+
+
+def _token_logprob(entry: Any) -> TokenLogprob:
+    """A stored ``TokenLogprob``: ``{"token": str, "logprob": number, "top": [[str, number]]}``."""
+    entry = _typed("a logprob", entry, (dict,))
+    top = _typed("top", entry.get("top", []), (list,))
+    pairs = [_typed("an alternative", pair, (list,)) for pair in top]
+    if any(len(pair) != 2 for pair in pairs):
+        raise TypeError("an alternative is not a (token, logprob) pair")
+    return TokenLogprob(token=_typed("token", entry.get("token"), (str,)),
+                        logprob=_typed("logprob", entry.get("logprob"), _NUMBER),
+                        top=tuple((_typed("token", a, (str,)), _typed("logprob", b, _NUMBER))
+                                  for a, b in pairs))
+
+
 def response_from_json(blob: str) -> ChatResponse:
     """A stored response; fields it lacks (an entry older than them, e.g. ``finish_reason``)
-    take their defaults, and fields this version does not know are dropped."""
-    data = json.loads(blob)
-    known = {f.name for f in fields(ChatResponse)}
-    data = {k: v for k, v in data.items() if k in known}
+    take their defaults, and fields this version does not know are dropped. ``ValueError`` or
+    ``TypeError`` for an entry that is not JSON or has a field of another type
+    (``FIELD_TYPES``)."""
+    data = _typed("the entry", json.loads(blob), (dict,))
+    data = {k: _typed(k, v, FIELD_TYPES[k]) for k, v in data.items() if k in FIELD_TYPES}
     if data.get("logprobs") is not None:
-        data["logprobs"] = [TokenLogprob(token=t["token"], logprob=t["logprob"],
-                                         top=tuple((a, b) for a, b in t.get("top", ())))
-                            for t in data["logprobs"]]
+        data["logprobs"] = [_token_logprob(t) for t in data["logprobs"]]
     return ChatResponse(**data)
 
 
@@ -101,8 +130,14 @@ class ResponseCache:
     @property
     def path(self) -> Path:
         if self._path is None:
-            self._path = cache_dir("responses") / "responses.sqlite"
+            self._path = self.default_path()
         return self._path
+
+    @staticmethod
+    def default_path() -> Path:
+        """``cache_dir("responses")/responses.sqlite``, its folder created (an
+        ``EfficientEQAError`` when it cannot be)."""
+        return cache_dir("responses") / "responses.sqlite"
 
     def _connection(self) -> sqlite3.Connection:
         conn = getattr(self._local, "conn", None)

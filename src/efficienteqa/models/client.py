@@ -39,11 +39,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from PIL import Image
 
-from efficienteqa.cache import cache_dir
+from efficienteqa.cache import cache_path
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatResponse, Message, TokenLogprob, Usage
 from efficienteqa.models.cache import ResponseCache, request_key
 from efficienteqa.records import write_json
+from efficienteqa.redact import redact_urls
 
 if TYPE_CHECKING:
     import openai
@@ -61,6 +62,15 @@ PROBE_RETRIES = 1
 # Sent where no key is configured: the SDK insists on one, and without it would read
 # OPENAI_API_KEY from the environment and send the user's OpenAI key to a local server.
 _NO_KEY = "no-key"
+_WARNED: set[str] = set()
+
+
+def _warn_once(message: str) -> None:
+    """A warning that every client of this process would repeat (a run builds one per
+    episode), said once."""
+    if message not in _WARNED:
+        _WARNED.add(message)
+        log.warning(message)
 
 
 @dataclass(frozen=True)
@@ -204,11 +214,12 @@ class OpenAIChatClient:
         self._capabilities = config.capabilities
         self._api_key()  # a missing key is a set-up error: say so before anything runs
         self._cache = cache
+        self._cache_off = False  # its folder cannot be made: the run goes on without it
         self._sdk: openai.OpenAI | None = None
         self._lock = threading.Lock()
 
     def __repr__(self) -> str:
-        return f"OpenAIChatClient(model={self.name!r}, base_url={self.config.base_url!r})"
+        return f"OpenAIChatClient(model={self.name!r}, base_url={redact_urls(self.config.base_url)!r})"
 
     @property
     def capabilities(self) -> Capabilities:
@@ -216,7 +227,8 @@ class OpenAIChatClient:
 
     @property
     def url(self) -> str:
-        return self.config.base_url.rstrip("/") + "/chat/completions"
+        """The endpoint as errors and warnings name it (a password in it as ``***``)."""
+        return redact_urls(self.config.base_url.rstrip("/") + "/chat/completions")
 
     def close(self) -> None:
         if self._sdk is not None:
@@ -330,8 +342,10 @@ class OpenAIChatClient:
                   "at": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
         try:
             write_json(path, record)
-        except OSError as error:
-            log.warning("cannot keep the probe of %s (%s)", self.url, _one_line(str(error)))
+        except OSError as error:  # e.g. a read-only cache folder: probed again next time
+            _warn_once(f"cannot keep the probe of {self.url} in {path.parent} "
+                       f"({error.strerror or error}): each run probes it again (set "
+                       "EFFICIENTEQA_CACHE to a writable folder to keep it)")
         return self._capabilities
 
     def declare(self, capabilities: Capabilities) -> Capabilities:
@@ -346,8 +360,10 @@ class OpenAIChatClient:
     # -- internals --
 
     def _probe_path(self) -> Path:
-        ident = f"{self.config.base_url.rstrip('/')}|{self.name}"
-        folder = Path(self.config.probe_dir) if self.config.probe_dir else cache_dir("probes")
+        """Where this server's probe is kept; the folder is made only when it is written, so a
+        read-only cache costs the keeping, not the run."""
+        ident = f"{redact_urls(self.config.base_url.rstrip('/'))}|{self.name}"
+        folder = Path(self.config.probe_dir) if self.config.probe_dir else cache_path("probes")
         return folder / f"{hashlib.sha256(ident.encode()).hexdigest()[:24]}.json"
 
     def _apply_probe(self, found: dict[str, Any], source: str) -> None:
@@ -455,17 +471,24 @@ class OpenAIChatClient:
             return self._sdk
 
     def _response_cache(self) -> ResponseCache | None:
-        if not self.config.cache:
+        """The response cache, or None: off by configuration, or its folder cannot be made
+        (a read-only cache folder: the run goes on without it, saying so once)."""
+        if not self.config.cache or self._cache_off:
             return None
         if self._cache is None:
-            self._cache = ResponseCache(self.config.cache_path)
+            try:
+                self._cache = ResponseCache(self.config.cache_path or ResponseCache.default_path())
+            except EfficientEQAError as error:
+                _warn_once(f"response cache off: {error}")
+                self._cache_off = True
         return self._cache
 
     def _cache_call(self, method: Callable[..., Any], *args: Any) -> Any:
-        """A broken or locked cache costs a model call, not the episode."""
+        """A broken or locked cache, or one that cannot be written, costs a model call, not the
+        episode."""
         try:
             return method(*args)
-        except sqlite3.Error as error:
+        except (sqlite3.Error, OSError) as error:
             log.warning("response cache unavailable (%s); calling the model", _one_line(str(error)))
             return None
 
@@ -499,17 +522,32 @@ class OpenAIChatClient:
         if probe and self.config.max_retries > PROBE_RETRIES:
             client = client.with_options(max_retries=PROBE_RETRIES)
         try:
-            reply = client.chat.completions.create(**arguments)
+            raw = client.chat.completions.with_raw_response.create(**arguments)
         except openai.OpenAIError as error:
             raise self._error(error) from None  # the SDK's chain repeats the reply, key included
-        except UnicodeDecodeError as error:  # the SDK decodes the body as UTF-8
-            raise EfficientEQAError(f"model server at {self.url} sent a reply that is not UTF-8 "
-                                    f"(byte {error.start})", fix="check base_url and the "
-                                    "server's log") from None
+        try:
+            reply = raw.parse()
+        except ValueError:  # labelled JSON but not JSON (JSONDecodeError), or not UTF-8 text:
+            raise self._unreadable(raw.http_response.content) from None  # a proxy, a bad server
         if not isinstance(reply, ChatCompletion):  # the SDK hands back a body it cannot decode
             raise EfficientEQAError(f"model server at {self.url} sent a reply that is not JSON: "
                                     f"{self._redact(_one_line(str(reply), 120))}", fix="check base_url")
         return reply.to_dict(mode="json")
+
+    def _unreadable(self, body: bytes) -> EfficientEQAError:
+        """A 2xx body that is not JSON, in one line saying what came instead: the SDK raises
+        ``JSONDecodeError`` from its own parser for a body labelled JSON (a login page from a
+        proxy, an empty body, bytes it decodes as UTF-16), with the body out of reach."""
+        where, fix = f"model server at {self.url}", "check base_url and the server's log"
+        if not body.strip():
+            return EfficientEQAError(f"{where} sent an empty reply", fix=fix)
+        try:
+            text = body.decode("utf-8")
+        except UnicodeDecodeError as error:
+            return EfficientEQAError(f"{where} sent a reply that is not UTF-8 (byte {error.start}):"
+                                     f" {body[:24]!r}", fix=fix)
+        return EfficientEQAError(f"{where} sent a reply that is not JSON: "
+                                 f"{self._redact(_one_line(text, 120))}", fix=fix)
 
     def _error(self, error: openai.OpenAIError) -> EfficientEQAError:
         """The SDK's error as one line naming the server, the tries and what to do."""

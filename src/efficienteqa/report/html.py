@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from efficienteqa.redact import redact_urls
 from efficienteqa.vc.parse import clean_answer
 
 CURVE_W, CURVE_H, PAD = 760, 260, 44
@@ -249,5 +250,6 @@ def write_report(path: Path, record: Mapping[str, Any], map_url: str,
                  frames: Mapping[int, str], descriptions: Mapping[int, str] | None = None
                  ) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(render_report(record, map_url, frames, descriptions), encoding="utf-8")
+    path.write_text(redact_urls(render_report(record, map_url, frames, descriptions)),
+                    encoding="utf-8")
     return path
