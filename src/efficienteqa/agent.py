@@ -100,9 +100,14 @@ class AgentConfig:
         budgets by the floor it has seen."""
         steps = self.explore.max_steps
         if is_recording(env):
-            length: int = env.length  # type: ignore[attr-defined]
-            return min(steps, length) if steps is not None else length
+            return recording_budget(steps, env)
         return steps if steps is not None else env_step_budget(env)
+
+
+def recording_budget(steps: int | None, env: Environment) -> int:
+    """A recorded walk's budget: its length, or ``steps`` when fewer."""
+    length: int = env.length  # type: ignore[attr-defined]
+    return length if steps is None else min(steps, length)
 
 
 # The paper's algorithm (DESIGN 3.2-3.5) with every option beyond it off: what `--preset paper`
@@ -272,7 +277,7 @@ class Agent:
             raise ValueError(f"the step budget must be at least 1, not {fixed}")
         recorded = is_recording(env)  # a walk recorded beforehand: read in order, no moves
         if recorded:
-            fixed = min(fixed or env.length, env.length)  # type: ignore[attr-defined]
+            fixed = recording_budget(fixed, env)
         obs, _ = env.reset(options={"start": start} if start is not None else None)
         reset = getattr(self.perception, "reset", None)  # a perception that keeps what it saw
         if reset is not None:  # over an episode (pixels' room votes) starts afresh

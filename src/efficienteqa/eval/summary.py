@@ -41,7 +41,7 @@ from functools import cache
 from typing import Any, TypeGuard
 
 from efficienteqa.eval.judge import score_value
-from efficienteqa.eval.records import ADDED_IN_FORMAT_4, RUN_FORMAT, upgrade
+from efficienteqa.eval.records import RUN_FORMAT, upgrade
 from efficienteqa.knobs import flatten
 
 # The back-ends a table states, in the order it states them, from the rows' ``backends``.
@@ -290,12 +290,8 @@ def label(manifest: Mapping[str, Any]) -> str:
     configuration K=10", "explore-eqa closed-set"). A run that did not record its named
     configuration (format 1) is named by the settings that differ from today's defaults."""
     preset = manifest.get("preset")
-    recorded = manifest.get("config")
-    config: Mapping[str, Any] = recorded if isinstance(recorded, Mapping) else {}
     # A setting the run did not record yet is what its time ran with: not a change to name.
-    unrecorded = [name for (section, name) in ADDED_IN_FORMAT_4
-                  if name not in config and name not in (config.get(section) or {})]
-    unrecorded += list(manifest.get("unrecorded") or ())  # as ``upgrade`` filled them
+    unrecorded = list(upgrade(dict(manifest)).get("unrecorded") or ())
     return settings_label(str(manifest.get("method", "?")), settings(manifest), unrecorded,
                           preset=preset if isinstance(preset, str) else None,
                           baseline=preset_settings(manifest))
