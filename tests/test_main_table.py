@@ -1,5 +1,6 @@
 """The main table's benchmark (results/main-heldout/) on 2 questions: every method runs on the same
-episodes, with the small real model, and the report pairs them against white-box ExploreEQA."""
+episodes, against the test server (tests/vlm_server.py: every prompt of every method answered in
+its format, as a real server would), and the report pairs them against white-box ExploreEQA."""
 
 import json
 import os
@@ -9,7 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from conftest import needs_egl, needs_small_model
+from clirun import run_cli
+from conftest import needs_egl
+from vlm_server import servers
 
 ROOT = Path(__file__).resolve().parents[1]
 RUNS = ("default", "pixels", "paper-offline", "paper-offline-pixels", "explore-eqa",
@@ -18,22 +21,32 @@ RUNS = ("default", "pixels", "paper-offline", "paper-offline-pixels", "explore-e
 
 
 @needs_egl
-@needs_small_model
 @pytest.mark.slow
-def test_the_main_table_runs_every_method_on_two_questions(tmp_path, small_model_cache):
-    shim = tmp_path / "efficienteqa"  # the CLI of this interpreter, whatever the venv is called
-    shim.write_text(f"#!/bin/sh\nexec {sys.executable} -m efficienteqa.cli \"$@\"\n")
+def test_the_main_table_runs_every_method_on_two_questions(tmp_path, capfd, monkeypatch):
+    """The script runs as users run it, with ``EQA`` a stand-in that records each command; the
+    commands it gave then run here, in this process (no interpreter start and model load per
+    method), and their output goes where the script's would."""
+    calls = tmp_path / "calls.jsonl"
+    shim = tmp_path / "efficienteqa"
+    shim.write_text(f"#!/bin/sh\nexec {sys.executable} -c 'import json, sys; "
+                    f"open(sys.argv[1], \"a\").write(json.dumps(sys.argv[2:]) + chr(10))' "
+                    f"{calls} \"$@\"\n")
     shim.chmod(0o755)
-    env = {**os.environ, "LIMIT": "2", "DATASET": "synthetic:4", "OUT": str(tmp_path / "runs"),
-           "EQA": str(shim), "JUDGE": "local:smollm2-135m",
-           "ARGS": "--vlm local:smollm2-135m --assets builtin --max-steps 3 --relevancy overlap "
-                   "--grouping rules"}
-    try:
-        result = subprocess.run(["bash", str(ROOT / "experiments" / "main_table.sh")], cwd=ROOT,
-                                env=env, capture_output=True, text=True, timeout=900)
-    finally:
-        subprocess.run([str(shim), "models", "stop", "smollm2-135m"], capture_output=True, env=env)
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    with servers() as start:
+        model = f"openai:test-vlm@{start().base_url}"
+        env = {**os.environ, "LIMIT": "2", "DATASET": "synthetic:4", "OUT": str(tmp_path / "runs"),
+               "EQA": str(shim), "JUDGE": model, "EFFICIENTEQA_CACHE": str(tmp_path / "cache"),
+               "ARGS": f"--vlm {model} --assets builtin --max-steps 2 --relevancy overlap "
+                       "--grouping rules"}
+        script = subprocess.run(["bash", str(ROOT / "experiments" / "main_table.sh")], cwd=ROOT,
+                                env=env, capture_output=True, text=True, timeout=60)
+        assert script.returncode == 0, script.stdout + script.stderr
+        commands = [json.loads(line) for line in calls.read_text().splitlines()]
+        assert [c[0] for c in commands] == ["eval"] * len(RUNS) + ["report"]
+        results = [run_cli(c, env, capfd, monkeypatch) for c in commands]
+    said = "".join(r.said for r in results)
+    assert "Traceback" not in said and [r.returncode for r in results] == [0] * len(results), said
+    result = results[-1]
     table = [line for line in result.stdout.splitlines()
              if line.startswith("| ") and not line.startswith("| Method")]
     assert len(table) == len(RUNS)
