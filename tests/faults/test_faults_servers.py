@@ -140,7 +140,7 @@ def test_a_server_that_never_answers_costs_the_timeout_not_the_run(cli, vlm, tmp
     start = time.monotonic()
     line = one_error_line(cli(*blind(tmp_path, *vlm_flag(hung), "--backends.timeout-s", "0.5",
                                      "--backends.retries", "0")))
-    assert time.monotonic() - start < 5
+    assert time.monotonic() - start < 6  # not the 8 s the server waits
     assert "did not answer within 0.5 s (1 tries)" in line and "raise --timeout-s" in line
     assert no_episode(tmp_path / "run")
     later = vlm(Options(hang_s=8, hang_after=2))  # "hangafter": the probe is answered
@@ -155,11 +155,12 @@ def test_a_server_that_never_answers_costs_the_timeout_not_the_run(cli, vlm, tmp
 
 @trial("2.21")
 def test_a_missing_key_is_one_line_naming_the_variable(cli, env, vlm, tmp_path):
+    """eval with the key's model as the VLM and as the judge, and judge (ask fails at the same
+    client as on a dead server, 2.17)."""
     env.pop("OPENAI_API_KEY")
     server, keyed = vlm(Options()), vlm(Options())
     missing = "error: environment variable OPENAI_API_KEY is not set"
     for i, args in enumerate([blind(tmp_path, "--backends.vlm", "openai:gpt-4o", name="b"),
-                              (*ASK, "--backends.vlm", "openai:gpt-4o", "--out", str(tmp_path / "a")),
                               blind(tmp_path, *vlm_flag(server), "--eval.judge", "openai:gpt-4o",
                                     name="j"),
                               blind(tmp_path, *vlm_flag(keyed), *KEYED, name="k")]):
@@ -170,7 +171,6 @@ def test_a_missing_key_is_one_line_naming_the_variable(cli, env, vlm, tmp_path):
     assert "environment variable NOPE_NOT_SET is not set" in other
     assert keyed.requests == []  # nothing was sent without its key
     assert all(no_episode(tmp_path / n) for n in "bjkn")
-    assert not (tmp_path / "a" / "episode.json").exists()
     done = tmp_path / "done"
     ran(cli(*blind(tmp_path, *vlm_flag(server), name="done")))  # a run to judge again
     line = one_error_line(cli("judge", str(done), "--judge", "openai:gpt-4o"))
