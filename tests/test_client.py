@@ -329,6 +329,7 @@ def test_api_key_only_in_authorization_header(serve, tmp_path, monkeypatch, capl
     assert files and all(SECRET.encode() not in f.read_bytes() for f in files)
 
 
+@pytest.mark.trial("4.2")
 @pytest.mark.parametrize("status", [401, 503])
 def test_api_key_redacted_from_errors(serve, tmp_path, monkeypatch, status):
     monkeypatch.setenv("FAKE_OPENAI_KEY", SECRET)
@@ -343,6 +344,7 @@ def test_api_key_redacted_from_errors(serve, tmp_path, monkeypatch, status):
         assert isinstance(raised.value, RequestRejected) and "$FAKE_OPENAI_KEY" in str(raised.value)
 
 
+@pytest.mark.trial("2.21")
 def test_missing_api_key_fails_before_any_request(serve, tmp_path, monkeypatch):
     monkeypatch.delenv("FAKE_OPENAI_KEY", raising=False)
     monkeypatch.setenv("OPENAI_API_KEY", SECRET)  # the SDK's fallback must not stand in
@@ -1022,6 +1024,7 @@ def test_ask_and_eval_through_openai_match_local_on_the_projects_own_server(
     assert said["openai"] == said["local"]
 
 
+@pytest.mark.trial("2.17")
 def test_an_unreachable_judge_is_named_as_the_judge(private_cache, monkeypatch):
     """The hint of a server that cannot be reached names the option that chose it."""
     from efficienteqa.eval.runner import build_judge

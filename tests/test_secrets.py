@@ -81,6 +81,7 @@ def secrets(monkeypatch, tmp_path):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
 
 
+@pytest.mark.trial("4.3")
 @pytest.mark.parametrize("address", [None, "ray://head.example:10001"])
 def test_ray_is_given_no_secret_but_the_settings_workers_need(tmp_path, monkeypatch, secrets,
                                                               address):
@@ -102,6 +103,7 @@ def test_ray_is_given_no_secret_but_the_settings_workers_need(tmp_path, monkeypa
     assert "PYTHONPATH" in env
 
 
+@pytest.mark.trial("N.14")
 @pytest.mark.parametrize("address", [None, "ray://head.example:10001"])
 def test_the_variable_named_as_the_key_reaches_no_runtime_env_whatever_its_name(
         tmp_path, monkeypatch, secrets, address):
@@ -119,6 +121,7 @@ def test_the_variable_named_as_the_key_reaches_no_runtime_env_whatever_its_name(
     assert "EFFICIENTEQA_CACHE" in options["runtime_env"]["env_vars"]  # the others still go
 
 
+@pytest.mark.trial("4.4")
 def test_a_urls_password_is_redacted_and_its_user_and_host_kept():
     from efficienteqa.redact import redact_urls, redacted
 
@@ -158,6 +161,7 @@ def test_a_cluster_run_of_a_keyed_model_says_the_nodes_need_the_key(tmp_path, mo
     assert not caplog.records
 
 
+@pytest.mark.trial("4.3")
 @pytest.mark.slow
 def test_a_local_ray_run_writes_no_key_to_rays_files_and_workers_still_read_it(tmp_path,
                                                                                monkeypatch,

@@ -7,7 +7,8 @@ answers, grouping, the judge, the probe) in the format they ask for, in one of s
 ``STYLES``, deterministically (the same request gets the same reply). ``Options`` says how it
 behaves, e.g. like GPT-4o (logprobs returned, any number of images), like vLLM with
 ``--limit-mm-per-prompt image=1`` (``max_images=1``), like a server that ignores or rejects
-logprobs, hangs, or cuts replies at ``max_tokens``.
+logprobs, hangs, or cuts replies at ``max_tokens``, or like a broken server or proxy
+(``Options.misbehave``: ``MISBEHAVIOURS``, the fault trials' modes).
 
 In a test::
 
@@ -52,6 +53,38 @@ VLLM_IMAGE_LIMIT = "At most {n} image(s) may be provided in one request."
 BROKEN = {"garbage": b"\xfe\xff\x00\x7b\x9c\x80\x00\x7d",
           "html200json": b"<!DOCTYPE html><html><body><h1>Sign in</h1></body></html>",
           "empty200": b""}
+BAD_GATEWAY = (b"<html><head><title>502 Bad Gateway</title></head><body><center><h1>502 Bad "
+               b"Gateway</h1></center><hr><center>nginx</center></body></html>")
+XSS = "<script>alert(1)</script><img src=x onerror=alert(5)> "
+CONTROL = "\x1b[31m\x07\x08\x00\x0b\r"  # ESC (a colour), BEL, BS, NUL, VT, CR
+HUGE_CHARS = 2_400_000
+# ``Options.misbehave``: what every request after the first ``misbehave_after`` gets (the names
+# of the fault trials' misbehaving server, docs FAULT-TRIALS). Statuses, then 200s whose body is
+# not a chat completion, then replies that are one but odd. (Slow and hung servers are
+# ``hang_s``/``hang_after``: "slowN" is hang_s=N, "hangafter" hang_after=2.)
+MISBEHAVIOURS = {
+    "html": "HTTP 502 with nginx's text/html error page (a proxy whose upstream is down)",
+    "html200": "HTTP 200 with a text/html login page (a proxy's sign-in)",
+    **{name: f"HTTP 200 labelled application/json: {what}" for name, what in (
+        ("garbage", "bytes that are not UTF-8 (read as UTF-16 by a JSON reader)"),
+        ("html200json", "a login page"), ("empty200", "no body"))},
+    "e500": "HTTP 500 with an OpenAI-style error",
+    "e401": "HTTP 401 (a wrong key)",
+    "e429": "HTTP 429 with Retry-After: retry_after seconds",
+    "echokey401": "HTTP 401 whose message repeats the request's Authorization header",
+    "echokey500": "HTTP 500 whose message repeats the request's Authorization header",
+    "nochoices": "a chat completion with an empty choices list",
+    "wrongshape": "a JSON object of another shape (no choices)",
+    "listbody": "a JSON list, [1, 2, 3]",
+    "nullcontent": "a choice whose message content is null",
+    "badlogprobs": "the reply with logprobs NaN, 1e308 and -Infinity (JSON extensions)",
+    "underflow": "the reply with every logprob at -1000 or below (exp() is 0.0)",
+    "lengthcut": "the reply cut to its first token, finish_reason length, whatever max_tokens",
+    "truncated": "the reply's headers and half its body, then the connection closed",
+    "huge": f"a reply of {HUGE_CHARS / 1e6:g} M characters (the reply, then filler)",
+    "xss": f"the reply after HTML that runs script in a page: {XSS.strip()}",
+    "ctrl": "the reply wrapped in control characters (ESC, BEL, BS, NUL, VT, CR)",
+}
 
 
 @dataclass
@@ -72,10 +105,11 @@ class Options:
     ``cut``: a reply longer than ``max_tokens`` tokens is cut there with finish_reason
     "length". ``api_key``: when set, any other ``Authorization`` gets HTTP 401.
     ``models``: when set, another model name gets HTTP 404.
-    ``broken``: a body that is not the JSON its ``application/json`` label says (a broken
-    server or a misconfigured proxy; ``BROKEN``): "garbage" (bytes that are not UTF-8),
-    "html200json" (a login page), "empty200" (no body), all with status 200, to every request
-    after the first ``broken_after`` (0: every request; 2: the capability probe passes).
+    ``misbehave``: a broken server or proxy (``MISBEHAVIOURS``: a status with an error page, a
+    200 that is no chat completion, an odd reply, a cut connection), to every request after the
+    first ``misbehave_after`` (0: every request; 2: the capability probe passes, as the fault
+    trials' "e500after" or "garbageafter"). ``broken``/``broken_after``: the same for the three
+    bodies of ``BROKEN`` (an older spelling of misbehave="garbage" etc.).
     """
 
     style: str = "exact"
@@ -94,12 +128,16 @@ class Options:
     models: tuple[str, ...] | None = None
     broken: str | None = None
     broken_after: int = 0
+    misbehave: str | None = None
+    misbehave_after: int = 0
 
     def __post_init__(self) -> None:
         if self.style not in STYLES:
             raise ValueError(f"style {self.style!r} is not one of {STYLES}")
         if self.broken is not None and self.broken not in BROKEN:
             raise ValueError(f"broken {self.broken!r} is not one of {tuple(BROKEN)}")
+        if self.misbehave is not None and self.misbehave not in MISBEHAVIOURS:
+            raise ValueError(f"misbehave {self.misbehave!r} is not one of {tuple(MISBEHAVIOURS)}")
         if self.logprobs not in ("return", "ignore", "reject"):
             raise ValueError(f"logprobs {self.logprobs!r}")
 
@@ -386,6 +424,10 @@ class ImageError(ValueError):
     pass
 
 
+class Truncated(bytes):
+    """A body of which the server sends half, then closes the connection ("truncated")."""
+
+
 def check_image(part: dict[str, Any], max_side: int) -> tuple[str, int, int, str | None]:
     """An ``image_url`` part: a valid base64 PNG/JPEG data URL no larger than ``max_side``."""
     image_url = part.get("image_url")
@@ -444,16 +486,21 @@ class VLMServer:
                 status, payload, extra = server.answer(headers, body, self.path)
                 self._send(status, payload, extra)
 
-            def _send(self, status: int, payload: dict[str, Any] | bytes,
-                      extra: dict[str, str] | None = None) -> None:
+            def _send(self, status: int, payload: Any, extra: dict[str, str] | None = None
+                      ) -> None:
                 data = payload if isinstance(payload, bytes) else json.dumps(payload).encode()
+                headers = {"content-type": "application/json", **(extra or {})}
                 try:
                     self.send_response(status)
-                    self.send_header("content-type", "application/json")
                     self.send_header("content-length", str(len(data)))
-                    for name, value in (extra or {}).items():
+                    for name, value in headers.items():
                         self.send_header(name, value)
                     self.end_headers()
+                    if isinstance(data, Truncated):  # half the body it announced, then closed
+                        self.wfile.write(data[:len(data) // 2])
+                        self.wfile.flush()
+                        self.close_connection = True
+                        return
                     self.wfile.write(data)
                 except OSError:  # the client gave up (a hung-server test)
                     pass
@@ -486,17 +533,79 @@ class VLMServer:
         return status, {"error": {"message": message, "type": kind, "code": status}}, {}
 
     def answer(self, headers: dict[str, str], body: dict[str, Any], path: str
-               ) -> tuple[int, dict[str, Any] | bytes, dict[str, str]]:
+               ) -> tuple[int, Any, dict[str, str]]:
         o = self.options
         seen = Seen(headers, body)
         with self._lock:
             self.requests.append(seen)
             number = len(self.requests)
+        mode = o.misbehave if o.misbehave is not None and number > o.misbehave_after else None
         if o.broken is not None and number > o.broken_after:
-            return 200, BROKEN[o.broken], {}
-        result = self._answer(seen, body, path, number, o)
+            mode = o.broken
+        if mode in BROKEN:
+            return 200, BROKEN[mode], {}
+        result = self._misbehave_status(mode, seen, path, o) if mode else None
+        if result is None:
+            result = self._answer(seen, body, path, number, o)
+            if mode and result[0] == 200:
+                result = 200, self._misbehave_reply(mode, result[1]), result[2]
         seen.status = result[0]
         return result
+
+    def _misbehave_status(self, mode: str, seen: Seen, path: str, o: Options
+                          ) -> tuple[int, Any, dict[str, str]] | None:
+        """The answer of a misbehaviour that is an error or a page (``MISBEHAVIOURS``), or None
+        for one that changes the reply."""
+        html = {"content-type": "text/html; charset=utf-8"}
+        if mode == "html":
+            return 502, BAD_GATEWAY, html
+        if mode == "html200":
+            return 200, BROKEN["html200json"], html
+        if mode == "e429":
+            status, payload, _ = self._error(429, "Rate limit reached")
+            return status, payload, {"Retry-After": f"{o.retry_after:g}"}
+        said = f"Authorization: {seen.authorization}"
+        errors = {"e500": (500, "Internal server error", "server_error"),
+                  "e401": (401, "Incorrect API key provided.", "authentication_error"),
+                  "echokey401": (401, f"Incorrect API key provided ({said}).",
+                                 "authentication_error"),
+                  "echokey500": (500, f"upstream failed on POST {path} with {said}",
+                                 "server_error")}
+        return self._error(*errors[mode]) if mode in errors else None
+
+    @staticmethod
+    def _misbehave_reply(mode: str, completion: dict[str, Any]) -> Any:
+        """A chat completion changed as ``mode`` says (``MISBEHAVIOURS``)."""
+        choice = completion["choices"][0]
+        text = choice["message"]["content"]
+        if mode == "listbody":
+            return [1, 2, 3]
+        if mode == "wrongshape":
+            return {"id": completion["id"], "output": {"text": text}, "status": "ok"}
+        if mode == "nochoices":
+            return {**completion, "choices": []}
+        if mode == "truncated":
+            return Truncated(json.dumps(completion).encode())
+        if mode == "nullcontent":
+            choice["message"]["content"] = None
+        elif mode == "lengthcut":
+            choice["message"]["content"], choice["finish_reason"] = tokens_of(text)[0], "length"
+        elif mode in ("huge", "xss", "ctrl"):
+            changed = {"huge": text + "\n" + "filler " * ((HUGE_CHARS - len(text)) // 7),
+                       "xss": XSS + text, "ctrl": CONTROL + text + "\x1b[0m\x07"}[mode]
+            choice["message"]["content"] = changed
+            if choice["logprobs"] and mode != "huge":
+                choice["logprobs"] = {"content": logprobs_content(changed, 3, len(changed))}
+        elif mode in ("badlogprobs", "underflow"):
+            tokens = choice["logprobs"]["content"] if choice["logprobs"] else \
+                logprobs_content(text, 3, len(text))
+            odd = (math.nan, 1e308, -math.inf) if mode == "badlogprobs" else (-1000.0, -1000.5, -9999.0)
+            for i, token in enumerate(tokens):
+                token["logprob"] = odd[i % 3]
+                for j, top in enumerate(token["top_logprobs"]):
+                    top["logprob"] = odd[(i + j) % 3]
+            choice["logprobs"] = {"content": tokens}
+        return completion
 
     def _answer(self, seen: Seen, body: dict[str, Any], path: str, number: int, o: Options
                 ) -> tuple[int, dict[str, Any], dict[str, str]]:
