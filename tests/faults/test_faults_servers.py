@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ASK, BLIND, KEY, PASSWORD, episode_ids, files_holding, one_error_line, ran, trial
+from faults.harness import ASK, BLIND, KEY, PASSWORD, episode_ids, files_holding, one_error_line, ran, trial
 from vlm_server import Options, VLMServer
 
 DEAD = "openai:fake@http://127.0.0.1:9/v1"  # the discard port: nothing listens
