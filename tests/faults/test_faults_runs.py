@@ -1,0 +1,252 @@
+"""Fault trials of run folders (FAULT-TRIALS sections 1, 2.16, N.1-N.3, N.9-N.11): runs killed,
+interrupted, resumed with other settings, run into folders that cannot be written, and run folders
+corrupted by hand. The stub method (tests/eval_stubs.py, no model and no houses) stands in for a
+method wherever the trial is about the run folder; the runs are scaled down to what still shows
+the property (a few kills of a short run, each at a moment read from episodes.jsonl)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import traceback
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+from conftest import ASK, BLIND, QUESTION, STUB, Result, episode_ids, one_error_line, ran, trial
+from vlm_server import Options
+
+Cli = Callable[..., Result]
+
+
+@pytest.fixture
+def server(vlm):
+    """The test server that answers well (the stub method needs one: the capability probe)."""
+    return vlm(Options())
+
+
+@pytest.fixture
+def stub(server) -> tuple[str, ...]:
+    """The trials' S: the stub method on the synthetic split, its server the test server."""
+    return (*STUB, "--backends.vlm", f"openai:fake@{server.base_url}")
+
+
+def lines_of(run: Path) -> list[bytes]:
+    return (run / "episodes.jsonl").read_bytes().splitlines()
+
+
+def whole(run: Path, n: int) -> list[str]:
+    """The run holds each of its ``n`` episodes exactly once, done, and its file ends whole."""
+    ids = episode_ids(run)
+    assert len(ids) == len(set(ids)) == n, ids
+    assert (run / "episodes.jsonl").read_bytes().endswith(b"\n")
+    rows = [json.loads(line) for line in lines_of(run)]
+    assert all(r["status"] == "done" for r in rows), [r.get("error") for r in rows]
+    return ids
+
+
+class Forked:
+    """``efficienteqa ARGS`` in a forked child of this process, for kills and signals: what a
+    subprocess runs, without the interpreter start and the imports (2 s a command on two busy
+    cores). The child has a session of its own; its output goes to ``log``."""
+
+    def __init__(self, env: dict[str, str], log: Path, *args: str, **extra: str) -> None:
+        from efficienteqa.cli import main
+
+        self.log = log
+        with warnings.catch_warnings():  # the test server's thread stays in the parent
+            warnings.simplefilter("ignore", DeprecationWarning)
+            self.pid = os.fork()
+        if self.pid:
+            self.returncode: int | None = None
+            return
+        code = 70
+        try:
+            os.setsid()
+            out = open(log, "w", buffering=1)  # noqa: SIM115 - the child ends in os._exit
+            os.dup2(out.fileno(), 1)
+            os.dup2(out.fileno(), 2)
+            sys.stdout = sys.stderr = out
+            os.environ.clear()
+            os.environ.update({**env, **extra})
+            sys.argv = ["efficienteqa", *args]
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            try:
+                main()
+                code = 0
+            except SystemExit as exc:
+                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
+        except BaseException:
+            traceback.print_exc()
+        finally:
+            sys.stdout.flush()
+            os._exit(code)
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self, timeout: float = 60) -> int:
+        deadline = time.monotonic() + timeout
+        while self.poll() is None:
+            if time.monotonic() > deadline:
+                os.kill(self.pid, signal.SIGKILL)
+                raise AssertionError(f"the command did not end: {self.output()[-3000:]}")
+            time.sleep(0.01)
+        return self.returncode  # type: ignore[return-value]
+
+    def send_signal(self, sig: int) -> None:
+        os.kill(self.pid, sig)
+
+    def output(self) -> str:
+        return self.log.read_text(errors="replace")
+
+
+def wait_for(what: Callable[[], bool], proc: Forked | None = None, timeout: float = 60) -> None:
+    deadline = time.monotonic() + timeout
+    while not what():
+        if proc is not None and proc.poll() is not None:
+            raise AssertionError(f"the command ended first: {proc.output()[-3000:]}")
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def count_lines(run: Path) -> int:
+    path = run / "episodes.jsonl"
+    return path.read_bytes().count(b"\n") if path.exists() else 0
+
+
+# ---------------------------------------------------------------- 1.4, 1.9-1.11: corrupt lines
+
+GARBAGE = [b"some text", b"\x00\xff\xfe\x80 binary", b"[]", b"42", b"null", b'"str"',
+           b'{"no_id": 1}', b'\xef\xbb\xbf{"id": "bom"}', b"{" * 100_000, b"x" * 200_000, b"",
+           b'{"id": ["a", "list"], "status": "done"}', b'{"id": {"an": "object"}, "status": "done"}',
+           b'{"id": 5}', b'{"id": null}', b'{"id": "synthetic/99999/q0", "status": "done"}']
+
+
+@trial("1.4", "1.9", "1.10", "1.11")
+def test_torn_and_foreign_lines_are_skipped_and_the_torn_episode_runs_again(cli, stub, tmp_path):
+    run = tmp_path / "run"
+    ran(cli(*stub, "--eval.limit", "8", "--out", str(run)))
+    kept = whole(run, 8)
+    data = (run / "episodes.jsonl").read_bytes()
+    last = data.splitlines()[-1]
+    torn = data[:len(data) - len(last) // 2 - 1]  # the last line cut in half, no newline
+    (run / "episodes.jsonl").write_bytes(torn + b"\n" + b"\n".join(GARBAGE) + b"\n")
+    said = ran(cli(*stub, "--eval.limit", "8", "--out", str(run)))
+    assert "1 episodes run, 7 already done, 0 failed" in said
+    assert "8/8" in said and "9/8" not in said
+    assert sorted(i for i in episode_ids(run) if i in kept) == sorted(kept)  # each once
+    report = ran(cli("report", str(run)))
+    assert "8/8" in report
+    summary = json.loads((run / "summary.json").read_text())
+    assert (summary["n"], summary["planned"]) == (8, 8)
+    assert summary["torn"] == 1 + len(GARBAGE)  # every line that is not an episode of the run
+    assert f"{summary['torn']} line(s) in episodes.jsonl were skipped" in (
+        run / "report.md").read_text()
+
+
+# ---------------------------------------------------------------- 1.5-1.8: run.json broken or gone
+
+@trial("1.5", "1.6", "1.7")
+def test_a_broken_run_json_is_one_line_and_keeps_the_episodes(cli, stub, tmp_path):
+    run = tmp_path / "run"
+    ran(cli(*stub, "--eval.limit", "2", "--out", str(run)))
+    text = (run / "run.json").read_bytes()
+    for name, broken in [("truncated", text[:len(text) // 2]), ("random", os.urandom(300)),
+                         ("empty", b""), ("list", b"[1, 2, 3]"), ("empty-object", b"{}")]:
+        copy = tmp_path / name
+        shutil.copytree(run, copy)
+        (copy / "run.json").write_bytes(broken)
+        episodes = (copy / "episodes.jsonl").read_bytes()
+        line = one_error_line(cli(*stub, "--eval.limit", "3", "--out", str(copy)))
+        if name == "empty-object":
+            assert f"{copy} holds a run with another method, dataset" in line
+        else:
+            assert f"{copy / 'run.json'} is not a run's JSON object" in line
+            assert "restore it, or use another --out folder" in line
+        assert (copy / "episodes.jsonl").read_bytes() == episodes, name
+        assert (copy / "run.json").read_bytes() == broken, name
+        if name == "list":
+            report = one_error_line(cli("report", str(copy)))
+            assert "run.json is not a run's JSON object" in report
+
+
+@trial("1.8")
+def test_episodes_without_run_json_are_adopted_by_no_configuration(cli, stub, tmp_path):
+    run = tmp_path / "run"
+    ran(cli(*stub, "--eval.limit", "2", "--out", str(run)))
+    (run / "run.json").unlink()
+    episodes = (run / "episodes.jsonl").read_bytes()
+    for other in (("--backends.temperature", "1.5"), ("--eval.method", "eval_stubs:peek"), ()):
+        line = one_error_line(cli(*stub, *other, "--eval.limit", "3", "--out", str(run)))
+        assert f"{run} holds episodes but no run.json, so what ran them is unknown" in line
+        assert (run / "episodes.jsonl").read_bytes() == episodes
+        assert not (run / "run.json").exists()
+
+
+# ---------------------------------------------------------------- 1.1-1.3, 1.15: kills and resumes
+
+@trial("1.1", "1.2", "1.3", "1.15")
+def test_a_run_killed_and_interrupted_resumes_with_every_episode_once(cli, stub, env, tmp_path):
+    """kill -9 at a moment read from the file (with a second run into the folder tried then),
+    SIGINT later, then the same command: every episode once, none torn."""
+    run, n = tmp_path / "run", 40
+    args = (*stub, "--eval.limit", str(n), "--out", str(run))
+    slow = {"EQA_STUB_SLEEP": "0.05"}
+    first = Forked(env, tmp_path / "first.log", *args, **slow)
+    wait_for(lambda: count_lines(run) >= 3, first)
+    second = one_error_line(cli(*args))  # 1.15: the folder is taken
+    assert f"another run is writing to {run}" in second
+    first.send_signal(signal.SIGKILL)
+    first.wait(30)
+    killed_at = len(set(episode_ids(run)))
+    assert killed_at < n, "the run ended before the kill"
+    interrupted = Forked(env, tmp_path / "interrupted.log", *args, **slow)
+    wait_for(lambda: count_lines(run) >= killed_at + 3, interrupted)
+    interrupted.send_signal(signal.SIGINT)
+    interrupted.wait(30)
+    said = interrupted.output()
+    assert interrupted.returncode == 130 and "Traceback" not in said, said[-3000:]
+    done = len(set(episode_ids(run)))
+    assert killed_at + 3 <= done < n, "the run ended before the interrupt"
+    assert len(episode_ids(run)) == done  # no episode written twice by the resume
+    final = ran(cli(*args))
+    assert f"{n - done} episodes run, {done} already done, 0 failed" in final
+    whole(run, n)
+
+
+# ---------------------------------------------------------------- 1.18: judge killed, judged again
+
+@trial("1.18")
+def test_a_judge_killed_mid_way_is_judged_again_once(cli, stub, vlm, env, tmp_path):
+    run, n = tmp_path / "run", 12
+    ran(cli(*stub, "--eval.limit", str(n), "--out", str(run)))
+    before = {r["id"]: r for r in map(json.loads, lines_of(run))}
+    slow = vlm(Options(hang_s=0.1))
+    judge = Forked(env, tmp_path / "judge.log", "judge", str(run), "--judge", f"openai:fake@{slow.base_url}",
+                  "--judge-mode", "grade")
+    wait_for(lambda: count_lines(run) >= n + 2, judge)  # regraded lines appended
+    judge.send_signal(signal.SIGKILL)
+    judge.wait(30)
+    assert n + 2 <= count_lines(run) < 2 * n, "the judge ended before the kill"
+    fast = vlm(Options())
+    judged = ran(cli("judge", str(run), "--judge", f"openai:fake@{fast.base_url}",
+                     "--judge-mode", "grade"))
+    assert f"{run}: {n} episodes graded" in judged
+    rows = [json.loads(line) for line in lines_of(run)]
+    assert sorted(r["id"] for r in rows) == sorted(before)  # compacted: each once, none torn
+    assert all(r["judge"]["score"] is not None for r in rows)
+    assert all(r["answer"] == before[r["id"]]["answer"] for r in rows)
+    manifest = json.loads((run / "run.json").read_text())
+    assert manifest["judge"] == f"openai:fake@{fast.base_url}" and manifest["judge_mode"] == "grade"
