@@ -250,3 +250,76 @@ def test_a_judge_killed_mid_way_is_judged_again_once(cli, stub, vlm, env, tmp_pa
     assert all(r["answer"] == before[r["id"]]["answer"] for r in rows)
     manifest = json.loads((run / "run.json").read_text())
     assert manifest["judge"] == f"openai:fake@{fast.base_url}" and manifest["judge_mode"] == "grade"
+
+
+# ---------------------------------------------------------------- 1.12-1.14: resumed otherwise
+
+@trial("1.12")
+def test_a_resume_with_a_setting_that_changes_results_is_refused_in_one_line(cli, stub, vlm,
+                                                                              tmp_path):
+    run = tmp_path / "run"
+    ran(cli(*stub, "--eval.limit", "3", "--out", str(run)))
+    other = vlm(Options())
+    refused = {"stack": [("--backends.temperature", "0.7"), ("--backends.grouping", "rules"),
+                         ("--backends.vlm", f"openai:fake@{other.base_url}")],
+               "config": [("--stop.z-th", "2", "--stop.gate", "none"), ("--explore.seed", "7")],
+               "judge": [("--eval.judge", f"openai:fake@{other.base_url}")]}
+    episodes = (run / "episodes.jsonl").read_bytes()
+    for what, changes in refused.items():
+        for change in changes:
+            line = one_error_line(cli(*stub, *change, "--eval.limit", "4", "--out", str(run)))
+            assert f"{run} holds a run with another {what}" in line, change
+            assert "use a new --out folder for a new configuration" in line
+            assert (run / "episodes.jsonl").read_bytes() == episodes, change
+    # what changes no result: how long a call may take, how often it is tried, the key's
+    # variable, the cache; a refusal of these is over-strict but allowed (one line, no loss)
+    n = 3
+    for change in [("--backends.timeout-s", "30", "--backends.retries", "1"),
+                   ("--backends.no-cache",), ("--backends.api-key-env", "none"),
+                   ("--backends.image-max-side", "256")]:
+        result = cli(*stub, *change, "--eval.limit", str(n + 1), "--out", str(run))
+        if change[0] == "--backends.timeout-s" or result.returncode == 0:
+            ran(result)
+            n += 1
+        else:
+            assert f"{run} holds a run with another" in one_error_line(result), change
+        whole(run, n)
+    assert n >= 4
+
+
+@trial("1.13")
+def test_a_resume_with_another_limit_or_reports_continues_the_run(cli, stub, tmp_path):
+    run = tmp_path / "run"
+    ran(cli(*stub, "--eval.limit", "3", "--out", str(run)))
+    assert "6 episodes run, 3 already done" in ran(cli(*stub, "--eval.limit", "9", "--out", str(run)))
+    assert "0 episodes run, 4 already done" in ran(cli(*stub, "--eval.limit", "4", "--out", str(run)))
+    assert "0 episodes run, 9 already done" in ran(cli(*stub, "--eval.limit", "9", "--eval.reports",
+                                                       "--out", str(run)))
+    whole(run, 9)
+
+
+@trial("1.14")
+def test_a_resume_with_other_houses_or_simulator_is_refused_before_any_house(cli, stub, tmp_path,
+                                                                             monkeypatch):
+    """Refused before the dataset's houses are built (with --scene.assets sh3d and a dataset of
+    house seeds, the furniture was converted first, 70 s and more, to refuse the folder after
+    it)."""
+    import efficienteqa.datasets
+
+    run = tmp_path / "run"
+    ran(cli(*stub, "--eval.limit", "3", "--out", str(run)))  # the split's assets, sh3d
+    kept = whole(run, 3)
+
+    def no_houses(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the dataset was built before the folder was refused")
+
+    monkeypatch.setattr(efficienteqa.datasets, "load_dataset", no_houses)
+    line = one_error_line(cli(*stub, "--scene.assets", "builtin", "--eval.limit", "5",
+                              "--out", str(run)))
+    assert f"{run} holds a run with another assets (assets: sh3d -> builtin)" in line
+    (tmp_path / "hm3d").mkdir()
+    line = one_error_line(cli(*stub, "--scene.env", "habitat",
+                              "--scene.hm3d-root", str(tmp_path / "hm3d"), "--eval.limit", "5",
+                              "--out", str(run)))
+    assert f"{run} holds a run with another env" in line
+    assert whole(run, 3) == kept
