@@ -55,7 +55,8 @@ def whole(run: Path, n: int) -> list[str]:
 class Forked:
     """``efficienteqa ARGS`` in a forked child of this process, for kills and signals: what a
     subprocess runs, without the interpreter start and the imports (2 s a command on two busy
-    cores). The child has a session of its own; its output goes to ``log``."""
+    cores). The child has a session of its own; its output goes to ``log``. Not for commands
+    that render (ask, houses): OpenGL's software renderer hangs in a forked child."""
 
     def __init__(self, env: dict[str, str], log: Path, *args: str, **extra: str) -> None:
         from efficienteqa.cli import main
@@ -421,3 +422,54 @@ def test_an_out_with_dot_dots_is_a_path_like_any_other(cli, stub, tmp_path, monk
                               "--scene", "synthetic:../../x", "--out", "../ask"))
     assert "synthetic:../../x" in line
     assert not (tmp_path / "x").exists() and not (tmp_path / "ask" / "episode.json").exists()
+
+
+# ---------------------------------------------------------------- N.10, N.11: two asks at once
+
+def locked(folder: Path) -> bool:
+    """Whether a command holds ``folder``'s run lock (eval's and ask's)."""
+    import fcntl
+
+    try:
+        fd = os.open(folder / ".lock", os.O_RDWR)
+    except FileNotFoundError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    finally:
+        os.close(fd)
+    return False
+
+
+@trial("N.10", "N.11")
+def test_two_asks_at_once_share_the_cache_but_not_a_folder(cli, server, env, tmp_path):
+    """The first ask runs in a child; while it explores, a second ask of another question into
+    its folder is refused (it used to overwrite the first's episode without a word), and one
+    into a folder of its own shares the response cache with it."""
+    import sqlite3
+
+    fast = ("--backends.relevancy", "overlap", "--explore.matching", "words",
+            "--explore.max-steps", "1", "--backends.vlm", f"openai:fake@{server.base_url}")
+    ask = [a for a in ASK if a != "--backends.no-cache"]  # the cache on: shared
+    one, two = tmp_path / "one", tmp_path / "two"
+    first = subprocess.Popen([sys.executable, "-m", "efficienteqa.cli", *ask, *fast, "--out",
+                              str(one)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             text=True, env=env)  # renders: no fork (see Forked)
+    wait_for(lambda: locked(one) or first.poll() is not None)
+    other = ("ask", "Where is the sofa?", *ask[2:])
+    line = one_error_line(cli(*other, *fast, "--out", str(one)))
+    assert f"another run is writing to {one}" in line
+    said = ran(cli(*ask, *fast, "--out", str(two)))
+    assert f"episode: {two / 'episode.json'}" in said
+    said = first.communicate(timeout=120)[0]
+    assert first.returncode == 0 and "Traceback" not in said, said[-3000:]
+    line = one_error_line(cli(*other, *fast, "--out", str(one)))
+    assert f"{one} holds the episode of another question" in line
+    for folder in (one, two):
+        assert json.loads((folder / "episode.json").read_text())["question"] == QUESTION
+    cache = tmp_path / "cache" / "responses" / "responses.sqlite"
+    with sqlite3.connect(cache) as db:
+        assert db.execute("PRAGMA integrity_check").fetchone() == ("ok",)
+        assert db.execute("SELECT COUNT(*) FROM responses").fetchone()[0] > 0
