@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ASK, BLIND, QUESTION, STUB, Result, episode_ids, one_error_line, ran, trial
+from conftest import ASK, KEY, QUESTION, STUB, Result, episode_ids, one_error_line, ran, trial
 from vlm_server import Options
 
 Cli = Callable[..., Result]
@@ -58,7 +58,9 @@ class Forked:
     cores). The child has a session of its own; its output goes to ``log``. Not for commands
     that render (ask, houses): OpenGL's software renderer hangs in a forked child."""
 
-    def __init__(self, env: dict[str, str], log: Path, *args: str, **extra: str) -> None:
+    def __init__(self, env: dict[str, str], log: Path, *args: str,
+                 first: Callable[[], object] | None = None, **extra: str) -> None:
+        """``first``: what the child does before the command (e.g. wait for a moment)."""
         from efficienteqa.cli import main
 
         self.log = log
@@ -79,6 +81,8 @@ class Forked:
             os.environ.update({**env, **extra})
             sys.argv = ["efficienteqa", *args]
             signal.signal(signal.SIGINT, signal.default_int_handler)
+            if first is not None:
+                first()
             try:
                 main()
                 code = 0
@@ -445,31 +449,106 @@ def locked(folder: Path) -> bool:
 
 @trial("N.10", "N.11")
 def test_two_asks_at_once_share_the_cache_but_not_a_folder(cli, server, env, tmp_path):
-    """The first ask runs in a child; while it explores, a second ask of another question into
-    its folder is refused (it used to overwrite the first's episode without a word), and one
-    into a folder of its own shares the response cache with it."""
+    """While an ask explores, a second ask of another question into its folder is refused (it
+    used to overwrite the first's episode without a word), and another writer of the response
+    cache works beside it. The second ask is a child forked before the first starts here; it
+    waits for the first to hold the folder (it is refused before it would render, which a
+    forked child cannot)."""
     import sqlite3
+
+    from test_faults_cache import writer
 
     fast = ("--backends.relevancy", "overlap", "--explore.matching", "words",
             "--explore.max-steps", "1", "--backends.vlm", f"openai:fake@{server.base_url}")
     ask = [a for a in ASK if a != "--backends.no-cache"]  # the cache on: shared
-    one, two = tmp_path / "one", tmp_path / "two"
-    first = subprocess.Popen([sys.executable, "-m", "efficienteqa.cli", *ask, *fast, "--out",
-                              str(one)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                             text=True, env=env)  # renders: no fork (see Forked)
-    wait_for(lambda: locked(one) or first.poll() is not None)
-    other = ("ask", "Where is the sofa?", *ask[2:])
-    line = one_error_line(cli(*other, *fast, "--out", str(one)))
-    assert f"another run is writing to {one}" in line
-    said = ran(cli(*ask, *fast, "--out", str(two)))
-    assert f"episode: {two / 'episode.json'}" in said
-    said = first.communicate(timeout=120)[0]
-    assert first.returncode == 0 and "Traceback" not in said, said[-3000:]
-    line = one_error_line(cli(*other, *fast, "--out", str(one)))
-    assert f"{one} holds the episode of another question" in line
-    for folder in (one, two):
-        assert json.loads((folder / "episode.json").read_text())["question"] == QUESTION
+    one = tmp_path / "one"
+    one.mkdir()
     cache = tmp_path / "cache" / "responses" / "responses.sqlite"
+    cache.parent.mkdir(parents=True)
+    second = Forked(env, tmp_path / "second.log", "ask", "Where is the sofa?", *ask[2:], *fast,
+                    "--out", str(one), first=lambda: wait_for(lambda: locked(one), timeout=120))
+    other = writer(cache, "other", 400, env)  # N.10: another writer of the cache, meanwhile
+    said = ran(cli(*ask, *fast, "--out", str(one)))
+    assert f"episode: {one / 'episode.json'}" in said
+    second.wait(60)
+    line = one_error_line(Result(second.returncode, second.output(), ""))
+    assert (f"another run is writing to {one}" in line  # while the first ran, as a rule
+            or f"{one} holds the episode of another question" in line)
+    line = one_error_line(cli("ask", "Where is the sofa?", *ask[2:], *fast, "--out", str(one)))
+    assert f"{one} holds the episode of another question" in line
+    assert json.loads((one / "episode.json").read_text())["question"] == QUESTION
+    other.kill()
+    other.wait()
     with sqlite3.connect(cache) as db:
         assert db.execute("PRAGMA integrity_check").fetchone() == ("ok",)
-        assert db.execute("SELECT COUNT(*) FROM responses").fetchone()[0] > 0
+        served = db.execute("SELECT COUNT(*) FROM responses WHERE key NOT LIKE 'other-%' "
+                            "AND key != 'hot'").fetchone()[0]
+    assert served > 0  # the ask's own calls were written beside the other writer's
+
+
+# ---------------------------------------------------------------- 1.16, N.1: Ray
+
+def end_session(sid: int) -> None:
+    """Kill what is left of the session ``sid`` (a killed Ray driver's: workers and Ray's
+    agents), by their process ids, until none is left."""
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        left = []
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                fields = stat.read_text().rpartition(")")[2].split()
+            except OSError:
+                continue
+            if int(fields[3]) == sid and fields[0] != "Z":  # the session, the 4th field
+                left.append(int(stat.parent.name))
+        for pid in left:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        if not left:
+            return
+        time.sleep(0.2)
+
+
+@pytest.mark.slow
+@trial("1.16", "N.1")
+def test_ray_survives_a_killed_worker_and_a_killed_driver_resumes(cli, stub, env, tmp_path):
+    """Two Ray workers; one dies mid-episode (Ray runs its episode again, N.1); then the driver
+    is killed (1.16) and the same command, without Ray, finishes the run: every episode once."""
+    pytest.importorskip("ray")
+    import tempfile
+
+    from efficienteqa.datasets import load_dataset
+
+    n = 8
+    ids = [q.id for q in load_dataset("synthetic", limit=n)]
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    # Ray's unix sockets need a path under 107 bytes: a short folder, not tmp_path
+    ray_tmp = Path(tempfile.mkdtemp(prefix="eqa-ray-"))
+    env.update(RAY_TMPDIR=str(ray_tmp), EQA_STUB_SLEEP="0.3", EQA_STUB_DIE=ids[1],
+               EQA_STUB_MARKS=str(marks))
+    run = tmp_path / "run"
+    args = (*stub, "--eval.limit", str(n), "--eval.workers", "2", "--out", str(run))
+    driver = Forked(env, tmp_path / "driver.log", *args)
+    try:
+        wait_for(lambda: count_lines(run) >= 3 and ids[1] in episode_ids(run), driver, timeout=120)
+        driver.send_signal(signal.SIGKILL)
+        driver.wait(30)
+    finally:
+        end_session(driver.pid)
+    rows = {r["id"]: r for r in map(json.loads, lines_of(run)) if r.get("id") in ids}
+    died = int((marks / ids[1].replace("/", "_")).read_text())
+    assert rows[ids[1]]["status"] == "done" and rows[ids[1]]["extra"]["pid"] != died
+    killed_at = len(rows)
+    assert killed_at < n, "the run ended before the kill"
+    for name in ("EQA_STUB_SLEEP", "EQA_STUB_DIE"):
+        del env[name]
+    said = ran(cli(*args[:-4], "--out", str(run)))  # the same run, in this process
+    assert f"{n - killed_at} episodes run, {killed_at} already done, 0 failed" in said
+    whole(run, n)
+    leaks = [str(p) for p in ray_tmp.rglob("*") if p.is_file() and not p.is_symlink()
+             and KEY.encode() in p.read_bytes()]
+    shutil.rmtree(ray_tmp, ignore_errors=True)
+    assert leaks == []
