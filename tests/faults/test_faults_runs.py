@@ -552,3 +552,76 @@ def test_ray_survives_a_killed_worker_and_a_killed_driver_resumes(cli, stub, env
              and KEY.encode() in p.read_bytes()]
     shutil.rmtree(ray_tmp, ignore_errors=True)
     assert leaks == []
+
+
+# ---------------------------------------------------------------- N.2, N.3: perception interrupted
+
+@pytest.fixture
+def builtin_houses(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``perception dataset`` renders the sh3d furniture, minutes to convert in a fresh cache:
+    here it renders the builtin boxes, one house a shard."""
+    import functools
+
+    from efficienteqa.perception.pixels import dataset
+
+    monkeypatch.setattr(dataset, "SHARD_HOUSES", 1)
+    monkeypatch.setattr(dataset, "render_dataset",
+                        functools.partial(dataset.render_dataset, assets="builtin"))
+
+
+@trial("N.2", "N.3")
+def test_interrupted_perception_dataset_and_train_resume_and_write_nothing_partial(
+        cli, tmp_path, monkeypatch, builtin_houses):
+    """SIGINT (KeyboardInterrupt, raised where the signal would land) while the second shard
+    renders; a torn temporary shard, as kill -9 during a write leaves it; the same command
+    renders only the missing shards. Then training interrupted at its 4th step writes no
+    weights, and --resume finishes from the checkpoint."""
+    from efficienteqa.perception.pixels import dataset, train
+
+    data = tmp_path / "data"
+    args = ("perception", "dataset", "--seeds", "3010-3012", "--frames-per-house", "1",
+            "--workers", "1", "--out", str(data))
+    real_shard, rendered = dataset._render_shard, []
+
+    def shard(job: tuple) -> tuple[str, int]:
+        if len(rendered) == 1 and interrupt:
+            raise KeyboardInterrupt
+        rendered.append(job[0])
+        return real_shard(job)
+
+    monkeypatch.setattr(dataset, "_render_shard", shard)
+    interrupt = True
+    stopped = cli(*args)
+    assert stopped.returncode == 130 and "Traceback" not in stopped.said, stopped.said
+    assert sorted(p.name for p in data.iterdir()) == ["houses-3010-3010.npz"]
+    (data / "houses-3011-3011.tmp.npz").write_bytes(b"PK\x03\x04 torn")
+    interrupt, rendered[:] = False, []
+    assert "3 houses, 3 frames" in ran(cli(*args))
+    assert rendered == [[3011], [3012]]  # the finished shard was kept
+    assert json.loads((data / "meta.json").read_text())["houses"] == [3010, 3011, 3012]
+    assert sorted(p.name for p in data.glob("*.npz")) == [
+        "houses-3010-3010.npz", "houses-3011-3011.npz", "houses-3012-3012.npz"]
+
+    weights = tmp_path / "w" / "pixels.pt"
+    train_args = ("perception", "train", "--data", str(data), "--out", str(weights), "--steps",
+                  "6", "--batch", "1", "--threads", "1", "--widths", "4,4,4,4,4",
+                  "--checkpoint-every", "2", "--device", "cpu")
+    real_losses, steps = train.losses, []
+
+    def losses(*a: object, **k: object) -> object:
+        steps.append(1)
+        if len(steps) == 4 and interrupt:
+            raise KeyboardInterrupt
+        return real_losses(*a, **k)
+
+    monkeypatch.setattr(train, "losses", losses)
+    interrupt = True
+    stopped = cli(*train_args)
+    assert stopped.returncode == 130 and "Traceback" not in stopped.said, stopped.said
+    assert not weights.exists() and not weights.with_suffix(".json").exists()
+    assert [p.name for p in weights.parent.iterdir()] == [train.checkpoint_path(weights).name]
+    interrupt = False
+    said = ran(cli(*train_args, "--resume"))
+    assert "resuming from" in said and "at step 2" in said
+    assert weights.is_file() and weights.with_suffix(".json").is_file()
+    assert json.loads(weights.with_suffix(".json").read_text())["steps_done"] == 6
