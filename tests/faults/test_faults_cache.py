@@ -14,9 +14,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from test_faults_runs import Forked, count_lines, wait_for
 
 from conftest import BLIND, episode_ids, ran, trial
-from test_faults_runs import Forked, count_lines, wait_for
 from vlm_server import Options
 
 CACHED = tuple(a for a in BLIND if a != "--backends.no-cache")  # B with its cache on

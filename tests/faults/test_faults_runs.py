@@ -6,11 +6,11 @@ the property (a few kills of a short run, each at a moment read from episodes.js
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
 import signal
-import subprocess
 import sys
 import time
 import traceback
@@ -502,10 +502,8 @@ def end_session(sid: int) -> None:
             if int(fields[3]) == sid and fields[0] != "Z":  # the session, the 4th field
                 left.append(int(stat.parent.name))
         for pid in left:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
         if not left:
             return
         time.sleep(0.2)
@@ -521,7 +519,7 @@ def test_ray_survives_a_killed_worker_and_a_killed_driver_resumes(cli, stub, env
 
     from efficienteqa.datasets import load_dataset
 
-    n = 8
+    n = 12
     ids = [q.id for q in load_dataset("synthetic", limit=n)]
     marks = tmp_path / "marks"
     marks.mkdir()
