@@ -257,7 +257,8 @@ def eval_command(
     (synthetic) and by LLM-Match (with a judge model)."""
     from efficienteqa.datasets import load_dataset
     from efficienteqa.eval.methods import METHODS, RunSpec, resolve
-    from efficienteqa.eval.runner import run_eval
+    from efficienteqa.eval.records import check_resumable
+    from efficienteqa.eval.runner import manifest, run_eval
     from efficienteqa.records import check_writable
 
     r, e = run.run, run.run.eval
@@ -272,14 +273,17 @@ def eval_command(
                                 "extra['letter'])", fix="use --method blind")
     judge = _judge_spec(run)
     check_writable(out)
-    questions = load_dataset(e.dataset, path=e.hm_eqa_path, limit=e.limit,
-                             closed_set=e.closed_set, assets=r.scene.assets)
     spec = RunSpec(method=e.method, dataset=e.dataset, stack=r.backends, config=r.agent,
                    closed_set=e.closed_set, judge=judge, judge_mode=_judge_mode(e.judge_mode,
                                                                                judge or ""),
                    preset=run.preset, preset_config=run.preset_run.agent, reports=e.reports,
                    assets=r.scene.assets, env=r.scene.env, noise=r.scene.noise,
                    hm3d_root=str(r.scene.hm3d_root) if r.scene.hm3d_root is not None else None)
+    # a folder of another run is refused before the dataset's houses are built (minutes with
+    # the furniture of --scene.assets sh3d); run_eval checks again under the folder's lock
+    check_resumable(out, manifest(spec, 0))
+    questions = load_dataset(e.dataset, path=e.hm_eqa_path, limit=e.limit,
+                             closed_set=e.closed_set, assets=r.scene.assets)
     from efficienteqa.cli.progress import eval_progress
 
     ids = [q.id for q in questions]

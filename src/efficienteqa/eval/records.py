@@ -177,25 +177,37 @@ def compact_episodes(path: Path) -> int:
     return len(episodes.by_id)
 
 
-def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
-    """Start a run in ``out`` or continue the one there. A folder holding a different run (another
-    method, dataset, configuration or back-end) is refused rather than mixed."""
+def check_resumable(out: Path, manifest: dict[str, Any]) -> dict[str, Any] | None:
+    """The run recorded in ``out`` (its run.json as written), which ``manifest`` may continue,
+    or None when ``out`` holds no run yet. A folder holding a different run (another method,
+    dataset, configuration or back-end), or episodes without their run.json, is refused rather
+    than mixed. Reads only: eval calls it before building the dataset's houses too."""
     run_file = out / RUN_FILE
-    if run_file.exists():
-        recorded = _read_manifest(run_file)
-        earlier = upgrade(recorded)
-        differs = [k for k in RUN_IDENTITY if _identity(k, earlier) != _identity(k, manifest)]
-        differs += [k for k in SCENE_IDENTITY if k in earlier and earlier[k] != manifest.get(k)]
-        if differs:
-            changed = _changes(differs, earlier, manifest)
-            raise EfficientEQAError(
-                f"{out} holds a run with another {', '.join(differs)}"
-                + (f" ({changed})" if changed else ""),
-                fix="use a new --out folder for a new configuration, or the run's own settings")
+    episodes = read_episodes(out / EPISODES_FILE)  # one that cannot be read is said first
+    if not run_file.exists():
+        if episodes.by_id:
+            raise EfficientEQAError(f"{out} holds episodes but no {RUN_FILE}, so what ran them "
+                                    "is unknown", fix="use a new --out folder")
+        return None
+    recorded = _read_manifest(run_file)
+    earlier = upgrade(recorded)
+    differs = [k for k in RUN_IDENTITY if _identity(k, earlier) != _identity(k, manifest)]
+    differs += [k for k in SCENE_IDENTITY if k in earlier and earlier[k] != manifest.get(k)]
+    if differs:
+        changed = _changes(differs, earlier, manifest)
+        raise EfficientEQAError(
+            f"{out} holds a run with another {', '.join(differs)}"
+            + (f" ({changed})" if changed else ""),
+            fix="use a new --out folder for a new configuration, or the run's own settings")
+    return recorded
+
+
+def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
+    """Start a run in ``out`` or continue the one there (``check_resumable``)."""
+    run_file = out / RUN_FILE
+    recorded = check_resumable(out, manifest)
+    if recorded is not None:
         _add_questions(run_file, recorded, manifest.get("question_ids"))
-    elif read_episodes(out / EPISODES_FILE).by_id:
-        raise EfficientEQAError(f"{out} holds episodes but no {RUN_FILE}, so what ran them is "
-                                "unknown", fix="use a new --out folder")
     else:
         write_json(run_file, manifest)
     episodes = read_episodes(out / EPISODES_FILE)

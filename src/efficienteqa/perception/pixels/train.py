@@ -345,6 +345,7 @@ def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: s
         print(f"resuming from {ckpt} at step {done}", file=log, flush=True)
 
     def save_checkpoint() -> None:
+        ckpt.parent.mkdir(parents=True, exist_ok=True)  # --out in a folder not made yet
         tmp = ckpt.with_name(ckpt.name + ".tmp")
         torch.save({"format": CHECKPOINT_FORMAT, "schedule": config.schedule(), "data": data_id,
                     "net": net.state_dict(), "opt": opt.state_dict(),
