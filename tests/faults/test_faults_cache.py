@@ -14,9 +14,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from test_faults_runs import Forked, count_lines, wait_for
 
-from conftest import BLIND, episode_ids, ran, trial
+from faults.harness import BLIND, Forked, count_lines, episode_ids, ran, trial, wait_for
 from vlm_server import Options
 
 CACHED = tuple(a for a in BLIND if a != "--backends.no-cache")  # B with its cache on
