@@ -140,7 +140,7 @@ def ask_command(
     if start_pose is not None and scene.startswith("recorded:"):
         raise EfficientEQAError("a recorded walk starts where it was recorded",
                                 fix="leave out --start")
-    if not question:
+    if not question or not question.strip():  # "   " too: before the scene opens, not after
         raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
                                 'the sofa?", or --episode ID with --dataset')
     if rerun is not None:  # rerun missing, no viewer, an unwritable file: before the scene opens
