@@ -36,12 +36,18 @@ def _parse_start(text: str | None) -> Pose2D | None:
 
 def _check_backends(run: Resolved) -> None:
     """Bad back-ends fail before anything slow."""
+    from efficienteqa.envs.synthetic.house import check_assets
     from efficienteqa.stack import check_stack, parse_vlm
 
     stack = run.run.backends
+    check_assets(run.run.scene.assets)  # before a house is built
     check_stack(stack)
-    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature,
-              **stack.server_options())
+    backend = parse_vlm(stack.vlm, images=stack.perception == "rgb",
+                        temperature=stack.temperature, **stack.server_options())
+    if backend.kind == "local":  # a misspelt local model: now, not once the scene is open
+        from efficienteqa.models.local.weights import registry_entry
+
+        registry_entry(backend.model)
 
 
 def _same_question(a: str, b: str) -> bool:
