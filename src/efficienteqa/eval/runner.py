@@ -33,7 +33,6 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.methods import RunSpec, effective_config, resolve, usage_of
 from efficienteqa.eval.records import (
     EPISODES_FILE,
-    RUN_FILE,
     RUN_FORMAT,
     append_episode,
     open_run,
@@ -107,7 +106,7 @@ def rejudge(out: Path, judge_spec: str, mode: str,
     interrupted regrade loses nothing), the file is compacted to one line per episode at the
     end, and ``run.json`` names the new judge. Returns the episodes graded and the run's
     LLM-Match as the report computes it (a failed episode scores 0)."""
-    from efficienteqa.eval.records import compact_episodes, read_run
+    from efficienteqa.eval.records import RUN_FILE, compact_episodes, read_run
     from efficienteqa.eval.summary import summarise
     from efficienteqa.records import write_json
 
@@ -273,16 +272,10 @@ def run_eval(spec: RunSpec, questions: Sequence[EvalQuestion], out: Path, *, wor
     if len({q.id for q in questions}) != len(questions):
         raise EfficientEQAError("the dataset has repeated episode ids", fix="fix the dataset")
     with run_lock(out):
-        # A new run that cannot start (no Habitat-Sim for HM3D scenes, a dead server) leaves no
-        # run.json behind: one would refuse the command that follows the error's fix ("holds a
-        # run with another env").
-        new = not (out / RUN_FILE).exists() and not (out / EPISODES_FILE).exists()
-        if prepare and new and questions:
-            _prepare(spec, questions)
         earlier = open_run(out, manifest(spec, len(questions), [q.scene for q in questions],
                                          [q.id for q in questions]))
         todo = [q for q in questions if q.id not in earlier.done]
-        if prepare and todo and not new:
+        if prepare and todo:
             _prepare(spec, todo)
         t0 = time.perf_counter()
         failed = 0
