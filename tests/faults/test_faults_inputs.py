@@ -372,6 +372,35 @@ def test_odd_questions_are_asked_and_written_verbatim_and_escaped(cli, vlm, tmp_
     assert not (off / "episode.json").exists()
 
 
+@trial("2.7")
+def test_a_huge_budget_is_explored_as_asked_until_interrupted(cli, vlm, tmp_path, monkeypatch):
+    """``--explore.max-steps 99999999999999999999999`` is a budget, not an error: the ask
+    explores on (the user stops it: Ctrl-C after the second step here) and ends as interrupted,
+    exit 130, without a traceback."""
+    from efficienteqa import ask as asking
+
+    seen: list[int] = []
+    real = asking.ask
+
+    def ask(*args, on_step, config, **kwargs):
+        def step(record, *rest):
+            seen.append(config.budget(args[1].env))
+            on_step(record, *rest)
+            if record.step >= 2:
+                raise KeyboardInterrupt
+
+        return real(*args, on_step=step, config=config, **kwargs)
+
+    monkeypatch.setattr(asking, "ask", ask)
+    url = f"openai:fake@{vlm(Options()).base_url}"
+    result = cli("ask", QUESTION, *ASK[2:], "--backends.vlm", url, "--backends.relevancy",
+                 "overlap", "--explore.matching", "words", "--explore.max-steps",
+                 "99999999999999999999999", "--out", str(tmp_path / "big"))
+    assert result.returncode == 130 and "Traceback" not in result.stdout + result.stderr
+    assert "2/99999999999999999999999" in result.stdout  # the progress bar's budget
+    assert len(seen) == 2 and set(seen) == {99999999999999999999999}
+
+
 # ---------------------------------------------------------------- N.6: a cache that cannot be written
 
 @trial("N.6")
