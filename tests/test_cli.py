@@ -86,6 +86,7 @@ def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
         assert not (tmp_path / "out").exists()  # nothing was run
 
 
+@pytest.mark.trial("N.15")
 @pytest.mark.parametrize("command", ["ask", "eval"])
 def test_relevancy_weights_that_do_not_exist_fail_at_once(command, tmp_path):
     """Fault trial N.15: a traceback after 16 s of loading MiniLM; now one line before any

@@ -159,6 +159,7 @@ def _shard(path, house, frames=2):
                         house=np.full(frames, house, np.int32))
 
 
+@pytest.mark.trial("N.4")
 def test_a_torn_shard_or_mistyped_meta_is_one_line_before_training(tmp_path):
     """Fault trial N.4: a shard cut in half ended ``perception train`` in ``BadZipFile: File is
     not a zip file``, and meta.json's ``houses`` of another type in a ``TypeError``. Both are
@@ -214,6 +215,7 @@ def test_validation_frames_are_read_before_training(tmp_path, monkeypatch):
     assert "step" not in log.read_text()
 
 
+@pytest.mark.trial("N.5")
 def test_weights_that_match_their_checksum_but_not_the_network_are_one_line(tmp_path):
     """Fault trial N.5: a .pt and .json that agree on the sha256 but not on the network (other
     widths or vocabulary in the .json, or bytes that are no state dict in the .pt) ended in
@@ -290,3 +292,42 @@ def test_train_refuses_missing_or_empty_data_and_unwritable_out(monkeypatch, cap
     code, out = _cli(monkeypatch, capsys, "perception", "train", "--data", str(data), "--out",
                      str(tmp_path), "--steps", "1")
     assert code == 1 and len(out.strip().splitlines()) == 1 and "cannot write" in out
+
+
+class _Touch:
+    """A pickle that would create ``path`` when unpickled as code."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def __reduce__(self):
+        from pathlib import Path
+
+        return (Path.touch, (Path(self.path),))
+
+
+@pytest.mark.trial("4.8")
+@pytest.mark.filterwarnings("ignore:Detected pickle protocol")
+def test_a_checkpoint_is_read_as_weights_never_run_as_code(tmp_path):
+    """Fault trial 4.8: ``--resume`` loaded the training checkpoint with ``weights_only=False``:
+    a .ckpt beside --out could run code. It is read as tensors and numbers only; anything else
+    is one line."""
+    import pickle
+
+    from efficienteqa.perception.pixels.train import checkpoint_path
+
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "meta.json").write_text(json.dumps({"vocabulary": build_vocabulary().to_json(),
+                                                "houses": [3000]}))
+    _shard(data / "houses-3000-3000.npz", 3000)
+    out, marker = tmp_path / "w.pt", tmp_path / "PWNED"
+    config = TrainConfig(steps=2, batch=1, crop=(32, 48), widths=TINY, threads=1, resume=True)
+    for payload in (pickle.dumps(_Touch(marker)), b"not a checkpoint"):
+        checkpoint_path(out).write_bytes(payload)
+        with pytest.raises(EfficientEQAError, match="is not a readable training checkpoint"):
+            train(data, out, config, log=sys.stdout)
+        assert not marker.exists() and not out.exists()
+    torch.save({"format": 1, "schedule": {}, "data": {}}, checkpoint_path(out))
+    with pytest.raises(EfficientEQAError, match="was written by another training"):
+        train(data, out, config, log=sys.stdout)

@@ -57,6 +57,7 @@ def _check(result, m, allowed=None):
     assert all(isinstance(p, str) for p in result.problems)
 
 
+@pytest.mark.trial("3.1")
 @settings(max_examples=2500, deadline=None)
 @given(replies, st.integers(1, 5))
 def test_parse_candidates_never_raises(reply, m):

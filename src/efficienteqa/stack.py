@@ -41,7 +41,7 @@ from efficienteqa.reading.aliases import AliasResolver
 from efficienteqa.reading.reader import ModelReader
 from efficienteqa.reading.target import TargetReading
 from efficienteqa.registry import Registry
-from efficienteqa.relevancy.base import SCORERS, RelevancyScorer, make_scorer
+from efficienteqa.relevancy.base import SCORERS, RelevancyScorer, check_device, make_scorer
 from efficienteqa.stop.gate import AnswerGate, ModelGate, RulesGate, SightingsGate
 from efficienteqa.vc.grouping import Grouper, LLMGrouper, RuleGrouper
 from efficienteqa.vc.parse import M
@@ -135,6 +135,7 @@ def check_stack(stack: Stack) -> None:
     if stack.relevancy not in known:
         raise EfficientEQAError(f"unknown relevancy scorer {stack.relevancy!r}",
                                 fix=f"use one of {', '.join(known)}")
+    check_device(stack.device)  # a misspelt device: now, not once the scene is open
     if stack.relevancy in IMAGE_RELEVANCY:  # a GPU that is not here: now, not per episode
         from efficienteqa.relevancy.base import resolve_device
 

@@ -36,12 +36,18 @@ def _parse_start(text: str | None) -> Pose2D | None:
 
 def _check_backends(run: Resolved) -> None:
     """Bad back-ends fail before anything slow."""
+    from efficienteqa.envs.synthetic.house import check_assets
     from efficienteqa.stack import check_stack, parse_vlm
 
     stack = run.run.backends
+    check_assets(run.run.scene.assets)  # before a house is built
     check_stack(stack)
-    parse_vlm(stack.vlm, images=stack.perception == "rgb", temperature=stack.temperature,
-              **stack.server_options())
+    backend = parse_vlm(stack.vlm, images=stack.perception == "rgb",
+                        temperature=stack.temperature, **stack.server_options())
+    if backend.kind == "local":  # a misspelt local model: now, not once the scene is open
+        from efficienteqa.models.local.weights import registry_entry
+
+        registry_entry(backend.model)
 
 
 def _same_question(a: str, b: str) -> bool:
@@ -140,7 +146,7 @@ def ask_command(
     if start_pose is not None and scene.startswith("recorded:"):
         raise EfficientEQAError("a recorded walk starts where it was recorded",
                                 fix="leave out --start")
-    if not question:
+    if not question or not question.strip():  # "   " too: before the scene opens, not after
         raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
                                 'the sofa?", or --episode ID with --dataset')
     if rerun is not None:  # rerun missing, no viewer, an unwritable file: before the scene opens

@@ -135,6 +135,17 @@ def _rows(path: Path, columns: tuple[str, ...]) -> list[tuple[str, int, dict[str
                                     fix=FIX_MALFORMED) from None
 
 
+# How much of a bad field an error line quotes (a choices field nested 5,000 deep made a line of
+# over 3 kB).
+SHOWN = 80
+
+
+def _shown(value: object) -> str:
+    """``value``'s repr for an error line, cut to ``SHOWN`` characters."""
+    text = repr(value)
+    return text if len(text) <= SHOWN else f"{text[:SHOWN]}... ({len(text)} characters)"
+
+
 def _bad(where: str, what: str) -> EfficientEQAError:
     return EfficientEQAError(f"{where}: {what}", fix=FIX_MALFORMED)
 
@@ -165,13 +176,13 @@ def read_questions(path: Path, poses: dict[str, dict[str, Any]], *, closed_set: 
         try:
             choices = ast.literal_eval(row["choices"] or "")
         except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
-            raise _bad(where, f"choices is not a Python list literal: {row['choices']!r}") from None
+            raise _bad(where, f"choices is not a Python list literal: {_shown(row['choices'])}") from None
         if not (isinstance(choices, list | tuple) and choices and len(choices) <= len(LETTERS)
                 and all(isinstance(c, str) for c in choices)):
-            raise _bad(where, f"choices must be a list of strings: {row['choices']!r}")
+            raise _bad(where, f"choices must be a list of strings: {_shown(row['choices'])}")
         letter = (row["answer"] or "").strip().upper()
         if len(letter) != 1 or letter not in LETTERS[: len(choices)]:
-            raise _bad(where, f"answer {row['answer']!r} is not one of "
+            raise _bad(where, f"answer {_shown(row['answer'])} is not one of "
                                     f"{', '.join(LETTERS[: len(choices)])}")
         answer = choices[LETTERS.index(letter)].strip()
         filler = answer == FILLER

@@ -80,15 +80,22 @@ DEVICES = "auto, cpu, cuda or cuda:N"
 _DEVICE = re.compile(r"auto|cpu|cuda(?::[0-9]+)?")
 
 
+def check_device(device: str) -> str:
+    """``device`` lower-cased, or one clear error when it names no device a scorer runs on
+    (no torch needed: checked before anything slow)."""
+    name = (device or "auto").strip().lower()
+    if not _DEVICE.fullmatch(name):
+        raise EfficientEQAError(f"unknown device {device!r}", fix=f"use --device {DEVICES}")
+    return name
+
+
 def resolve_device(device: str = "auto", dtype: str | None = None) -> tuple[str, str | None]:
     """The torch device and dtype an image scorer runs with. ``device``: "auto" (the GPU when
     torch sees one, else the CPU), "cpu", "cuda" or "cuda:N". ``dtype`` None: "float16" on a
     GPU (BLIP-2 ViT-g in float32 needs twice the memory and time), the checkpoint's own on the
     CPU (half precision there is slow or unsupported). A GPU asked for and not seen is a clear
     error, not a silent CPU run."""
-    name = (device or "auto").strip().lower()
-    if not _DEVICE.fullmatch(name):
-        raise EfficientEQAError(f"unknown device {device!r}", fix=f"use --device {DEVICES}")
+    name = check_device(device)
     torch = require("torch", "vision")
     if name == "auto":
         name = "cuda" if torch.cuda.is_available() else "cpu"

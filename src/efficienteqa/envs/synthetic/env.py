@@ -11,11 +11,10 @@ from efficienteqa.envs.base import move_info
 from efficienteqa.envs.synthetic.build import build_geometry
 from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house, navigation_grid
-from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS, House
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS, House, check_assets
 from efficienteqa.envs.synthetic.layout import WALL_HEIGHT_M
 from efficienteqa.envs.synthetic.primitives import builtin_catalog
 from efficienteqa.envs.synthetic.render import Renderer
-from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.mapping.navgrid import OccupancyGrid
 from efficienteqa.observation import Observation
@@ -29,9 +28,8 @@ def catalog_for(assets: str, cc_by: bool = False) -> Catalog:
     "builtin": coloured boxes for tests."""
     if assets == "builtin":
         return builtin_catalog()
-    if assets == DEFAULT_ASSETS:
-        return load_catalog(("CC0-1.0", "CC-BY-3.0") if cc_by else ("CC0-1.0",))
-    raise EfficientEQAError(f"unknown assets {assets!r}", fix="use 'sh3d' or 'builtin'")
+    check_assets(assets)
+    return load_catalog(("CC0-1.0", "CC-BY-3.0") if cc_by else ("CC0-1.0",))
 
 
 class SyntheticEnv:

@@ -17,6 +17,13 @@ MOUNTED_Z_M = 1.0  # objects hung at least this high (wall cabinets, lamps) leav
 
 # The furniture of a synthetic house unless told otherwise: the Sweet Home 3D package.
 DEFAULT_ASSETS = "sh3d"
+ASSETS = (DEFAULT_ASSETS, "builtin")
+
+
+def check_assets(assets: str) -> None:
+    """One clear error for assets no house is furnished with (before any house is built)."""
+    if assets not in ASSETS:
+        raise EfficientEQAError(f"unknown assets {assets!r}", fix="use 'sh3d' or 'builtin'")
 
 
 @dataclass

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import pickle
 import sys
 import time
 from collections.abc import Sequence
@@ -29,7 +30,7 @@ import torch
 import torch.nn.functional as F
 
 from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
-from efficienteqa.errors import EfficientEQAError
+from efficienteqa.errors import EfficientEQAError, first_line
 from efficienteqa.perception.pixels.dataset import VALIDATION_SEEDS, code_version, load_shards
 from efficienteqa.perception.pixels.net import (
     IGNORE,
@@ -330,8 +331,14 @@ def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: s
     ckpt = checkpoint_path(out)
     data_id = {"houses": houses, "frames": int(len(frames["category"]))}
     if config.resume and ckpt.is_file():
-        state = torch.load(ckpt, map_location=device, weights_only=False)
-        if state.get("schedule") != config.schedule() or state.get("data") != data_id:
+        try:  # tensors, numbers and strings only: a checkpoint is never unpickled as code
+            state = torch.load(ckpt, map_location=device, weights_only=True)
+        except (pickle.UnpicklingError, RuntimeError, ValueError, EOFError, OSError) as exc:
+            raise EfficientEQAError(f"{ckpt} is not a readable training checkpoint "
+                                    f"({first_line(exc)})",
+                                    fix="delete it to train from the start") from None
+        if (not isinstance(state, dict) or state.get("schedule") != config.schedule()
+                or state.get("data") != data_id):
             raise EfficientEQAError(f"{ckpt} was written by another training (steps, seed, "
                                     "batch, crop, lr, widths or data differ)",
                                     fix="give the same options and data, or delete it")
