@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ASK, BLIND, QUESTION, one_error_line, ran, trial
+from faults.harness import ASK, BLIND, QUESTION, one_error_line, ran, trial
 from vlm_server import Options
 
 SRC = Path(__file__).parents[2] / "src" / "efficienteqa"

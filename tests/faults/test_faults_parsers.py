@@ -11,7 +11,6 @@ import random
 
 import pytest
 
-from conftest import trial
 from efficienteqa.eval.judge import openeqa_mark, p_yes, parse_score, score_value, trim_response
 from efficienteqa.models.base import TokenLogprob
 from efficienteqa.vc.logprobs import letter_probs_from_logprobs, yes_prob_from_logprobs
@@ -22,6 +21,7 @@ from efficienteqa.vc.parse import (
     parse_worth_exploring,
     yes_no_confidence,
 )
+from faults.harness import trial
 
 PIECES = [
     "A", "B", "C", "D", "yes", "No", "YES", " ", "\n", "\r\n", "\t", ":", ";", ",", ".", "%", "-",

@@ -385,7 +385,7 @@ def test_two_asks_at_once_share_the_cache_but_not_a_folder(cli, server, env, tmp
     forked child cannot)."""
     import sqlite3
 
-    from test_faults_cache import writer
+    from faults.test_faults_cache import writer
 
     fast = ("--backends.relevancy", "overlap", "--explore.matching", "words",
             "--explore.max-steps", "1", "--backends.vlm", f"openai:fake@{server.base_url}")
