@@ -27,6 +27,7 @@ def run_cli(args: list[str] | tuple[str, ...], env: dict[str, str],
             capfd: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> Result:
     """Runs the command with exactly ``env`` as its environment (restored after)."""
     from efficienteqa.cli import main
+    from efficienteqa.cli.app import console
 
     capfd.readouterr()
     with monkeypatch.context() as patch:
@@ -34,6 +35,9 @@ def run_cli(args: list[str] | tuple[str, ...], env: dict[str, str],
             patch.delenv(name)
         for name, value in env.items():
             patch.setenv(name, value)
+        columns = env.get("COLUMNS", "")
+        if columns.isdigit():  # read by a new process's console when it starts
+            patch.setattr(console, "_width", int(columns))
         patch.setattr(sys, "argv", ["efficienteqa", *args])
         try:
             main()

@@ -71,6 +71,18 @@ needs_egl = pytest.mark.skipif(
     not egl_available(), reason="no EGL (apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri)")
 
 
+@pytest.fixture
+def cli(capfd, monkeypatch):
+    """``cli(*args, env=None)`` runs ``efficienteqa ARGS`` in this process (tests/clirun.py) with
+    ``env`` as its environment (None: this process's); returns its exit status and output."""
+    from clirun import run_cli
+
+    def run(*args: str, env: dict[str, str] | None = None):
+        return run_cli(args, dict(os.environ) if env is None else env, capfd, monkeypatch)
+
+    return run
+
+
 @pytest.fixture(scope="session")
 def catalog():
     return builtin_catalog()

@@ -1,6 +1,5 @@
 import importlib.util
 import json
-import subprocess
 import sys
 
 import pytest
@@ -9,14 +8,9 @@ from conftest import needs_egl, needs_small_model
 from efficienteqa.errors import EfficientEQAError
 
 
-def _run(*args, env=None):
-    return subprocess.run([sys.executable, "-m", "efficienteqa.cli", *args], capture_output=True,
-                          text=True, env=env, timeout=300)
-
-
 @needs_egl
-def test_scenes_generate_writes_every_file(tmp_path):
-    result = _run("scenes", "generate", "--seed", "5", "--out", str(tmp_path), "--assets", "builtin")
+def test_scenes_generate_writes_every_file(cli, tmp_path):
+    result = cli("scenes", "generate", "--seed", "5", "--out", str(tmp_path), "--assets", "builtin")
     assert result.returncode == 0, result.stderr
     house = json.loads((tmp_path / "house.json").read_text())
     assert house["seed"] == 5 and house["objects"]
@@ -26,30 +20,30 @@ def test_scenes_generate_writes_every_file(tmp_path):
     assert (tmp_path / "views.png").read_bytes()[:4] == b"\x89PNG"
 
 
-def test_missing_furniture_is_one_line_naming_the_fix(tmp_path):
+def test_missing_furniture_is_one_line_naming_the_fix(cli, tmp_path):
     import os
 
     env = {**os.environ, "EFFICIENTEQA_FURNITURE_DIR": str(tmp_path / "none"),
            "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
-    result = _run("scenes", "generate", "--out", str(tmp_path / "out"), env=env)
+    result = cli("scenes", "generate", "--out", str(tmp_path / "out"), env=env)
     assert result.returncode == 1
     assert "apt-get install sweethome3d-furniture" in result.stdout
     assert "Traceback" not in result.stdout + result.stderr
     assert len(result.stdout.strip().splitlines()) == 1
 
 
-def test_models_install_refuses_an_unknown_model_before_anything_slow(tmp_path):
+def test_models_install_refuses_an_unknown_model_before_anything_slow(cli, tmp_path):
     """Checked before the llama.cpp runtime is built or any weights are downloaded."""
     import os
 
     cache = tmp_path / "cache"
-    result = _run("models", "install", "no-such-model", env={**os.environ, "EFFICIENTEQA_CACHE": str(cache)})
+    result = cli("models", "install", "no-such-model", env={**os.environ, "EFFICIENTEQA_CACHE": str(cache)})
     assert result.returncode == 1 and "unknown local model 'no-such-model'" in result.stdout
     assert "Traceback" not in result.stdout + result.stderr
     assert not (cache / "wheels").exists() and not (cache / "models").exists()
 
 
-def test_ask_with_a_bad_scene_start_or_model_is_one_line():
+def test_ask_with_a_bad_scene_start_or_model_is_one_line(cli):
     for args, message in ((["--scene", "hm3d:00800"], "needs Habitat-Sim"),
                           (["--scene", "mp3d:17DRP5sb8fy"], "unknown scene"),
                           (["--scene", "synthetic:1", "--env", "habitat"], "not a Habitat scene"),
@@ -60,13 +54,13 @@ def test_ask_with_a_bad_scene_start_or_model_is_one_line():
                           (["--scene", "synthetic:-1"], "integer seed of 0 or more"),
                           (["--start", "100,100,0", "--assets", "builtin"], "is not on the floor"),
                           (["--vlm", "gpt-4o", "--assets", "builtin"], "cannot read --vlm")):
-        result = _run("ask", "Where is the sofa?", *args)
+        result = cli("ask", "Where is the sofa?", *args)
         assert result.returncode == 1, (args, result.stdout, result.stderr)
         assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
 
 
 @pytest.mark.parametrize("command", ["ask", "eval"])
-def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
+def test_values_the_agent_refuses_fail_at_once_in_one_line(cli, command, tmp_path):
     """Checked before any scene is built or any episode explored."""
     import os
 
@@ -79,7 +73,7 @@ def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
                           (["--relevancy", "bogus"], "unknown relevancy scorer 'bogus'"),
                           (["--perception", "rgb", "--vlm", "openai:gpt-4o", "--relevancy",
                             "minilm"], "use --relevancy vlm-match")):
-        result = _run(command, *question, *args, "--out", str(tmp_path / "out"),
+        result = cli(command, *question, *args, "--out", str(tmp_path / "out"),
                       env={**os.environ, "OPENAI_API_KEY": "sk-test"})
         assert result.returncode == 1, (args, result.stdout, result.stderr)
         assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
@@ -88,11 +82,11 @@ def test_values_the_agent_refuses_fail_at_once_in_one_line(command, tmp_path):
 
 @pytest.mark.trial("N.15")
 @pytest.mark.parametrize("command", ["ask", "eval"])
-def test_relevancy_weights_that_do_not_exist_fail_at_once(command, tmp_path):
+def test_relevancy_weights_that_do_not_exist_fail_at_once(cli, command, tmp_path):
     """Fault trial N.15: a traceback after 16 s of loading MiniLM; now one line before any
     scene, model or output folder."""
     question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
-    result = _run(command, *question, "--backends.relevancy", "minilm",
+    result = cli(command, *question, "--backends.relevancy", "minilm",
                   "--backends.relevancy-weights", "/nonexistent", "--out", str(tmp_path / "out"))
     assert result.returncode == 1, result.stdout + result.stderr
     assert "relevancy weights '/nonexistent' are not a folder" in result.stdout
@@ -100,14 +94,14 @@ def test_relevancy_weights_that_do_not_exist_fail_at_once(command, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
+def test_the_paper_preset_fills_what_is_not_given(cli, tmp_path, hm_eqa_dir):
     """``--preset paper``: HM-EQA's first 100 in Habitat-Sim with GPT-4o at T = 1, BLIP-2 and
     Z_th 3; an option given on the command line wins. Without Habitat-Sim the run stops before
     its first episode with the conda line."""
     import os
 
     env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
-    result = _run("eval", "--preset", "paper", "--top-k", "3", "--hm-eqa-path", str(hm_eqa_dir),
+    result = cli("eval", "--preset", "paper", "--top-k", "3", "--hm-eqa-path", str(hm_eqa_dir),
                   "--hm3d-root", str(tmp_path), "--out", str(tmp_path / "run"), env=env)
     run = json.loads((tmp_path / "run" / "run.json").read_text())
     assert (run["dataset"], run["questions"], run["env"]) == ("hm-eqa", 100, "habitat")
@@ -120,7 +114,7 @@ def test_the_paper_preset_fills_what_is_not_given(tmp_path, hm_eqa_dir):
 
 
 
-def test_ask_with_the_paper_preset_asks_hm_eqa_in_habitat(tmp_path, hm_eqa_dir):
+def test_ask_with_the_paper_preset_asks_hm_eqa_in_habitat(cli, tmp_path, hm_eqa_dir):
     """``ask --dataset`` had a literal default the preset could not fill, so
     ``--preset paper --episode 0`` opened a synthetic house and failed as "not a Habitat scene".
     It is HM-EQA's episode 0 in Habitat-Sim; without habitat_sim, one line naming what is needed."""
@@ -129,13 +123,13 @@ def test_ask_with_the_paper_preset_asks_hm_eqa_in_habitat(tmp_path, hm_eqa_dir):
     env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
     args = ("ask", "--preset", "paper", "--episode", "0", "--hm-eqa-path", str(hm_eqa_dir),
             "--out", str(tmp_path / "out"))
-    no_scenes = _run(*args, env=env)
+    no_scenes = cli(*args, env=env)
     assert no_scenes.returncode == 1, no_scenes.stdout + no_scenes.stderr
     assert "not a Habitat scene" not in no_scenes.stdout
     assert "hm3d:" in no_scenes.stdout and "needs Habitat-Sim" in no_scenes.stdout
     assert len(no_scenes.stdout.strip().splitlines()) == 1
     if importlib.util.find_spec("habitat_sim") is None:
-        result = _run(*args, "--hm3d-root", str(tmp_path), env=env)
+        result = cli(*args, "--hm3d-root", str(tmp_path), env=env)
         assert result.returncode == 1, result.stdout + result.stderr
         assert "Habitat-Sim is not installed" in result.stdout and "conda install" in result.stdout
         assert len(result.stdout.strip().splitlines()) == 1
@@ -144,13 +138,13 @@ def test_ask_with_the_paper_preset_asks_hm_eqa_in_habitat(tmp_path, hm_eqa_dir):
 @needs_egl
 @needs_small_model
 @pytest.mark.slow
-def test_ask_runs_an_episode_with_the_small_real_model(tmp_path, small_model_cache):
+def test_ask_runs_an_episode_with_the_small_real_model(cli, tmp_path, small_model_cache):
     try:
-        result = _run("ask", "What colour is the desk in the office?", "--scene", "synthetic:4",
+        result = cli("ask", "What colour is the desk in the office?", "--scene", "synthetic:4",
                       "--assets", "builtin", "--max-steps", "2", "--vlm", "local:smollm2-135m",
                       "--relevancy", "overlap", "--grouping", "rules", "--out", str(tmp_path / "out"))
     finally:
-        _run("models", "stop", "smollm2-135m")
+        cli("models", "stop", "smollm2-135m")
     assert result.returncode == 0, result.stdout + result.stderr
     assert "answer:" in result.stdout and "steps: 2 of 2" in result.stdout
     assert "reference answer: black" in result.stdout and "report.html" in result.stdout
@@ -158,7 +152,7 @@ def test_ask_runs_an_episode_with_the_small_real_model(tmp_path, small_model_cac
     assert record["backends"]["vlm"] == "smollm2-135m" and record["backends"]["relevancy"] == "word-overlap"
 
 
-def test_eval_exits_non_zero_when_an_episode_failed_and_a_re_run_resumes_it(tmp_path):
+def test_eval_exits_non_zero_when_an_episode_failed_and_a_re_run_resumes_it(cli, tmp_path):
     import os
     from pathlib import Path
 
@@ -170,29 +164,30 @@ def test_eval_exits_non_zero_when_an_episode_failed_and_a_re_run_resumes_it(tmp_
            "EQA_STUB_FAIL": first}
     args = ("eval", "--method", "eval_stubs:echo", "--limit", "2", "--judge", "none",
             "--out", str(tmp_path / "run"))
-    failed = _run(*args, env=env)
+    failed = cli(*args, env=env)
     assert failed.returncode == 1, failed.stdout + failed.stderr
     assert "1 episode(s) failed" in failed.stdout and "Traceback" not in failed.stdout
     assert "1 x RuntimeError: scripted failure of" in failed.stdout  # why, grouped
     del env["EQA_STUB_FAIL"]
-    resumed = _run(*args, env=env)
+    resumed = cli(*args, env=env)
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
     assert "1 episodes run, 1 already done, 0 failed" in resumed.stdout
 
 
 @pytest.mark.parametrize("command", ["ask", "eval"])
-def test_an_unwritable_out_folder_fails_before_the_work(command, tmp_path):
+def test_an_unwritable_out_folder_fails_before_the_work(cli, command, tmp_path):
     """The episode used to be explored, then lost to a traceback."""
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
-    result = _run(command, *question, "--out", str(blocker / "out"))
+    result = cli(command, *question, "--out", str(blocker / "out"))
     assert result.returncode == 1, result.stdout + result.stderr
     assert "cannot write to" in result.stdout and "Traceback" not in result.stdout + result.stderr
     assert "exploring" not in result.stdout
 
 
-def test_ask_does_not_replace_another_questions_episode_nor_run_beside_another(tmp_path):
+def test_ask_does_not_replace_another_questions_episode_nor_run_beside_another(cli, tmp_path,
+                                                                              monkeypatch):
     """Fault trial N.11: two asks into one --out both succeeded and the folder kept only the
     second. A folder that another ask holds is refused at once (its lock, as eval's), and one
     that holds another question's episode unless --overwrite; the same question replaces its
@@ -200,10 +195,10 @@ def test_ask_does_not_replace_another_questions_episode_nor_run_beside_another(t
     stops each run that gets past these checks, before any scene or model."""
     from efficienteqa.eval.records import run_lock
 
+    monkeypatch.chdir(tmp_path)
+
     def ask(*args):
-        result = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "ask", *args,
-                                 "--scene", "synthetic:x"], capture_output=True, text=True,
-                                cwd=tmp_path, timeout=300)
+        result = cli("ask", *args, "--scene", "synthetic:x")
         assert result.returncode == 1 and "Traceback" not in result.stdout + result.stderr
         assert len(result.stdout.strip().splitlines()) == 1, result.stdout
         return result.stdout
@@ -251,21 +246,21 @@ def _stub_env():
 
 
 @pytest.mark.parametrize("name", ["run.json", "episodes.jsonl"])
-def test_a_run_file_that_is_a_folder_is_one_line_before_the_work(name, tmp_path):
+def test_a_run_file_that_is_a_folder_is_one_line_before_the_work(cli, name, tmp_path):
     """Fault trial 2.16: ``IsADirectoryError`` tracebacks; now one line from eval and report."""
     (tmp_path / "run" / name).mkdir(parents=True)
     if name == "episodes.jsonl":
         (tmp_path / "run" / "run.json").write_text("{}")  # a run for report to read
     for args in (("eval", "--method", "eval_stubs:echo", "--limit", "1", "--judge", "none",
                   "--out", str(tmp_path / "run")), ("report", str(tmp_path / "run"))):
-        result = _run(*args, env=_stub_env())
+        result = cli(*args, env=_stub_env())
         assert result.returncode == 1, result.stdout + result.stderr
         assert f"{name}: Is a directory" in result.stdout, result.stdout
         assert "Traceback" not in result.stdout + result.stderr
         assert "episodes run" not in result.stdout
 
 
-def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(tmp_path):
+def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(cli, tmp_path):
     """``--preset paper-offline``: agent.PAPER_CONFIG with the VLM's semantic values on the
     synthetic questions and the default stack; tables name it as the committed paper row."""
     from dataclasses import asdict
@@ -274,7 +269,7 @@ def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(tmp_pa
     from efficienteqa.eval.summary import settings, settings_label
     from efficienteqa.stack import Stack
 
-    result = _run("eval", "--preset", "paper-offline", "--method", "eval_stubs:echo", "--limit", "1",
+    result = cli("eval", "--preset", "paper-offline", "--method", "eval_stubs:echo", "--limit", "1",
                   "--judge", "none", "--out", str(tmp_path / "run"), env=_stub_env())
     assert result.returncode == 0, result.stdout + result.stderr
     run = json.loads((tmp_path / "run" / "run.json").read_text())
@@ -284,11 +279,11 @@ def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(tmp_pa
     assert settings_label("efficienteqa", settings(run)) == "efficienteqa paper configuration"
 
 
-def test_a_configuration_file_fills_what_the_command_line_leaves_out(tmp_path):
+def test_a_configuration_file_fills_what_the_command_line_leaves_out(cli, tmp_path):
     config = tmp_path / "mine.toml"
     config.write_text('base = "paper-offline"\ntop_k = 3\nz_th = 2\nassets = "builtin"\n'
                       'method = "eval_stubs:echo"\nlimit = 1\njudge = "none"\ndataset = "synthetic:4"\n')
-    result = _run("eval", "--config", str(config), "--top-k", "4", "--out", str(tmp_path / "run"),
+    result = cli("eval", "--config", str(config), "--top-k", "4", "--out", str(tmp_path / "run"),
                   env=_stub_env())
     assert result.returncode == 0, result.stdout + result.stderr
     run = json.loads((tmp_path / "run" / "run.json").read_text())
@@ -296,14 +291,14 @@ def test_a_configuration_file_fills_what_the_command_line_leaves_out(tmp_path):
     assert run["config"]["answer"]["top_k"] == 4  # the command line wins
     assert run["config"]["stop"]["z_th"] == 2.0 and run["config"]["stop"]["rule"] == "paper"
     assert run["assets"] == "builtin"  # an option with a default of its own is filled too
-    given = _run("eval", "--config", str(config), "--assets", "sh3d", "--out", str(tmp_path / "b"),
+    given = cli("eval", "--config", str(config), "--assets", "sh3d", "--out", str(tmp_path / "b"),
                  env=_stub_env())
     assert given.returncode == 0, given.stdout + given.stderr
     assert json.loads((tmp_path / "b" / "run.json").read_text())["assets"] == "sh3d"
 
 
 @pytest.mark.parametrize("command", ["ask", "eval"])
-def test_a_bad_configuration_is_one_line_before_any_work(command, tmp_path):
+def test_a_bad_configuration_is_one_line_before_any_work(cli, command, tmp_path):
     question = ["Where is the sofa?"] if command == "ask" else ["--limit", "1"]
     bad = tmp_path / "bad.toml"
     for text, message in (("topk = 3\n", "unknown option 'topk'"),
@@ -314,28 +309,28 @@ def test_a_bad_configuration_is_one_line_before_any_work(command, tmp_path):
             bad.unlink()
         else:
             bad.write_text(text)
-        result = _run(command, *question, "--config", str(bad), "--out", str(tmp_path / "out"))
+        result = cli(command, *question, "--config", str(bad), "--out", str(tmp_path / "out"))
         assert result.returncode == 1, (text, result.stdout, result.stderr)
         assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
         assert len(result.stdout.strip().splitlines()) == 1
         assert not (tmp_path / "out").exists()
-    result = _run(command, *question, "--preset", "papr", "--out", str(tmp_path / "out"))
+    result = cli(command, *question, "--preset", "papr", "--out", str(tmp_path / "out"))
     assert result.returncode == 1 and "unknown preset 'papr'" in result.stdout
 
 
-def test_ask_refuses_a_configuration_of_another_method(tmp_path):
-    result = _run("ask", "Where is the sofa?", "--preset", "explore-eqa", "--out", str(tmp_path / "o"))
+def test_ask_refuses_a_configuration_of_another_method(cli, tmp_path):
+    result = cli("ask", "Where is the sofa?", "--preset", "explore-eqa", "--out", str(tmp_path / "o"))
     assert result.returncode == 1 and "method 'explore-eqa' is for eval" in result.stdout
 
 
 @pytest.mark.parametrize("command", ["ask", "eval"])
-def test_help_groups_the_options_in_panels(command):
+def test_help_groups_the_options_in_panels(cli, command):
     """``--help`` in panels, in this order: what is asked, the method, its back-ends,
     the options beyond the paper, where the output goes."""
     import os
     import re
 
-    result = _run(command, "--help", env={**os.environ, "COLUMNS": "200", "NO_COLOR": "1",
+    result = cli(command, "--help", env={**os.environ, "COLUMNS": "200", "NO_COLOR": "1",
                                           "TERM": "dumb"})
     assert result.returncode == 0, result.stderr
     panels: dict[str, list[str]] = {}

@@ -115,26 +115,6 @@ def test_a_run_killed_mid_way_resumes_with_every_episode_exactly_once(tmp_path):
     assert sorted(ids) == [q.id for q in questions(12)]  # each exactly once
 
 
-@pytest.mark.slow
-def test_ray_two_workers_survive_a_killed_worker(tmp_path, monkeypatch):
-    pytest.importorskip("ray")
-    marks = tmp_path / "marks"
-    marks.mkdir()
-    out = tmp_path / "run"
-    monkeypatch.setenv("EQA_STUB_SLEEP", "0.3")
-    monkeypatch.setenv("EQA_STUB_DIE", "toy/003")
-    monkeypatch.setenv("EQA_STUB_MARKS", str(marks))
-    result = run_eval(spec(), questions(8), out, workers=2, prepare=False)
-    rows = lines(out)
-    assert sorted(r["id"] for r in rows) == [q.id for q in questions(8)]  # each exactly once
-    assert all(r["status"] == "done" for r in rows), [r.get("error") for r in rows]
-    assert (marks / "toy_003").exists()  # the worker did die once, and Ray ran it again
-    died = int((marks / "toy_003").read_text())
-    assert died != next(r for r in rows if r["id"] == "toy/003")["extra"]["pid"]
-    assert len({r["extra"]["pid"] for r in rows}) >= 2  # two workers did the work
-    assert result.failed == 0
-
-
 def test_methods_are_configurations_of_the_agent():
     base = AgentConfig()
     assert method_config("efficienteqa", base).stop.enabled

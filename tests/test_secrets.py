@@ -6,32 +6,20 @@ inherit; a run on a cluster says in one line that the nodes need it set."""
 from __future__ import annotations
 
 import logging
-import os
 import pickle
-import shutil
 import sys
-import tempfile
-from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
 import pytest
 
-from efficienteqa.datasets.base import EvalQuestion
-from efficienteqa.eval.methods import Outcome, RunSpec
+from efficienteqa.eval.methods import RunSpec
 from efficienteqa.eval.runner import is_secret_name, run_eval
 from efficienteqa.stack import Stack
-from test_eval_runner import lines, questions, spec
+from test_eval_runner import questions, spec
 
 FAKE_KEY = "sk-efficienteqa-test-7f3c91d2e0b84a6f"
 FAKE_TOKEN = "tok-efficienteqa-test-5a0e44c1"
-
-
-def key_seen(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
-    """A method for ``test_secrets:key_seen``: whether this worker reads the test's key (never
-    the key itself, which would then travel back through Ray)."""
-    seen = os.environ.get("OPENAI_API_KEY") == FAKE_KEY
-    return Outcome("seen" if seen else "missing", 1.0, steps=0, extra={"pid": os.getpid()})
 
 
 class Ref:
@@ -159,31 +147,3 @@ def test_a_cluster_run_of_a_keyed_model_says_the_nodes_need_the_key(tmp_path, mo
         run_eval(spec(), questions(1), tmp_path / "keyless", workers=2,  # local model, no key
                  address="ray://head.example:10001", prepare=False)
     assert not caplog.records
-
-
-@pytest.mark.trial("4.3")
-@pytest.mark.slow
-def test_a_local_ray_run_writes_no_key_to_rays_files_and_workers_still_read_it(tmp_path,
-                                                                               monkeypatch,
-                                                                               secrets):
-    ray = pytest.importorskip("ray")
-    if ray.is_initialized():
-        pytest.skip("a Ray is already running in this process")
-    # Ray's session folder holds unix sockets, whose paths must stay under 107 bytes: tmp_path
-    # is too deep for them, so Ray's temp dir is a short folder of its own.
-    temp = Path(tempfile.mkdtemp(prefix="eqa-ray-"))
-    monkeypatch.setenv("RAY_TMPDIR", str(temp))
-    try:
-        result = run_eval(spec("test_secrets:key_seen"), questions(4), tmp_path / "run",
-                          workers=2, prepare=False)
-        rows = lines(tmp_path / "run")
-        assert result.failed == 0, [r.get("error") for r in rows]
-        assert [r["answer"] for r in rows] == ["seen"] * 4  # inherited from this process
-        assert len({r["extra"]["pid"] for r in rows} - {os.getpid()}) >= 1  # in Ray's workers
-        files = [p for p in temp.rglob("*") if p.is_file() and not p.is_symlink()]
-        assert any("runtime_env" in p.name for p in files)  # Ray did write its logs here
-        leaks = [str(p) for p in files
-                 if any(s.encode() in p.read_bytes() for s in (FAKE_KEY, FAKE_TOKEN))]
-        assert not leaks
-    finally:
-        shutil.rmtree(temp, ignore_errors=True)

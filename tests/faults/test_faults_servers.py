@@ -381,7 +381,8 @@ def test_a_local_ray_run_listens_on_loopback_and_writes_no_key(env, vlm, tmp_pat
     server = vlm(Options(api_key=KEY, hang_s=0.5, hang_after=2))  # the episodes' calls wait
     temp = Path(tempfile.mkdtemp(prefix="eqa-ray-"))  # short: Ray's unix sockets' paths
     env.pop("OPENAI_API_KEY")
-    env.update(EFFICIENTEQA_AUTH=KEY, RAY_TMPDIR=str(temp))
+    token = "tok-efficienteqa-faults-5a0e44c1"  # a secret-named variable beside it
+    env.update(EFFICIENTEQA_AUTH=KEY, EFFICIENTEQA_HUB_TOKEN=token, RAY_TMPDIR=str(temp))
     args = [*BLIND, "--eval.limit", "4", "--eval.workers", "2", "--backends.api-key-env",
             "EFFICIENTEQA_AUTH", *vlm_flag(server), "--out", str(tmp_path / "run")]
     try:
@@ -399,7 +400,7 @@ def test_a_local_ray_run_listens_on_loopback_and_writes_no_key(env, vlm, tmp_pat
         assert [s for s in sockets if not is_loopback(s[1])] == []
         assert len(server.requests) >= 6 and {r.status for r in server.requests} == {200}
         assert any("runtime_env" in p.name for p in temp.rglob("*"))  # Ray did log here
-        assert files_holding(temp, KEY) == []
+        assert files_holding(temp, KEY) == [] and files_holding(temp, token) == []
         assert sorted(episode_ids(tmp_path / "run")) == sorted(set(episode_ids(tmp_path / "run")))
     finally:
         shutil.rmtree(temp, ignore_errors=True)
