@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import pytest
 
@@ -98,10 +96,8 @@ def test_open_ended_rows_have_no_letter_grade(tmp_path):
     (["--dataset", "synthetic"], "--closed-set is HM-EQA's multiple-choice mode"),
     (["--dataset", "hm-eqa", "--method", "efficienteqa"], "answers open-ended only"),
 ])
-def test_closed_set_outside_blind_on_hm_eqa_is_one_line(tmp_path, args, message):
-    result = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "eval", "--closed-set",
-                             "--out", str(tmp_path / "run"), *args],
-                            capture_output=True, text=True, timeout=120)
+def test_closed_set_outside_blind_on_hm_eqa_is_one_line(cli, tmp_path, args, message):
+    result = cli("eval", "--closed-set", "--out", str(tmp_path / "run"), *args)
     assert result.returncode == 1 and message in result.stdout
     assert "Traceback" not in result.stdout + result.stderr
     assert not (tmp_path / "run").exists()

@@ -143,14 +143,13 @@ def test_every_committed_run_nests_to_a_tree_the_dataclasses_build():
                                if not isinstance(v, dict)), path
 
 
-def test_ask_help_shows_the_openai_server_form_and_every_section():
+def test_ask_help_shows_the_openai_server_form_and_every_section(cli):
     import os
-    import subprocess
-    import sys
 
     env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1", "TERM": "dumb"}
-    out = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "ask", "--help"],
-                         capture_output=True, text=True, env=env, check=True).stdout
+    result = cli("ask", "--help", env=env)
+    assert result.returncode == 0, result.said
+    out = result.stdout
     assert "openai:MODEL@BASE_URL" in out
     assert "--stop.z-gated" in out and "--explore.sfe.view-gain" in out
     assert "Beyond the paper." in out
@@ -197,15 +196,12 @@ def test_config_prints_a_file_that_reads_back_to_the_same_run(tmp_path, preset):
     assert resolve(load_config(path)).run == run
 
 
-def test_the_config_command_prints_the_run_it_would_make(tmp_path):
-    import subprocess
-    import sys
-
+def test_the_config_command_prints_the_run_it_would_make(cli, tmp_path):
     from efficienteqa.presets import load_config, resolve
 
-    out = subprocess.run([sys.executable, "-m", "efficienteqa.cli", "config", "--preset",
-                          "explore-eqa", "--answer.top-k", "3"], capture_output=True, text=True,
-                         check=True).stdout
+    result = cli("config", "--preset", "explore-eqa", "--answer.top-k", "3")
+    assert result.returncode == 0, result.said
+    out = result.stdout
     assert "[stop]\n" in out and "top_k = 3" in out and "(set by eval.method)" in out
     path = tmp_path / "c.toml"
     path.write_text(out)

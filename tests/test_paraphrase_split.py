@@ -5,11 +5,8 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 from collections import Counter
 from dataclasses import replace
-from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -154,17 +151,12 @@ def test_a_rephrased_episode_records_its_originals_reference(house4, tmp_path):
     assert run(None, tmp_path / "free")["reference"] is None
 
 
-def _eval(tmp_path, dataset: str, answer: str) -> subprocess.CompletedProcess[str]:
-    tests = str(Path(__file__).parent)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([tests, os.environ.get("PYTHONPATH", "")]),
-           "EQA_STUB_ANSWER": answer}
-    return subprocess.run([sys.executable, "-m", "efficienteqa.cli", "eval", "--dataset", dataset,
-                           "--method", "eval_stubs:echo", "--limit", "2", "--judge", "rule",
-                           "--out", str(tmp_path / dataset)],
-                          capture_output=True, text=True, env=env, timeout=300)
+def test_eval_accepts_the_split_and_refuses_a_bad_name_in_one_line(cli, tmp_path):
+    def _eval(tmp_path, dataset: str, answer: str):
+        return cli("eval", "--dataset", dataset, "--method", "eval_stubs:echo", "--limit", "2",
+                   "--judge", "rule", "--out", str(tmp_path / dataset),
+                   env={**os.environ, "EQA_STUB_ANSWER": answer})
 
-
-def test_eval_accepts_the_split_and_refuses_a_bad_name_in_one_line(tmp_path):
     # The first two are the coffee maker on the bookshelf and five chairs: one right, one wrong.
     done = _eval(tmp_path, "synthetic-paraphrase", "a coffee maker")
     assert done.returncode == 0, done.stdout + done.stderr

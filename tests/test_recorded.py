@@ -8,8 +8,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -415,21 +413,16 @@ def test_a_broken_recording_is_one_line_before_any_model_call(tmp_path, case):
     assert model.requests == []
 
 
-def _cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "efficienteqa.cli", *args], capture_output=True,
-                          text=True, env=env, timeout=300)
-
-
-def test_the_cli_says_a_broken_recording_in_one_line(tmp_path):
+def test_the_cli_says_a_broken_recording_in_one_line(cli, tmp_path):
     for case in ("missing", "corrupt", "no-tf-path", "sizes"):
         spec = f"recorded:{tmp_path / 'none.mcap'}" if case == "missing" else _bad(tmp_path, case)
-        result = _cli("ask", QUESTION, "--scene", spec, "--out", str(tmp_path / "out"))
+        result = cli("ask", QUESTION, "--scene", spec, "--out", str(tmp_path / "out"))
         assert result.returncode == 1, (case, result.stdout, result.stderr)
         assert BAD[case] in result.stdout.replace("\n", " ") or BAD[case] in result.stdout
         assert "Traceback" not in result.stdout + result.stderr
         assert len([line for line in result.stdout.splitlines() if line.strip()]) == 1
         assert not (tmp_path / "out" / "episode.json").exists()
-    start = _cli("ask", QUESTION, "--scene", "recorded:walk.mcap", "--start", "1,2,0",
+    start = cli("ask", QUESTION, "--scene", "recorded:walk.mcap", "--start", "1,2,0",
                  "--out", str(tmp_path / "out"))
     assert start.returncode == 1 and "starts where it was recorded" in start.stdout
 
@@ -446,7 +439,7 @@ def vlm(tmp_path, monkeypatch):
 
 
 @needs_egl
-def test_ask_records_a_walk_and_ask_and_eval_replay_it(vlm, tmp_path):
+def test_ask_records_a_walk_and_ask_and_eval_replay_it(cli, vlm, tmp_path):
     server = vlm()
     env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache"),
            "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent),
@@ -454,17 +447,17 @@ def test_ask_records_a_walk_and_ask_and_eval_replay_it(vlm, tmp_path):
     backends = ("--backends.vlm", f"openai:test-vlm@{server.base_url}", "--backends.relevancy",
                 "overlap", "--explore.matching", "words", "--backends.no-cache")
     walk = tmp_path / "walks" / "walk.mcap"
-    live = _cli("ask", QUESTION, "--scene", "synthetic:3", "--assets", "builtin",
+    live = cli("ask", QUESTION, "--scene", "synthetic:3", "--assets", "builtin",
                 "--max-steps", "4", *backends, "--record", str(walk), "--out",
                 str(tmp_path / "live"), env=env)
     assert live.returncode == 0, live.stdout + live.stderr
     assert f"recorded: {walk}" in live.stdout.replace("\n", "")
     steps = json.loads((tmp_path / "live" / "episode.json").read_text())["steps"]
-    again = _cli("ask", QUESTION, "--scene", "synthetic:3", "--assets", "builtin", "--max-steps",
+    again = cli("ask", QUESTION, "--scene", "synthetic:3", "--assets", "builtin", "--max-steps",
                  "1", *backends, "--record", str(walk), "--out", str(tmp_path / "x"), env=env)
     assert again.returncode == 1 and "never written over" in again.stdout
 
-    replay = _cli("ask", QUESTION, "--scene", f"recorded:{walk}", *backends, "--out",
+    replay = cli("ask", QUESTION, "--scene", f"recorded:{walk}", *backends, "--out",
                   str(tmp_path / "replay"), env=env)
     assert replay.returncode == 0, replay.stdout + replay.stderr
     assert f"walk.mcap: {steps} frames of {steps}; with the simulator's labels" in replay.stdout
@@ -475,7 +468,7 @@ def test_ask_records_a_walk_and_ask_and_eval_replay_it(vlm, tmp_path):
 
 
 @needs_egl
-def test_eval_answers_a_file_of_questions_about_a_recording(vlm, small_env, tmp_path):
+def test_eval_answers_a_file_of_questions_about_a_recording(cli, vlm, small_env, tmp_path):
     """``--eval.dataset FILE.jsonl``: rows with a question, a scene (a recording's path relative
     to the file) and, optionally, the reference answer; a row without one is run, not graded."""
     server = vlm()
@@ -489,7 +482,7 @@ def test_eval_answers_a_file_of_questions_about_a_recording(vlm, small_env, tmp_
                          + json.dumps({"question": "Is there a sofa?",
                                        "scene": "recorded:walk.mcap"}) + "\n")
     env = {**os.environ, "EFFICIENTEQA_CACHE": str(tmp_path / "cache")}
-    run = _cli("eval", "--eval.dataset", str(questions), "--eval.judge", "none",
+    run = cli("eval", "--eval.dataset", str(questions), "--eval.judge", "none",
                "--backends.vlm", f"openai:test-vlm@{server.base_url}", "--backends.relevancy",
                "overlap", "--explore.matching", "words", "--out", str(tmp_path / "run"), env=env)
     assert run.returncode == 0, run.stdout + run.stderr
