@@ -468,7 +468,6 @@ def test_ray_survives_a_killed_worker_and_a_killed_driver_resumes(cli, stub, env
     rows = {r["id"]: r for r in map(json.loads, lines_of(run)) if r.get("id") in ids}
     died = int((marks / ids[1].replace("/", "_")).read_text())
     assert rows[ids[1]]["status"] == "done" and rows[ids[1]]["extra"]["pid"] != died
-    assert len({r["extra"]["pid"] for r in rows.values()} - {os.getpid()}) >= 2  # Ray's workers
     killed_at = len(rows)
     assert killed_at < n, "the run ended before the kill"
     for name in ("EQA_STUB_SLEEP", "EQA_STUB_DIE"):
