@@ -99,12 +99,13 @@ def house4(catalog):
     env.close()
 
 
-def _live(scene, q, tmp_path, stop: StopConfig, top_k: int = 5):
+def _live(scene, q, tmp_path, stop: StopConfig, top_k: int = 5, max_steps: int = 30):
     desk = scene.env.house.object(q.evidence[0])
     room = scene.env.house.room(desk.room_id).name
     return ask(q.question, scene, tmp_path, stack=Stack(grouping="rules", explore_scorer="vlm"),
                model=seeking_model(desk.category, room), relevancy=MentionScorer(desk.category, room),
-               config=AgentConfig.of(max_steps=30, seed=1, stop=stop, top_k=top_k), report=False)
+               config=AgentConfig.of(max_steps=max_steps, seed=1, stop=stop, top_k=top_k),
+               report=False)
 
 
 @needs_egl
@@ -115,7 +116,9 @@ def test_a_replayed_stop_equals_the_live_one(house4, tmp_path, stop, top_k):
     to it the first's K frames and answer prompt."""
     scene, q = house4
     live = _live(scene, q, tmp_path / "live", stop, top_k).record
-    full = _live(scene, q, tmp_path / "full", StopConfig(enabled=False), top_k).record
+    # explored on past the live stop (three steps do: the replay reads up to the stop)
+    full = _live(scene, q, tmp_path / "full", StopConfig(enabled=False), top_k,
+                 max_steps=live["steps"] + 3).record
     assert live["stop_reason"] == "relevancy" and full["stop_reason"] != "relevancy"
     assert full["steps"] > live["steps"]
     def path(record):  # the same exploration up to the stop

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from agent_stubs import MentionScorer, averse_model, seeking_model, token_seeking_model
-from conftest import needs_egl, needs_small_model
+from conftest import needs_egl
 from efficienteqa.agent import Agent, AgentConfig
 from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
@@ -249,28 +249,6 @@ def test_vlm_specs():
     for bad in ("gpt-4o", "ollama:llava", "local:"):
         with pytest.raises(EfficientEQAError, match="cannot read --vlm"):
             parse_vlm(bad, images=False)
-
-
-@pytest.mark.slow
-@needs_small_model
-def test_smoke_episode_with_the_real_small_model(house4, tmp_path, small_model_cache):
-    """SmolLM2-135M on the local llama.cpp server: the whole path with real replies."""
-    from efficienteqa.models import local
-
-    scene, q = house4
-    try:
-        done = ask(q.question, scene, tmp_path / "out", relevancy=WordOverlapScorer(),
-                   stack=Stack(vlm="local:smollm2-135m", grouping="rules"),
-                   config=AgentConfig.of(max_steps=3))
-    finally:
-        local.stop("smollm2-135m")
-    record = json.loads(done.episode_json.read_text())
-    assert record["backends"]["vlm"] == "smollm2-135m" and record["steps"] == 3
-    replies = [e["reply"] for e in record["model"]["exchanges"]]
-    assert replies and all(isinstance(t, str) for t in replies)
-    assert record["model"]["completion_tokens"] > 0
-    assert 0.0 <= record["confidence"] <= 1.0
-    assert done.report_html.stat().st_size > 10_000
 
 
 class BrightnessScorer:

@@ -150,6 +150,10 @@ def test_ask_runs_an_episode_with_the_small_real_model(cli, tmp_path, small_mode
     assert "reference answer: black" in result.stdout and "report.html" in result.stdout
     record = json.loads((tmp_path / "out" / "episode.json").read_text())
     assert record["backends"]["vlm"] == "smollm2-135m" and record["backends"]["relevancy"] == "word-overlap"
+    replies = [e["reply"] for e in record["model"]["exchanges"]]  # real replies, all the way
+    assert replies and all(isinstance(t, str) for t in replies)
+    assert record["model"]["completion_tokens"] > 0 and 0.0 <= record["confidence"] <= 1.0
+    assert (tmp_path / "out" / "report.html").stat().st_size > 10_000
 
 
 def test_eval_exits_non_zero_when_an_episode_failed_and_a_re_run_resumes_it(cli, tmp_path):
