@@ -18,8 +18,10 @@ demo: setup
 scene: setup
 	$(VENV)/bin/efficienteqa scenes generate --seed $(SEED) --out out/scene
 
+# One worker a core (pytest-xdist; idle workers take tests from busy ones): every test, the fault
+# suite (tests/faults) and the slow ones included.
 test: setup-dev
-	$(VENV)/bin/pytest -q
+	$(VENV)/bin/pytest -q -n auto --dist worksteal
 
 # ruff, mypy and the import contracts of docs/ARCHITECTURE.md (CI runs it beside the tests).
 lint: setup-dev

@@ -991,34 +991,25 @@ def test_capabilities_are_refused_for_the_embedded_server_and_a_missing_file_is_
 
 
 @pytest.mark.slow
-def test_ask_and_eval_through_openai_match_local_on_the_projects_own_server(
-        llama_server, private_cache, tmp_path):
-    """The same questions through `--vlm openai:smollm2-135m@URL` and `--vlm
-    local:smollm2-135m@URL` on the llama-cpp-python server `models serve` runs: the same
-    answers, steps and stops on `ask` and on `eval --limit 1`."""
+def test_ask_through_openai_matches_local_on_the_projects_own_server(llama_server, private_cache,
+                                                                    tmp_path):
+    """The same question through `--vlm openai:smollm2-135m@URL` and `--vlm
+    local:smollm2-135m@URL` on the llama-cpp-python server `models serve` runs: the same answer,
+    steps, stop and replies (an eval's episode is this ask, run by the runner)."""
     from efficienteqa.ask import ask
-    from efficienteqa.datasets import load_dataset
-    from efficienteqa.eval.methods import RunSpec
-    from efficienteqa.eval.runner import run_eval
     from efficienteqa.presets import build_config, build_stack
 
-    questions = load_dataset("synthetic:0", limit=1, assets="builtin")
     said = {}
     for kind in ("openai", "local"):
         options = {"vlm": f"{kind}:smollm2-135m@{llama_server}", "relevancy": "overlap",
                    "matching": "words", "reading": "rules", "max_steps": 2, "cache": False,
                    "timeout_s": 60}
-        stack, config = build_stack(options), build_config(options)
-        one = ask("What is on the desk in the office?", "synthetic:0", tmp_path / kind / "ask",
-                  stack=stack, config=config, assets="builtin", report=False)
-        spec = RunSpec(method="efficienteqa", dataset="synthetic:0", stack=stack, config=config,
-                       judge=None, assets="builtin")
-        run_eval(spec, questions, tmp_path / kind / "eval")
-        rows = [json.loads(line) for line in
-                (tmp_path / kind / "eval" / "episodes.jsonl").read_text().splitlines()]
-        assert [r["status"] for r in rows] == ["done"], [r.get("error") for r in rows]
-        said[kind] = ((one.result.answer, one.result.steps, one.result.stop_reason),
-                      [(r["id"], r["answer"], r["steps"], r["stop_reason"]) for r in rows])
+        one = ask("What is on the desk in the office?", "synthetic:0", tmp_path / kind,
+                  stack=build_stack(options), config=build_config(options), assets="builtin",
+                  report=False)
+        record = json.loads(one.episode_json.read_text())
+        said[kind] = (one.result.answer, one.result.steps, one.result.stop_reason,
+                      [e["reply"] for e in record["model"]["exchanges"]])
     assert said["openai"] == said["local"]
 
 
