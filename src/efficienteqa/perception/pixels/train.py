@@ -297,9 +297,10 @@ def evaluate(net: PixelNet, frames: dict[str, np.ndarray], vocab: Vocabulary,
 def train(data: Path, out: Path, config: TrainConfig = TrainConfig(), command: str = "",
           log: Any = None) -> dict[str, Any]:
     """Train on ``data``, evaluate on its validation houses, write ``out`` (+ .json); returns
-    the metadata written; progress goes to ``log`` (None: the standard error of the moment). Every ``checkpoint_every`` steps (and when ``minutes`` stops it) the
-    state is saved to ``checkpoint_path(out)``; with ``resume`` a matching checkpoint there is
-    continued, giving the weights an uninterrupted run gives (on the same device)."""
+    the metadata written; progress goes to ``log`` (None: the standard error of the moment).
+    Every ``checkpoint_every`` steps (and when ``minutes`` stops it) the state is saved to
+    ``checkpoint_path(out)``; with ``resume`` a matching checkpoint there is continued, giving
+    the weights an uninterrupted run gives (on the same device)."""
     log = sys.stderr if log is None else log
     meta = check_data(data)
     check_writable(out)
