@@ -86,13 +86,13 @@ def test_a_model_that_never_points_at_it_runs_to_the_budget(house4, tmp_path):
 def test_explore_eqa_answers_at_the_step_of_highest_relevancy_times_confidence(
         house4, tmp_path, confidence, model):
     scene, q = house4
-    runs = {every: _episode(scene, q, model, tmp_path / str(every), max_steps=25,
+    runs = {every: _episode(scene, q, model, tmp_path / str(every), max_steps=12,
                             answer_at="best-step", confidence=confidence,
                             stop=StopConfig(enabled=False), seed=1, answer_every_step=every)
             for every in (True, False)}
     online, lazy = runs[True].result, runs[False].result
     for r in (online, lazy):
-        assert r.stop_reason == "budget" and r.steps == 25  # no early stop: the full budget
+        assert r.stop_reason == "budget" and r.steps == 12  # no early stop: the full budget
     answered = [rec for rec in online.records if rec.step_answer is not None]
     assert len(answered) == sum(rec.valid for rec in online.records)  # one answer per valid frame
     best = max(answered, key=lambda rec: rec.step_answer["value"])
