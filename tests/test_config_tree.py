@@ -5,6 +5,7 @@ read; old records nest to the same tree."""
 
 from __future__ import annotations
 
+import functools
 import json
 import typing
 from dataclasses import asdict, fields
@@ -56,9 +57,13 @@ def _toml(leaf: Leaf, value: typing.Any) -> str:
     return f"[{table}]\n{leaf.path[-1]} = {text}\n"
 
 
+@functools.cache
+def _click_app():  # made once: typer builds the whole command tree each time (~40 ms)
+    return typer.main.get_command(app)
+
+
 def _parse(command: str, args: list[str]) -> dict:
-    click_app = typer.main.get_command(app)
-    ctx = click_app.commands[command].make_context(command, [*args, "--out", "x"],  # type: ignore[attr-defined]
+    ctx = _click_app().commands[command].make_context(command, [*args, "--out", "x"],  # type: ignore[attr-defined]
                                                    resilient_parsing=False)
     chosen = tree_leaves() if command == "eval" else tree_leaves(
         ("backends", "scene", "explore", "stop", "answer"), {"eval": ("dataset", "hm_eqa_path")})
