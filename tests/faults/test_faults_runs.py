@@ -319,6 +319,19 @@ def test_an_out_that_cannot_be_written_is_one_line_before_any_work(cli, stub, en
             line = one_error_line(cli(*args))
             assert f"{broken / name}: Is a directory" in line, args
         assert "episodes run" not in cli(*stub, "--eval.limit", "3", "--out", str(broken)).stdout
+    # the run's lock a folder (it was a traceback): one line from eval and from ask, nothing run
+    locked = tmp_path / "lock-folder"
+    shutil.copytree(run, locked)
+    (locked / ".lock").unlink(missing_ok=True)
+    (locked / ".lock").mkdir()
+    before = (locked / "episodes.jsonl").read_bytes()
+    line = one_error_line(cli(*stub, "--eval.limit", "3", "--out", str(locked)))
+    assert f"cannot open the run's lock {locked / '.lock'}: Is a directory" in line
+    assert (locked / "episodes.jsonl").read_bytes() == before
+    asked = tmp_path / "ask-lock"
+    (asked / ".lock").mkdir(parents=True)
+    line = one_error_line(cli(*ASK, "--backends.vlm", vlm, "--out", str(asked)))
+    assert "cannot open the run's lock" in line and not (asked / "episode.json").exists()
 
 
 @trial("2.16")

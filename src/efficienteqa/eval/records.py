@@ -236,7 +236,13 @@ def run_lock(out: Path) -> Iterator[None]:
     import fcntl
 
     out.mkdir(parents=True, exist_ok=True)
-    fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as error:  # a folder of that name, a file this user may not write
+        raise EfficientEQAError(f"cannot open the run's lock {out / LOCK_FILE}: "
+                                f"{error.strerror or error}",
+                                fix="remove it if no run is writing there, or use another --out "
+                                    "folder") from None
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
