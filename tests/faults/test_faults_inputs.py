@@ -140,6 +140,10 @@ def eval_args(out: Path, *extra: str) -> tuple[str, ...]:
 
 BAD_EVALS = [
     (["--explore.max-steps", "-5"], "max_steps must be at least 1"),  # 2.6
+    (["--explore.max-steps", "0"], "max_steps must be at least 1"),
+    (["--eval.method", "efficienteqa", "--explore.seed", "-1"], "seed must be 0 or more"),  # 2.15
+    (["--eval.method", "efficienteqa", "--backends.perception", "rgb", "--backends.relevancy",
+      "minilm"], "reads text, but --perception rgb gives images"),
     (["--eval.method", "efficienteqa", "--answer.top-k", "0"], "top_k must be at least 1"),  # 2.8
     (["--eval.method", "efficienteqa", "--backends.relevancy", "bogus"],
      "unknown relevancy scorer 'bogus'"),
