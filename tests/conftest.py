@@ -72,6 +72,18 @@ needs_egl = pytest.mark.skipif(
 
 
 @pytest.fixture
+def vlm(tmp_path, monkeypatch):
+    """``vlm(Options(...))`` starts the test server (tests/vlm_server.py), stopped after the
+    test; the cache is the test's own and no OpenAI key is in the environment."""
+    from vlm_server import servers
+
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))
+    monkeypatch.delenv("OPENAI_API_KEY", raising=False)
+    with servers() as start:
+        yield start
+
+
+@pytest.fixture
 def cli(capfd, monkeypatch):
     """``cli(*args, env=None)`` runs ``efficienteqa ARGS`` in this process (tests/clirun.py) with
     ``env`` as its environment (None: this process's); returns its exit status and output."""

@@ -18,7 +18,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.methods import RunSpec
 from efficienteqa.eval.runner import run_eval
 from efficienteqa.presets import build_config, build_stack
-from vlm_server import Options, servers
+from vlm_server import Options
 
 pytestmark = needs_egl
 
@@ -35,14 +35,6 @@ EXPLORING = {"explore", "explore-letters", "explore-token", "explore-choice", "w
 @pytest.fixture(scope="module")
 def question():
     return load_dataset("synthetic:0", limit=1, assets="builtin")
-
-
-@pytest.fixture
-def vlm(tmp_path, monkeypatch):
-    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))
-    monkeypatch.delenv("OPENAI_API_KEY", raising=False)
-    with servers() as start:
-        yield start
 
 
 def run(vlm, tmp_path, question, method: str, server: str | Options,

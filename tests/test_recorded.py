@@ -428,16 +428,6 @@ def test_the_cli_says_a_broken_recording_in_one_line(cli, tmp_path):
 
 
 # -- the command line, end to end, against a chat server with real servers' habits ----------
-@pytest.fixture
-def vlm(tmp_path, monkeypatch):
-    from vlm_server import servers
-
-    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))
-    monkeypatch.delenv("OPENAI_API_KEY", raising=False)
-    with servers() as start:
-        yield start
-
-
 @needs_egl
 def test_ask_records_a_walk_and_ask_and_eval_replay_it(cli, vlm, tmp_path):
     server = vlm()

@@ -12,14 +12,6 @@ import pytest
 
 from clirun import Result, run_cli
 from faults.harness import KEY, SECRETS, files_holding
-from vlm_server import servers
-
-
-@pytest.fixture
-def vlm() -> Iterator[Callable[..., object]]:
-    """``vlm(Options(...))`` starts a test server (stopped after the test)."""
-    with servers() as start:
-        yield start
 
 
 @pytest.fixture
