@@ -19,29 +19,30 @@ from typing import Any
 import numpy as np
 
 
-def _mean_pooled_bert(folder: Path) -> bool:
-    """Whether ``folder`` is a BERT encoder whose modules are Transformer, mean Pooling and
-    (optionally) Normalize, with the files this encoder reads."""
+def _mean_pooled_bert(folder: Path) -> list[str] | None:
+    """The module names of ``folder`` when it is a BERT encoder whose modules are Transformer,
+    mean Pooling and (optionally) Normalize, with the files this encoder reads; else None."""
     try:
         modules = [m["type"].rsplit(".", 1)[-1]
                    for m in json.loads((folder / "modules.json").read_text())]
         pooling = json.loads((folder / "1_Pooling" / "config.json").read_text())
         config = json.loads((folder / "config.json").read_text())
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return False
+        return None
     mean_only = pooling.get("pooling_mode_mean_tokens") and not any(
         v for k, v in pooling.items() if k.startswith("pooling_mode_") and k != "pooling_mode_mean_tokens")
-    return (modules in (["Transformer", "Pooling"], ["Transformer", "Pooling", "Normalize"])
+    ours = (modules in (["Transformer", "Pooling"], ["Transformer", "Pooling", "Normalize"])
             and bool(mean_only) and config.get("model_type") == "bert"
             and config.get("hidden_act") == "gelu"
             and config.get("position_embedding_type", "absolute") == "absolute"
             and (folder / "model.safetensors").is_file() and (folder / "tokenizer.json").is_file())
+    return modules if ours else None
 
 
 class BertEncoder:
     """``encode`` as ``SentenceTransformer.encode`` does it for a mean-pooled BERT folder."""
 
-    def __init__(self, folder: Path, device: str = "cpu") -> None:
+    def __init__(self, folder: Path, device: str = "cpu", normalize: bool = True) -> None:
         import torch
         from safetensors import SafetensorError
         from safetensors.torch import load_file
@@ -51,7 +52,7 @@ class BertEncoder:
         self.heads = int(config["num_attention_heads"])
         self.layers = int(config["num_hidden_layers"])
         self.eps = float(config.get("layer_norm_eps", 1e-12))
-        self.normalize = "Normalize" in (folder / "modules.json").read_text()
+        self.normalize = normalize
         try:
             limit = int(json.loads((folder / "sentence_bert_config.json").read_text())
                         ["max_seq_length"])
@@ -142,4 +143,5 @@ class BertEncoder:
 def load(folder: Path, device: str = "cpu") -> BertEncoder | None:
     """The encoder of ``folder`` run in plain torch, or None when it is not a mean-pooled BERT
     folder (sentence-transformers loads those)."""
-    return BertEncoder(folder, device) if _mean_pooled_bert(folder) else None
+    modules = _mean_pooled_bert(folder)
+    return None if modules is None else BertEncoder(folder, device, "Normalize" in modules)
