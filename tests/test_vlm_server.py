@@ -226,12 +226,12 @@ def test_a_200_that_is_not_the_json_it_says_is_one_line_naming_the_server(vlm, b
     """Fault trials 2.19 and N.13: the SDK's own ``JSONDecodeError`` for a body labelled JSON
     that is not (a proxy's login page, nothing, bytes read as UTF-16) was a traceback at the
     probe; it is one line saying what came. After the probe it fails the call (the episode)."""
-    server = vlm(broken=broken)
+    server = vlm(misbehave=broken)
     with pytest.raises(EfficientEQAError, match=WHAT_CAME[broken]) as raised:
         build_chat_model(backend(server))
     assert f"model server at {server.base_url}/chat/completions sent" in str(raised.value)
     assert "\n" not in str(raised.value) and "check base_url" in str(raised.value)
-    later = vlm(broken=broken, broken_after=2)
+    later = vlm(misbehave=broken, misbehave_after=2)
     client = build_chat_model(backend(later))  # the probe's two requests are answered
     with pytest.raises(EfficientEQAError, match=WHAT_CAME[broken]):
         client.chat([Message("user", prompts()["match"])])

@@ -48,7 +48,7 @@ from PIL import Image
 STYLES = ("exact", "markdown", "preamble", "json", "reasoning", "refuse")
 # vLLM's answer to more images than --limit-mm-per-prompt allows (HTTP 400).
 VLLM_IMAGE_LIMIT = "At most {n} image(s) may be provided in one request."
-# Bodies sent as "200 application/json" that are no JSON (``Options.broken``): bytes that a JSON
+# Bodies sent as "200 application/json" that are no JSON (``Options.misbehave``): bytes that a JSON
 # reader takes for UTF-16 (a byte-order mark, then no JSON), a login page, nothing.
 BROKEN = {"garbage": b"\xfe\xff\x00\x7b\x9c\x80\x00\x7d",
           "html200json": b"<!DOCTYPE html><html><body><h1>Sign in</h1></body></html>",
@@ -108,8 +108,7 @@ class Options:
     ``misbehave``: a broken server or proxy (``MISBEHAVIOURS``: a status with an error page, a
     200 that is no chat completion, an odd reply, a cut connection), to every request after the
     first ``misbehave_after`` (0: every request; 2: the capability probe passes, as the fault
-    trials' "e500after" or "garbageafter"). ``broken``/``broken_after``: the same for the three
-    bodies of ``BROKEN`` (an older spelling of misbehave="garbage" etc.).
+    trials' "e500after" or "garbageafter").
     """
 
     style: str = "exact"
@@ -126,16 +125,12 @@ class Options:
     cut: bool = False
     api_key: str | None = None
     models: tuple[str, ...] | None = None
-    broken: str | None = None
-    broken_after: int = 0
     misbehave: str | None = None
     misbehave_after: int = 0
 
     def __post_init__(self) -> None:
         if self.style not in STYLES:
             raise ValueError(f"style {self.style!r} is not one of {STYLES}")
-        if self.broken is not None and self.broken not in BROKEN:
-            raise ValueError(f"broken {self.broken!r} is not one of {tuple(BROKEN)}")
         if self.misbehave is not None and self.misbehave not in MISBEHAVIOURS:
             raise ValueError(f"misbehave {self.misbehave!r} is not one of {tuple(MISBEHAVIOURS)}")
         if self.logprobs not in ("return", "ignore", "reject"):
@@ -540,8 +535,6 @@ class VLMServer:
             self.requests.append(seen)
             number = len(self.requests)
         mode = o.misbehave if o.misbehave is not None and number > o.misbehave_after else None
-        if o.broken is not None and number > o.broken_after:
-            mode = o.broken
         if mode in BROKEN:
             return 200, BROKEN[mode], {}
         result = self._misbehave_status(mode, seen, path, o) if mode else None
