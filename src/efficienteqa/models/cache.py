@@ -154,8 +154,12 @@ class ResponseCache:
     def get(self, key: str) -> ChatResponse | None:
         """The stored response with ``cached=True`` and the lookup time as latency, or None."""
         start = time.perf_counter()
-        row = self._connection().execute("SELECT response FROM responses WHERE key = ?",
-                                         (key,)).fetchone()
+        # fetchall, not fetchone: the statement runs to its end, so no read transaction stays
+        # open to be upgraded by the next put (SQLITE_BUSY at once, whatever the busy timeout,
+        # when another process wrote in between)
+        rows = self._connection().execute("SELECT response FROM responses WHERE key = ?",
+                                          (key,)).fetchall()
+        row = rows[0] if rows else None
         try:
             response = response_from_json(row[0]) if row is not None else None
         except (ValueError, TypeError, KeyError, AttributeError) as error:  # a bad entry, e.g.
