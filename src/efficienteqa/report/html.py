@@ -126,6 +126,15 @@ def _fmt(v: float | None, digits: int = 3) -> str:
     return "-" if v is None else f"{v:.{digits}f}"
 
 
+def _target_value(value: object) -> str:
+    """One field of the record's target as words: a list joined by commas, an alias pair
+    (the question's words, the category) as "couch = sofa"."""
+    if isinstance(value, list):
+        return ", ".join(" = ".join(map(str, v)) if isinstance(v, list) else str(v)
+                         for v in value)
+    return str(value)
+
+
 def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, str],
                   descriptions: Mapping[int, str] | None = None) -> str:
     """The page for ``record`` (an ``episode.json`` dict). ``map_url`` and ``frames`` (step ->
@@ -155,8 +164,7 @@ def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, 
         outcome.append(("reference answer", ref["answer"]))
     if target.get("kind") not in (None, "other"):
         outcome.append(("the question's target", ", ".join(
-            f"{k} {', '.join(v) if isinstance(v, list) else v}" for k, v in target.items()
-            if v)))
+            f"{k} {_target_value(v)}" for k, v in target.items() if v)))
     outcome += [("scene", record["scene"]),
                 ("wall time", f"{record['timing']['wall_s']:.1f} s "
                  f"({record['timing']['per_step_s']:.2f} s per step, answer "
