@@ -59,7 +59,7 @@ XSS = "<script>alert(1)</script><img src=x onerror=alert(5)> "
 CONTROL = "\x1b[31m\x07\x08\x00\x0b\r"  # ESC (a colour), BEL, BS, NUL, VT, CR
 HUGE_CHARS = 2_400_000
 # ``Options.misbehave``: what every request after the first ``misbehave_after`` gets (the names
-# of the fault trials' misbehaving server, docs FAULT-TRIALS). Statuses, then 200s whose body is
+# of the fault trials' misbehaving server, docs/fault-trials.md). Statuses, then 200s whose body is
 # not a chat completion, then replies that are one but odd. (Slow and hung servers are
 # ``hang_s``/``hang_after``: "slowN" is hang_s=N, "hangafter" hang_after=2.)
 MISBEHAVIOURS = {

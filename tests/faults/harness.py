@@ -38,7 +38,7 @@ PASSWORD = "URLSECRETPW-4f9c1e"
 SECRETS = (KEY, PASSWORD)
 QUESTION = "What is on the desk in the office?"
 
-# The trials' short names (FAULT-TRIALS): B, the blind method on the fixed synthetic split with
+# The trials' short names (docs/fault-trials.md): B, the blind method on the fixed synthetic split with
 # answers grouped by rules and no cache; A, ask in synthetic house 0 with two steps; S, the stub
 # method of tests/eval_stubs.py on the synthetic split (no model calls, no judge).
 BLIND = ("eval", "--eval.method", "blind", "--eval.dataset", "synthetic", "--backends.grouping",

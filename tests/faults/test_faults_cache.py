@@ -1,4 +1,4 @@
-"""Fault trials of the response cache (FAULT-TRIALS section 5): writers killed, several writers at
+"""Fault trials of the response cache (docs/fault-trials.md section 5): writers killed, several writers at
 once, a cache file corrupted by hand, entries of the wrong types. The bar: every episode is
 answered (a broken cache costs model calls, never an episode), no traceback, and the cache a
 killed writer leaves is a whole database the next writer uses."""

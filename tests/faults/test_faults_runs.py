@@ -1,4 +1,4 @@
-"""Fault trials of run folders (FAULT-TRIALS sections 1, 2.16, N.1-N.3, N.9-N.11): runs killed,
+"""Fault trials of run folders (docs/fault-trials.md sections 1, 2.16, N.1-N.3, N.9-N.11): runs killed,
 interrupted, resumed with other settings, run into folders that cannot be written, and run folders
 corrupted by hand. The stub method (tests/eval_stubs.py, no model and no houses) stands in for a
 method wherever the trial is about the run folder; the runs are scaled down to what still shows

@@ -1,4 +1,4 @@
-"""Fault trials of the model server's side (FAULT-TRIALS 2.17-2.21, 4.1-4.4, 4.7, N.12-N.14):
+"""Fault trials of the model server's side (docs/fault-trials.md 2.17-2.21, 4.1-4.4, 4.7, N.12-N.14):
 dead, refusing, misbehaving and hung servers, a missing key, and secrets (the key, a password in
 the server's URL, a key echoed in an error, Ray's logs and sockets); and two of the client's
 cache (5.5: entries of another type; N.6: a cache folder that cannot be made). Each runs
