@@ -145,13 +145,17 @@ def write_poses(folder: Path, rows: list[Any]) -> None:
 @trial("R6.1", "R6.18")
 def test_a_recorded_walk_replays_as_mcap_and_as_folder_with_spaces_in_its_paths(cli, walks,
                                                                                 tmp_path):
-    for spec, note in ((walks.mcap, f"walk a.mcap: {FRAMES} frames of {FRAMES}; with the "
-                                    "simulator's labels"),
-                       (walks.folder, f"walk b: {FRAMES} frames; with the simulator's labels")):
+    for spec, note, kind in ((walks.mcap, f"walk a.mcap: {FRAMES} frames of {FRAMES}; with the "
+                                          "simulator's labels", "mcap"),
+                             (walks.folder, f"walk b: {FRAMES} frames; with the simulator's "
+                                            "labels", "folder")):
         out = tmp_path / f"re {spec.name}"
         said = ran(replay(cli, walks, spec, out))
         assert note in said and f"steps: {FRAMES} of {FRAMES}" in said
-        assert json.loads((out / "episode.json").read_text())["answer"]
+        episode = json.loads((out / "episode.json").read_text())
+        assert episode["answer"] and episode["scene"] == f"recorded:{spec} ({kind})"
+        assert episode["backends"]["environment"] == f"recorded ({kind})"  # not "recorded a.mcap"
+
     # The recordings themselves hold no secret (the per-test check reads only tmp_path).
     assert [f for s in SECRETS for f in files_holding(walks.mcap.parent, s)] == []
 
