@@ -77,8 +77,8 @@ class Scene:
         """The environment back-end without the scene: "synthetic (sh3d)" for
         "synthetic:3 (sh3d)", so records of many scenes name one back-end."""
         kind, _, rest = self.name.partition(":")
-        assets = rest.partition(" ")[2]
-        return f"{kind} {assets}".strip()
+        at = rest.rfind(" (")  # the last: a recording's path may hold spaces
+        return f"{kind} {rest[at + 1:] if at >= 0 else ''}".strip()
 
 
 ENVS = ("synthetic", "habitat")

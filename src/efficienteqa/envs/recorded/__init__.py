@@ -9,6 +9,7 @@ Independent of the synthetic and Habitat environments.
 
 from __future__ import annotations
 
+import math
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
@@ -42,8 +43,9 @@ def parse_spec(spec: str) -> tuple[Path, dict[str, Any]]:
                 options[key] = float(value)
             except ValueError:
                 options[key] = -1.0
-            if not options[key] >= 0:
-                raise EfficientEQAError(f"recording option {key}={value!r} is not a duration",
+            if not (math.isfinite(options[key]) and options[key] >= 0):
+                raise EfficientEQAError(f"recording option {key}={value!r} is not a duration: "
+                                        "it must be a finite number of milliseconds, 0 or more",
                                         fix=f"give milliseconds, e.g. {key}=50")
         else:
             options[key] = value

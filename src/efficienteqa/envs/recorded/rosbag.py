@@ -93,26 +93,55 @@ class _Frame:
     intrinsics: np.ndarray
 
 
-def _pixels(msg: Any, what: str) -> np.ndarray:
+_SIZES = {"colour": {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4},
+          "depth": {"16UC1": 2, "mono16": 2, "32FC1": 4},
+          "instance": {"32SC1": 4}}
+
+
+def _pixel_bytes(what: str, encoding: str) -> int:
+    """Bytes a pixel of ``what`` (colour, depth, instance) takes in ``encoding``; one line for
+    an encoding that is not read."""
+    size = _SIZES[what].get(encoding)
+    if size is None:
+        wanted = {"colour": rosmsg.COLOUR_ENCODINGS, "depth": rosmsg.DEPTH_ENCODINGS,
+                  "instance": (rosmsg.INSTANCE_ENCODING,)}[what]
+        raise EfficientEQAError(f"{what} encoding {encoding!r} is not read",
+                                fix=f"record {', '.join(wanted)}")
+    return size
+
+
+def _check_image(msg: Any, what: str, where: str) -> tuple[int, int, int]:
+    """(height, width, step) of an image message whose encoding is read and whose data holds
+    the pixels its header claims; else one line saying where (file, topic, message)."""
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    enc = str(msg.encoding)
+    try:
+        size = _pixel_bytes(what, enc)
+    except EfficientEQAError as error:
+        raise EfficientEQAError(f"{where}: {error.args[0]}", fix=error.fix) from None
+    if h <= 0 or w <= 0:
+        raise EfficientEQAError(f"{where}: the image is {w}x{h}", fix="record images with pixels")
+    if step < w * size or len(msg.data) < h * step:
+        raise EfficientEQAError(
+            f"{where}: a {w}x{h} {enc} image needs {h} rows of {w * size} bytes, but step is "
+            f"{step} and the data holds {len(msg.data)} bytes (height x step: {h * step})",
+            fix="record the image again: its header does not match its data")
+    return h, w, step
+
+
+def _pixels(msg: Any, what: str, where: str) -> np.ndarray:
     """The image of a ``sensor_msgs/msg/Image`` as an array: (H, W, 3) uint8 RGB for colour,
-    (H, W) float32 metres for depth (0: none), (H, W) int32 for instance ids."""
-    h, w, enc, step = int(msg.height), int(msg.width), str(msg.encoding), int(msg.step)
-    order = ">" if msg.is_bigendian else "<"
-    if what == "colour":
-        channels = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4}.get(enc)
-        if channels is None:
-            raise EfficientEQAError(f"colour encoding {enc!r} is not read",
-                                    fix=f"record one of {', '.join(rosmsg.COLOUR_ENCODINGS)}")
-        rows = np.frombuffer(msg.data, np.uint8, count=h * step).reshape(h, step)
-        image = rows[:, :w * channels].reshape(h, w, channels)[..., :3]
-        return np.ascontiguousarray(image[..., ::-1] if enc.startswith("bgr") else image)
-    dtype, size = {"16UC1": ("u2", 2), "mono16": ("u2", 2), "32FC1": ("f4", 4),
-                   "32SC1": ("i4", 4)}.get(enc, (None, 0))
-    if dtype is None or (what == "instance") != (enc == "32SC1"):
-        wanted = rosmsg.INSTANCE_ENCODING if what == "instance" else ", ".join(
-            rosmsg.DEPTH_ENCODINGS)
-        raise EfficientEQAError(f"{what} encoding {enc!r} is not read", fix=f"record {wanted}")
+    (H, W) float32 metres for depth (0: none), (H, W) int32 for instance ids. ``where`` names
+    the message in an error (file, topic, message)."""
+    h, w, step = _check_image(msg, what, where)
+    enc = str(msg.encoding)
+    size = _pixel_bytes(what, enc)
     rows = np.frombuffer(msg.data, np.uint8, count=h * step).reshape(h, step)
+    if what == "colour":
+        image = rows[:, :w * size].reshape(h, w, size)[..., :3]
+        return np.ascontiguousarray(image[..., ::-1] if enc.startswith("bgr") else image)
+    dtype = {"16UC1": "u2", "mono16": "u2", "32FC1": "f4", "32SC1": "i4"}[enc]
+    order = ">" if msg.is_bigendian else "<"
     values = rows[:, :w * size].copy().view(order + dtype).reshape(h, w)
     if what == "instance":
         return values.astype(np.int32)
@@ -155,6 +184,10 @@ class McapSource:
                                     f"({channel.message_encoding})",
                                     fix="record with ros2 bag record -s mcap")
         return decoder(message.data)
+
+    def _where(self, topic: str, ordinal: int) -> str:
+        """A message named in an error: the file, its topic, its place on the topic."""
+        return f"{self.name}: {topic} message {ordinal + 1}"
 
     def _topics(self, reader: Any) -> dict[str, str]:
         """topic -> ROS 2 message type, from the summary (or one scan of an unindexed file)."""
@@ -241,12 +274,20 @@ class McapSource:
             ordinal = seen[topic]
             seen[topic] += 1
             msg = self._decode(schema, channel, message)
+            where = self._where(topic, ordinal)
             if topic in images:
+                what = "colour" if topic == colour else "depth" if topic == depth else "instance"
+                _check_image(msg, what, where)  # pixels that are not there: one line now
                 images[topic].append(_Image(ordinal, rosmsg.stamp_ns(msg.header),
                                             frame_name(str(msg.header.frame_id)), int(msg.width),
                                             int(msg.height), str(msg.encoding)))
             elif topic == info:
                 k = np.asarray(msg.k, dtype=np.float64).reshape(3, 3)
+                if not np.all(np.isfinite(k)):
+                    raise EfficientEQAError(f"{where}: camera_info K is not finite "
+                                            f"({k.ravel().tolist()})",
+                                            fix="calibrate the camera, or record its driver's "
+                                                "camera_info")
                 infos.append((rosmsg.stamp_ns(msg.header),
                               intrinsics_matrix(k[0, 0], k[1, 1], k[0, 2], k[1, 2]),
                               int(msg.width), int(msg.height)))
@@ -261,9 +302,20 @@ class McapSource:
                 static = topic.endswith("tf_static")
                 for t in msg.transforms:
                     tr, rot = t.transform.translation, t.transform.rotation
-                    tree.add(str(t.header.frame_id), str(t.child_frame_id),
-                             rosmsg.stamp_ns(t.header), np.array([tr.x, tr.y, tr.z]),
-                             np.array([rot.x, rot.y, rot.z, rot.w]), static)
+                    translation = np.array([tr.x, tr.y, tr.z], dtype=np.float64)
+                    rotation = np.array([rot.x, rot.y, rot.z, rot.w], dtype=np.float64)
+                    parent, child = str(t.header.frame_id), str(t.child_frame_id)
+                    norm = float(np.linalg.norm(rotation))
+                    if not np.all(np.isfinite(translation)) or not (1e-9 < norm < np.inf):
+                        bad = (f"translation {translation.tolist()}"
+                               if not np.all(np.isfinite(translation))
+                               else f"rotation {rotation.tolist()} (no quaternion)")
+                        raise EfficientEQAError(
+                            f"{where}: the transform {parent!r} -> {child!r} has the {bad}",
+                            fix="record /tf again; a transform needs a finite translation and "
+                                "a non-zero quaternion")
+                    tree.add(parent, child, rosmsg.stamp_ns(t.header), translation, rotation,
+                             static)
         return images[colour], images[depth], images.get(instance or "", []), infos, tree
 
     def _plan(self, camera_frame: str, colours: list[_Image], depths: list[_Image],
@@ -301,6 +353,18 @@ class McapSource:
             raise EfficientEQAError(f"{self.name}: camera_info has no calibration (K is zero)",
                                     fix="calibrate the camera, or record its driver's camera_info")
         tree.chain(o.world, camera_frame)  # no path at all: one line now
+        # A frame is placed by its header stamp alone (its pose from /tf, its depth): frames
+        # that share a stamp get one pose and one depth. When every colour frame has the same
+        # stamp (a driver that leaves header.stamp unset, or zeroes it), the walk cannot be
+        # placed at all and would be read as a camera standing still: refused. When only some
+        # share one, the rest of the walk is sound: read, with a warning in the note.
+        stamps = [c.stamp for c in colours]
+        if len(stamps) > 1 and len(set(stamps)) == 1:
+            raise EfficientEQAError(
+                f"{self.name}: all {len(stamps)} colour frames of {self._colour} have the stamp "
+                f"{stamps[0] / 1e9:.9f} s, so they cannot be placed (each would get the same "
+                "pose and depth)", fix="record with the camera driver's stamps (header.stamp)")
+        shared = len(stamps) - len(set(stamps))
         depth_stamps = np.array([d.stamp for d in depths])
         depth_order = np.argsort(depth_stamps, kind="stable")
         inst_stamps = np.array([i.stamp for i in instances])
@@ -340,7 +404,9 @@ class McapSource:
                      + (f" ({dropped} dropped: {why})" if dropped else "")
                      + ("" if depth_frame == camera_frame else
                         f"; depth ({depth_frame}) read as registered to colour ({camera_frame})")
-                     + ("; with the simulator's labels" if self.labels is not None else ""))
+                     + ("; with the simulator's labels" if self.labels is not None else "")
+                     + (f"; warning: {shared} colour frames repeat another's stamp, so they get "
+                        "its pose and depth" if shared else ""))
 
     # -- reading --------------------------------------------------------------------------
     def frames(self) -> Iterator[Observation]:
@@ -379,9 +445,11 @@ class McapSource:
         return all(p in kept for p in self._parts(f))
 
     def _observation(self, f: _Frame, kept: dict[tuple[str, int], Any]) -> Observation:
-        rgb = _pixels(kept[(self._colour, f.colour)], "colour")
-        depth = _pixels(kept[(self._depth, f.depth)], "depth")
-        instance = (_pixels(kept[(self._instance, f.instance)], "instance")
+        rgb = _pixels(kept[(self._colour, f.colour)], "colour", self._where(self._colour,
+                                                                            f.colour))
+        depth = _pixels(kept[(self._depth, f.depth)], "depth", self._where(self._depth, f.depth))
+        instance = (_pixels(kept[(self._instance, f.instance)], "instance",
+                            self._where(self._instance, f.instance))
                     if f.instance is not None and self._instance is not None else None)
         if instance is not None and instance.shape != depth.shape:
             instance = None

@@ -118,7 +118,14 @@ def read_toml(path: Path) -> dict[str, Any]:
             raise EfficientEQAError(f"cannot read {path}: TOML needs Python 3.11 or tomli",
                                     fix="pip install tomli") from None
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise EfficientEQAError(f"cannot read the ROS 2 parameters file {path}: {reason}",
+                                fix='write it as UTF-8 TOML, name = value lines, e.g. '
+                                    'map_frame = "map"') from None
+    try:
+        return tomllib.loads(text)
+    except (tomllib.TOMLDecodeError, RecursionError) as exc:  # RecursionError: nested too deep
         raise EfficientEQAError(f"{path} is not valid TOML: {exc}",
                                 fix='write name = value lines, e.g. map_frame = "map"') from None
