@@ -379,6 +379,8 @@ FIELDS = {  # trial, the message changed, how -> what the one line says (after "
     "mono8": ("R6.16", COLOUR, 2, _mono8, f"{COLOUR} message 3: colour encoding 'mono8' is not "
               "read"),
     "labels not JSON": ("R6.17", LABELS, 0, _labels("{nope"), f"{LABELS} of w.mcap is not JSON"),
+    "labels nested too deep": ("R6.17", LABELS, 0, _labels("[" * 100_000),
+                               f"{LABELS} of w.mcap is not JSON"),
     "labels shape": ("R6.17", LABELS, 0, _labels("[1, 2]"), "cannot read the object labels of "
                      f"w.mcap ({LABELS})"),
 }

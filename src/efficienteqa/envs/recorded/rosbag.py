@@ -294,7 +294,7 @@ class McapSource:
             elif topic == labels:
                 try:
                     data = json.loads(str(msg.data))
-                except ValueError as error:
+                except (ValueError, RecursionError) as error:  # RecursionError: nested too deep
                     raise EfficientEQAError(f"{LABELS_TOPIC} of {self.name} is not JSON: {error}",
                                             fix="write it as efficienteqa-labels/1 JSON") from None
                 self.labels = RecordedLabels.from_json(data, f"{self.name} ({LABELS_TOPIC})")
