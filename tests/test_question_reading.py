@@ -129,7 +129,7 @@ def test_a_category_the_words_already_name_is_not_asked():
 
 
 def test_words_that_name_a_category_take_no_alias_further_from_them_than_it():
-    # Issue 46: "dining table" names a "table"; MiniLM put "chair" among its closest other
+    # "dining table" names a "table"; MiniLM put "chair" among its closest other
     # categories (0.50, "table" 0.68), the model said yes, and the support became a chair.
     model = StubChatModel(["1 yes\n2 yes\n3 yes"])
     resolver = AliasResolver(_embed, model, clear=0.9, unsure=0.2)

@@ -70,7 +70,7 @@ def test_a_question_that_names_nothing_has_an_empty_target():
     # chat-speak stays out of a thing's name
     ("How many chairs r around the dining table?", "count", "chair", "dining table", ()),
     ("Where did u leave ur keys?", "location", "keys", None, ()),
-    # an opening before the question is no thing (issue 46)
+    # an opening before the question is no thing ("hey" was read as the object)
     ("Hey, what colour is the couch in the living room?", "colour", "couch", None,
      ("living room",)),
     ("Quick question before I go shopping: what colour is the refrigerator in the kitchen?",
