@@ -93,7 +93,8 @@ def test_words_of_the_question():
 
 # ----- matching by meaning ----------------------------------------------------------------
 _VECTORS = {"couch": [1, 0, 0], "sofa": [0.9, 0.1, 0], "bedside table": [0, 1, 0.3],
-            "nightstand": [0, 1, 0.8], "table": [0, 0.2, 1], "chair": [0.2, 0.2, 0.2]}
+            "nightstand": [0, 1, 0.8], "table": [0, 0.2, 1], "chair": [0.2, 0.2, 0.2],
+            "dining table": [0.3, 0.3, 1]}
 
 
 def _embed(texts):
@@ -125,6 +126,20 @@ def test_a_category_the_words_already_name_is_not_asked():
     aliases = resolver.aliases(Target("location", "bedside table"), ["table", "nightstand"])
     assert aliases == (("bedside table", "nightstand"),)
     assert '"table"' not in model.requests[0].messages[0].text  # a table by its words already
+
+
+def test_words_that_name_a_category_take_no_alias_further_from_them_than_it():
+    # "dining table" names a "table"; MiniLM put "chair" among its closest other
+    # categories (0.50, "table" 0.68), the model said yes, and the support became a chair.
+    model = StubChatModel(["1 yes\n2 yes\n3 yes"])
+    resolver = AliasResolver(_embed, model, clear=0.9, unsure=0.2)
+    assert resolver.aliases(Target("count", "chair", "dining table"),
+                            ["table", "chair", "nightstand"]) == ()
+    assert model.requests == []  # nothing closer than "table" to ask about
+    # a category closer to the words than the one they name is still asked: "bedside table"
+    # is nearer "nightstand" than "table"
+    assert resolver.aliases(Target("location", "bedside table"), ["table", "nightstand"]) == \
+        (("bedside table", "nightstand"),)
 
 
 def test_without_a_model_only_the_clear_pairs_are_kept():

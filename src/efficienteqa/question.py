@@ -17,6 +17,7 @@ rules, and the match of the target's words to what a perception names.
 from __future__ import annotations
 
 import re
+from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
@@ -115,12 +116,15 @@ def parse_question(question: str) -> Target:
     """The target of ``question`` (see the module docstring); an empty ``Target`` when no
     sentence of it names a thing.
 
-    People's words, not only the generator's: typos and contractions are mended (``_TYPOS``),
-    the sentence that asks is read (the one with "?", or one with a question cue) and the
-    others fill what it leaves to a pronoun ("I'm looking for my bag. Where is it?"), room
-    words are taken out wherever they stand ("the living room TV" -> "tv" in the living room),
-    and the things are the runs of content words that are left: the first is the object, the
-    first after a place word ("on", "at", "next to") its support."""
+    People's words, not only the generator's: typos, chat-speak and contractions are mended
+    (``_TYPOS``), and one slip of the keyboard in a question or room word (``_SLIPS``: "wher",
+    "dinning room"); the sentence that asks is read (the one with "?", or one with a question
+    cue), less an opening ("Hey, ...", "Quick question: ...") and a request around it ("could
+    you tell me ..."), and the others fill what it leaves to a pronoun ("I'm looking for my
+    bag. Where is it?"; "The lamp by the bed, is it on?"), room words are taken out wherever
+    they stand ("the living room TV" -> "tv" in the living room), and the things are the runs
+    of content words that are left: the first is the object, the first after a place word
+    ("on", "at", "next to") its support."""
     text = _normalise(question)
     rooms = tuple(dict.fromkeys(room for _, room in
                                 ((m.group(1), canonical_room(m.group(1)))
@@ -160,9 +164,12 @@ _TYPOS = {"where id": "where is", "what id": "what is", "is is": "is", "bathrub"
           "entrace": "entrance", "ths": "the", "wanna": "want to", "gonna": "going to",
           "colour": "color", "can't": "cannot", "don't": "do not", "didn't": "did not",
           "i'm": "i am", "what's": "what is", "where's": "where is", "it's": "it is",
-          "there's": "there is", "where it is": "where is it"}
-_TYPO_RE = re.compile(r"\b(" + "|".join(re.escape(k) for k in sorted(_TYPOS, key=len,
-                                                                      reverse=True)) + r")\b")
+          "there's": "there is", "where it is": "where is it",
+          # chat-speak
+          "r": "are", "u": "you", "ur": "your", "wat": "what", "whats": "what is",
+          "pls": "please", "plz": "please"}
+_TYPO_RE = re.compile(r"(?<![\w'-])(" + "|".join(re.escape(k) for k in sorted(
+    _TYPOS, key=len, reverse=True)) + r")(?![\w'-])")  # "u-shaped" is no "you"
 # Things named with a room word ("kitchen island", "laundry basket"): kept whole, the room
 # word is no room there. Other room words before a thing are where it is ("living room TV").
 _ROOM_THINGS = re.compile(
@@ -196,6 +203,7 @@ _PEOPLE = frozenset(_words("husband wife kid kids son daughter child children do
                     "guest guests housekeeper hotel family mom dad", " "))
 _ING_NOUNS = frozenset(_words("painting ceiling clothing bedding conditioning railing building ring "
                        "string swing wing lighting seating flooring", " "))
+_LY_NOUNS = frozenset(_words("telly jelly belly doily lily holly butterfly assembly supply", " "))
 _COLOURS = ("red|orange|yellow|green|blue|purple|pink|brown|black|white|gray|grey|beige|"
             "silver|gold|golden|navy|teal")
 # Words that end or are not part of a thing's name: verbs, auxiliaries, adverbs, quantities,
@@ -219,13 +227,42 @@ _FUNCTION = frozenset(_words(
     "expecting waiting playing played sleeping delivered arrived mean like also just only "
     "pieces piece pair pairs set sets stack stacks bunch pile piles couple lot lots number "
     "time day upright position top bottom left right "
-    "two three four five six seven eight nine ten eleven twelve twenty dozen", " "
+    "two three four five six seven eight nine ten eleven twelve twenty dozen "
+    "hey hi hello ok okay oh um uh hmm quick question", " "
 ) + _DETERMINERS + _PRONOUNS)
 
 
 def mend(text: str) -> str:
-    """``text`` in lower case with its known typos and contractions mended (``_TYPOS``)."""
-    return _TYPO_RE.sub(lambda m: _TYPOS[m.group(1)], " ".join(text.lower().split()))
+    """``text`` in lower case with its known typos and contractions mended (``_TYPOS``), and
+    a slip of the keyboard in a question or room word read as that word (``_SLIPS``)."""
+    text = re.sub(r"(?<![\w'-])[a-z]+(?![\w'-])", lambda m: _SLIPS.get(m.group(0), m.group(0)),
+                  " ".join(text.lower().split()))
+    return _TYPO_RE.sub(lambda m: _TYPOS[m.group(1)], text)
+
+
+def _slips(word: str) -> set[str]:
+    """How ``word`` comes out with one slip: two neighbouring letters swapped (four letters or
+    more), one letter dropped or doubled (five or more)."""
+    out = {word[:i] + word[i + 1] + word[i] + word[i + 2:] for i in range(len(word) - 1)}
+    if len(word) >= 5:
+        out |= {word[:i] + word[i + 1:] for i in range(len(word))}
+        out |= {word[:i] + word[i] + word[i:] for i in range(len(word))}
+    return out - {word} if len(word) >= 4 else set()
+
+
+# The words a slip is read for: the question words the kind and the relations hang on, and the
+# distinctive room words. Never read for a word the rules know, nor for the real words a slip of
+# these spells ("round", "close"), nor where one slip fits two words; an object's name is never
+# "corrected" (the rules hold no list of objects).
+_SLIP_WORDS = (*_words("where which there color colour between around open closed", " "),
+               *_words("living dining kitchen bedroom bathroom office hallway laundry garage "
+                       "closet corridor entrance entryway foyer washroom restroom", " "))
+_REAL_WORDS = frozenset(_words("round close lunge", " "))
+_known = (_FUNCTION | _ING_NOUNS | _PEOPLE | _REAL_WORDS | set(_TYPOS)
+          | {w for p in _PLACES for w in p.split()} | {w for t, _ in _ROOM_WORDS for w in t.split()})
+_slipped = [(typed, word) for word in _SLIP_WORDS for typed in _slips(word) if typed not in _known]
+_fits = Counter(typed for typed, _ in _slipped)
+_SLIPS = {typed: word for typed, word in _slipped if _fits[typed] == 1}
 
 
 def _normalise(question: str) -> str:
@@ -245,10 +282,28 @@ def thing_name(phrase: str) -> str | None:
     return obj or support
 
 
+_ASKS = (r"(?:what|where|which|who|whose|when|why|how|is|are|was|were|do|does|did|have|has|can|"
+         r"could|would|will|should)\b")
+# An opening before the question ("hey, where ...", "quick question: what ...", "i need plates,
+# is there ..."): a sentence of its own, which asks nothing but may name what "it" is.
+_OPENING = re.compile(rf"^(?!{_ASKS})(.+?)\s*[,:]\s*(?={_ASKS})")
+# A request around the question: "could you tell me what ...", "do you know which room ...".
+_REQUEST = re.compile(r"^(?:please )?(?:(?:(?:can|could|would|will) you (?:please )?(?:go and )?)?"
+                      r"(?:tell me|show me|let me know|find out|count(?= how\b)|(?:check|see|look)"
+                      r"(?= if| whether))|(?:do|does) (?:you|anyone) know)(?: if| whether)?\s*")
+
+
 def _sentences(text: str) -> list[tuple[str, bool]]:
-    """The sentences of ``text`` without their end mark, each with whether it asks ("?")."""
-    parts = re.findall(r"[^.?!]+[.?!]*", text)
-    return [(p.rstrip(".?! ").strip(), p.rstrip().endswith("?")) for p in parts if p.strip(".?! ")]
+    """The sentences of ``text`` without their end mark, each with whether it asks ("?"); an
+    opening is a sentence of its own, and a request around the question is left out."""
+    out = []
+    for part in re.findall(r"[^.?!]+[.?!]*", text):
+        asks, s = part.rstrip().endswith("?"), part.rstrip(".?! ").strip()
+        if opening := _OPENING.match(s):
+            out.append((opening.group(1), False))
+            s = s[opening.end():]
+        out.append((_REQUEST.sub("", s), asks))
+    return [(s, asks) for s, asks in out if s.strip(".?! ")]
 
 
 _KIND_CUES: tuple[tuple[str, str], ...] = (
@@ -285,7 +340,7 @@ def _content(word: str, previous: str, following: str) -> bool:
         return False
     if previous == "to":  # "I want to shower": a verb
         return False
-    if len(word) > 4 and word.endswith("ly"):  # an adverb ("fully", "properly")
+    if len(word) > 4 and word.endswith("ly") and word not in _LY_NOUNS:  # "fully", "properly"
         return False
     ends = following.startswith("@") or following in (*_DETERMINERS, "and", "or", ",",
                                                        _ROOM_PLACE)

@@ -8,6 +8,8 @@ which the gate, the steering, the sightings and the hints read through ``Target.
 
 - every object or support word of the target that is no category of the vocabulary (after
   case and plural) is embedded with the categories (the project's MiniLM, ``relevancy.text``);
+  where its words already name a category ("dining table" a "table"), only the categories
+  closer to them than that one are candidates (so "dining table" is never a "chair");
 - a pair at cosine ``clear`` or more is an alias;
 - the ``top`` closest categories from ``unsure`` up to ``clear`` are asked of the agent's chat
   model in one yes/no call for all of them; the pairs it says "yes" to are aliases.
@@ -64,9 +66,13 @@ class AliasResolver:
         clear: list[tuple[str, str]] = []
         unsure: list[tuple[str, str]] = []
         for i, word in enumerate(words):
-            # a category its words already name needs no alias ("wooden chair" is a "chair")
+            # a category its words already name needs no alias ("wooden chair" is a "chair"),
+            # and one further from them than that category is no other name for them: "dining
+            # table" names a "table" (0.68), not a "chair" (0.50); "bedside table" is nearer
+            # "nightstand" (0.68) than "table" (0.59)
+            named = [sims[i, j] for j in range(len(categories)) if names(word, categories[j])]
             order = [j for j in np.argsort(-sims[i], kind="stable")
-                     if not names(word, categories[j])]
+                     if not names(word, categories[j]) and sims[i, j] > max(named, default=-1.0)]
             sure = [(word, categories[j]) for j in order if sims[i, j] >= self.clear]
             clear += sure
             if not sure:
