@@ -103,10 +103,13 @@ def test_ensure_server_holds_the_lease_before_looking_and_says_when_it_started_o
     monkeypatch.setattr(server, "status", status)
     monkeypatch.setattr(server, "serve", lambda name, idle_s: info)
     try:
+        assert server.ensure_server("m") == info.base_url  # another process's server: no word
+        assert capsys.readouterr().err == ""
+        monkeypatch.setitem(server._children, info.pid, None)  # started by this process
         assert server.ensure_server("m") == info.base_url
     finally:
         keeper.release_lease(server.lease_file("m"))
-    assert looked == [True]
+    assert looked == [True, True]
     line = capsys.readouterr().err.strip()
     assert "started the local model server for m" in line and "stops after 2 min unused" in line
     assert len(line.splitlines()) == 1

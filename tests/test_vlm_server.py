@@ -55,7 +55,8 @@ def prompts() -> dict[str, str]:
     fill = {"question": QUESTION, "view": "the image", "directions": directions, "m": 3,
             "evidence": "the 5 attached images", "example": "white; 80", "hint": "",
             "direction": "a door", "first": "sofa", "second": "couch", "answers":
-            "Correct answer: blue", "response": "navy", "choices": "A. blue\nB. red"}
+            "Correct answer: blue", "response": "navy", "choices": "A. blue\nB. red",
+            "answer": "blue", "extra": ""}
     names = {"explore": ("efficienteqa.explore", "explore"),
              "explore-letters": ("efficienteqa.explore", "explore_letters"),
              "explore-token": ("efficienteqa.explore", "explore_token"),
@@ -69,7 +70,8 @@ def prompts() -> dict[str, str]:
              "answer-short": ("efficienteqa.answer", "answer_direct"),
              "blind-choice": ("efficienteqa.answer", "blind_choices"),
              "judge": ("efficienteqa.eval", "judge"),
-             "judge-same": ("efficienteqa.eval", "judge_same")}
+             "judge-same": ("efficienteqa.eval", "judge_same"),
+             "judge-openeqa": ("efficienteqa.eval", "judge_openeqa")}
     return {kind: load_prompt(name, package).format(**fill)
             for kind, (package, name) in names.items()}
 

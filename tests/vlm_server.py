@@ -1,14 +1,15 @@
 """An OpenAI-compatible chat server with real servers' habits, for the test suite (docs/servers.md).
 
-It runs on 127.0.0.1 (port 0: a free one) in a thread, answers ``POST /v1/chat/completions``
-and ``GET /v1/models``, checks every image it is sent and records every request. It answers the
-project's prompts (explore, worth exploring, relevancy match, the gate, the sightings, the
-answers, grouping, the judge, the probe) in the format they ask for, in one of several
-``STYLES``, deterministically (the same request gets the same reply). ``Options`` says how it
-behaves, e.g. like GPT-4o (logprobs returned, any number of images), like vLLM with
-``--limit-mm-per-prompt image=1`` (``max_images=1``), like a server that ignores or rejects
-logprobs, hangs, or cuts replies at ``max_tokens``, or like a broken server or proxy
-(``Options.misbehave``: ``MISBEHAVIOURS``, the fault trials' modes).
+It runs on 127.0.0.1 (on a free port unless one is given) in a thread, answers
+``POST /v1/chat/completions`` and ``GET /v1/models``, checks every image it is sent and records
+every request. It answers the project's prompts (explore, worth exploring, relevancy match, the
+gate, the sightings, the answers, grouping, the judge in each mode, the probe) in the format
+they ask for, in one of several ``STYLES``, deterministically (the same request gets the same
+reply). ``Options`` says how it behaves, e.g. like GPT-4o (logprobs returned, any number of
+images), like vLLM with ``--limit-mm-per-prompt image=1`` (``max_images=1``), like a server
+that ignores or rejects logprobs, hangs, or cuts replies at ``max_tokens``, or like a broken
+server or proxy, or one whose reply to one kind of call is odd (``Options.misbehave``:
+``MISBEHAVIOURS``, the fault trials' modes).
 
 In a test::
 
@@ -58,6 +59,28 @@ BAD_GATEWAY = (b"<html><head><title>502 Bad Gateway</title></head><body><center>
 XSS = "<script>alert(1)</script><img src=x onerror=alert(5)> "
 CONTROL = "\x1b[31m\x07\x08\x00\x0b\r"  # ESC (a colour), BEL, BS, NUL, VT, CR
 HUGE_CHARS = 2_400_000
+_SIGHTING = ('{{"room": "bedroom", "doorways": [], "things": [{{"name": "bed", "item": {item}, '
+             '"box": [{box}, 100, 500, 600]}}]}}')
+_JUDGE = ("judge", "judge-openeqa")
+# ``Options.misbehave`` modes that replace the reply to one kind of call (``classify``) only, as
+# the second fault trials' test server did (every other call is answered as usual): kinds,
+# what, the reply.
+REPLACED: dict[str, tuple[tuple[str, ...], str, str]] = {
+    "sightnan": (("sightings",), "NaN for the item and in the box",
+                 _SIGHTING.format(item="NaN", box="NaN")),
+    "sightinf": (("sightings",), "Infinity for the item and 1e999 in the box",
+                 _SIGHTING.format(item="Infinity", box="1e999")),
+    "sightdeep": (("sightings",), '{"room": and 200,000 "["', '{"room": ' + "[" * 200_000),
+    "sighthuge": (("sightings",), "100,000 things (2.7 MB)",
+                  '{"room": "bedroom", "doorways": [], "things": ['
+                  + ", ".join(['{"name": "bed", "item": 1}'] * 100_000) + "]}"),
+    "judgesup": (_JUDGE, "a superscript two", "\u00b2"),
+    "judgesup5": (_JUDGE, "5 and a superscript two", "5\u00b2"),
+    "judgeempty": (_JUDGE, "nothing", ""),
+    "judgejunk": (_JUDGE, "control characters, brackets and 999...", "\x00\x07 <<>> 999..."),
+    "judgedeep": (_JUDGE, '"Your mark: " and 100,000 "["', "Your mark: " + "[" * 100_000),
+    "judgearabic": (_JUDGE, "an Arabic-Indic three", "\u0663"),
+}
 # ``Options.misbehave``: what every request after the first ``misbehave_after`` gets (the names
 # of the fault trials' misbehaving server, docs/fault-trials.md). Statuses, then 200s whose body is
 # not a chat completion, then replies that are one but odd. (Slow and hung servers are
@@ -84,6 +107,8 @@ MISBEHAVIOURS = {
     "huge": f"a reply of {HUGE_CHARS / 1e6:g} M characters (the reply, then filler)",
     "xss": f"the reply after HTML that runs script in a page: {XSS.strip()}",
     "ctrl": "the reply wrapped in control characters (ESC, BEL, BS, NUL, VT, CR)",
+    **{name: f"the reply to {' and '.join(kinds)} calls: {what}"
+       for name, (kinds, what, _) in REPLACED.items()},
 }
 
 
@@ -106,9 +131,10 @@ class Options:
     "length". ``api_key``: when set, any other ``Authorization`` gets HTTP 401.
     ``models``: when set, another model name gets HTTP 404.
     ``misbehave``: a broken server or proxy (``MISBEHAVIOURS``: a status with an error page, a
-    200 that is no chat completion, an odd reply, a cut connection), to every request after the
-    first ``misbehave_after`` (0: every request; 2: the capability probe passes, as the fault
-    trials' "e500after" or "garbageafter").
+    200 that is no chat completion, an odd reply, a cut connection; or, ``REPLACED``, the reply
+    to one kind of call only, e.g. the sighting call's or the judge's), to every request after
+    the first ``misbehave_after`` (0: every request; 2: the capability probe passes, as the
+    fault trials' "e500after" or "garbageafter").
     """
 
     style: str = "exact"
@@ -192,6 +218,8 @@ def classify(text: str, images: int = 0) -> str:
         return "answer-short"  # answer_direct.txt, answer_token.txt
     if "Reply with the score only" in t:
         return "judge"
+    if t.startswith("You help me evaluate a response"):
+        return "judge-openeqa"  # eval/prompts/judge_openeqa.txt: the mark alone
     if "Does the given answer say the same thing" in t or t.rstrip().endswith("Correct?"):
         return "judge-same"  # eval/prompts/judge_same.txt (two versions)
     return "other"
@@ -298,7 +326,7 @@ def compose(kind: str, text: str, images: int, seed: int) -> Reply:
     if kind == "answer-short":
         answer = plausible_answer(question, seed)
         return Reply(answer, {"answer": answer}, f"The question asks {question!r}.")
-    if kind == "judge":
+    if kind in ("judge", "judge-openeqa"):
         score = 1 + seed % 5
         return Reply(str(score), {"score": score}, "I compared the response with the answer.")
     return Reply("I don't know.", {"answer": "I don't know."}, "I am not sure what is asked.")
@@ -452,7 +480,8 @@ def check_image(part: dict[str, Any], max_side: int) -> tuple[str, int, int, str
 class VLMServer:
     """The server (see the module docstring); ``options`` may be changed between requests."""
 
-    def __init__(self, options: Options | None = None) -> None:
+    def __init__(self, options: Options | None = None, port: int = 0) -> None:
+        """``port`` 0: a free one."""
         self.options = options or Options()
         self.requests: list[Seen] = []
         self.image_errors: list[str] = []
@@ -503,7 +532,7 @@ class VLMServer:
             def log_message(self, *args: object) -> None:
                 pass
 
-        self._server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self._server = ThreadingHTTPServer(("127.0.0.1", port), Handler)
         self._server.daemon_threads = True
         self._thread = threading.Thread(target=self._server.serve_forever, args=(0.02,),
                                         daemon=True)
@@ -540,7 +569,13 @@ class VLMServer:
         result = self._misbehave_status(mode, seen, path, o) if mode else None
         if result is None:
             result = self._answer(seen, body, path, number, o)
-            if mode and result[0] == 200:
+            if mode in REPLACED and result[0] == 200:
+                kinds, _, text = REPLACED[mode]
+                if seen.kind in kinds:
+                    choice = result[1]["choices"][0]
+                    choice["message"]["content"], choice["logprobs"] = text, None
+                    seen.reply = text
+            elif mode and result[0] == 200:
                 result = 200, self._misbehave_reply(mode, result[1]), result[2]
         seen.status = result[0]
         return result

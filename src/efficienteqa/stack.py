@@ -90,6 +90,10 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
                                     "embedded one, whose capabilities are known",
                                     fix="leave out --capabilities, or use --vlm openai:MODEL@URL")
         read_capabilities(Path(capabilities), images)  # a bad file fails here, before the work
+    if kind == "local" and not url:  # its server starts on demand: $EFFICIENTEQA_SERVER_IDLE_S
+        from efficienteqa.models.local.keeper import idle_seconds
+
+        idle_seconds()  # a bad value fails here, not after the scene is built
     options: dict[str, Any] = {"timeout_s": timeout_s, "retries": retries,
                                "api_key_env": api_key_env, "image_format": image_format,
                                "image_max_side": image_max_side, "image_detail": image_detail,

@@ -364,7 +364,13 @@ def report_command(
 @run_options()
 def config_command(run: Resolved) -> None:
     """Print the run's whole configuration as a --config file (TOML, every value, the preset and
-    options given applied): what `eval` with the same options would run."""
+    options given applied): what `eval` with the same options would run. A password in a
+    server's URL is printed as *** (docs/servers.md), said in a comment first."""
     from efficienteqa.presets import to_toml
 
-    sys.stdout.write(to_toml(run.run))
+    text = to_toml(run.run)
+    shown = redact_urls(text)
+    if shown != text:
+        shown = ("# a password in a server's URL is shown as ***: write it back before using "
+                 "this file\n" + shown)
+    sys.stdout.write(shown)

@@ -22,8 +22,10 @@ the reference's words).
 ``mode="grade"`` (the OpenEQA form) is the default for capable judges such as GPT-4o.
 
 Bad judge output never raises: replies are parsed leniently, retried once, and otherwise scored
-with a documented default and a recorded problem. Grades are cached in sqlite, keyed on the judge,
-the prompt text and the inputs, so a resumed or parallel evaluation never pays twice for one grade.
+with a documented default and a recorded problem. Grades are cached in sqlite, keyed on the judge
+(its name, and its server where it is named by URL), the prompt text and the inputs, so a resumed
+or parallel evaluation never pays twice for one grade; a default grade given for a reply that
+held none is never stored, so a judge that misbehaved once does not grade so forever.
 """
 
 from __future__ import annotations
@@ -129,7 +131,7 @@ def trim_response(text: str) -> str:
 
 # --- parsing ------------------------------------------------------------------------------------
 
-_NUMBER = r"[-+]?\d+(?:\.\d+)?"
+_NUMBER = r"[-+]?[0-9]+(?:\.[0-9]+)?"  # ASCII digits only: "²" and "٣" are no grade
 # A grade has one digit. A longer run is cut to MAX_DIGITS before the rules read the reply: still
 # a number far out of range (a problem, not a grade), and each rule's pattern then backtracks
 # over at most MAX_DIGITS digits, so parsing stays linear in the reply (an absurd reply of
@@ -212,17 +214,21 @@ def openeqa_cut(response: str) -> str:
     return response[:end + 1] if 0 <= end < len(response) - 1 else response
 
 
+_ASCII_MARK = re.compile(r"[0-9]{1,2}")
+
+
 def openeqa_mark(reply: str) -> int | None:
     """The mark of an OpenEQA-style reply: the reply itself when it is a number, else the
     number after the last "Your mark:" (to the end of its line); None when neither is a whole
-    number from 1 to 5."""
+    number from 1 to 5. Only ASCII digits are a mark: "²", "5²" or "٣" (which ``isdigit`` takes
+    for digits) are none."""
     text = reply.strip()
-    if not text.isdigit():
+    if not _ASCII_MARK.fullmatch(text):
         at = text.rfind(OPENEQA_TAG)
         text = text[at + len(OPENEQA_TAG):].split("\n", 1)[0].strip() if at >= 0 else text
-        found = re.match(r"^\**\s*(\d{1,2})\b", text)  # a bold mark is a mark
+        found = re.match(r"^\**\s*([0-9]{1,2})\b", text)  # a bold mark is a mark
         text = found.group(1) if found else ""
-    if not text.isdigit() or len(text) > 2:
+    if not _ASCII_MARK.fullmatch(text):
         return None
     mark = int(text)
     return mark if MIN_SCORE <= mark <= MAX_SCORE else None
@@ -355,6 +361,10 @@ class LLMMatchJudge:
         self.name = model.name if mode == "grade" else f"{model.name} ({mode})"
         self.mode = mode
         self._cache_path = cache_path
+        # the server a judge named by URL is on (``OpenAIChatClient.server``, its password as
+        # ***), which keys its grades; None for the embedded model or a stub
+        server = getattr(model, "server", None)
+        self.server: str | None = server if isinstance(server, str) else None
 
     def __repr__(self) -> str:
         return f"LLMMatchJudge(model={self.name!r})"
@@ -377,8 +387,9 @@ class LLMMatchJudge:
             key = self._key(question, reference, extra, response)
             judgement = self._lookup(key)
             if judgement is None:
-                judgement = self._openeqa(question, reference, response, extra)
-                self._store(key, judgement)
+                judgement, read = self._openeqa(question, reference, response, extra)
+                if read:
+                    self._store(key, judgement)
             return judgement
         response = trim_response(response)
         ruled = rule_score(question, reference, response, extra)
@@ -393,11 +404,13 @@ class LLMMatchJudge:
         judgement = self._lookup(key)
         if judgement is None:
             if self.mode == "yes-prob":
-                judgement = self._yes_prob([render_prompt(question, reference, response, extra,
-                                                          template=t) for t in YES_PROMPTS])
+                judgement, read = self._yes_prob([render_prompt(question, reference, response,
+                                                                extra, template=t)
+                                                  for t in YES_PROMPTS])
             else:
-                judgement = self._grade(render_prompt(question, reference, response, extra))
-            self._store(key, judgement)
+                judgement, read = self._grade(render_prompt(question, reference, response, extra))
+            if read:
+                self._store(key, judgement)
         if bounds is None or judgement.score is None \
                 or bounds.low <= judgement.score <= bounds.high:
             return judgement
@@ -407,9 +420,9 @@ class LLMMatchJudge:
                            f"{bounds.rule}: {score})")
 
     def _openeqa(self, question: str, reference: str, response: str,
-                 extra: Sequence[str]) -> Judgement:
-        """One call as OpenEQA makes it; an unreadable mark (OpenEQA raises) is the default
-        grade with a problem."""
+                 extra: Sequence[str]) -> tuple[Judgement, bool]:
+        """One call as OpenEQA makes it, and whether a mark was read; an unreadable mark
+        (OpenEQA raises) is the default grade with a problem."""
         accepted = [e.strip() for e in extra if e and e.strip()]
         prompt = load_prompt("judge_openeqa", PROMPTS).format(
             question=question.strip(), answer=reference.strip(), response=response,
@@ -420,12 +433,13 @@ class LLMMatchJudge:
         if score is None:
             return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name, reply.text,
                              (f"no mark from 1 to 5 in {(reply.text or '')[:40]!r}, scored "
-                              f"{DEFAULT_SCORE}",))
-        return Judgement(score, score_value(score), self.name, reply.text)
+                              f"{DEFAULT_SCORE}",)), False
+        return Judgement(score, score_value(score), self.name, reply.text), True
 
-    def _yes_prob(self, prompts: Sequence[str]) -> Judgement:
-        """One call per prompt; the grade from the geometric mean of their P(yes). A prompt
-        whose reply holds no yes/no is left out (and said); none at all is the default grade."""
+    def _yes_prob(self, prompts: Sequence[str]) -> tuple[Judgement, bool]:
+        """One call per prompt; the grade from the geometric mean of their P(yes), and whether
+        any was read. A prompt whose reply holds no yes/no is left out (and said); none at all
+        is the default grade."""
         found: list[float] = []
         parts, problems = [], []
         for template, prompt in zip(YES_PROMPTS, prompts, strict=True):
@@ -440,13 +454,15 @@ class LLMMatchJudge:
                 found.append(p)
         if not found:
             return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name,
-                             "; ".join(parts), (*problems, f"scored {DEFAULT_SCORE}"))
+                             "; ".join(parts), (*problems, f"scored {DEFAULT_SCORE}")), False
         p = math.prod(found) ** (1.0 / len(found))
         score = MIN_SCORE + round((MAX_SCORE - MIN_SCORE) * p)
         return Judgement(score, score_value(score), self.name,
-                         f"P(yes)={p:.3f} ({'; '.join(parts)})", tuple(problems))
+                         f"P(yes)={p:.3f} ({'; '.join(parts)})", tuple(problems)), True
 
-    def _grade(self, prompt: str) -> Judgement:
+    def _grade(self, prompt: str) -> tuple[Judgement, bool]:
+        """The grade of one call (and one retry where it is unreadable), and whether one was
+        read."""
         caps = self.model.capabilities
         schema = SCORE_SCHEMA if caps.json_schema or caps.grammar else None
         messages = [Message("user", prompt)]
@@ -454,22 +470,27 @@ class LLMMatchJudge:
                                 json_schema=schema)
         score, problems = parse_score(reply.text)
         if score is not None:
-            return Judgement(score, score_value(score), self.name, reply.text)
+            return Judgement(score, score_value(score), self.name, reply.text), True
         retried = [f"retried after: {p}" for p in problems]
         messages += [Message("assistant", reply.text), Message("user", REMINDER)]
         reply = self.model.chat(messages, max_tokens=MAX_TOKENS, temperature=JUDGE_TEMPERATURE,
                                 json_schema=schema)
         score, problems = parse_score(reply.text)
         if score is not None:
-            return Judgement(score, score_value(score), self.name, reply.text, tuple(retried))
+            return Judgement(score, score_value(score), self.name, reply.text, tuple(retried)), True
         problems = [*retried, *problems, f"unreadable grade, scored {DEFAULT_SCORE}"]
         return Judgement(DEFAULT_SCORE, score_value(DEFAULT_SCORE), self.name, reply.text,
-                         tuple(problems))
+                         tuple(problems)), False
 
     # --- cache ---
 
     def _key(self, question: str, reference: str, extra: Sequence[str], response: str) -> str:
+        """The grade's cache key: the prompt version, the judge's name, the server it is on
+        (a judge named by URL: two servers of one model name may grade apart, as the response
+        cache keys them), the inputs."""
         parts = [prompt_version(self.mode), self.name, question, reference, list(extra), response]
+        if self.server is not None:  # left out otherwise: the key of the releases before it
+            parts.append(self.server)
         return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
     @contextlib.contextmanager

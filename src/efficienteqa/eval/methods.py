@@ -150,6 +150,7 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     """One episode of an agent method in the question's scene; ``out`` gets ``episode.json``
     (and ``report.html`` with ``spec.reports``)."""
     from efficienteqa.ask import ask
+    from efficienteqa.datasets.questions_file import is_questions_file
     from efficienteqa.datasets.synthetic import check_question
     from efficienteqa.envs.habitat.scenes import HabitatStart
     from efficienteqa.geometry import Pose2D
@@ -159,8 +160,8 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     scene = open_scene(q.scene, spec.assets, env=spec.env, hm3d_root=spec.hm3d_root,
                        start=HabitatStart.from_source(q.source), oracle=False, noise=spec.noise)
     try:
-        if q.scene.startswith("synthetic:"):
-            check_question(scene, q)
+        if q.scene.startswith("synthetic:") and not is_questions_file(q.dataset):
+            check_question(scene, q)  # the generator's own (a user's question is the user's)
         start = Pose2D(*q.start) if q.start is not None else None
         done = ask(q.question, scene, out, stack=spec.stack, config=config, start=start,
                    assets=spec.assets, report=spec.reports, known_as=q.original_question)

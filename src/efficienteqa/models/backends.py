@@ -141,6 +141,9 @@ def read_capabilities(path: Path, images: bool = True) -> Capabilities:
     except ValueError as error:
         raise EfficientEQAError(f"the capabilities file {path} is not JSON: {error}",
                                 fix=fix) from None
+    except RecursionError:
+        raise EfficientEQAError(f"the capabilities file {path} is not JSON: nested too deep",
+                                fix=fix) from None
     if not isinstance(data, dict):
         raise EfficientEQAError(f"the capabilities file {path} holds no JSON object", fix=fix)
     for key, value in data.items():

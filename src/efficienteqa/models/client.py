@@ -29,6 +29,7 @@ import math
 import os
 import re
 import sqlite3
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -59,6 +60,9 @@ IMAGE_DETAILS = ("auto", "low", "high")
 PROBE_TOP_LOGPROBS = 10
 PROBE_IMAGES = 5
 PROBE_RETRIES = 1
+# A call that has waited this long for the server says so, once, on stderr (and goes on
+# waiting): a hung server otherwise costs its timeout and retries in silence.
+WAIT_NOTICE_S = 15.0
 # Sent where no key is configured: the SDK insists on one, and without it would read
 # OPENAI_API_KEY from the environment and send the user's OpenAI key to a local server.
 _NO_KEY = "no-key"
@@ -229,6 +233,24 @@ class OpenAIChatClient:
     def url(self) -> str:
         """The endpoint as errors and warnings name it (a password in it as ``***``)."""
         return redact_urls(self.config.base_url.rstrip("/") + "/chat/completions")
+
+    @property
+    def server(self) -> str | None:
+        """The server replies are keyed by (``ClientConfig.cache_server``: the base URL of a
+        server named by URL, its password as ``***``; None for the embedded local model), which
+        the judge's grades are keyed by too."""
+        return self.config.cache_server
+
+    def _notice(self, tries: int) -> threading.Timer:
+        """A started timer that says, once ``WAIT_NOTICE_S`` have passed, which server this
+        call is waiting on; cancelled when the call ends."""
+        said = (f"efficienteqa: still waiting for the model server at {self.url} after "
+                f"{WAIT_NOTICE_S:g} s (each try may take {self.config.timeout_s:g} s, {tries} "
+                "tries; --backends.timeout-s and --backends.retries set them)")
+        timer = threading.Timer(WAIT_NOTICE_S, lambda: print(said, file=sys.stderr, flush=True))
+        timer.daemon = True
+        timer.start()
+        return timer
 
     def close(self) -> None:
         if self._sdk is not None:
@@ -519,12 +541,16 @@ class OpenAIChatClient:
         from openai.types.chat import ChatCompletion
 
         client = self._client()
-        if probe and self.config.max_retries > PROBE_RETRIES:
-            client = client.with_options(max_retries=PROBE_RETRIES)
+        retries = self.config.max_retries
+        if probe and retries > PROBE_RETRIES:
+            client, retries = client.with_options(max_retries=PROBE_RETRIES), PROBE_RETRIES
+        notice = self._notice(retries + 1)
         try:
             raw = client.chat.completions.with_raw_response.create(**arguments)
         except openai.OpenAIError as error:
             raise self._error(error) from None  # the SDK's chain repeats the reply, key included
+        finally:
+            notice.cancel()
         try:
             reply = raw.parse()
         except ValueError:  # labelled JSON but not JSON (JSONDecodeError), or not UTF-8 text:

@@ -23,12 +23,15 @@ measures what reading by a model costs against the rules, with everything else e
 
 Nothing of the reply is trusted: a room must be one of ``question.ROOMS``, a thing's name one of
 the target's words (or an alias of them), a box four numbers inside the frame, an item a number
-listed. A reply with no JSON object (a refusal, chatter, a reply cut at ``MAX_TOKENS``) is a
-problem and means "no sighting" for that step, never an error.
+listed, a number finite. A reply with no JSON object (a refusal, chatter, a reply cut at
+``MAX_TOKENS``), or one beyond the bounds of ``vc.parse.json_reply`` (nested too deep, too many
+values, a number that is not finite), is a problem and means "no sighting" for that step, never
+an error; of a reply's doorways and things the first ``MAX_ENTRIES`` each are read.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -39,7 +42,7 @@ from efficienteqa.geometry import backproject
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.perception.base import Perception, Sighting, Sightings
 from efficienteqa.question import ROOMS, Target, canonical_room, singular
-from efficienteqa.vc.parse import json_object
+from efficienteqa.vc.parse import json_reply
 from efficienteqa.vc.prompts import load_prompt
 
 if TYPE_CHECKING:
@@ -59,6 +62,9 @@ EDGE = 5.0  # a box within this many thousandths of the left, right or top edge 
 NEAR_M = 0.6
 DEPTH_BIN_M = 0.25
 ROOM_M = 1.5  # a thing's room: the nearest floor point named within this
+# A reply's doorways and things read at most, each (a view shows a few; ``project`` builds a
+# frame mask per entry, and 100,000 entries held a step for minutes).
+MAX_ENTRIES = 32
 
 
 @dataclass(frozen=True)
@@ -125,9 +131,9 @@ def read_reply(reply: str, target: Target, items: int | None = None
     """The reply as ``SightingReply`` and what of it could not be used. ``items``: the number
     of objects listed (a text view; None: an image, whose things have boxes). None when the
     reply holds no JSON object."""
-    said = json_object(reply)
+    said, why = json_reply(reply)
     if said is None:
-        return None, [f"no JSON object in the sighting reply {reply[:60]!r}: no sighting"]
+        return None, [f"{why} in the sighting reply {reply[:60]!r}: no sighting"]
     problems: list[str] = []
     room = _room(said.get("room"), problems)
     doorways: list[tuple[str, Region]] = []
@@ -179,25 +185,40 @@ def _entries(value: Any, key: str, problems: list[str]) -> list[dict[str, Any]]:
     entries = [v for v in value if isinstance(v, dict)]
     if len(entries) < len(value):
         problems.append(f"{len(value) - len(entries)} of the {key} are no objects")
+    if len(entries) > MAX_ENTRIES:
+        problems.append(f"{len(entries)} {key}, read the first {MAX_ENTRIES}")
+        entries = entries[:MAX_ENTRIES]
     return entries
+
+
+def _finite(value: Any) -> float | None:
+    """``value`` as a finite float; None for anything else (text, a bool, NaN, an infinity, an
+    integer beyond any float)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
 
 
 def _region(entry: dict[str, Any], items: int | None, problems: list[str],
             required: bool) -> Region | None:
     if items is not None:
         item = entry.get("item")
-        if isinstance(item, bool) or not isinstance(item, (int, float)) or item != int(item) \
-                or not 1 <= item <= items:
+        number = _finite(item)
+        if number is None or not number.is_integer() or not 1 <= number <= items:
             if required:
                 problems.append(f"item {str(item)[:20]} is not listed")
             return None if required else Region()
-        return Region(items=(int(item),))
+        return Region(items=(int(number),))
     box = entry.get("box")
-    if not (isinstance(box, list) and len(box) == 4
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in box)):
+    found = [_finite(v) for v in box] if isinstance(box, list) and len(box) == 4 else []
+    values = [v for v in found if v is not None]
+    if len(values) != 4:
         problems.append(f"box {str(box)[:40]} is not four numbers")
         return None
-    values = [float(v) for v in box]
     if max(values) <= 1.0:  # fractions of the frame, not thousandths
         values = [v * BOX_SCALE for v in values]
     x0, y0, x1, y1 = (min(max(v, 0.0), BOX_SCALE) for v in values)

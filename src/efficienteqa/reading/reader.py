@@ -30,7 +30,7 @@ from efficienteqa.question import (
     singular,
     thing_name,
 )
-from efficienteqa.vc.parse import json_object
+from efficienteqa.vc.parse import json_reply
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.reading"  # reading/prompts/read.txt
@@ -65,9 +65,9 @@ class ModelReader:
         schema = SCHEMA if self.model.capabilities.json_schema else None
         reply = self.model.chat([Message("user", prompt)], max_tokens=self.max_tokens,
                                 temperature=0.0, json_schema=schema).text or ""
-        said = json_object(reply)
+        said, why = json_reply(reply)
         if said is None:
-            self.problems.append(f"no JSON object in the reading {reply[:60]!r}: the rules' target")
+            self.problems.append(f"{why} in the reading {reply[:60]!r}: the rules' target")
             return rules
         return self.checked(question, said, rules)
 

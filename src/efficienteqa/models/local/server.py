@@ -105,6 +105,7 @@ def _signal(pid: int, sig: int) -> None:
 
 def _terminate(info: ServerInfo, grace_s: float) -> None:
     _signal(info.pid, signal.SIGTERM)
+    _signal(info.pid, signal.SIGCONT)  # a stopped server (SIGSTOP, ^Z) acts on it, not on SIGKILL
     deadline = time.monotonic() + grace_s
     while time.monotonic() < deadline:
         if not _alive(info.pid, info.proc_start):
@@ -205,10 +206,26 @@ def _log_tail(path: Path, lines: int = 3) -> str:
     return " | ".join(line.strip() for line in text[-lines:]) or "(empty log)"
 
 
-def _wait_healthy(info: ServerInfo, timeout_s: float, proc: subprocess.Popen | None = None) -> None:
-    """Poll ``GET /v1/models`` until it answers; one-line errors with the log's tail otherwise."""
-    deadline = time.monotonic() + timeout_s
+# Waiting this long for a server to answer is said, once, on stderr (a stopped or stuck server
+# otherwise costs the whole timeout in silence).
+WAIT_NOTICE_S = 15.0
+
+
+def _wait_healthy(info: ServerInfo, timeout_s: float, proc: subprocess.Popen | None = None,
+                  notice_s: float | None = None) -> None:
+    """Poll ``GET /v1/models`` until it answers; one-line errors with the log's tail otherwise.
+    After ``notice_s`` (default ``WAIT_NOTICE_S``) without an answer, one line on stderr says
+    which server the command waits on, and for how long at most."""
+    start = time.monotonic()
+    deadline = start + timeout_s
+    notice_at: float | None = start + (WAIT_NOTICE_S if notice_s is None else notice_s)
     while time.monotonic() < deadline:
+        if notice_at is not None and time.monotonic() >= notice_at:
+            notice_at = None
+            print(f"efficienteqa: waiting for the llama.cpp server for {info.name} on "
+                  f"{HOST}:{info.port} (pid {info.pid}) to answer: {time.monotonic() - start:.0f} "
+                  f"s so far, at most {timeout_s:.0f} s (log: {info.log})", file=sys.stderr,
+                  flush=True)
         exited = proc.poll() is not None if proc is not None else not _alive(info.pid, info.proc_start)
         if exited:
             _reap(info.pid)
@@ -272,7 +289,9 @@ def ensure_server(name: str = DEFAULT_MODEL) -> str:
     keeper.hold_lease(lease_file(name))
     before = status(name)
     info = serve(name, idle_s=idle_s)
-    if before is None or before.pid != info.pid:
+    # said by the process that started it only: another command that looked at the same moment,
+    # then waited for the lock, found this one's server
+    if (before is None or before.pid != info.pid) and info.pid in _children:
         after = (f"stops after {idle_s / 60:g} min unused" if idle_s > 0 else
                  "keeps running")
         print(f"efficienteqa: started the local model server for {name} on {HOST}:{info.port}; "
