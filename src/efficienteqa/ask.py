@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +34,7 @@ class AskResult:
     record: dict
     episode_json: Path
     report_html: Path | None
+    warnings: list[str] = field(default_factory=list)  # what failed beside the episode
 
 
 def known_question(questions: list[Question], text: str) -> Question | None:
@@ -56,7 +57,7 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         relevancy: RelevancyScorer | None = None, assets: str = DEFAULT_ASSETS,
         report: bool = True, known_as: str | None = None,
         rerun: str | Path | RerunLog | None = None, record: Path | None = None,
-        record_depth: str = "32FC1") -> AskResult:
+        record_depth: str = "32FC1", replace_rerun: bool = False) -> AskResult:
     """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
     ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``
     (left open for the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests
@@ -64,29 +65,39 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
     re-phrases (the paraphrase split), whose evidence and reference the record then carries.
     ``rerun``: also log the episode to rerun (``report.rerun_log``): a ``.rrd`` file, ``live``
     (a viewer spawned here), or a ``RerunLog`` made beforehand; finished and closed here, also
-    when the episode fails (the recording then holds the steps done).
+    when the episode fails (the recording then holds the steps done). An existing file is
+    refused unless ``replace_rerun``.
     ``record``: write the episode's frames there as a recorded walk (``envs.recorded.write``:
     an .mcap file, else a folder; depth as ``record_depth``, 32FC1 or 16UC1), with the scene's
-    labels where it has them, for ``recorded:PATH`` to replay."""
+    labels where it has them, for ``recorded:PATH`` to replay.
+    A recording (``record``, ``rerun``) that cannot be written to the end (a full disk) costs
+    only itself: the episode goes on, and the result's ``warnings`` say what was lost.
+    Interrupted (Ctrl-C), or failed part-way, the episode's steps and model calls so far are
+    written to ``out/episode.json`` (status "interrupted" or "failed") before the exception
+    goes on."""
     from efficienteqa.envs.recorded.write import check_record_path
 
     if record is not None:
         check_record_path(record, record_depth)  # before the scene is built
     stack, config = stack or Stack(), config or AgentConfig()
-    shown = (RerunLog.of(rerun, question, config)
+    shown = (RerunLog.of(rerun, question, config, overwrite=replace_rerun)
              if rerun is not None and not isinstance(rerun, RerunLog) else rerun)
+    warnings: list[str] = []
     try:
         return _ask(question, scene, out, stack, config, start, on_step, model, relevancy,
-                    assets, report, known_as, shown, record, record_depth)
+                    assets, report, known_as, shown, record, record_depth, warnings)
     finally:
         if shown is not None:
             shown.close()  # a no-op after finish
+            if shown.error is not None and shown.error not in warnings:
+                warnings.append(shown.error)
 
 
 def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: AgentConfig,
          start: Pose2D | None, on_step: StepHook | None, model: ChatModel | None,
          relevancy: RelevancyScorer | None, assets: str, report: bool, known_as: str | None,
-         shown: RerunLog | None, record: Path | None, record_depth: str) -> AskResult:
+         shown: RerunLog | None, record: Path | None, record_depth: str,
+         warnings: list[str]) -> AskResult:
     from efficienteqa.envs.recorded.write import WalkRecorder
 
     opened = open_scene(scene, assets) if isinstance(scene, str) else scene
@@ -130,12 +141,12 @@ def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: Age
         try:
             result = built.agent.run(opened.env, question, start=start, on_step=hook,
                                      budget=config.budget(opened.env))
-        except Exception as error:  # keep what was explored and paid for, then fail as before
+        except (Exception, KeyboardInterrupt) as error:  # keep what was explored and paid for
             partial = failed_record(question, error, records=steps, config=config,
                                     backends=built.backends, scene=opened.name,
                                     exchanges=built.model.exchanges)
             write_json(out / "episode.json", partial)
-            error.partial_episode = partial  # type: ignore[attr-defined]  # for eval's row
+            error.partial_episode = partial  # type: ignore[union-attr]  # for eval's row
             raise
         reference: dict[str, Any] | None = None
         if truth is not None:
@@ -156,10 +167,12 @@ def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: Age
             shown.finish(result)
         html = (write_report(out / "report.html", episode, map_url(result), frames.frames,
                              frames.descriptions) if report else None)
-        return AskResult(result, episode, episode_json, html)
+        return AskResult(result, episode, episode_json, html, warnings)
     finally:
         if recorder is not None:
             recorder.close()
+            if recorder.error is not None:
+                warnings.append(recorder.error)
         if isinstance(scene, str):
             opened.env.close()
 

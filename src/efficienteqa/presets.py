@@ -126,10 +126,16 @@ def _values(raw: Mapping[str, Any], where: str, folder: Path | None,
         path = f"{prefix}{key}"
         if path not in index and not prefix and not isinstance(value, Mapping):
             path = _flat().get(key, path)  # a flat name of before the sections
+        section = any(p.startswith(path + ".") for p in index)
         if path in index:
             out[path] = check_value(path, value, where, folder)
-        elif isinstance(value, Mapping) and any(p.startswith(path + ".") for p in index):
+        elif section and isinstance(value, Mapping):
             out.update(_values(value, where, folder, path + "."))
+        elif section:  # ``stop = 3``: not an unknown option (nor a misspelt top_k)
+            shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "..."
+            raise EfficientEQAError(f"{path} in {where} is a section, so it must be a table, not "
+                                    f"{shown}", fix=f"write [{path}] and name = value lines under "
+                                    "it, as efficienteqa config prints them")
         else:
             raise _unknown(path, where)
     return out

@@ -50,13 +50,21 @@ def plain(value: Any) -> Any:
     return value
 
 
+def probe_write(folder: Path) -> None:
+    """``folder`` (made where missing) takes a new file: one is created and removed there.
+    OSError where it cannot be (read-only, immutable, not a folder, full of inodes). A probe,
+    not ``os.access``: root passes every permission check, but not a read-only file system or
+    an immutable folder."""
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, probe = tempfile.mkstemp(dir=folder, prefix=".write-check")
+    os.close(fd)
+    os.unlink(probe)
+
+
 def check_writable(folder: Path) -> None:
     """Fail in one line, before any work, when ``folder`` cannot be created or written to."""
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, probe = tempfile.mkstemp(dir=folder, prefix=".write-check")
-        os.close(fd)
-        os.unlink(probe)
+        probe_write(folder)
     except OSError as error:
         raise EfficientEQAError(f"cannot write to {folder}: {error.strerror or error}",
                                 fix="choose another --out folder") from None

@@ -389,7 +389,7 @@ def locked(folder: Path) -> bool:
     return False
 
 
-@trial("N.10", "N.11")
+@trial("N.10", "N.11", "R6.54")
 def test_two_asks_at_once_share_the_cache_but_not_a_folder(cli, server, env, tmp_path):
     """While an ask explores, a second ask of another question into its folder is refused (it
     used to overwrite the first's episode without a word), and another writer of the response

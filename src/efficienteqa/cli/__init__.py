@@ -28,6 +28,6 @@ def main() -> None:
         console.print(f"[red]error:[/red] {escape(redact_urls(str(exc)))}", highlight=False,
                       soft_wrap=True)
         sys.exit(1)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt:  # before a command runs (a command's own: app.Commands)
         console.print("[yellow]interrupted[/yellow]")
         sys.exit(130)

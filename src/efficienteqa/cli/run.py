@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
+from rich.markup import escape
 
 from efficienteqa.cli.app import app, console
 from efficienteqa.cli.options import run_options
@@ -15,6 +17,10 @@ from efficienteqa.geometry import Pose2D
 from efficienteqa.presets import Resolved
 from efficienteqa.redact import redact_urls
 from efficienteqa.runconfig import ASK_EVAL_FIELDS
+
+if TYPE_CHECKING:
+    from efficienteqa.ask import AskResult
+    from efficienteqa.envs.habitat.scenes import HabitatStart
 
 AGENT_SECTIONS = ("backends", "scene", "explore", "stop", "answer")
 ASK_OUT = Path("out/ask")  # ask's folder without --out: a scratch folder each ask replaces
@@ -101,10 +107,12 @@ def ask_command(
                                     "refused, unless --overwrite.", show_default=False,
                                     rich_help_panel="Output"),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace the episode of another "
-                                   "question in --out.", rich_help_panel="Output"),
+                                   "question in --out, and an existing --rerun file.",
+                                   rich_help_panel="Output"),
     rerun: str | None = typer.Option(None, help="Also log the episode to rerun: a FILE.rrd to "
-                                     "open with `rerun FILE.rrd`, or live (spawn the viewer "
-                                     "here; needs a screen). Needs the rerun extra.",
+                                     "open with `rerun FILE.rrd` (an existing one is replaced "
+                                     "only with --overwrite), or live (spawn the viewer here; "
+                                     "needs a screen). Needs the rerun extra.",
                                      rich_help_panel="Output"),
     record: Path | None = typer.Option(None, help="Also write the episode's frames as a recorded "
                                        "walk: FILE.mcap (ROS 2 topics and TF) or a FOLDER; "
@@ -112,17 +120,11 @@ def ask_command(
                                        rich_help_panel="Output"),
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    from efficienteqa.agent import StepRecord
-    from efficienteqa.ask import ask
-    from efficienteqa.envs.base import is_recording
     from efficienteqa.envs.habitat.scenes import HabitatStart
-    from efficienteqa.eval.records import run_lock
     from efficienteqa.records import check_writable
-    from efficienteqa.scenes import open_scene
 
     r = run.run
+    replace_rerun = overwrite  # given: the scratch folder's own replacing is not a rerun file's
     if out is None:  # the scratch folder: each ask without --out replaces its episode
         out, overwrite = ASK_OUT, True
     if r.eval.method != "efficienteqa":
@@ -152,33 +154,14 @@ def ask_command(
     if rerun is not None:  # rerun missing, no viewer, an unwritable file: before the scene opens
         from efficienteqa.report.rerun_log import check_target
 
-        check_target(rerun)
-    with run_lock(out):  # a second ask into the folder fails at once, not after exploring
-        check_ask_folder(out, question, overwrite)
-        with console.status(f"opening {scene}..."):
-            opened = open_scene(scene, r.scene.assets, env=r.scene.env,
-                                hm3d_root=r.scene.hm3d_root, noise=r.scene.noise,
-                                start=habitat_start)
-        if opened.note:
-            console.print(opened.note, highlight=False, soft_wrap=True)
-        try:
-            columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                       TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
-            with Progress(*columns, console=console) as progress:
-                what = "reading frames" if is_recording(opened.env) else "exploring"
-                task = progress.add_task(what, total=r.agent.budget(opened.env), info="")
-
-                def on_step(record: StepRecord, *_: object) -> None:
-                    c = record.check
-                    info = ("invalid frame" if c is None else
-                            f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
-                    progress.update(task, completed=record.step, info=info)
-
-                done = ask(question, opened, out, stack=r.backends, config=r.agent,
-                           start=start_pose, on_step=on_step, known_as=known_as, rerun=rerun,
-                           record=record)
-        finally:
-            opened.env.close()
+        check_target(rerun, overwrite=replace_rerun)
+    try:
+        done = _asked(run, question, scene, out, overwrite, start_pose, habitat_start, known_as,
+                      rerun, replace_rerun, record)
+    except KeyboardInterrupt as stop:  # Ctrl-C (on a robot, the documented stop)
+        console.print(f"[yellow]interrupted[/yellow]{_interrupted(stop, out, rerun, record)}",
+                      highlight=False, soft_wrap=True)
+        raise typer.Exit(130) from None
     result, rec = done.result, done.record
     oracle = rec.get("oracle_steps")
     say = console.print
@@ -197,11 +180,74 @@ def ask_command(
                                             if model.get("cost_usd") else ""), highlight=False)
     say(f"episode: {done.episode_json}\nreport:  {done.report_html}", highlight=False,
         soft_wrap=True)
-    if rerun is not None and rerun != "live":
+    failed = " ".join(done.warnings)
+    if rerun is not None and rerun != "live" and str(rerun) not in failed:
         say(f"rerun:   {rerun}   (open it: rerun {rerun})", highlight=False, soft_wrap=True)
-    if record is not None:
+    if record is not None and str(record) not in failed:
         say(f"recorded: {record} (replay: --scene recorded:{record})", highlight=False,
             soft_wrap=True)
+    for warning in done.warnings:  # a recording that a full disk cut short: not the episode
+        say(f"[yellow]warning:[/yellow] {escape(warning)}", highlight=False, soft_wrap=True)
+
+
+def _interrupted(stop: KeyboardInterrupt, out: Path, rerun: str | None,
+                 record: Path | None) -> str:
+    """The rest of the line that says an ask was interrupted: what was kept, and how to ask
+    again (an ask is not resumed; its recordings are not written over)."""
+    partial = getattr(stop, "partial_episode", None)
+    kept = (f" at step {partial['steps']}: the episode so far (its steps and model calls) is in "
+            f"{out / EPISODE_FILE}" if isinstance(partial, dict) else " before exploring began")
+    again = []
+    if record is not None and record.exists():
+        kept += f", its frames in {record}"
+        again.append("another --record path")
+    if rerun is not None and rerun != "live" and Path(rerun).exists():
+        kept += f", its rerun log in {rerun}"
+        again.append("--overwrite (or another --rerun file)")
+    return (f"{kept}; the same command asks again" + (f", with {' and '.join(again)}"
+                                                      if again else ""))
+
+
+def _asked(run: Resolved, question: str, scene: str, out: Path, overwrite: bool,
+           start_pose: Pose2D | None, habitat_start: HabitatStart | None, known_as: str | None,
+           rerun: str | None, replace_rerun: bool, record: Path | None) -> AskResult:
+    """The ask command's episode, under the folder's lock: open the scene, explore with a
+    progress bar, answer, write."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from efficienteqa.agent import StepRecord
+    from efficienteqa.ask import ask
+    from efficienteqa.envs.base import is_recording
+    from efficienteqa.eval.records import run_lock
+    from efficienteqa.scenes import open_scene
+
+    r = run.run
+    with run_lock(out):  # a second ask into the folder fails at once, not after exploring
+        check_ask_folder(out, question, overwrite)
+        with console.status(f"opening {scene}..."):
+            opened = open_scene(scene, r.scene.assets, env=r.scene.env,
+                                hm3d_root=r.scene.hm3d_root, noise=r.scene.noise,
+                                start=habitat_start)
+        if opened.note:
+            console.print(opened.note, highlight=False, soft_wrap=True)
+        try:
+            columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                       TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
+            with Progress(*columns, console=console) as progress:
+                what = "reading frames" if is_recording(opened.env) else "exploring"
+                task = progress.add_task(what, total=r.agent.budget(opened.env), info="")
+
+                def on_step(step: StepRecord, *_: object) -> None:
+                    c = step.check
+                    info = ("invalid frame" if c is None else
+                            f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
+                    progress.update(task, completed=step.step, info=info)
+
+                return ask(question, opened, out, stack=r.backends, config=r.agent,
+                           start=start_pose, on_step=on_step, known_as=known_as, rerun=rerun,
+                           record=record, replace_rerun=replace_rerun)
+        finally:
+            opened.env.close()
 
 
 def _judge_mode(mode: str | None, judge: str) -> str:
@@ -293,9 +339,18 @@ def eval_command(
     from efficienteqa.cli.progress import eval_progress
 
     ids = [q.id for q in questions]
-    with eval_progress(console, e.method, ids, out) as on_episode:
-        result = run_eval(spec, questions, out, workers=e.workers, address=e.address,
-                          on_episode=on_episode)
+    try:
+        with eval_progress(console, e.method, ids, out) as on_episode:
+            result = run_eval(spec, questions, out, workers=e.workers, address=e.address,
+                              on_episode=on_episode)
+    except KeyboardInterrupt:  # each episode done is a whole line already: say how to go on
+        from efficienteqa.eval.records import read_episodes
+
+        done = len(read_episodes(out / "episodes.jsonl").done & set(ids))
+        console.print(f"[yellow]interrupted[/yellow]: {done} of {len(ids)} episodes are done in "
+                      f"{out / 'episodes.jsonl'}; the same command resumes the others",
+                      highlight=False, soft_wrap=True)
+        raise typer.Exit(130) from None
     console.print(f"{result.ran} episodes run, {result.skipped} already done, {result.failed} "
                   f"failed, {result.wall_s:.0f} s ({result.episodes_per_hour:.0f} episodes/hour)",
                   highlight=False)

@@ -18,7 +18,7 @@ from efficienteqa.explore.settings import (
     TargetConfig,
 )
 from efficienteqa.knobs import knob, make
-from efficienteqa.mapping.extent import MAP_SIZE_M, MIN_MAP_RADIUS_M
+from efficienteqa.mapping.extent import MAP_SIZE_M, check_map_size
 from efficienteqa.reading.aliases import MATCHINGS
 from efficienteqa.reading.reader import READINGS
 
@@ -79,9 +79,7 @@ class ExploreConfig:
         if self.max_steps is not None and self.max_steps < 1:
             raise ValueError(f"max_steps must be at least 1 (or left out for the default "
                              f"budget), not {self.max_steps}")
-        if not self.map_size_m >= 2 * MIN_MAP_RADIUS_M:
-            raise ValueError(f"map_size_m must be at least {2 * MIN_MAP_RADIUS_M:g}, not "
-                             f"{self.map_size_m}")
+        check_map_size(self.map_size_m)  # before any map is allocated
         if self.seed < 0:
             raise ValueError(f"seed must be 0 or more, not {self.seed}")
         if self.refusal_retries < 0:

@@ -78,11 +78,14 @@ def failed_record(question: str, error: BaseException, *, records: Sequence[Step
                   config: AgentConfig, backends: dict[str, Any], scene: str,
                   exchanges: Sequence[Exchange] = ()) -> dict[str, Any]:
     """What an episode that failed part-way had done: its steps and every model call made
-    (paid for), with the error, so that neither the exploration nor the usage is lost."""
+    (paid for), with the error, so that neither the exploration nor the usage is lost. An
+    episode stopped by Ctrl-C (``KeyboardInterrupt``) is "interrupted", not "failed"."""
     message = str(error).splitlines()[0] if str(error) else ""
+    interrupted = isinstance(error, KeyboardInterrupt)
     return plain({
-        "question": question, "status": "failed",
-        "error": f"{type(error).__name__}: {message}".rstrip(": "),
+        "question": question, "status": "interrupted" if interrupted else "failed",
+        "error": ("interrupted (Ctrl-C)" if interrupted
+                  else f"{type(error).__name__}: {message}".rstrip(": ")),
         "steps": len(records), "scene": scene, "per_step": [step_dict(r) for r in records],
         "model": model_block(list(exchanges)),
         "backends": backends, "config": config, "code_version": code_version(),

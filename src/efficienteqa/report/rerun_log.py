@@ -32,6 +32,8 @@ import math
 import os
 import shutil
 import sys
+import threading
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -45,6 +47,7 @@ from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping import visualize
 from efficienteqa.mapping.visualize import map_image
 from efficienteqa.observation import Observation
+from efficienteqa.records import probe_write
 from efficienteqa.stop.rules import StopCheck, rule_parts
 from efficienteqa.vc.parse import clean_answer
 
@@ -54,6 +57,7 @@ TIMELINE = "step"
 INSTALL = "pip install 'efficienteqa[rerun]'"
 JPEG_QUALITY = 90
 FLUSH_S = 30.0
+WATCH_S = 10.0  # a call into rerun that should take a moment, given up after this (a full disk)
 FLOOR_Z = 0.02  # floor marks a little above z = 0, so the floor grid does not hide them
 
 WORLD = "world"
@@ -99,10 +103,11 @@ def viewer_executable() -> str | None:
     return str(here) if here.is_file() and os.access(here, os.X_OK) else shutil.which("rerun")
 
 
-def check_target(target: str | Path) -> None:
+def check_target(target: str | Path, *, overwrite: bool = False) -> None:
     """Fail in one line, before any slow work, where ``target`` cannot be logged to: rerun is
     not installed, ``live`` where no viewer can start (no executable, no screen), a file that
-    is not ``.rrd`` or whose folder cannot be written."""
+    is not ``.rrd``, that exists (unless ``overwrite``; a folder, never) or whose folder cannot
+    be written (a file is made and removed there to know)."""
     import_rerun()
     if str(target) == LIVE:
         if viewer_executable() is None:
@@ -120,10 +125,15 @@ def check_target(target: str | Path) -> None:
     if path.suffix != ".rrd":
         raise EfficientEQAError(f"--rerun takes a .rrd file or {LIVE}, not {str(target)!r}",
                                 fix="e.g. --rerun out/ask/episode.rrd, or --rerun live")
+    if path.is_dir():
+        raise EfficientEQAError(f"--rerun {path} is a folder, and a rerun recording is a file",
+                                fix="choose another --rerun file")
+    if (path.exists() or path.is_symlink()) and not overwrite:
+        raise EfficientEQAError(f"{path} exists; a rerun recording is not written over",
+                                fix="remove it, choose another --rerun file, or give --overwrite "
+                                    "to replace it")
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if not os.access(path.parent, os.W_OK):
-            raise PermissionError(f"{path.parent} is not writable")
+        probe_write(path.parent)
     except OSError as error:
         raise EfficientEQAError(f"cannot write the rerun recording {path}: "
                                 f"{error.strerror or error}", fix="choose another --rerun file") from None
@@ -136,8 +146,9 @@ class RerunLog:
     baseline (a rule with ``absolute``), drawn as its own series."""
 
     def __init__(self, target: str | Path, question: str, *, top_k: int = 5,
-                 sim_abs: float | None = None, recording_id: str | None = None) -> None:
-        check_target(target)
+                 sim_abs: float | None = None, recording_id: str | None = None,
+                 overwrite: bool = False) -> None:
+        check_target(target, overwrite=overwrite)
         import rerun as rr
 
         self.target = target
@@ -147,28 +158,35 @@ class RerunLog:
         if str(target) == LIVE:
             rr.spawn(executable_path=viewer_executable(), recording=self.rec,
                      default_blueprint=blueprint, hide_welcome_screen=True)
-        else:
-            try:
-                self.rec.save(target, default_blueprint=blueprint)
-            except (OSError, RuntimeError) as error:
-                raise EfficientEQAError(f"cannot write the rerun recording {target}: "
-                                        f"{str(error).splitlines()[0]}",
-                                        fix="choose another --rerun file") from None
+        # else: saved below, once the log's fields are set
         self.poses: list[Pose2D] = []
         self.sims: dict[int, float] = {}
         self.frames: dict[int, Any] = {}  # step -> the frame as logged (JPEG), for the top-K
         self.step = 0
         self.closed = False
+        self.error: str | None = None  # why the recording is incomplete (a full disk)
+        if str(target) != LIVE:
+            try:
+                started = _within(WATCH_S, self.rec.save, target, default_blueprint=blueprint)
+            except (OSError, RuntimeError) as error:
+                raise EfficientEQAError(f"cannot write the rerun recording {target}: "
+                                        f"{str(error).splitlines()[0]}",
+                                        fix="choose another --rerun file") from None
+            if not started:  # the disk filled as it began: the episode goes on without it
+                self._give_up(f"rerun's writer did not start within {WATCH_S:g} s")
+                return
         self._static(question)
 
     @classmethod
-    def of(cls, target: str | Path, question: str, config: AgentConfig) -> RerunLog:
+    def of(cls, target: str | Path, question: str, config: AgentConfig, *,
+           overwrite: bool = False) -> RerunLog:
         """The log of an episode run with ``config``: its K, and its ``sim_abs`` where the stop
         rule has ``absolute`` (as report.html draws it)."""
         stop = config.stop
         top_k = 1 if config.answer.answer_at == "best-step" else config.answer.top_k
         return cls(target, question, top_k=top_k,
-                   sim_abs=stop.sim_abs if "absolute" in rule_parts(stop.rule) else None)
+                   sim_abs=stop.sim_abs if "absolute" in rule_parts(stop.rule) else None,
+                   overwrite=overwrite)
 
     def _static(self, question: str) -> None:
         import rerun as rr
@@ -186,7 +204,16 @@ class RerunLog:
                                            markers="circle", marker_sizes=6.0), static=True)
         log(QUESTION, rr.TextDocument(question), static=True)
 
+    def _give_up(self, why: str) -> None:
+        """The recording cannot be written on (its writer hangs): no more calls into it. The
+        stream is left as it is (closing it would wait on its writer forever)."""
+        self.error = (f"the rerun recording {self.target} is incomplete: {why} (rerun's own "
+                      "message says why); the episode went on without it")
+        self.closed = True
+
     def __call__(self, record: StepRecord, obs: Observation, out: ExploreStep | None) -> None:
+        if self.closed and self.error is not None:
+            return  # given up: the episode goes on without it
         if self.closed:
             raise RuntimeError("this rerun log is finished: a new episode needs a new log")
         self.step = record.step
@@ -279,6 +306,8 @@ class RerunLog:
 
     def finish(self, result: EpisodeResult) -> None:
         """At the last step: the final map, the top-K frames and the answer; then close."""
+        if self.closed and self.error is not None:
+            return
         import rerun as rr
 
         log = self.rec.log
@@ -300,12 +329,45 @@ class RerunLog:
         self.close()
 
     def close(self) -> None:
-        """Flush and close the recording (the file is then complete); idempotent."""
+        """Flush and close the recording (the file is then complete); idempotent. Where its
+        writer failed (a full disk: rerun's writer thread ends, and says why on stderr), the
+        recording is closed as it stands and ``error`` says so: it costs the recording, not
+        the episode."""
         if self.closed:
             return
         self.closed = True
-        self.rec.flush(timeout_sec=FLUSH_S)
-        self.rec.disconnect()
+        try:
+            if not _within(FLUSH_S + WATCH_S, self.rec.flush, timeout_sec=FLUSH_S):
+                self._give_up(f"its flush did not end within {FLUSH_S + WATCH_S:g} s")
+                return
+        except RuntimeError as error:  # "File-writer thread shut down prematurely"
+            self._give_up(str(error).splitlines()[0] if str(error) else type(error).__name__)
+        if not _within(WATCH_S, self.rec.disconnect) and self.error is None:
+            self._give_up(f"it did not close within {WATCH_S:g} s")
+
+
+def _within(seconds: float, call: Callable[..., object], *args: Any, **kwargs: Any) -> bool:
+    """``call(*args, **kwargs)`` in a thread of its own: True when it returned within
+    ``seconds`` (its exception raised here), False when it had not (it is left running). Once a
+    full disk ended rerun's file writer, its flush can wait for that writer forever: in
+    ``save`` as the recording begins, and in ``disconnect`` after a flush that timed out."""
+    done = threading.Event()
+    raised: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            call(*args, **kwargs)
+        except BaseException as error:  # noqa: BLE001 - raised again in the caller's thread
+            raised.append(error)
+        finally:
+            done.set()
+
+    threading.Thread(target=run, name="rerun-call", daemon=True).start()
+    if not done.wait(seconds):
+        return False
+    if raised:
+        raise raised[0]
+    return True
 
 
 def answer_markdown(result: EpisodeResult) -> str:

@@ -22,6 +22,7 @@ JSON) where the environment has a semantic sensor. Any other path is a folder in
 
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 from collections.abc import Callable
@@ -40,6 +41,7 @@ from efficienteqa.envs.recorded.tf import quaternion_of
 from efficienteqa.envs.recorded.walk import opencv_intrinsics
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.observation import Observation
+from efficienteqa.records import probe_write
 
 COLOUR_TOPIC = "/camera/color/image_raw"
 DEPTH_TOPIC = "/camera/aligned_depth_to_color/image_raw"
@@ -56,21 +58,36 @@ def is_mcap(path: Path) -> bool:
 
 
 def check_record_path(path: Path, depth_encoding: str = "32FC1") -> None:
-    """One line, before any work, when ``path`` cannot take a recording: it exists (a file, or
-    a folder that is not empty), its folder cannot be written, or MCAP is not installed."""
+    """One line, before any work, when ``path`` cannot take a recording: it exists (a file, a
+    device such as /dev/null, a link, a folder that is not empty, or any folder where an .mcap
+    file is asked for), its folder cannot be written (read-only, immutable: a file is made and
+    removed there to know), or MCAP is not installed."""
     if depth_encoding not in DEPTH_ENCODINGS:
         raise EfficientEQAError(f"unknown depth encoding {depth_encoding!r}",
                                 fix=f"use one of {', '.join(DEPTH_ENCODINGS)}")
-    if path.exists() and (path.is_file() or any(path.iterdir())):
-        raise EfficientEQAError(f"{path} exists; a recording is never written over",
-                                fix="remove it or give another path")
+    folder = path.parent
+    if path.is_symlink() or path.exists():
+        if path.is_symlink() or not path.is_dir():
+            raise EfficientEQAError(f"{path} exists; a recording is never written over",
+                                    fix="remove it or give another path")
+        if is_mcap(path):
+            raise EfficientEQAError(f"{path} is a folder, and an MCAP recording is a file",
+                                    fix="remove the folder or give another path")
+        try:
+            taken = any(path.iterdir())
+        except OSError as error:
+            raise EfficientEQAError(f"cannot read the folder {path}: {error.strerror or error}",
+                                    fix="give another path") from None
+        if taken:
+            raise EfficientEQAError(f"{path} exists; a recording is never written over",
+                                    fix="remove it or give another path")
+        folder = path  # an empty folder: the recording's own
     if is_mcap(path):
         require_mcap()
-    parent = path.parent
     try:
-        parent.mkdir(parents=True, exist_ok=True)
+        probe_write(folder)
     except OSError as error:
-        raise EfficientEQAError(f"cannot write to {parent}: {error.strerror or error}",
+        raise EfficientEQAError(f"cannot write to {folder}: {error.strerror or error}",
                                 fix="give another path") from None
 
 
@@ -92,37 +109,63 @@ class WalkRecorder:
         check_record_path(path, depth_encoding)
         self.path, self.labels, self.depth_encoding, self.clock = path, labels, depth_encoding, clock
         self.frames = 0
+        self.error: str | None = None  # why the recording stopped early (a full disk)
         self._last = -1
         self._seen: set[int] = set()
         self._closed = False
-        if is_mcap(path):
-            from mcap_ros2.writer import Writer
+        self._stream: IO[bytes] | None = None
+        self._poses: IO[str] | None = None
+        try:
+            if is_mcap(path):
+                from mcap_ros2.writer import Writer
 
-            self._stream: IO[bytes] | None = open(path, "wb")  # noqa: SIM115 - closed by close()
-            self._writer: Any = Writer(self._stream)
-            self._schemas = {name: self._writer.register_msgdef(name, text)
-                             for name, text in rosmsg.DEFINITIONS.items()}
-        else:
-            self._stream = None
-            for sub in ("rgb", "depth"):
-                (path / sub).mkdir(parents=True, exist_ok=True)
-            self._poses = open(path / POSES_FILE, "w")  # noqa: SIM115 - closed by close()
+                self._stream = open(path, "wb")  # noqa: SIM115 - closed by close()
+                self._writer: Any = Writer(self._stream)
+                self._schemas = {name: self._writer.register_msgdef(name, text)
+                                 for name, text in rosmsg.DEFINITIONS.items()}
+            else:
+                for sub in ("rgb", "depth"):
+                    (path / sub).mkdir(parents=True, exist_ok=True)
+                self._poses = open(path / POSES_FILE, "w")  # noqa: SIM115 - closed by close()
+        except OSError as error:  # checked writable, then full: as a failure of the first frame
+            self._fail(error)
 
     def __call__(self, record: object, obs: Observation, out: object = None) -> None:
         """The step hook: writes the step's frame."""
         self.add(obs)
 
     def add(self, obs: Observation, stamp_ns: int | None = None) -> None:
+        """Writes one frame; after a write failed (``error``), nothing."""
+        if self.error is not None:
+            return
         stamp = self.clock() if stamp_ns is None else int(stamp_ns)
         stamp = max(stamp, self._last + 1)
         self._last = stamp
         if obs.instance is not None:
             self._seen.update(int(i) for i in np.unique(obs.instance) if i > 0)
-        if self._stream is not None:
-            self._mcap(obs, stamp)
-        else:
-            self._folder(obs, stamp)
+        try:
+            if self._stream is not None:
+                self._mcap(obs, stamp)
+            else:
+                self._folder(obs, stamp)
+        except OSError as error:
+            self._fail(error)
+            return
         self.frames += 1
+
+    def _fail(self, error: OSError) -> None:
+        """A write failed (a full disk, a drive gone): the recording ends here, its file closed
+        as it stands, and the episode it records goes on. ``error`` says so in one line; a
+        folder keeps the frames its poses.jsonl lists, an MCAP file the chunks written."""
+        kept = ("mcap recover may rescue the frames written" if is_mcap(self.path)
+                else f"it holds the first {self.frames}")
+        self.error = (f"the recording {self.path} stopped after {self.frames} frames: "
+                      f"{error.strerror or error} ({kept}); the episode went on without it")
+        self._closed = True
+        for file in (self._stream, self._poses):
+            if file is not None:
+                with contextlib.suppress(OSError):  # closed, though its last bytes are lost
+                    file.close()
 
     def _mcap(self, obs: Observation, stamp: int) -> None:
         h, w = obs.depth_m.shape
@@ -180,6 +223,7 @@ class WalkRecorder:
             (self.path / "instance").mkdir(exist_ok=True)
             row["instance"] = f"instance/{name}.npy"
             np.save(self.path / row["instance"], obs.instance.astype(np.int32))
+        assert self._poses is not None  # a folder's recorder, open
         self._poses.write(json.dumps(row) + "\n")
         self._poses.flush()
 
@@ -189,18 +233,22 @@ class WalkRecorder:
             return
         self._closed = True
         labels = labels_json(self.labels, self._seen) if self.labels is not None else None
-        if self._stream is not None:
-            if labels is not None:
-                stamp = self._last + 1 if self._last >= 0 else self.clock()
-                self._writer.write_message(LABELS_TOPIC, self._schemas[rosmsg.STRING],
-                                           {"data": json.dumps(labels)}, log_time=stamp,
-                                           publish_time=stamp)
-            self._writer.finish()
-            self._stream.close()
-        else:
-            self._poses.close()
-            if labels is not None:
-                (self.path / LABELS_FILE).write_text(json.dumps(labels))
+        try:
+            if self._stream is not None:
+                if labels is not None:
+                    stamp = self._last + 1 if self._last >= 0 else self.clock()
+                    self._writer.write_message(LABELS_TOPIC, self._schemas[rosmsg.STRING],
+                                               {"data": json.dumps(labels)}, log_time=stamp,
+                                               publish_time=stamp)
+                self._writer.finish()
+                self._stream.close()
+            else:
+                if self._poses is not None:
+                    self._poses.close()
+                if labels is not None:
+                    (self.path / LABELS_FILE).write_text(json.dumps(labels))
+        except OSError as error:  # the disk filled at the end: the frames' file as it stands
+            self._fail(error)
 
     def __enter__(self) -> WalkRecorder:
         return self
