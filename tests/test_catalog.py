@@ -231,3 +231,20 @@ def test_texture_formats_are_read(tmp_path: Path) -> None:
 
 def test_mesh_part_type_is_shared() -> None:
     assert isinstance(builtin_catalog().mesh("builtin/cup")[0], MeshPart)
+
+
+def test_all_the_packages_catalogues_are_an_assets_choice(monkeypatch) -> None:
+    """"sh3d-all" furnishes houses from every catalogue of the package (CC0 and CC-BY);
+    "sh3d" from the CC0 one; anything else is one line naming the choices."""
+    from efficienteqa.envs.synthetic import env
+    from efficienteqa.envs.synthetic.house import check_assets
+    from efficienteqa.errors import EfficientEQAError
+
+    asked: list[tuple[str, ...]] = []
+    monkeypatch.setattr(env, "load_catalog", lambda licences: asked.append(tuple(licences)))
+    env.catalog_for("sh3d-all")
+    env.catalog_for("sh3d")
+    env.catalog_for("sh3d", cc_by=True)
+    assert asked == [("CC0-1.0", "CC-BY-3.0"), ("CC0-1.0",), ("CC0-1.0", "CC-BY-3.0")]
+    with pytest.raises(EfficientEQAError, match="use one of sh3d, sh3d-all, builtin"):
+        check_assets("sh3d-cc-by")

@@ -163,6 +163,9 @@ def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: Age
                                  reference=reference,
                                  evidence=watch.fields(result.retrieved, stop_step))
         episode_json = write_json(out / "episode.json", episode)
+        if opened.credits:  # CC-BY furniture in the frames: credit it beside them
+            (out / "ATTRIBUTION.md").write_text(
+                f"Furniture of {opened.name} (CC-BY 3.0):\n{opened.credits}\n", encoding="utf-8")
         if shown is not None:
             shown.finish(result)
         html = (write_report(out / "report.html", episode, map_url(result), frames.frames,

@@ -10,9 +10,9 @@ import numpy as np
 
 from efficienteqa.envs.base import Environment
 from efficienteqa.envs.habitat.scenes import HabitatStart
-from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
+from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for, credits
 from efficienteqa.envs.synthetic.generate import generate_house
-from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
+from efficienteqa.envs.synthetic.house import ALL_CATALOGUES, DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.oracle import annotate
 from efficienteqa.envs.synthetic.preview import contact_sheet, topdown_map
 from efficienteqa.envs.synthetic.questions import Question, generate_questions, save_questions
@@ -44,7 +44,9 @@ def write_scene(seed: int, out: Path, assets: str = DEFAULT_ASSETS, cc_by: bool 
     """``house.json``, ``questions.jsonl``, ``map.png`` and ``views.png`` for ``seed`` (and
     ``ATTRIBUTION.md`` when CC-BY models are used)."""
     out.mkdir(parents=True, exist_ok=True)
-    catalog = catalog_for(assets, cc_by)
+    if cc_by and assets == DEFAULT_ASSETS:  # the house must say what furnished it
+        assets = ALL_CATALOGUES
+    catalog = catalog_for(assets)
     house = generate_house(seed, catalog, assets)
     with SyntheticEnv(house, catalog) as env:
         questions = synthetic_questions(env)
@@ -52,8 +54,7 @@ def write_scene(seed: int, out: Path, assets: str = DEFAULT_ASSETS, cc_by: bool 
         save_questions(questions, out / "questions.jsonl")
         topdown_map(env, questions).save(out / "map.png")
         contact_sheet(env, questions).save(out / "views.png")
-    used = sorted({o.model_key for o in house.objects if o.category != "door"})
-    attribution = catalog.attribution(used)
+    attribution = credits(house, catalog)
     if attribution:
         (out / "ATTRIBUTION.md").write_text(attribution)
     return SceneFiles(out / "house.json", out / "questions.jsonl", out / "map.png",
@@ -65,12 +66,14 @@ def write_scene(seed: int, out: Path, assets: str = DEFAULT_ASSETS, cc_by: bool 
 class Scene:
     """An opened scene: the environment, its name for records, and its known questions (the
     generated ones of a synthetic house; none for HM3D scenes and recorded walks). ``note``: one
-    line on what opening it found (a recording's frames, and those dropped)."""
+    line on what opening it found (a recording's frames, and those dropped). ``credits``: the
+    CC-BY models a synthetic house uses, as markdown lines (``ask`` writes ATTRIBUTION.md)."""
 
     env: Environment
     name: str
     questions: list[Question] = field(default_factory=list)
     note: str = ""
+    credits: str = ""
 
     @property
     def backend(self) -> str:
@@ -139,9 +142,10 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
                                 fix="e.g. --scene synthetic:0")
     synthetic = SyntheticEnv.from_seed(seed, assets)
     questions = synthetic_questions(synthetic, oracle=oracle)
+    credit = credits(synthetic.house, synthetic.catalog)
     if noise != "none":  # a robot's imperfections (envs/synthetic/noise.py)
         from efficienteqa.envs.synthetic.noise import NoisyEnv, profile
 
         return Scene(NoisyEnv(synthetic, profile(noise), seed=seed),
-                     f"synthetic:{seed} ({assets}, noise {noise})", questions)
-    return Scene(synthetic, f"synthetic:{seed} ({assets})", questions)
+                     f"synthetic:{seed} ({assets}, noise {noise})", questions, credits=credit)
+    return Scene(synthetic, f"synthetic:{seed} ({assets})", questions, credits=credit)

@@ -17,9 +17,10 @@ from efficienteqa.models.local.weights import DEFAULT_MODEL
 def scenes_generate(
     seed: int = typer.Option(0, help="The house seed; a seed fully determines a house."),
     out: Path = typer.Option(Path("out/scene"), help="Output folder."),
-    assets: str = typer.Option(DEFAULT_ASSETS, help="'sh3d' (furniture package) or 'builtin' (boxes)."),
-    cc_by: bool = typer.Option(False, "--cc-by", help="Also use the CC-BY catalogues "
-                               "(writes ATTRIBUTION.md)."),
+    assets: str = typer.Option(DEFAULT_ASSETS, help="'sh3d' (the furniture package's CC0 "
+                               "catalogue), 'sh3d-all' (with its CC-BY catalogues; writes "
+                               "ATTRIBUTION.md) or 'builtin' (boxes)."),
+    cc_by: bool = typer.Option(False, "--cc-by", help="The same as --assets sh3d-all."),
 ) -> None:
     """Write house.json, questions.jsonl, map.png and views.png for one seed."""
     from efficienteqa.scenes import write_scene

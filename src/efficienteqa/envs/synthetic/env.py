@@ -11,7 +11,12 @@ from efficienteqa.envs.base import move_info
 from efficienteqa.envs.synthetic.build import build_geometry
 from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M, generate_house, navigation_grid
-from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS, House, check_assets
+from efficienteqa.envs.synthetic.house import (
+    ALL_CATALOGUES,
+    DEFAULT_ASSETS,
+    House,
+    check_assets,
+)
 from efficienteqa.envs.synthetic.layout import WALL_HEIGHT_M
 from efficienteqa.envs.synthetic.primitives import builtin_catalog
 from efficienteqa.envs.synthetic.render import Renderer
@@ -24,12 +29,19 @@ if TYPE_CHECKING:
 
 
 def catalog_for(assets: str, cc_by: bool = False) -> Catalog:
-    """"sh3d": the converted furniture package (CC0, plus CC-BY catalogues when ``cc_by``);
-    "builtin": coloured boxes for tests."""
+    """"sh3d": the converted furniture package's CC0 catalogue (plus its CC-BY catalogues
+    when ``cc_by``); "sh3d-all": all of them; "builtin": coloured boxes for tests."""
     if assets == "builtin":
         return builtin_catalog()
     check_assets(assets)
-    return load_catalog(("CC0-1.0", "CC-BY-3.0") if cc_by else ("CC0-1.0",))
+    every = cc_by or assets == ALL_CATALOGUES
+    return load_catalog(("CC0-1.0", "CC-BY-3.0") if every else ("CC0-1.0",))
+
+
+def credits(house: House, catalog: Catalog) -> str:
+    """Markdown lines crediting the CC-BY models the house uses (empty when all are CC0)."""
+    return catalog.attribution(sorted({o.model_key for o in house.objects
+                                       if o.category != "door"}))
 
 
 class SyntheticEnv:
@@ -42,6 +54,7 @@ class SyntheticEnv:
     def __init__(self, house: House, catalog: Catalog, camera: CameraSpec | None = None,
                  renderer: Renderer | None = None) -> None:
         self.house = house
+        self.catalog = catalog
         self.camera = camera or CameraSpec()
         self.grid = navigation_grid(house)
         self.renderer = renderer or Renderer(self.camera)
