@@ -128,6 +128,26 @@ def test_object_tags_mark_recoloured_objects_and_held_out_meshes():
         1: [RECOLOURED, TRAINED_MESH], 2: [HELD_OUT_MESH], 3: [TRAINED_MESH]}
 
 
+def test_object_tags_mark_the_catalogue_in_houses_of_every_catalogue():
+    from types import SimpleNamespace
+
+    from efficienteqa.perception.pixels.evaluate import (
+        CC0_CATALOGUE,
+        OTHER_CATALOGUES,
+        object_tags,
+    )
+
+    objects = [SimpleNamespace(id=1, colour_rgb=None, model_key="cc0/sofa", category="sofa",
+                               licence="CC0-1.0"),
+               SimpleNamespace(id=2, colour_rgb=None, model_key="ccby/sofa", category="sofa",
+                               licence="CC-BY-3.0"),
+               SimpleNamespace(id=3, colour_rgb=None, model_key="cc0/door", category="door",
+                               licence="CC0-1.0")]
+    assert object_tags(objects, frozenset()) == {}
+    assert object_tags(objects, frozenset(), catalogues=True) == {
+        1: [CC0_CATALOGUE], 2: [OTHER_CATALOGUES]}
+
+
 def test_a_tagged_object_is_counted_in_its_slice(env_seed3):
     """score_frame puts a recoloured object in view into the "recoloured" slice too."""
     from efficienteqa.perception.pixels.backend import PixelPerception

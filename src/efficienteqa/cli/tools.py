@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from efficienteqa.cli.app import console, models, perception, scenes
-from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
+from efficienteqa.envs.synthetic.house import ALL_CATALOGUES, DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.local.weights import DEFAULT_MODEL
 
@@ -201,10 +201,14 @@ def perception_evaluate(
     poses: Path | None = typer.Option(None, help="Measure at the poses of recorded walks (a "
                                       "file of experiments/walk_poses.py), frames spread "
                                       "evenly over each house's walk."),
+    assets: str = typer.Option(DEFAULT_ASSETS, help="The houses' furniture: sh3d (the CC0 "
+                               "catalogue the network trains on) or sh3d-all (with the CC-BY "
+                               "catalogues, whose objects are measured apart)."),
 ) -> None:
     """Measure pixel perception against the semantic sensor on held-out houses: objects in view
-    found and right per category, size and distance, recoloured objects and objects of meshes
-    held out of training apart; colour, state and the floor's room type."""
+    found and right per category, size and distance, recoloured objects, objects of meshes
+    held out of training and (with --assets sh3d-all) of unseen catalogues apart; colour,
+    state and the floor's room type."""
     from rich.progress import Progress
 
     from efficienteqa.datasets.synthetic import parse_seeds
@@ -225,6 +229,9 @@ def perception_evaluate(
         raise EfficientEQAError(f"cannot read the house seeds {seeds!r} ({exc})",
                                 fix="give a range such as 100-129") from None
     check_heldout(houses)
+    if assets not in (DEFAULT_ASSETS, ALL_CATALOGUES):
+        raise EfficientEQAError(f"--assets {assets!r} is not furniture the network reads",
+                                fix=f"use {DEFAULT_ASSETS} or {ALL_CATALOGUES}")
     if frames_per_house < 1:
         raise EfficientEQAError("--frames-per-house must be at least 1")
     if out is not None:
@@ -232,7 +239,7 @@ def perception_evaluate(
     walks = read_poses(poses) if poses is not None else None
     perception = PixelPerception.load(weights)
     held_out = frozenset(perception.record.get("data", {}).get("heldout_model_keys", []))
-    frames = heldout_frames(houses, frames_per_house, seed, walks, held_out)
+    frames = heldout_frames(houses, frames_per_house, seed, walks, held_out, assets)
     total = len(houses) * frames_per_house
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("frames", total=total)
@@ -242,7 +249,7 @@ def perception_evaluate(
         write_scores(scores, out, {"houses": seeds,
                                    "frames_per_house": frames_per_house, "seed": seed,
                                    "poses": "walks " + poses.name if poses else "training-style",
-                                   "weights": str(weights or "committed"),
+                                   "weights": str(weights or "committed"), "assets": assets,
                                    "code_version": code_version()})
     console.print(markdown_table(figures), highlight=False, soft_wrap=True)
     console.print(f"{figures['frames']} frames of houses {seeds}; "

@@ -31,6 +31,7 @@ import numpy as np
 
 from efficienteqa.envs.base import SceneLabels
 from efficienteqa.envs.synthetic.colours import colour_name
+from efficienteqa.envs.synthetic.house import ALL_CATALOGUES, DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import backproject
@@ -106,6 +107,9 @@ class Scores:
 Tags = Mapping[int, Sequence[str]]  # instance id -> slices of its own ("recoloured", ...)
 RECOLOURED = "recoloured"
 HELD_OUT_MESH, TRAINED_MESH = "mesh:held out of training", "mesh:trained on"
+# The network trains on the CC0 catalogue's houses: in houses of every catalogue (assets
+# "sh3d-all"), the CC-BY catalogues' objects are furniture of a style it never saw.
+CC0_CATALOGUE, OTHER_CATALOGUES = "catalogue:CC0 (trained on)", "catalogue:CC-BY (never seen)"
 
 
 def _slices(obj: VisibleObject, small: frozenset[str], tags: Tags) -> list[str]:
@@ -199,11 +203,12 @@ Poses = Mapping[int, Sequence[Sequence[float]]]  # house -> walk poses (x, y, ya
 
 
 def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
-                   poses: Poses | None = None, held_out_meshes: frozenset[str] = frozenset()
-                   ) -> Iterator[Frame]:
+                   poses: Poses | None = None, held_out_meshes: frozenset[str] = frozenset(),
+                   assets: str = DEFAULT_ASSETS) -> Iterator[Frame]:
     """Frames of houses the network never saw, with the houses' true labels and each object's
     tags: posed as its training frames are, or ``frames_per_house`` poses spread evenly over
-    the house's walk in ``poses``. ``held_out_meshes``: the model keys kept out of training."""
+    the house's walk in ``poses``. ``held_out_meshes``: the model keys kept out of training;
+    ``assets``: the houses' furniture ("sh3d-all" tags each object with its catalogue)."""
     from efficienteqa.envs.synthetic.env import SyntheticEnv
     from efficienteqa.geometry import Pose2D
     from efficienteqa.perception.pixels.dataset import house_poses
@@ -216,9 +221,10 @@ def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
                                     fix="evaluate the houses it holds, or record their walks: "
                                         "python -m experiments.walk_poses")
     for house in seeds:
-        with SyntheticEnv.from_seed(house) as env:
+        with SyntheticEnv.from_seed(house, assets) as env:
             labels = env.scene_labels()
-            tags = object_tags(env.house.objects, held_out_meshes)
+            tags = object_tags(env.house.objects, held_out_meshes,
+                               catalogues=assets == ALL_CATALOGUES)
             if poses is None:
                 chosen = [p for _, p in house_poses(env, frames_per_house,
                                                     np.random.default_rng([seed, house]))]
@@ -230,14 +236,18 @@ def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
                 yield env.observe(pose), labels, tags
 
 
-def object_tags(objects: Iterable[Any], held_out_meshes: frozenset[str]) -> dict[int, list[str]]:
-    """Per object id: "recoloured" where the generator gave it a palette colour, and whether its
-    mesh was held out of training (only when some meshes were)."""
+def object_tags(objects: Iterable[Any], held_out_meshes: frozenset[str],
+                catalogues: bool = False) -> dict[int, list[str]]:
+    """Per object id: "recoloured" where the generator gave it a palette colour, whether its
+    mesh was held out of training (only when some meshes were), and with ``catalogues``
+    whether it comes from the CC0 catalogue the network trained on or a CC-BY one."""
     tags: dict[int, list[str]] = {}
     for o in objects:
         mine = [RECOLOURED] if getattr(o, "colour_rgb", None) is not None else []
         if held_out_meshes:
             mine.append(HELD_OUT_MESH if o.model_key in held_out_meshes else TRAINED_MESH)
+        if catalogues and o.category != "door":
+            mine.append(CC0_CATALOGUE if o.licence == "CC0-1.0" else OTHER_CATALOGUES)
         if mine:
             tags[o.id] = mine
     return tags
