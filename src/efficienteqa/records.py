@@ -22,6 +22,15 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.redact import redacted
 
 
+def read_json(data: str | bytes) -> Any:
+    """``json.loads`` for files a user hands over: a document nested too deep for the parser
+    is a ``ValueError`` like any other that is not JSON (not a ``RecursionError``)."""
+    try:
+        return json.loads(data)
+    except RecursionError:
+        raise ValueError("nested too deep") from None
+
+
 def code_version() -> str:
     """The package version, plus the git commit (and "-dirty") when run from a checkout."""
     root = Path(__file__).resolve().parents[2]

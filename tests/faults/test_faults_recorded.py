@@ -515,7 +515,7 @@ FOLDERS = {  # trial, damage -> what the one line says
                         "float64, not integer ids"),
     "not utf-8": ("R6.21", _line(2, b'{"rgb": "\xff"}'),
                   f"cannot read {{}}/{L} 2: UnicodeDecodeError"),
-    "deep line": ("R6.21", _line(1, "[" * 100_000), f"cannot read {{}}/{L} 1: RecursionError"),
+    "deep line": ("R6.21", _line(1, "[" * 100_000), f"cannot read {{}}/{L} 1: ValueError: nested too deep"),
     "huge number": ("R6.21", _row(1, fx=10**400), f"cannot read {{}}/{L} 1: OverflowError"),
     "etc hostname": ("R6.21", _row(1, rgb="../../../../etc/hostname"),
                      f"{L} 1: rgb file '../../../../etc/hostname' is outside the walk folder"),

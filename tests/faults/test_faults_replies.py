@@ -443,7 +443,7 @@ BAD_FILES = {  # name -> (its lines, what the one line says after "FILE line N")
                      "line 2: alternatives is 5, not a list of answers"),
     "alternatives-list": ([{**ROW, "alternatives": ["navy", {"a": 1}]}],
                           "line 1: alternatives holds something other than answers"),
-    "deep": ([ROW, '{"question": ' + "[" * 100_000], "line 2 is nested too deep"),  # R6.48
+    "deep": ([ROW, '{"question": ' + "[" * 100_000], "line 2 is not JSON: nested too deep"),  # R6.48
     "utf8": ([ROW, ROW, b'{"question": "Is there a b\xe9d?", "scene": "synthetic:0"}'],  # R6.48
              "line 3 is not UTF-8 text (byte 27: b'\\xe9d?\"')"),
     "dotdot": ([{**ROW, "id": ".."}], "line 1: id '..' names no folder of its own"),  # R6.49

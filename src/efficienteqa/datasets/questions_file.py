@@ -24,6 +24,7 @@ from typing import Any
 
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.records import read_json
 
 FIX = ('one JSON object a line: {"question": "...", "scene": "recorded:walk.mcap", '
        '"answer": "..."} (answer optional)')
@@ -109,11 +110,9 @@ def load_questions_file(path: Path) -> list[EvalQuestion]:
         if not line.strip():
             continue
         try:
-            row: Any = json.loads(line)
+            row: Any = read_json(line)
         except ValueError as error:
             raise EfficientEQAError(f"{where} is not JSON: {error}", fix=FIX) from None
-        except RecursionError:
-            raise EfficientEQAError(f"{where} is nested too deep to be a question", fix=FIX) from None
         if not isinstance(row, dict) or not isinstance(row.get("question"), str) \
                 or not row["question"].strip() or not isinstance(row.get("scene"), str):
             raise EfficientEQAError(f"{where} needs a question and a scene", fix=FIX)

@@ -3,7 +3,6 @@ share one client (``OpenAIChatClient``); only the URL, the model and the capabil
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 from urllib.parse import urlsplit
@@ -12,6 +11,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatModel
 from efficienteqa.models.client import ClientConfig, OpenAIChatClient
 from efficienteqa.models.local.weights import DEFAULT_MODEL
+from efficienteqa.records import read_json
 from efficienteqa.redact import redact_urls
 from efficienteqa.registry import Registry
 
@@ -134,15 +134,12 @@ def read_capabilities(path: Path, images: bool = True) -> Capabilities:
     fix = ('write a JSON object such as {"logprobs": true, "json_schema": false, "images": true, '
            '"max_images": 1}')
     try:
-        data = json.loads(Path(path).read_text())
+        data = read_json(Path(path).read_bytes())
     except OSError as error:
         raise EfficientEQAError(f"cannot read the capabilities file {path}: "
                                 f"{error.strerror or error}", fix=fix) from None
     except ValueError as error:
         raise EfficientEQAError(f"the capabilities file {path} is not JSON: {error}",
-                                fix=fix) from None
-    except RecursionError:
-        raise EfficientEQAError(f"the capabilities file {path} is not JSON: nested too deep",
                                 fix=fix) from None
     if not isinstance(data, dict):
         raise EfficientEQAError(f"the capabilities file {path} holds no JSON object", fix=fix)

@@ -26,7 +26,6 @@ optional. Depth is registered to colour: the same size.
 
 from __future__ import annotations
 
-import json
 import math
 import zlib
 from collections.abc import Callable, Iterator
@@ -40,6 +39,7 @@ from efficienteqa.envs.recorded.labels import RecordedLabels
 from efficienteqa.envs.recorded.walk import RecordedCamera, floor_pose, intrinsics_matrix
 from efficienteqa.errors import EfficientEQAError, first_line
 from efficienteqa.observation import Observation
+from efficienteqa.records import read_json
 
 POSES_FILE = "poses.jsonl"
 LABELS_FILE = "labels.json"
@@ -126,8 +126,8 @@ class FolderSource:
         self.labels: RecordedLabels | None = None
         if labels.is_file():
             try:
-                data = json.loads(labels.read_bytes())
-            except (OSError, ValueError, RecursionError) as error:
+                data = read_json(labels.read_bytes())
+            except (OSError, ValueError) as error:
                 raise EfficientEQAError(f"{labels} is not JSON: {error}",
                                         fix="write it as efficienteqa-labels/1 JSON") from None
             self.labels = RecordedLabels.from_json(data, str(labels))
@@ -148,11 +148,11 @@ class FolderSource:
     def _line(self, n: int, raw: bytes) -> _Frame:
         where = self._where(n)
         try:
-            row = json.loads(raw.decode("utf-8"))
+            row = read_json(raw.decode("utf-8"))
             pose = np.asarray(row["cam_to_world"], dtype=np.float64)
             k = [float(row[key]) for key in ("fx", "fy", "cx", "cy")]
             files = {key: row.get(key) for key in ("rgb", "depth", "instance")}
-        except (ValueError, KeyError, TypeError, OverflowError, RecursionError) as error:
+        except (ValueError, KeyError, TypeError, OverflowError) as error:
             raise EfficientEQAError(f"cannot read {where}: {type(error).__name__}: "
                                     f"{first_line(error)}", fix=FIX_FOLDER) from None
         if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):

@@ -24,7 +24,6 @@ agent reads the walk.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +37,7 @@ from efficienteqa.envs.recorded.tf import TFTree, frame_name
 from efficienteqa.envs.recorded.walk import RecordedCamera, floor_pose, intrinsics_matrix
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.observation import Observation
+from efficienteqa.records import read_json
 
 INSTANCE_TOPIC = "/efficienteqa/instance"
 LABELS_TOPIC = "/efficienteqa/labels"
@@ -293,8 +293,8 @@ class McapSource:
                               int(msg.width), int(msg.height)))
             elif topic == labels:
                 try:
-                    data = json.loads(str(msg.data))
-                except (ValueError, RecursionError) as error:  # RecursionError: nested too deep
+                    data = read_json(str(msg.data))
+                except ValueError as error:
                     raise EfficientEQAError(f"{LABELS_TOPIC} of {self.name} is not JSON: {error}",
                                             fix="write it as efficienteqa-labels/1 JSON") from None
                 self.labels = RecordedLabels.from_json(data, f"{self.name} ({LABELS_TOPIC})")
