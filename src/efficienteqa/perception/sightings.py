@@ -31,7 +31,6 @@ an error; of a reply's doorways and things the first ``MAX_ENTRIES`` each are re
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -191,30 +190,26 @@ def _entries(value: Any, key: str, problems: list[str]) -> list[dict[str, Any]]:
     return entries
 
 
-def _finite(value: Any) -> float | None:
-    """``value`` as a finite float; None for anything else (text, a bool, NaN, an infinity, an
-    integer beyond any float)."""
+def _number(value: Any) -> float | None:
+    """``value`` as a float; None for anything that is no number (text, a bool). A reply's
+    numbers are finite and within a float already (``vc.parse.json_reply`` refuses others)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return None
-    try:
-        number = float(value)
-    except OverflowError:
-        return None
-    return number if math.isfinite(number) else None
+    return float(value)
 
 
 def _region(entry: dict[str, Any], items: int | None, problems: list[str],
             required: bool) -> Region | None:
     if items is not None:
         item = entry.get("item")
-        number = _finite(item)
+        number = _number(item)
         if number is None or not number.is_integer() or not 1 <= number <= items:
             if required:
                 problems.append(f"item {str(item)[:20]} is not listed")
             return None if required else Region()
         return Region(items=(int(number),))
     box = entry.get("box")
-    found = [_finite(v) for v in box] if isinstance(box, list) and len(box) == 4 else []
+    found = [_number(v) for v in box] if isinstance(box, list) and len(box) == 4 else []
     values = [v for v in found if v is not None]
     if len(values) != 4:
         problems.append(f"box {str(box)[:40]} is not four numbers")
