@@ -356,7 +356,7 @@ class Agent:
                 if record.check.stop:
                     stop_reason = "relevancy"
             record.relevancy_problems = self._problems_since(said)
-            said = self._problems_said()  # the explore step's own (its model sightings), below
+            said = self._problems_said()  # the explore step's own (its model sightings): explore_problems
             if stop_reason == "relevancy" or step == budget:
                 explore.mapper.update(obs)  # the last frame is on the final map too
                 record.calls = self._calls_since(n_calls)
@@ -383,7 +383,7 @@ class Agent:
             if fixed is None:
                 budget = max(step + 1, seen_budget(out.state))
             _fill(record, out)
-            record.relevancy_problems += self._problems_since(said)
+            record.explore_problems += self._problems_since(said)
             _notify(on_step, record, obs, out)
             if decision.done:
                 stop_reason = "searched" if decision.reason == "searched" else "explored"

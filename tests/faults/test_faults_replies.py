@@ -61,7 +61,8 @@ def rows(run: Path) -> list[dict]:
 
 def sighting_problems(folder: Path) -> list[str]:
     record = json.loads((folder / "episode.json").read_text())
-    return [p for step in record["per_step"] for p in step["relevancy_problems"]
+    return [p for step in record["per_step"]
+            for p in (*step["relevancy_problems"], *step["explore_problems"])
             if p.startswith("sightings: ")]
 
 
