@@ -15,7 +15,7 @@ from efficienteqa.eval.judge import openeqa_mark, p_yes, parse_score, score_valu
 from efficienteqa.models.base import TokenLogprob
 from efficienteqa.vc.logprobs import letter_probs_from_logprobs, yes_prob_from_logprobs
 from efficienteqa.vc.parse import (
-    json_object,
+    json_reply,
     parse_candidates,
     parse_letters,
     parse_worth_exploring,
@@ -85,7 +85,8 @@ def test_a_seeded_fuzz_of_the_reply_parsers_stays_in_range():
         assert 0.0 <= score_value(score) <= 100.0
         assert openeqa_mark(text) in (None, 1, 2, 3, 4, 5)
         assert isinstance(trim_response(text), str)
-        assert json_object(text) is None or isinstance(json_object(text), dict)
+        said, why = json_reply(text)
+        assert (said is None and why) or (isinstance(said, dict) and why == "")
     for _ in range(1500):
         tokens = logprobs(rng)
         letters = letter_probs_from_logprobs(tokens, list("ABCD"))

@@ -523,11 +523,6 @@ def json_reply(reply: str) -> tuple[dict[str, Any] | None, str]:
     return None, NO_JSON
 
 
-def json_object(reply: str) -> dict[str, Any] | None:
-    """The first JSON object in ``reply``, or None (``json_reply``, without why)."""
-    return json_reply(reply)[0]
-
-
 def yes_no_confidence(reply: str) -> tuple[float, list[str]]:
     """P(yes) of a "<yes or no> <confidence>" reply (``parse_worth_exploring`` without its
     "worth exploring" line), and what could not be read; NaN when the reply says neither yes
