@@ -28,10 +28,13 @@ from pathlib import Path
 from efficienteqa.agent import AgentConfig
 from efficienteqa.answer.calls import parse_entry
 from efficienteqa.ask import ask
+from efficienteqa.eval.synthetic_judge import rule_judgement
+from efficienteqa.models.backends import build_chat_model
+from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.question import parse_question
 from efficienteqa.scenes import open_scene
-from efficienteqa.stack import Stack
+from efficienteqa.stack import Stack, parse_vlm
 from experiments.common import seed_set
 
 
@@ -58,18 +61,24 @@ def main() -> None:
     ap.add_argument("--no-gate-final", action="store_true")
     ap.add_argument("--perception", default="semantic", choices=("semantic", "pixels"))
     ap.add_argument("--out", type=Path, help="a JSON line per question")
+    ap.add_argument("--model", action="store_true",
+                    help="answer with the stack's chat model (Qwen2.5-Coder-1.5B on llama.cpp by "
+                         "default), graded by the rule judge; default: a stub, no model call")
     args = ap.parse_args()
     config = AgentConfig.of(gate_final=not args.no_gate_final)
     stack = Stack(perception=args.perception)
-    waits, right, told_right, n, rows = [], 0, 0, 0, []
+    waits, right, told_right, judged_right, n, rows = [], 0, 0, 0, 0, []
     for seed in seed_set(args.seeds):
         scene = open_scene(f"synthetic:{seed}", oracle=False)  # oracle steps: not read here
         try:
             for q in [q for q in scene.questions if q.category == "count"]:
                 stub = StubChatModel(lambda messages: "0")
+                chat = RecordingChatModel(build_chat_model(parse_vlm(
+                    stack.vlm, images=False))) if args.model else stub
                 r = ask(q.question, scene, Path(tempfile.mkdtemp()), stack=stack,
-                        config=config, model=stub, report=False).record
-                prompt = stub.requests[-1].messages[-1].text
+                        config=config, model=chat, report=False).record
+                prompt = (chat.exchanges[-1].prompt if isinstance(chat, RecordingChatModel)
+                          else stub.requests[-1].messages[-1].text)
                 said, told = stated_count(q.question, prompt), told_count(prompt)
                 first = r.get("evidence_first_seen_step")
                 if first:
@@ -77,7 +86,12 @@ def main() -> None:
                 n, right = n + 1, right + (str(said) == str(q.answer))
                 told_right += str(told) == str(q.answer)
                 final = bool(r["per_step"] and (r["per_step"][-1].get("gate") or {}).get("final"))
+                if args.model:
+                    judged = rule_judgement(q.question, "count", q.accepted, r["answer"])
+                    judged_right += judged.value >= 100
                 rows.append({"id": q.id, "question": q.question, "truth": q.answer,
+                             "answer": r["answer"] if args.model else None,
+                             "right": judged.value >= 100 if args.model else None,
                              "view": said, "told": told, "steps": r["steps"],
                              "stop": r["stop_reason"], "final": final, "first_sight": first,
                              "poses": [s["pose"] for s in r["per_step"]]})
@@ -89,6 +103,8 @@ def main() -> None:
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text("".join(json.dumps(row) + "\n" for row in rows))
+    if args.model:
+        print(f"answered by {stack.vlm}: {judged_right}/{n} right (rule judge)")
     print(f"seeds {args.seeds}, perception {args.perception}, gate_final "
           f"{config.stop.gate_final}: {told_right}/{n} told counts right, {right}/{n} counts of "
           f"the one focused view right; {sum(r['final'] for r in rows)} stopped by a whole "

@@ -48,7 +48,6 @@ ABSORB, ABSORB_LARGER = 0.5, 0.1  # instances of two categories sharing this sha
 # one's voxels and of the larger one's are one object (``InstanceMap._absorb_other_categories``)
 ABSORB_WEAKER = 0.5  # ... when one has at most this share of the other's votes
 SURE = 0.6  # summed confidence of an instance's category that makes it sure (one sure view)
-PENDING = 0.2  # an unsure instance this sure around a count group's support: the count waits
 NEAR_M = 0.6  # instances whose voxels come no nearer a region's place than this are not it
 AROUND_M = 1.0  # a count group's member stands this close to its support's footprint ("around
 # the table")
@@ -351,12 +350,6 @@ class InstanceMap:
         return [i for i in self.instances(sure) if is_member(i.category) and i.id not in
                 {s.id for s in around} and any(_reaches(i.xy, s, within_m) for s in around)
                 and not any(under(i.xy, s) for s in around)]
-
-    def pending(self, is_member: Callable[[str], bool], supports: Iterable[int]) -> list[Instance]:
-        """The unsure instances of a count group (``group``) at least PENDING sure: a count of
-        the sure ones would be too early while they are left."""
-        return [i for i in self.group(is_member, supports, sure=False)
-                if not i.sure and i.confidence >= PENDING]
 
 
 def _reaches(xy: tuple[float, float], inst: Instance, within_m: float) -> bool:

@@ -155,10 +155,9 @@ class RulesGate:
                    told: int | None) -> Verdict:
         """A count group from the episode's instance map (``mapping.instances``): a sure
         support of the frame wholly in view and its sure members in the frame (``group``),
-        with every member seen around a whole support so far and no unsure one left around
-        it (``pending``), which then answers outright (``told``: how many members the
-        frame's text lists; None where no text is read). The answer is told the map's count
-        (``mapping.instances.asked_count``)."""
+        every member seen around a whole support so far among them, which then answers
+        outright (``told``: how many members the frame's text lists; None where no text is
+        read). The answer is told the map's count (``mapping.instances.asked_count``)."""
         in_frame = [i for i in dict.fromkeys(seen.ids) if i in instances.ids]
         supports = [i for i in in_frame if instances[i].sure
                     and target.is_a(target.support, instances[i].category)]
@@ -171,10 +170,6 @@ class RulesGate:
         known = [m for m in members if m.id in self._around]
         if not here:
             return Verdict(False, f"no {target.object} around the {target.support}")
-        unsure = instances.pending(lambda c: target.is_a(target.object, c), whole)
-        if unsure:  # a closer look may make them sure (or not)
-            return Verdict(False, f"{len(unsure)} {target.object} around the "
-                                  f"{target.support} not yet sure")
         if told is not None and told < len(here):  # a glimpse the text does not list
             return Verdict(False, f"{len(here) - told} of the {len(here)} "
                                   f"{target.object} too small to be told")
