@@ -61,6 +61,7 @@ from efficienteqa.question import parse_question
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stack import EXPLORE_SCORERS
+from efficienteqa.stop import gate as gate_module
 from efficienteqa.stop.gate import RulesGate
 from efficienteqa.stop.rules import env_step_budget
 from experiments.common import explore_episode, seed_set
@@ -272,7 +273,7 @@ def main() -> None:
     s.add_argument("walks", type=Path)
     s.add_argument("--perception", default="pixels", choices=("pixels", "semantic"))
     s.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="a constant of mapping.instances for this run (tuning)")
+                   help="a constant of mapping.instances or stop.gate for this run (tuning)")
     s.add_argument("--sweep", action="store_true",
                    help="score the defaults, then each --set alone")
     s.add_argument("--fresh", action="store_true", help="read the frames again (not the cache)")
@@ -321,11 +322,12 @@ def main() -> None:
         saved = {}
         for setting in chosen:
             name, _, value = setting.partition("=")
-            if not hasattr(instance_map, name):
-                raise SystemExit(f"mapping.instances has no {name}")
-            saved[name] = getattr(instance_map, name)
+            module = next((m for m in (instance_map, gate_module) if hasattr(m, name)), None)
+            if module is None:
+                raise SystemExit(f"mapping.instances and stop.gate have no {name}")
+            saved[name] = (module, getattr(module, name))
             parsed = json.loads(value)
-            setattr(instance_map, name, tuple(parsed) if isinstance(parsed, list) else parsed)
+            setattr(module, name, tuple(parsed) if isinstance(parsed, list) else parsed)
         rows = [score_walk(w) for w in read]
         if args.verbose:
             for row in rows:
@@ -335,8 +337,8 @@ def main() -> None:
                       f"{row['gate_stop']}, views {row['views_count']} at {row['views_stop']}")
         print(f"{args.perception}, {', '.join(chosen) or 'defaults'}: {summary(rows)}",
               flush=True)
-        for name, value in saved.items():
-            setattr(instance_map, name, value)
+        for name, (module, value) in saved.items():
+            setattr(module, name, value)
 
 if __name__ == "__main__":
     main()

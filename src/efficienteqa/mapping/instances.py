@@ -1,26 +1,36 @@
 """Objects as 3-D instances of an episode's map (beyond the paper, DESIGN 9).
 
 A frame shows objects as regions: pixels of one object, or what a perception takes for one. Each
-region is lifted to world points (depth, intrinsics and pose: the perception does that) and
-added to the map, which keeps, per object instance, the voxels (CELL_M cells in 3-D: a cup on
-a table is not the table) its regions covered, its category votes (the regions' confidences,
-summed), its colour and room votes, what it stands on (the region relation the describer
-computes, as votes for the instance under it), the frames that saw it and its place (the mean
-of its regions' medians). A region joins the instance of its category whose voxels it shares
-enough of (OVERLAP of the smaller set), or whose place lies within a distance the size of the
-object (``reach``); one region per instance per frame (two chairs side by side in one view
-are two, however close); a region that joins two instances never seen in one frame merges them.
-A region of another category joins an instance only when they share most of their voxels
-(CROSS_OVERLAP of the union: the network calling one chair an armchair in one view).
+region comes lifted to world points (the perception backprojects its pixels with depth,
+intrinsics and pose) and joins the map, which keeps per object instance: the CELL_M voxels (in
+3-D: a cup on a table is not the table) its regions covered, its category votes (the regions'
+confidences, summed), its colour and room votes, what it stands on (the region relation the
+describer computes, as votes for the instance under it), the frames that saw it, its highest
+point, and its place (the middle of its voxels' columns: of everything seen of it, not of one
+view).
 
-An instance is *sure* when its category's votes reach SURE: one view the perception is sure
-of, or several unsure ones (an object seen unsurely in three views is one sure object).
+A region joins an instance of its category whose voxels it shares OVERLAP of (of the smaller
+set), or whose place lies within ``reach`` (half the instance's size, within REACH_M), best
+matches first and one region per instance per frame: two chairs side by side in one view are
+two, however close; a region of another category joins one whose voxels and its own share
+CROSS_OVERLAP of their union (one chair called an armchair in one view). A region left over that lies mostly (PIECE) in the voxels of an instance
+of its category this frame saw is a piece of it (a chair cut in two by the network). A region
+that also fits an instance never seen with its own in one frame, and placed within reach,
+merges the two. Two instances of different categories that are mostly the same voxels (ABSORB
+of the smaller's, ABSORB_LARGER of the larger's) are one object when one has at most
+ABSORB_WEAKER of the other's votes: the weaker joins (the network naming a table's pedestal a
+chair, or a chair's seat a table).
 
-A perception that knows which regions are one object (the semantic sensor's object ids) says
-so with the region's ``key``: one instance per key, nothing merged by place. Counting reads the
-map: the sure instances of a category within AROUND_M of a support (``group``).
+An instance is *sure* when its category's votes reach SURE: one view the perception is sure of,
+or several unsure ones (an object seen unsurely in three views is one sure object).
 
-Pure numpy: arrays in, arrays out; the perceptions fill it (``perception.semantic``,
+A perception that knows which regions are one object (the semantic sensor's object ids) says so
+with the region's ``key``: one instance per key, nothing merged by place or category. Counting
+reads the map (``count``, ``asked_count``): the sure instances of the object within AROUND_M of
+a sure support's footprint, not under it (inside its footprint less its rim: a pedestal), in
+the room asked about.
+
+Pure numpy and scipy: arrays in, arrays out; the perceptions fill it (``perception.semantic``,
 ``perception.pixels.backend``, ``perception.sightings``).
 """
 

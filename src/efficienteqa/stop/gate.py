@@ -15,12 +15,15 @@ pixels, as on a view that shows the book. The gate asks whether the frame answer
     ``experiments/relation_bench.py`` on training houses 0-20);
   - count questions: the object and its support, seen from inside the named room, the support
     not cut by the frame's edge, and every member seen so far around it (in any frame of the
-    episode) in this frame. Members are merged across views by position (``_merge``: one
-    member per sighting within SAME_M, never two of one frame), so the gate and the answer's
-    one view (``answer.calls.focus_views``) see one group. Such a frame answers outright
-    (``Verdict.final``): with ``AgentConfig.gate_final`` it stops the robot without waiting
-    for a relevancy outlier, which these frames never make (every view of the table and a
-    chair scores the same Sim);
+    episode) in this frame. Members are the episode's object instances where the perception
+    keeps an instance map (``mapping.instances``, ``StopConfig.count_from`` "instances", the
+    default: each object once however many views show it, the sure ones around the support
+    less what stands under it; ``_instances``), else the frame's sightings merged across views
+    by position (``_merge``: one member per sighting within SAME_M, never two of one frame).
+    Such a frame answers outright (``Verdict.final``): with ``AgentConfig.gate_final`` it stops
+    the robot without waiting for a relevancy outlier, which these frames never make (every
+    view of the table and a chair scores the same Sim); the direct answer is told the map's
+    count (``answer.calls.count_note``);
   - state, colour, location and existence questions: the object; for a door question that
     names two rooms, a door the text places between them (or, closed, in a wall of one of
     them: no frame shows a closed door's far side), not any door. A question whose target the
