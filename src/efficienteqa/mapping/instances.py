@@ -13,13 +13,13 @@ A region joins an instance of its category whose voxels it shares OVERLAP of (of
 set), or whose place lies within ``reach`` (half the instance's size, within REACH_M), best
 matches first and one region per instance per frame: two chairs side by side in one view are
 two, however close; a region of another category joins one whose voxels and its own share
-CROSS_OVERLAP of their union (one chair called an armchair in one view). A region left over
-that lies mostly (PIECE) in the voxels of an instance of its category this frame saw is a
-piece of it (a chair cut in two by the network). A region that also fits an instance never seen with its own in one frame, and placed within reach,
-merges the two. Two instances of different categories that are mostly the same voxels (ABSORB
-of the smaller's, ABSORB_LARGER of the larger's) are one object when one has at most
-ABSORB_WEAKER of the other's votes: the weaker joins (the network naming a table's pedestal a
-chair, or a chair's seat a table).
+CROSS_OVERLAP of their union (one chair called an armchair in one view). A region left over that
+lies mostly (PIECE) in the voxels of an instance of its category this frame saw is a piece of it
+(a chair cut in two by the network). A region that also fits an instance never seen with its own
+in one frame, and placed within reach, merges the two. Two instances of different categories
+that are mostly the same voxels (ABSORB of the smaller's, ABSORB_LARGER of the larger's) are one
+object when one has at most ABSORB_WEAKER of the other's votes: the weaker joins (the network
+naming a table's pedestal a chair, or a chair's seat a table).
 
 An instance is *sure* when its category's votes reach SURE: one view the perception is sure of,
 or several unsure ones (an object seen unsurely in three views is one sure object).
