@@ -226,3 +226,21 @@ def test_the_semantic_sensor_fills_one_instance_per_object_id():
     assert len(first.ids) == 5
     perception.reset()
     assert len(perception.instances) == 0
+
+
+def test_a_count_questions_target_reads_the_map_in_the_room_it_names():
+    from efficienteqa.mapping.instances import asked_count
+    from efficienteqa.question import parse_question
+
+    m = InstanceMap()
+    table = _box(3.0, 3.0, (1.2, 0.8, 0.75))
+    chairs = [_chair(3.0 + dx, 3.0) for dx in (-0.9, 0.9)]
+    m.add([Region("table", table, room="dining room"),
+           *(Region("chair", c, room="dining room") for c in chairs)])
+    dining = parse_question("How many chairs are around the table in the dining room?")
+    kitchen = parse_question("How many chairs are around the table in the kitchen?")
+    got = asked_count(m, dining)
+    assert got is not None and got.n == 2 and m[got.support].category == "table"  # type: ignore[index]
+    assert asked_count(m, kitchen) is None
+    assert asked_count(m, parse_question("What colour is the table?")) is None
+    assert asked_count(None, dining) is None
