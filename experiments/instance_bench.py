@@ -1,34 +1,37 @@
-"""Instance bench (DESIGN 9, objects as instances): chairs counted per frame and per instance map on the
-agent's walks to count questions, without a language model.
+"""Instance bench (DESIGN 9, objects as instances): chairs counted per frame, per instance map
+and through the count gate on the agent's walks to count questions, without a language model.
 
-``walk``: for each house with a count question ("How many chairs are around the table in the
-dining room?"), the default explorer (target steering, the model-free direction scorer, the
-semantic sensor steering, the early stop off) walks from the house's start towards it to the
-step budget; the poses are written (the format of ``experiments/walk_poses.py``).
+Walks: ``walk`` writes, for each house with a count question ("How many chairs are around the
+table in the dining room?"), the poses of the default explorer (target steering, the model-free
+direction scorer, the semantic sensor steering, the early stop off) walking towards it to the
+step budget (the format of ``experiments/walk_poses.py``); or the agent's own walks that
+``experiments/count_bench.py --out`` records (a .jsonl file: the first count question per
+house).
 
 ``score``: each walk's frames, in order, read by a perception (``pixels``: the committed
-network with room votes, as the agent runs it; ``semantic``: the labels), which fills its
-instance map (``mapping.instances``) as the agent's does. Against the semantic sensor's truth:
+network with room votes, as the agent runs it; ``semantic``: the labels; cached beside the
+walks file), which fills an instance map (``mapping.instances``) as the agent's does. Against
+the semantic sensor's truth:
 
 - *per frame*: chairs the frame's description lists (the describer's 150 px) against the true
-  chairs it shows at the same threshold, |said - true| averaged over frames (every frame, and
-  the frames where either is non-zero);
+  chairs it shows at the same threshold, |said - true| averaged over frames;
 - *per map*, at the walk's end: sure chair instances against the true chairs seen (at least
-  GLIMPSE_PIXELS in some frame), |map - true| per walk; duplicates (sure instances no true
-  chair is the nearest match of within MATCH_M) and chairs missed;
-- *the group asked about*: the count the answer would be told (``mapping.instances.count``
-  around the table, in the dining room) against the question's answer, per walk;
-- *the map's place of the group*: for the asked table, the map's group around the sure table
-  instance nearest it (within MATCH_M), against the true chairs around it.
+  GLIMPSE_PIXELS in some frame), |map - true| per walk; unmatched (sure instances with no true
+  chair within MATCH_M, each true chair matched once) and chairs missed;
+- *the count asked*: the map's count (``mapping.instances.asked_count``) at the walk's end
+  against the question's answer, beside the most chairs one frame lists in the room;
+- *through the gate*: the frames replayed through the rules gate reading the map, or (views)
+  the sightings merged by place: the count at its first whole-group verdict, or at the walk's
+  end when none comes (the walk goes on as recorded; only the stop differs).
 
 Back-ends: synthetic houses (sh3d), the perception named, no language model.
 
-    python -m experiments.instance_bench walk --seeds 3900-3909 --out out/instances/walks-3900.json
-    python -m experiments.instance_bench score out/instances/walks-3900.json --perception pixels
-    python -m experiments.instance_bench score FILE --perception pixels --set CELL_M=0.1
+    python -m experiments.count_bench --seeds 0-39 --perception pixels --out out/cb-train.jsonl
+    python -m experiments.instance_bench score out/cb-train.jsonl --perception pixels
+    python -m experiments.instance_bench score out/cb-train.jsonl --sweep --set SURE=0.8
 
-Tune on validation houses (perception's 3900-3909, the agent's 2000-2009 are checks), never
-on the held-out houses 100-129.
+Tune on training houses (0-99), check on validation houses (2000-2009; the perception's
+3900-3909), never on the held-out houses 100-129.
 """
 
 from __future__ import annotations
