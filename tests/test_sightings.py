@@ -269,3 +269,30 @@ def test_a_run_recorded_before_the_sightings_source_reads_as_what_it_ran_with():
     assert semantic["stack"]["sightings"] == "auto"  # the perception's own, as "auto" is now
     rgb = upgrade({"format": 2, "stack": {"perception": "rgb"}})
     assert "sightings" not in rgb["stack"]  # it had none: no run of today resumes it
+
+
+def test_a_vlms_boxes_fill_the_instance_map_and_the_count_gate_reads_it():
+    """The things the model boxes become points with the frame's depth (``project``) and go to
+    the episode's instance map: two views of the same two chairs are two chairs, and the
+    sightings gate counts the group around the table from the map."""
+    obs = make_frame()  # two chairs side by side in cols 40-45 at 2.5 m; "a table": the lamp's
+    h, w = obs.depth_m.shape
+
+    def box(c0, c1):
+        return [c0 * 1000 / w, 10 * 1000 / h, c1 * 1000 / w, 21 * 1000 / h]
+
+    reply = json.dumps({"room": "kitchen", "doorways": [], "things": [
+        {"name": "table", "box": box(30, 36)}, {"name": "chair", "box": box(40, 43)},
+        {"name": "chair", "box": box(43, 46)}]})
+    stub = StubChatModel([reply, reply], capabilities=Capabilities(images=True))
+    perception = ModelSightings(ImagePerception(), stub)
+    gate = SightingsGate(perception)
+    q = "How many chairs are around the table in the kitchen?"
+    verdicts = [gate.check(q, COUNT, obs, obs.rgb) for obs in (make_frame(), make_frame())]
+    assert [v.why for v in verdicts] == ["2 chair around the whole table"] * 2
+    assert all(v.final for v in verdicts) and len(stub.requests) == 2
+    chairs = [i for i in perception.instances.instances() if i.category == "chair"]
+    assert len(chairs) == 2 and all(i.views == 2 for i in chairs)
+    assert len(perception.instances) == 3
+    perception.reset()
+    assert len(perception.instances) == 0

@@ -48,6 +48,7 @@ from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.geometry import Pose2D
 from efficienteqa.knobs import with_leaves
 from efficienteqa.mapping.extent import volume_around
+from efficienteqa.mapping.instances import asked_count
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.tsdf import VolumeSpec
@@ -302,6 +303,10 @@ class Agent:
         gate = self.gate if cfg.stop.gate != "none" else None
         if gate is not None:
             gate.reset()
+        # a count question: each frame's objects go to the perception's instance map, which
+        # the gate and the answer's count read (StopConfig.count_from)
+        remember = (getattr(self.perception, "instances_seen", None)
+                    if cfg.stop.count_from == "instances" and target.kind == "count" else None)
         frames: dict[int, str | np.ndarray] = {}  # flagged frames the gate may still judge
         stopper = RelevancyStopper(cfg.stop)
         top: TopK[str | np.ndarray] = TopK(cfg.answer.top_k)
@@ -322,6 +327,9 @@ class Agent:
             if record.valid:
                 t = time.perf_counter()
                 frame = self.perception.frame(obs)
+                if remember is not None:
+                    with self._phase(f"step {step}"):  # model sightings are a call
+                        remember(obs, target)
                 with self._phase(f"step {step}"):  # relevancy may be a model call too
                     if self.relevancy.modality == "image":
                         sim = self.relevancy.score(question, image=obs.rgb)
@@ -410,8 +418,11 @@ class Agent:
                 result, retrieved = best.answer, [(best.step, best.sim)]
         else:
             top_k = top.best()
+            counted = (asked_count(getattr(self.perception, "instances", None), target)
+                       if cfg.stop.count_from == "instances" else None)
             with self._phase("answer"):
-                result = self.answerer.answer(question, [r.item for r in top_k], target)
+                result = self.answerer.answer(question, [r.item for r in top_k], target,
+                                              counted.n if counted is not None else None)
             retrieved = [(r.step, r.sim) for r in top_k]
         answer_s = time.perf_counter() - t
         state = explore.mapper.state((obs.pose.x, obs.pose.y))

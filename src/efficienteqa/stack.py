@@ -313,10 +313,12 @@ GATE_LABELS = {"none": "none",
                "model": "model (one yes/no call to {model} on a flagged frame)"}
 
 
-def build_gate(name: str, perception: Perception, model: ChatModel) -> AnswerGate | None:
+def build_gate(name: str, perception: Perception, model: ChatModel,
+               instances: bool = True) -> AnswerGate | None:
     """The answerability gate ``name`` (stop.gate.GATES): None for "none"; "auto" is "rules"
     where the perception describes objects, "sightings" where it gives sightings only (a VLM's),
-    else "model"."""
+    else "model". ``instances``: the rules and sightings gates read count groups from the
+    perception's instance map (``StopConfig.count_from``)."""
     if name == "none":
         return None
     sights = hasattr(perception, "sightings")
@@ -332,7 +334,7 @@ def build_gate(name: str, perception: Perception, model: ChatModel) -> AnswerGat
             raise EfficientEQAError(f"the {name} gate reads {what}, which {perception.name} "
                                     "perception does not give", fix=f"use {fix}")
         gate = SightingsGate if name == "sightings" else RulesGate
-        return gate(perception)  # type: ignore[arg-type]
+        return gate(perception, instances)  # type: ignore[arg-type]
     from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
     return ModelGate(VLMMatchScorer(model, perception.modality))
@@ -438,7 +440,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                            confidence=config.answer.confidence, direct=answer == "direct",
                            probability=config.answer.answer_probability,
                            token_prompt=config.answer.token_answer)
-    gate = build_gate(config.stop.gate, perception, recorder)
+    gate = build_gate(config.stop.gate, perception, recorder,
+                      instances=config.stop.count_from == "instances")
     agent = Agent(perception, scorer, relevancy, answerer, config, exchanges=recorder, gate=gate,
                   reading=build_reading(config, perception, recorder, relevancy))
     backends = {"environment": environment, "perception": perception.name, "vlm": model.name,

@@ -260,29 +260,47 @@ def absence_note(question: str, views: Sequence[str], target: Target | None = No
     return f"The views do not show the {room}, and no {target.object} in it."
 
 
-def count_note(question: str, views: Sequence[str], target: Target | None = None) -> str:
+def count_note(question: str, views: Sequence[str], target: Target | None = None,
+               counted: int | None = None) -> str:
     """For a count question, the count its one focused view lists, said as a number ("The
     view lists 5 chairs: the answer is 5."): the 1.5B model read "five blue chairs" as 4 and
     "a grey chair" as 2 (syn-107-02, syn-101-02). Entries in the named room only, when the
-    question names one; "" when the views list none. ``target`` as in ``focus_views``."""
+    question names one; "" when the views list none. ``target`` as in ``focus_views``.
+
+    ``counted``: the count of the episode's instance map (``mapping.instances.asked_count``:
+    each object once over all views, around the support asked about), which the note says
+    instead where the view lists another number, or none (views that are images)."""
     target = target or parse_question(question)
     if target.kind != "count" or not target.object:
         return ""
+    n = _view_count(question, views, target) if views else 0
+    if counted is not None and counted > 0 and counted != n:
+        place = f" around the {target.support}" if target.support else (
+            f" in the {target.room}" if len(target.rooms) == 1 else "")
+        return (f"Counting each one once over all its views, the robot saw {counted} "
+                f"{_plural(target.object, counted)}{place}: the answer is {counted}.")
+    if not n:
+        return ""
+    return f"The view lists {n} {_plural(target.object, n)}: the answer is {n}."
+
+
+def _plural(noun: str, n: int) -> str:
+    if n == 1:
+        return noun
+    return noun + ("es" if noun.endswith(("s", "sh", "ch", "x")) else "s")
+
+
+def _view_count(question: str, views: Sequence[str], target: Target) -> int:
+    """The count of the question's object that its one focused view lists (0: none)."""
     focused = focus_views(question, views, target)
     if len(focused) != 1:  # nothing matched: the views were left alone
-        return ""
+        return 0
     head, _, rest = focused[0].partition(". ")
     entries = [parse_entry(e, _robot_room(head))
                for e in rest.removeprefix("Seen: ").rstrip(".").split("; ") if e]
     room = target.room if len(target.rooms) == 1 else None
-    n = sum(e.count for e in entries if target.is_a(target.object, e.noun)
-            and (room is None or e.room in (room, None)))
-    if not n:
-        return ""
-    noun = target.object
-    if n > 1:
-        noun += "es" if noun.endswith(("s", "sh", "ch", "x")) else "s"
-    return f"The view lists {n} {noun}: the answer is {n}."
+    return sum(e.count for e in entries if target.is_a(target.object or "", e.noun)
+               and (room is None or e.room in (room, None)))
 
 
 def evidence_text(evidence: Sequence[str | np.ndarray]) -> tuple[str, tuple[np.ndarray, ...]]:
@@ -344,7 +362,8 @@ TOKEN_ANSWERS = (TOKEN_ANSWER, "verbalized")
 def answer_token_probability(model: ChatModel, question: str,
                              evidence: Sequence[str | np.ndarray], *, hinted: bool = False,
                              max_tokens: int = 24, how: str = ANSWER_PROBABILITY,
-                             target: Target | None = None) -> AnswerResult:
+                             target: Target | None = None,
+                             counted: int | None = None) -> AnswerResult:
     """A short greedy answer; its confidence (0-1, as VC's after normalising) is the model's
     probability of that answer: the product of its tokens' probabilities, first line only
     (``how="per-token"``: their geometric mean, ``ANSWER_PROBABILITIES``). A token at -inf or
@@ -352,14 +371,19 @@ def answer_token_probability(model: ChatModel, question: str,
     probability 1. ``hinted``: the direct answer (DESIGN 8), whose prompt adds the hint of the
     question's form (``question_hint``) and reads text views cut to what the question names
     (``focus_views``); ``target``: the agent's reading of the question, so the notes match its
-    words as the gate and the steering do (an alias: "couch" is the sofa the views list)."""
+    words as the gate and the steering do (an alias: "couch" is the sofa the views list);
+    ``counted``: a count question's count from the episode's instance map (``count_note``),
+    told to the direct answer over text views and images alike."""
     _check_how(how)
     require_logprobs(model)
     note = ""
     if hinted and evidence and all(isinstance(e, str) for e in evidence):
         views = [str(e) for e in evidence]
-        note = absence_note(question, views, target) or count_note(question, views, target)
+        note = (absence_note(question, views, target)
+                or count_note(question, views, target, counted))
         evidence = focus_views(question, views, target)
+    elif hinted and counted is not None:  # images: the map's count, said as a number
+        note = count_note(question, [], target, counted)
     text, images = evidence_text(evidence)
     template = load_prompt("answer_direct" if hinted else "answer_token", PROMPTS)
     hint = question_hint(question, "image" if images else "text")

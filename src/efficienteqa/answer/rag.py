@@ -130,23 +130,26 @@ class RagAnswerer:
         self.direct, self.probability, self.token_prompt = direct, probability, token_prompt
 
     def answer(self, question: str, evidence: Sequence[str | np.ndarray],
-               target: Target | None = None) -> AnswerResult:
+               target: Target | None = None, counted: int | None = None) -> AnswerResult:
         """The answer from ``evidence``, best first. Images beyond the server's cap per request
         (``capabilities.max_images``, probed) are cut, the least relevant first, and the answer's
         problems say so: a capped server would refuse the whole request. ``target``: the
-        agent's reading of the question (with its aliases), for the direct answer's notes."""
+        agent's reading of the question (with its aliases), for the direct answer's notes;
+        ``counted``: a count question's count from the episode's instance map, which the
+        direct answer is told (``answer.calls.count_note``)."""
         evidence, cut = cut_to_cap(evidence, getattr(self.model.capabilities, "max_images", None))
-        result = self._answer(question, evidence, target)
+        result = self._answer(question, evidence, target, counted)
         return replace(result, problems=[cut, *result.problems]) if cut else result
 
     def _answer(self, question: str, evidence: Sequence[str | np.ndarray],
-                target: Target | None = None) -> AnswerResult:
+                target: Target | None = None, counted: int | None = None) -> AnswerResult:
         if not self.direct and self.confidence == "token" and self.token_prompt == "verbalized":
             return verbalized_token_probability(self.model, question, evidence,
                                                 how=self.probability)
         if self.direct or self.confidence == "token":
             return answer_token_probability(self.model, question, evidence, hinted=self.direct,
-                                            how=self.probability, target=target)
+                                            how=self.probability, target=target,
+                                            counted=counted)
         return answer_with_confidence(self.model, question, evidence, self.grouper, m=self.m)
 
 

@@ -10,7 +10,7 @@ a vision-language model. The answerer gets ``frame(obs)``; a text relevancy scor
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
@@ -60,6 +60,9 @@ class Sighting:
     pixels: int
     cut: bool
     room: str | None
+    # its world points (N, 3), where the perception keeps them (the model's boxes, for the
+    # instance map)
+    points: np.ndarray | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass(frozen=True)

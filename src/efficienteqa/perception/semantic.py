@@ -49,9 +49,11 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy import ndimage
 
 from efficienteqa.envs.base import ObjectLabel, SceneLabels
 from efficienteqa.geometry import backproject
+from efficienteqa.mapping.instances import FrameInstances, InstanceMap, Region
 from efficienteqa.perception.base import ExploreRequest, Modality, Sighting, Sightings
 from efficienteqa.question import Target
 
@@ -535,11 +537,29 @@ class SemanticPerception:
         self.labels, self.noise = labels, noise
         self._last: tuple[Observation, FrameDescription] | None = None
         self._seen: tuple[Observation, Target, Sightings] | None = None
+        self.instances = InstanceMap()  # the episode's objects (``instances_seen``)
+        self._added: tuple[Observation, FrameInstances] | None = None
 
     def reset(self) -> None:
-        """A new episode: nothing carries over (the descriptions cached for the last frame go)."""
+        """A new episode: nothing carries over (the descriptions cached for the last frame go,
+        the instance map starts empty)."""
         self._last = None
         self._seen = None
+        self.instances.reset()
+        self._added = None
+
+    def instances_seen(self, obs: Observation, target: Target | None = None) -> FrameInstances:
+        """The frame's objects added to the episode's instance map (once per observation) and
+        which instances they are (``mapping.instances``). The semantic sensor's object ids are
+        instances already: one per id."""
+        if self._added is None or self._added[0] is not obs:
+            self._added = (obs, self.instances.add(self.regions(obs)))
+        return self._added[1]
+
+    def regions(self, obs: Observation) -> list[Region]:
+        """The frame's objects as regions of the instance map, keyed by their ids."""
+        seen, labels = self.read(obs)
+        return object_regions(seen, labels, self.describe(obs), noise=self.noise)
 
     def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
         """The frame and labels the describer reads: the scene's own here. A perception that
@@ -573,6 +593,53 @@ class SemanticPerception:
             seen, labels = self.read(obs)
             self._seen = (obs, target, sightings(seen, labels, target, self.noise))
         return self._seen[2]
+
+
+def object_regions(obs: Observation, labels: SceneLabels, described: FrameDescription,
+                   confidence: dict[int, float] | None = None, keyed: bool = True,
+                   noise: NoiseConfig | None = None) -> list[Region]:
+    """The frame's objects of at least GLIMPSE_PIXELS (scaled), as the sightings take them, as
+    regions of an instance map (``mapping.instances``): world points of every
+    SIGHTING_STRIDE-th pixel each way, the room where the frame shows it (as the text says),
+    its colour, what the text says it stands on (``described``), whether the frame cuts it,
+    ``confidence`` per instance id (default 1) and, when ``keyed``, its id as the key."""
+    if obs.instance is None:
+        return []
+    h, w = obs.depth_m.shape
+    k = SIGHTING_STRIDE
+    glimpse = max(1, round(GLIMPSE_PIXELS * h * w / REFERENCE_AREA_PX))
+    found = visible_objects(obs, labels, glimpse, noise)
+    if not found:
+        return []
+    intrinsics = obs.intrinsics.astype(np.float64).copy()
+    intrinsics[:2] /= k
+    points = backproject(obs.depth_m[k // 2::k, k // 2::k], intrinsics, obs.cam_to_world)
+    small = obs.instance[k // 2::k, k // 2::k]
+    valid = obs.depth_m[k // 2::k, k // 2::k] > 0
+    boxes = ndimage.find_objects(np.where(obs.instance > 0, obs.instance, 0))
+    rooms = set(described.rooms_in_view)
+    camera_xy = (float(obs.cam_to_world[0, 3]), float(obs.cam_to_world[1, 3]))
+    order = {o.instance_id: n for n, o in enumerate(found)}
+    under = {o.instance_id: o.support_id for o in described.objects}
+    out = []
+    for o in found:
+        mask = (small == o.instance_id) & valid
+        if mask.any():
+            p = points[mask]
+        else:  # a sliver between the strided pixels: all of its own
+            full = (obs.instance == o.instance_id) & (obs.depth_m > 0)
+            p = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[full]
+        box = boxes[o.instance_id - 1]
+        cut = box is not None and (box[1].start == 0 or box[1].stop == w or box[0].start == 0)
+        where = _where(o.label, rooms, described.room, camera_xy)
+        support = under.get(o.instance_id)
+        out.append(Region(o.label.category, p,
+                          1.0 if confidence is None else confidence.get(o.instance_id, 1.0),
+                          o.label.colour,
+                          where[len("in the "):] if where and where.startswith("in the ") else None,
+                          o.instance_id if keyed else None,
+                          order.get(support) if support is not None else None, cut))
+    return out
 
 
 def sightings(obs: Observation, labels: SceneLabels, target: Target,

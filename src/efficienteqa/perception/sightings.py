@@ -38,6 +38,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from efficienteqa.geometry import backproject
+from efficienteqa.mapping.instances import FrameInstances, InstanceMap
+from efficienteqa.mapping.instances import Region as MapRegion
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.perception.base import Perception, Sighting, Sightings
 from efficienteqa.question import ROOMS, Target, canonical_room, singular
@@ -273,7 +275,7 @@ def project(reply: SightingReply, obs: Observation,
             continue
         xy = (float(np.median(p[:, 0])), float(np.median(p[:, 1])))
         things.append(Sighting(name, xy, float(np.percentile(p[:, 2], 98)), pixels, cut,
-                               _room_near(xy, floor) or reply.room))
+                               _room_near(xy, floor) or reply.room, p[::STRIDE]))
     return Sightings(floor, tuple(things))
 
 
@@ -348,6 +350,8 @@ class ModelSightings:
         self.problems: list[str] = []
         self.question = ""  # the episode's (``ask_about``), which the call quotes
         self._seen: tuple[Observation, Target, Sightings] | None = None
+        self.instances = InstanceMap()  # the target's things the model boxed, over the episode
+        self._added: tuple[Observation, FrameInstances] | None = None
 
     def __getattr__(self, name: str) -> Any:  # frame, relevancy_text, describe, read, labels
         if name == "base":
@@ -356,6 +360,8 @@ class ModelSightings:
 
     def reset(self) -> None:
         self._seen = None
+        self.instances.reset()
+        self._added = None
         reset = getattr(self.base, "reset", None)
         if reset is not None:
             reset()
@@ -374,7 +380,19 @@ class ModelSightings:
         if target.things or target.rooms or target.likely_rooms:
             seen = self._ask(obs, target, self.question or _question_of(target))
         self._seen = (obs, target, seen)
+        if self._added is None or self._added[0] is not obs:  # the things to the instance map
+            self._added = (obs, self.instances.add([
+                MapRegion(s.category, s.points, room=s.room, cut=s.cut)
+                for s in seen.things if s.points is not None and len(s.points)]))
         return seen
+
+    def instances_seen(self, obs: Observation, target: Target) -> FrameInstances:
+        """The target's things of this frame added to the episode's instance map
+        (``mapping.instances``), merged across views by place (a box's points), and which
+        instances they are. The call is the frame's ``sightings``."""
+        self.sightings(obs, target)
+        assert self._added is not None and self._added[0] is obs
+        return self._added[1]
 
     def _ask(self, obs: Observation, target: Target, question: str) -> Sightings:
         images: tuple[np.ndarray, ...] = ()

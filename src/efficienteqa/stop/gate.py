@@ -15,12 +15,15 @@ pixels, as on a view that shows the book. The gate asks whether the frame answer
     ``experiments/relation_bench.py`` on training houses 0-20);
   - count questions: the object and its support, seen from inside the named room, the support
     not cut by the frame's edge, and every member seen so far around it (in any frame of the
-    episode) in this frame. Members are merged across views by position (``_merge``: one
-    member per sighting within SAME_M, never two of one frame), so the gate and the answer's
-    one view (``answer.calls.focus_views``) see one group. Such a frame answers outright
-    (``Verdict.final``): with ``AgentConfig.gate_final`` it stops the robot without waiting
-    for a relevancy outlier, which these frames never make (every view of the table and a
-    chair scores the same Sim);
+    episode) in this frame. Members are the episode's object instances where the perception
+    keeps an instance map (``mapping.instances``, ``StopConfig.count_from`` "instances", the
+    default: each object once however many views show it, the sure ones around the support
+    less what stands under it; ``_instances``), else the frame's sightings merged across views
+    by position (``_merge``: one member per sighting within SAME_M, never two of one frame).
+    Such a frame answers outright (``Verdict.final``): with ``AgentConfig.gate_final`` it stops
+    the robot without waiting for a relevancy outlier, which these frames never make (every
+    view of the table and a chair scores the same Sim); the direct answer is told the map's
+    count (``answer.calls.count_note``);
   - state, colour, location and existence questions: the object; for a door question that
     names two rooms, a door the text places between them (or, closed, in a wall of one of
     them: no frame shows a closed door's far side), not any door. A question whose target the
@@ -47,6 +50,7 @@ from efficienteqa.question import Target
 if TYPE_CHECKING:
     import numpy as np
 
+    from efficienteqa.mapping.instances import FrameInstances, InstanceMap
     from efficienteqa.observation import Observation
     from efficienteqa.perception.base import Sightings
     from efficienteqa.perception.semantic import FrameDescription, VisibleObject
@@ -95,13 +99,15 @@ class RulesGate:
     name = "rules"
     eager = True
 
-    def __init__(self, perception: Describer) -> None:
+    def __init__(self, perception: Describer, instances: bool = True) -> None:
         self.perception = perception
+        self.instances = instances  # count groups from the perception's instance map
         self.reset()
 
     def reset(self) -> None:
         """Forget the count groups of the last episode."""
         self._members: list[Member] = []  # group members seen near the support
+        self._around: set[int] = set()  # instances seen around a whole support (``_instances``)
 
     def check(self, question: str, target: Target, obs: Observation,
               frame: str | np.ndarray) -> Verdict:
@@ -127,7 +133,7 @@ class RulesGate:
             if room is not None and d.room != room:  # a doorway cuts a group: count from inside
                 return Verdict(False, f"{target.object} seen from outside the {room}")
             if target.support:
-                return self._group(target, self.perception.sightings(obs, target), len(group))
+                return self._count_group(target, obs, len(group))
             return Verdict(True, f"{len(group)} {target.object} in view")
         thing = target.object or target.support or ""
         hits = [o for o in shown if target.is_a(thing, o.label.category)]
@@ -137,6 +143,44 @@ class RulesGate:
                 return Verdict(False, f"no {thing} of the {' and the '.join(target.rooms)} "
                                       "in view")
         return Verdict(bool(hits), f"{thing} {'in view' if hits else 'not in view'}")
+
+    def _count_group(self, target: Target, obs: Observation, told: int | None) -> Verdict:
+        """A count group around its support: from the perception's instance map where it
+        keeps one and the gate reads it (``instances``, ``StopConfig.count_from``:
+        ``_instances``), else from the frame's sightings merged by place (``_group``)."""
+        seen_instances = getattr(self.perception, "instances_seen", None)
+        if seen_instances is not None and self.instances:
+            return self._instances(target, seen_instances(obs, target),
+                                   self.perception.instances, told)  # type: ignore[attr-defined]
+        return self._group(target, self.perception.sightings(obs, target), told)
+
+    def _instances(self, target: Target, seen: FrameInstances, instances: InstanceMap,
+                   told: int | None) -> Verdict:
+        """A count group from the episode's instance map (``mapping.instances``): a sure
+        support of the frame wholly in view and its sure members in the frame (``group``),
+        every member seen around a whole support so far among them, which then answers
+        outright (``told``: how many members the frame's text lists; None where no text is
+        read). The answer is told the map's count (``mapping.instances.asked_count``)."""
+        in_frame = [i for i in dict.fromkeys(seen.ids) if i in instances.ids]
+        supports = [i for i in in_frame if instances[i].sure
+                    and target.is_a(target.support, instances[i].category)]
+        whole = [i for i in supports if seen.whole(i)]
+        if not whole:
+            return Verdict(False, f"{target.support} not wholly in view")
+        members = instances.group(lambda c: target.is_a(target.object, c), whole)
+        here = {m.id for m in members if seen.seen(m.id)}
+        self._around = {instances.current(i) for i in self._around} | here
+        known = [m for m in members if m.id in self._around]
+        if not here:
+            return Verdict(False, f"no {target.object} around the {target.support}")
+        if told is not None and told < len(here):  # a glimpse the text does not list
+            return Verdict(False, f"{len(here) - told} of the {len(here)} "
+                                  f"{target.object} too small to be told")
+        if len(here) < len(known):
+            return Verdict(False, f"{len(here)} of the {len(known)} "
+                                  f"{target.object} seen around the {target.support}")
+        return Verdict(True, f"{len(here)} {target.object} around the whole "
+                             f"{target.support}", final=True)
 
     def _group(self, target: Target, seen: Sightings, told: int | None) -> Verdict:
         """A count group around its support from one frame's sightings: the support wholly in
@@ -169,8 +213,9 @@ class SightingsGate(RulesGate):
 
     name = "sightings"
 
-    def __init__(self, perception: Sighter) -> None:
+    def __init__(self, perception: Sighter, instances: bool = True) -> None:
         self.perception = perception  # type: ignore[assignment]
+        self.instances = instances
         self.reset()
 
     def check(self, question: str, target: Target, obs: Observation,
@@ -190,7 +235,7 @@ class SightingsGate(RulesGate):
             if not group:
                 return Verdict(False, f"no {target.object} in view")
             if target.support:
-                return self._group(target, seen, None)
+                return self._count_group(target, obs, None)
             return Verdict(True, f"{len(group)} {target.object} in view")
         thing = target.object or target.support or ""
         hits = [s for s in shown if target.is_a(thing, s.category)]

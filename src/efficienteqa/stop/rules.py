@@ -107,6 +107,9 @@ def env_step_budget(env: object) -> int | None:
     return None if area is None else step_budget(float(area))
 
 
+COUNT_FROM = ("instances", "views")  # StopConfig.count_from
+
+
 @dataclass(frozen=True)
 class StopConfig:
     """The stop module's knobs (DESIGN 3.4), with the answerability gate beyond the paper
@@ -142,11 +145,18 @@ class StopConfig:
     gate_final: bool = knob(True, beyond=True, help="Stop at a frame the rules gate finds "
                             "answers outright (a count group wholly in view) without waiting for "
                             "a relevancy outlier.")
+    count_from: str = knob("instances", beyond=True, help="Where a count question's group "
+                           "comes from, for the gate and the direct answer's count: instances "
+                           "(the episode's instance map, each object once over all views: "
+                           "mapping/instances.py) | views (each frame's sightings, members "
+                           "merged across views by place).")
 
     def __post_init__(self) -> None:
         rule_parts(self.rule)  # raises on an unknown name
         if self.gate not in GATES:
             raise ValueError(f"gate must be one of {GATES}, not {self.gate!r}")
+        if self.count_from not in COUNT_FROM:
+            raise ValueError(f"count_from must be one of {COUNT_FROM}, not {self.count_from!r}")
         for name in ("z_th", "z_gated", "sigma_floor", "sim_abs"):
             if not math.isfinite(getattr(self, name)):
                 raise ValueError(f"{name} must be a finite number, got {getattr(self, name)}")

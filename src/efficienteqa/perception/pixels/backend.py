@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from efficienteqa.mapping.instances import Region
 from efficienteqa.observation import Observation
 from efficienteqa.perception.base import Modality
 from efficienteqa.perception.pixels.fusion import ObjectEvidence
@@ -78,6 +79,23 @@ class PixelPerception(SemanticPerception):
                                 confidence.astype(np.float32), thresholds)
 
         return cls(classify, room_votes, record=meta)
+
+    def regions(self, obs: Observation) -> list[Region]:
+        """The frame's objects as regions of the instance map (``mapping.instances``): the
+        network's regions from ``segment.UNSURE_MIN`` up, described or too unsure to be
+        (other views may make them sure), each weighed by its confidence and size
+        (``segment.map_objects``), standing on what the description says. No keys: they are
+        merged across views by place."""
+        _, labels = self.read(obs)
+        objects = getattr(labels, "objects", [])
+        described = {o.described: n for n, o in enumerate(objects) if o.described is not None}
+        under = {o.instance_id: o.support_id for o in self.describe(obs).objects}
+        out = []
+        for o in objects:
+            below = under.get(o.described) if o.described is not None else None
+            out.append(Region(o.category, o.points, o.confidence, o.colour, o.room, None,
+                              described.get(below) if below is not None else None, o.cut))
+        return out
 
     def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
         if self._read is None or self._read[0] is not obs:  # the network runs once per frame

@@ -23,7 +23,7 @@ it, its far side the room of the floor seen beyond it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -51,6 +51,10 @@ MIN_CONFIDENCE = 0.6  # regions whose mean category probability is lower are dro
 FRAGMENT_MERGE_M = 0.35  # same-category regions whose centres are this close are one object
 # (validation houses 3900-3909, 100 frames: off / 0.25 / 0.35 / 0.5 m found 71.8 / 72.6 / 72.6 /
 # 72.6%, right 71.9 / 71.4 / 73.0 / 75.5%, chairs miscounted per frame 1.00 / 0.87 / 0.80 / 0.87)
+UNSURE_MIN = 0.3  # regions this sure, though too unsure to describe, go to the instance map
+FULL_PIXELS = 600  # at 640x480: a region this large counts its whole confidence in the map
+MAP_DEPTH_M = 0.75  # a region's points in the map: this close to their median point (or twice
+# their median distance from it)
 MIN_REGION_PIXELS = 6  # at half size: smaller regions are noise (the describer lists >= 150/4)
 DOOR_BEYOND_M = (0.5, 1.0, 2.0, 3.0)  # a door's far side: the first other room's floor this
 # far beyond it, along the line from the camera
@@ -79,11 +83,22 @@ class FrameLabels:
     given ``votes``, from the episode's room map as it stood after this frame."""
 
     def __init__(self, labels: dict[int, ObjectLabel], cells: np.ndarray, rooms: list[str],
-                 votes: RoomMap | None = None) -> None:
+                 votes: RoomMap | None = None,
+                 objects: Callable[[], list[MapObject]] | None = None) -> None:
         self._labels = labels
         self._rooms = rooms
         self._tree = cKDTree(cells) if len(cells) else None
         self._votes = votes
+        self._objects = objects
+        self._made: list[MapObject] | None = None
+
+    @property
+    def objects(self) -> list[MapObject]:
+        """The frame's objects for the instance map (``MapObject``), made when first asked
+        for (only count questions read the map)."""
+        if self._made is None:
+            self._made = self._objects() if self._objects is not None else []
+        return self._made
 
     def label(self, instance_id: int) -> ObjectLabel | None:
         return self._labels.get(int(instance_id))
@@ -123,10 +138,10 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
     proposed = regions_of(small, depth_small, first_object, classes.confidence)
     points = backproject(depth_small, scaled_intrinsics(intrinsics, fy, fx), cam_to_world)
     fused = fused_support(proposed, points, evidence)
-    regions = merge_fragments(
-        [(category, mask) for (category, mask, sure), together in zip(proposed, fused)
-         if sure >= classes.min_confidence.get(names[category], MIN_CONFIDENCE)
-         or together >= FUSED_MIN], points, door=first_object)
+    kept = [sure >= classes.min_confidence.get(names[category], MIN_CONFIDENCE)
+            or together >= FUSED_MIN for (category, _, sure), together in zip(proposed, fused)]
+    regions = merge_fragments([(category, mask) for (category, mask, _), keep
+                               in zip(proposed, kept) if keep], points, door=first_object)
     room_map = None
     if votes is not None:
         seen = _seen(classes, names, depth_small, points, floor_points, regions)
@@ -151,7 +166,72 @@ def read_frame(classes: PixelClasses, depth_m: np.ndarray, intrinsics: np.ndarra
                                 classes.states[state - 1] if state else None, room, door)
     instance = np.repeat(np.repeat(instance_small, fy, axis=0), fx, axis=1)
     instance[depth_m <= 0] = -1
-    return instance, FrameLabels(labels, cells, rooms, room_map)
+    def objects() -> list[MapObject]:
+        return map_objects(classes, [(c, m, sure) for (c, m, sure) in proposed
+                                     if sure >= UNSURE_MIN], points, instance_small, room_of,
+                           fy * fx, first_object)
+
+    return instance, FrameLabels(labels, cells, rooms, room_map, objects)
+
+
+@dataclass(frozen=True)
+class MapObject:
+    """One object of a frame as the instance map takes it (``mapping.instances.Region``):
+    its category, world points (at half size, within MAP_DEPTH_M of the region's median depth
+    from the camera), confidence (the mean probability of its category over its pixels, times
+    its size up to FULL_PIXELS), colour, room (at its place, as the frame's labels name rooms),
+    whether the frame's edge cuts it, and the instance id the frame's description gives it
+    (None where the description leaves it out as too unsure)."""
+
+    category: str
+    points: np.ndarray = field(repr=False, compare=False)
+    confidence: float
+    colour: str | None
+    room: str | None
+    cut: bool
+    described: int | None
+
+
+def map_objects(classes: PixelClasses, proposed: Sequence[tuple[int, np.ndarray, float]],
+                points: np.ndarray, described: np.ndarray, rooms: FrameLabels, scale: int,
+                door: int) -> list[MapObject]:
+    """The frame's regions for the instance map: every region from UNSURE_MIN, fragments
+    joined as the description joins them (``merge_fragments``), each weighed by its size
+    (regions under FULL_PIXELS at 640x480 are often not the object: on validation walks half
+    the chair regions under 150 px lie on walls and floors, 42 of 49 over 600 px on chairs).
+    ``described``: the description's instance buffer at half size; ``scale`` the frame's
+    pixels per half-size pixel."""
+    if not proposed:
+        return []
+    h, w = classes.category.shape
+    full = FULL_PIXELS * h * w * scale / (640 * 480)
+    names = list(classes.categories)
+    out = []
+    for category, mask in merge_fragments([(c, m) for c, m, _ in proposed], points, door):
+        sure = (float(classes.confidence[mask].mean()) if classes.confidence is not None
+                else 1.0)
+        p = _near_part(points[mask])
+        xy = np.median(p[:, :2], axis=0)
+        colour = _majority(classes.colour[mask], len(classes.colours))
+        ids = described[mask]
+        ids = ids[ids > 0]
+        own = int(np.bincount(ids).argmax()) if len(ids) * 2 >= int(mask.sum()) else None
+        rows, cols = np.nonzero(mask)
+        out.append(MapObject(
+            names[category], p, sure * min(1.0, int(mask.sum()) * scale / full),
+            classes.colours[colour] if colour is not None else None,
+            rooms.room_at(float(xy[0]), float(xy[1])),
+            bool(cols.min() == 0 or cols.max() == w - 1 or rows.min() == 0), own))
+    return out
+
+
+def _near_part(region: np.ndarray) -> np.ndarray:
+    """A region's world points within MAP_DEPTH_M (or twice their median distance) of their
+    median point: its rim's pixels that took the wall behind it are left out."""
+    centre = np.median(region, axis=0)
+    d = np.linalg.norm(region - centre, axis=1)
+    kept = region[d <= max(MAP_DEPTH_M, float(np.median(d)) * 2)]
+    return kept if len(kept) else region
 
 
 def _seen(classes: PixelClasses, names: list[str], depth: np.ndarray, points: np.ndarray,
