@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +36,7 @@ def walk(house: int) -> tuple[str, list[list[float]]]:
         q = questions[int(np.random.default_rng([house, 11]).integers(len(questions)))]
         scorer = EXPLORE_SCORERS.build("direction-logit",
                                        perception=SemanticPerception(env.scene_labels()))
-        config = replace(AgentConfig(), max_steps=env_step_budget(env), seed=0)
+        config = AgentConfig.of(max_steps=env_step_budget(env), seed=0)
         ep = explore_episode(env, config, q.question, scorer=scorer, to_budget=True)
     return q.question, [[round(p.x, 3), round(p.y, 3), round(p.yaw, 4)] for p in ep.poses]
 
