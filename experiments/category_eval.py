@@ -1,0 +1,34 @@
+"""`efficienteqa eval` on the questions of one category only: the same command and options,
+with the questions outside CATEGORY left out after ``--eval.limit`` took the dataset's first N
+(so the episodes are the full run's of that category).
+
+    python -m experiments.category_eval identification --preset pixels --eval.limit 48 \
+        --judge none --out out/ident-pixels
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import efficienteqa.datasets as datasets
+from efficienteqa.cli import main as cli
+
+
+def main() -> None:
+    """CATEGORY, then the options of ``efficienteqa eval``."""
+    if len(sys.argv) < 2 or sys.argv[1].startswith("-"):
+        sys.exit("usage: python -m experiments.category_eval CATEGORY [eval options]")
+    category, options = sys.argv[1], sys.argv[2:]
+    load = datasets.load_dataset
+
+    def only(*args: Any, **kwargs: Any) -> list[Any]:
+        return [q for q in load(*args, **kwargs) if q.category == category]
+
+    datasets.load_dataset = only  # type: ignore[assignment]  # eval imports it when it runs
+    sys.argv = ["efficienteqa", "eval", *options]
+    cli()
+
+
+if __name__ == "__main__":
+    main()
