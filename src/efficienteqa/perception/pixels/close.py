@@ -23,9 +23,10 @@ It reads what the full pass reads (RGB, depth, and the camera's focal length to 
 rise) and nothing else. Numpy and scipy; torch only to resize the crop's RGB.
 
 Chosen on validation houses 3900-3909 (``experiments/close_reads.py``; DESIGN 9 and
-docs/perception.md give the sweep): pasting only over background and the support found fewer
-small objects (69.0% within 3 m against 71.8%), a zoom of at least 1.4 as many as 2 with fewer
-right, one crop 70.4%, three or four no more than two.
+docs/perception.md give the sweep): small objects within 3 m found 65.3% -> 71.8%, all objects
+found and right 72.4/68.6% -> 73.0/68.6%; pasting only over background and the support found
+68.1%, a zoom of at least 1.4 about as many (72.3%) with fewer right, one crop 70.4%, three no
+more than two.
 """
 
 from __future__ import annotations
