@@ -204,6 +204,9 @@ def perception_evaluate(
     assets: str = typer.Option(DEFAULT_ASSETS, help="The houses' furniture: sh3d (the CC0 "
                                "catalogue the network trains on) or sh3d-all (with the CC-BY "
                                "catalogues, whose objects are measured apart)."),
+    close_reads: int | None = typer.Option(None, "--close-reads", help="Supports read again "
+                                           "a frame, on a crop around each (default: the "
+                                           "pixel perception's own; 0 is off)."),
 ) -> None:
     """Measure pixel perception against the semantic sensor on held-out houses: objects in view
     found and right per category, size and distance, recoloured objects, objects of meshes
@@ -236,8 +239,11 @@ def perception_evaluate(
         raise EfficientEQAError("--frames-per-house must be at least 1")
     if out is not None:
         check_writable(out.parent)
+    if close_reads is not None and close_reads < 0:
+        raise EfficientEQAError("--close-reads must be 0 or more")
     walks = read_poses(poses) if poses is not None else None
-    perception = PixelPerception.load(weights)
+    perception = (PixelPerception.load(weights) if close_reads is None
+                  else PixelPerception.load(weights, close_reads=close_reads))
     held_out = frozenset(perception.record.get("data", {}).get("heldout_model_keys", []))
     frames = heldout_frames(houses, frames_per_house, seed, walks, held_out, assets)
     total = len(houses) * frames_per_house
@@ -250,6 +256,7 @@ def perception_evaluate(
                                    "frames_per_house": frames_per_house, "seed": seed,
                                    "poses": "walks " + poses.name if poses else "training-style",
                                    "weights": str(weights or "committed"), "assets": assets,
+                                   "close_reads": perception.close_reads.crops,
                                    "code_version": code_version()})
     console.print(markdown_table(figures), highlight=False, soft_wrap=True)
     console.print(f"{figures['frames']} frames of houses {seeds}; "

@@ -11,7 +11,11 @@ region of the map); ``reset`` starts them afresh, and the agent calls it as ever
 Without (the default: frames of many houses read by one perception, as ``evaluate`` reads them),
 each frame names rooms from its own floor. With ``fuse_views``, objects are fused over the
 episode's views (``fusion.ObjectEvidence``); off by default (DESIGN 9: on validation walks it
-traded objects right for objects found at about the rate a lower threshold does).
+traded objects right for objects found at about the rate a lower threshold does). With
+``close_reads`` (``close.CloseReads``, or a number of crops; ``load`` gives CLOSE_READS), up to
+that many supports in view are read again on a crop around each, and the small objects the crop
+pass is sure of are pasted into the frame's classes (``close``): the agent's and ``perception
+evaluate``'s perception read so; built directly, it is off.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import numpy as np
 from efficienteqa.mapping.instances import Region
 from efficienteqa.observation import Observation
 from efficienteqa.perception.base import Modality
+from efficienteqa.perception.pixels.close import CloseReads, close_read
 from efficienteqa.perception.pixels.fusion import ObjectEvidence
 from efficienteqa.perception.pixels.rooms import PRIOR, RoomPrior, RoomVotes
 from efficienteqa.perception.pixels.segment import PixelClasses, floor_types, read_frame
@@ -34,6 +39,7 @@ if TYPE_CHECKING:
     from efficienteqa.envs.base import SceneLabels
 
 WEIGHTS = Path(__file__).resolve().parent / "weights" / "pixels.pt"
+CLOSE_READS = 2  # crops a frame (chosen on validation houses 3900-3909: DESIGN 9, close reads)
 Classifier = Callable[[np.ndarray, np.ndarray], PixelClasses]  # (rgb, depth_m) -> classes
 
 
@@ -46,13 +52,15 @@ class PixelPerception(SemanticPerception):
 
     def __init__(self, classify: Classifier, room_votes: bool = False,
                  prior: RoomPrior | None = None, record: dict[str, Any] | None = None,
-                 fuse_views: bool = False) -> None:
+                 fuse_views: bool = False, close_reads: int | CloseReads = 0) -> None:
         super().__init__(labels=None)  # type: ignore[arg-type]  # read() is all that uses them
         self.classify = classify
         self.room_votes = room_votes
         self.prior = prior if prior is not None or not room_votes else RoomPrior.load(PRIOR)
         self.record = record or {}  # the weights' record (how they were made), when loaded
         self.fuse_views = fuse_views
+        self.close_reads = (close_reads if isinstance(close_reads, CloseReads)
+                            else CloseReads(crops=close_reads))
         self._votes: RoomVotes | None = None
         self._evidence: ObjectEvidence | None = ObjectEvidence() if fuse_views else None
         self._read: tuple[Observation, Observation, SceneLabels] | None = None
@@ -65,7 +73,8 @@ class PixelPerception(SemanticPerception):
         super().reset()
 
     @classmethod
-    def load(cls, weights: Path | None = None, room_votes: bool = False) -> PixelPerception:
+    def load(cls, weights: Path | None = None, room_votes: bool = False,
+             close_reads: int | CloseReads = CLOSE_READS) -> PixelPerception:
         """The committed network (or the one at ``weights``); one-line error when missing."""
         from efficienteqa.perception.pixels.net import load_weights, predict
 
@@ -78,7 +87,7 @@ class PixelPerception(SemanticPerception):
                                 vocabulary.colours, vocabulary.states,
                                 confidence.astype(np.float32), thresholds)
 
-        return cls(classify, room_votes, record=meta)
+        return cls(classify, room_votes, record=meta, close_reads=close_reads)
 
     def regions(self, obs: Observation) -> list[Region]:
         """The frame's objects as regions of the instance map (``mapping.instances``): the
@@ -100,6 +109,9 @@ class PixelPerception(SemanticPerception):
     def read(self, obs: Observation) -> tuple[Observation, SceneLabels]:
         if self._read is None or self._read[0] is not obs:  # the network runs once per frame
             classes = self.classify(obs.rgb, obs.depth_m)
+            if self.close_reads.crops:
+                classes, _ = close_read(self.classify, classes, obs.rgb, obs.depth_m,
+                                        obs.intrinsics, self.close_reads)
             if self.room_votes and self._votes is None:
                 self._votes = RoomVotes(floor_types(classes.categories), self.prior)
             instance, labels = read_frame(classes, obs.depth_m, obs.intrinsics,
