@@ -125,6 +125,9 @@ def perception_dataset(
     workers: int = typer.Option(2, help="Rendering processes."),
     recolour_share: float = typer.Option(0.5, "--recolour-share", help="Share of colourable "
                                          "objects recoloured in training houses (3000-3899)."),
+    assets: str = typer.Option(DEFAULT_ASSETS, help="The houses' furniture: sh3d (the CC0 "
+                               "catalogue) or sh3d-all (every catalogue of the package; "
+                               "training houses then never show the KatorLegaz catalogue)."),
 ) -> None:
     """Render RGB-D frames with per-pixel category, colour and state labels at half size."""
     from efficienteqa.perception.pixels.dataset import parse_seeds, render_dataset
@@ -132,7 +135,7 @@ def perception_dataset(
     houses = parse_seeds(seeds)
     start = time.perf_counter()
     meta = render_dataset(houses, out, frames_per_house, seed, workers=workers,
-                          recolour_share=recolour_share)
+                          assets=assets, recolour_share=recolour_share)
     console.print(f"{len(houses)} houses, {len(houses) * frames_per_house} frames in "
                   f"{(time.perf_counter() - start) / 60:.1f} min -> {out} ({meta['frames']} "
                   "frames in all)", highlight=False, soft_wrap=True)

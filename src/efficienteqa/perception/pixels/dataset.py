@@ -49,6 +49,7 @@ import numpy as np
 from efficienteqa.envs.synthetic.catalog import Catalog
 from efficienteqa.envs.synthetic.colours import PALETTE
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
+from efficienteqa.envs.synthetic.house import check_assets
 from efficienteqa.envs.synthetic.layout import ROOM_PROGRAM, SECOND_NAMES
 from efficienteqa.envs.synthetic.vocabulary import SURFACE_CATEGORIES, VOCABULARY
 from efficienteqa.errors import EfficientEQAError, first_line
@@ -73,6 +74,10 @@ RECOLOUR_SHARE = 0.5
 # Share of each category's models held out of training houses (at least one where a category
 # has two or more): a fifth keeps 4 of 5 chairs for training; chosen, not tuned.
 HELDOUT_SHARE = 0.2
+# The catalogue kept out of training whole (with --assets sh3d-all): the smallest of the
+# package's CC-BY catalogues with house-worthy pieces (34 models in 24 categories), so that
+# training loses the fewest meshes; chosen by size, not tuned.
+HELDOUT_CATALOGUE = "KatorLegaz"
 ProgressFn = Callable[[int, int], None]
 
 
@@ -147,19 +152,27 @@ def check_seeds(seeds: range) -> None:
 
 # -- held-out meshes ----------------------------------------------------------------------------
 def heldout_model_keys(catalog: Catalog | None = None) -> frozenset[str]:
-    """Model keys kept out of perception training houses: per category with n >= 2 models,
+    """Model keys kept out of perception training houses: every model of HELDOUT_CATALOGUE (a
+    whole style the network never sees), and per catalogue and category with n >= 2 models,
     the max(1, floor(n * HELDOUT_SHARE)) keys of smallest sha256 (stable, chosen by no one).
-    ``catalog`` defaults to the sh3d furniture catalogue."""
+    Grouping by catalogue keeps the CC0 catalogue's held-out meshes the same whether or not the
+    other catalogues are loaded. ``catalog`` defaults to the sh3d furniture catalogue."""
     if catalog is None:
         from efficienteqa.envs.synthetic.env import catalog_for
 
         catalog = catalog_for("sh3d")
     keys: set[str] = set()
     for category in catalog.categories():
-        models = sorted((e.key for e in catalog.by_category(category)),
-                        key=lambda k: hashlib.sha256(k.encode()).hexdigest())
-        if len(models) >= 2:
-            keys.update(models[:max(1, math.floor(len(models) * HELDOUT_SHARE))])
+        groups: dict[str, list[str]] = {}
+        for e in catalog.by_category(category):
+            if e.catalogue == HELDOUT_CATALOGUE:
+                keys.add(e.key)
+            else:
+                groups.setdefault(e.catalogue, []).append(e.key)
+        for models in groups.values():
+            models.sort(key=lambda k: hashlib.sha256(k.encode()).hexdigest())
+            if len(models) >= 2:
+                keys.update(models[:max(1, math.floor(len(models) * HELDOUT_SHARE))])
     return frozenset(keys)
 
 
@@ -345,6 +358,7 @@ def render_dataset(seeds: range, out: Path, frames_per_house: int = 20, seed: in
     """Render ``frames_per_house`` frames of every house in ``seeds`` into shards under ``out``
     and merge ``out/meta.json``; returns that metadata. Shards already there are kept."""
     check_seeds(seeds)
+    check_assets(assets)
     if frames_per_house < 1:
         raise EfficientEQAError("--frames-per-house must be at least 1")
     if not 0.0 <= recolour_share <= 1.0:
