@@ -55,9 +55,9 @@ def test_recolour_share_of_picks_another_colour():
     assert all(o.colour != before[o.id] for o in objs if o.id in before)
 
 
-def _entry(key, category):
+def _entry(key, category, catalogue="t"):
     return CatalogEntry(key=key, name=key, category=category, size_m=(1.0, 1.0, 1.0),
-                        licence="CC0-1.0", creator="t", catalogue="t")
+                        licence="CC0-1.0", creator="t", catalogue=catalogue)
 
 
 def test_heldout_keys_are_a_stable_share_of_each_category_with_several_models():
@@ -67,6 +67,22 @@ def test_heldout_keys_are_a_stable_share_of_each_category_with_several_models():
     assert heldout_model_keys(Catalog(entries[::-1])) == keys  # order of the catalogue: none
     assert len([k for k in keys if "chair" in k]) == 2
     assert len([k for k in keys if "sofa" in k]) == 1 and "x/lamp" not in keys
+
+
+def test_heldout_keys_hold_out_a_whole_catalogue_and_a_fifth_of_each_other_one():
+    """Every model of the held-out catalogue is kept out; the fifth is counted per catalogue, so
+    one catalogue's held-out meshes stay the same when another catalogue is loaded beside it."""
+    from efficienteqa.perception.pixels.dataset import HELDOUT_CATALOGUE
+
+    first = [_entry(f"a/chair{i}", "chair", "A") for i in range(4)]
+    second = [_entry(f"b/chair{i}", "chair", "B") for i in range(4)] + [_entry("b/bed", "bed", "B")]
+    style = [_entry("k/chair", "chair", HELDOUT_CATALOGUE), _entry("k/bed", "bed", HELDOUT_CATALOGUE)]
+    alone = heldout_model_keys(Catalog(first))
+    every = heldout_model_keys(Catalog(first + second + style))
+    assert len(alone) == 1 and alone <= every
+    assert {"k/chair", "k/bed"} <= every and "b/bed" not in every
+    assert len([k for k in every if k.startswith("b/chair")]) == 1
+    assert len(every) == 4  # pooled, the 8 chairs would give 1, not 1 + 1
 
 
 def _two_sofa_catalog():

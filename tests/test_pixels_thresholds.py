@@ -129,23 +129,30 @@ def test_object_tags_mark_recoloured_objects_and_held_out_meshes():
 
 
 def test_object_tags_mark_the_catalogue_in_houses_of_every_catalogue():
+    """Weights trained on the CC0 houses never saw the CC-BY catalogues; weights trained on
+    every catalogue never saw the held-out one only. Doors carry no catalogue slice."""
     from types import SimpleNamespace
 
+    from efficienteqa.perception.pixels.dataset import HELDOUT_CATALOGUE
     from efficienteqa.perception.pixels.evaluate import (
-        CC0_CATALOGUE,
-        OTHER_CATALOGUES,
+        TRAINED_CATALOGUE,
+        UNSEEN_CATALOGUE,
         object_tags,
+        unseen_catalogue,
     )
 
-    objects = [SimpleNamespace(id=1, colour_rgb=None, model_key="cc0/sofa", category="sofa",
-                               licence="CC0-1.0"),
-               SimpleNamespace(id=2, colour_rgb=None, model_key="ccby/sofa", category="sofa",
-                               licence="CC-BY-3.0"),
-               SimpleNamespace(id=3, colour_rgb=None, model_key="cc0/door", category="door",
-                               licence="CC0-1.0")]
+    entries = {"cc0/sofa": ("CC0-1.0", "BlendSwap-CC-0"),
+               "ccby/sofa": ("CC-BY-3.0", "BlendSwap-CC-BY"),
+               "kl/sofa": ("CC-BY-3.0", HELDOUT_CATALOGUE), "cc0/door": ("CC0-1.0", "BlendSwap-CC-0")}
+    catalog = SimpleNamespace(entry=lambda key: SimpleNamespace(licence=entries[key][0],
+                                                                catalogue=entries[key][1]))
+    objects = [SimpleNamespace(id=i, colour_rgb=None, model_key=key, category=key.split("/")[1])
+               for i, key in enumerate(entries, start=1)]
     assert object_tags(objects, frozenset()) == {}
-    assert object_tags(objects, frozenset(), catalogues=True) == {
-        1: [CC0_CATALOGUE], 2: [OTHER_CATALOGUES]}
+    assert object_tags(objects, frozenset(), unseen_catalogue(catalog, "sh3d")) == {
+        1: [TRAINED_CATALOGUE], 2: [UNSEEN_CATALOGUE], 3: [UNSEEN_CATALOGUE]}
+    assert object_tags(objects, frozenset(), unseen_catalogue(catalog, "sh3d-all")) == {
+        1: [TRAINED_CATALOGUE], 2: [TRAINED_CATALOGUE], 3: [UNSEEN_CATALOGUE]}
 
 
 def test_a_tagged_object_is_counted_in_its_slice(env_seed3):

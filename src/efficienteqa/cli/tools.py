@@ -248,7 +248,8 @@ def perception_evaluate(
     perception = (PixelPerception.load(weights) if close_reads is None
                   else PixelPerception.load(weights, close_reads=close_reads))
     held_out = frozenset(perception.record.get("data", {}).get("heldout_model_keys", []))
-    frames = heldout_frames(houses, frames_per_house, seed, walks, held_out, assets)
+    trained_on = perception.record.get("data", {}).get("assets", DEFAULT_ASSETS)
+    frames = heldout_frames(houses, frames_per_house, seed, walks, held_out, assets, trained_on)
     total = len(houses) * frames_per_house
     with Progress(console=console, transient=True) as bar:
         task = bar.add_task("frames", total=total)

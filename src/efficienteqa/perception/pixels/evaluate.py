@@ -37,7 +37,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import backproject
 from efficienteqa.observation import Observation
 from efficienteqa.perception.pixels.backend import PixelPerception
-from efficienteqa.perception.pixels.dataset import TRAIN_SEEDS, room_type_of
+from efficienteqa.perception.pixels.dataset import HELDOUT_CATALOGUE, TRAIN_SEEDS, room_type_of
 from efficienteqa.perception.semantic import (
     FLOOR_TOLERANCE_M,
     VisibleObject,
@@ -107,9 +107,10 @@ class Scores:
 Tags = Mapping[int, Sequence[str]]  # instance id -> slices of its own ("recoloured", ...)
 RECOLOURED = "recoloured"
 HELD_OUT_MESH, TRAINED_MESH = "mesh:held out of training", "mesh:trained on"
-# The network trains on the CC0 catalogue's houses: in houses of every catalogue (assets
-# "sh3d-all"), the CC-BY catalogues' objects are furniture of a style it never saw.
-CC0_CATALOGUE, OTHER_CATALOGUES = "catalogue:CC0 (trained on)", "catalogue:CC-BY (never seen)"
+# In houses of every catalogue (assets "sh3d-all"), each object's catalogue is one the network's
+# training houses showed or one of a style it never saw: the CC-BY catalogues for weights trained
+# on the CC0 catalogue's houses, the held-out catalogue for weights trained on every catalogue.
+TRAINED_CATALOGUE, UNSEEN_CATALOGUE = "catalogue:trained on", "catalogue:never seen"
 
 
 def _slices(obj: VisibleObject, small: frozenset[str], tags: Tags) -> list[str]:
@@ -204,11 +205,13 @@ Poses = Mapping[int, Sequence[Sequence[float]]]  # house -> walk poses (x, y, ya
 
 def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
                    poses: Poses | None = None, held_out_meshes: frozenset[str] = frozenset(),
-                   assets: str = DEFAULT_ASSETS) -> Iterator[Frame]:
+                   assets: str = DEFAULT_ASSETS, trained_on: str = DEFAULT_ASSETS
+                   ) -> Iterator[Frame]:
     """Frames of houses the network never saw, with the houses' true labels and each object's
     tags: posed as its training frames are, or ``frames_per_house`` poses spread evenly over
     the house's walk in ``poses``. ``held_out_meshes``: the model keys kept out of training;
-    ``assets``: the houses' furniture ("sh3d-all" tags each object with its catalogue)."""
+    ``assets``: the houses' furniture ("sh3d-all" tags each object with its catalogue, trained
+    on or not by the weights' ``trained_on`` assets)."""
     from efficienteqa.envs.synthetic.env import SyntheticEnv
     from efficienteqa.geometry import Pose2D
     from efficienteqa.perception.pixels.dataset import house_poses
@@ -224,7 +227,8 @@ def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
         with SyntheticEnv.from_seed(house, assets) as env:
             labels = env.scene_labels()
             tags = object_tags(env.house.objects, held_out_meshes,
-                               catalogues=assets == ALL_CATALOGUES)
+                               unseen_catalogue(env.catalog, trained_on)
+                               if assets == ALL_CATALOGUES else None)
             if poses is None:
                 chosen = [p for _, p in house_poses(env, frames_per_house,
                                                     np.random.default_rng([seed, house]))]
@@ -236,18 +240,27 @@ def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
                 yield env.observe(pose), labels, tags
 
 
+def unseen_catalogue(catalog: Any, trained_on: str) -> Callable[[str], bool]:
+    """Whether a model key's catalogue was kept out of the training houses of weights trained
+    on ``trained_on`` furniture: every catalogue but the CC0 one for "sh3d", the held-out
+    catalogue (``dataset.HELDOUT_CATALOGUE``) for "sh3d-all"."""
+    if trained_on == ALL_CATALOGUES:
+        return lambda key: catalog.entry(key).catalogue == HELDOUT_CATALOGUE
+    return lambda key: catalog.entry(key).licence != "CC0-1.0"
+
+
 def object_tags(objects: Iterable[Any], held_out_meshes: frozenset[str],
-                catalogues: bool = False) -> dict[int, list[str]]:
+                unseen_catalogue: Callable[[str], bool] | None = None) -> dict[int, list[str]]:
     """Per object id: "recoloured" where the generator gave it a palette colour, whether its
-    mesh was held out of training (only when some meshes were), and with ``catalogues``
-    whether it comes from the CC0 catalogue the network trained on or a CC-BY one."""
+    mesh was held out of training (only when some meshes were), and with ``unseen_catalogue``
+    (model key -> whether its catalogue was kept out of training) its catalogue's slice."""
     tags: dict[int, list[str]] = {}
     for o in objects:
         mine = [RECOLOURED] if getattr(o, "colour_rgb", None) is not None else []
         if held_out_meshes:
             mine.append(HELD_OUT_MESH if o.model_key in held_out_meshes else TRAINED_MESH)
-        if catalogues and o.category != "door":
-            mine.append(CC0_CATALOGUE if o.licence == "CC0-1.0" else OTHER_CATALOGUES)
+        if unseen_catalogue is not None and o.category != "door":
+            mine.append(UNSEEN_CATALOGUE if unseen_catalogue(o.model_key) else TRAINED_CATALOGUE)
         if mine:
             tags[o.id] = mine
     return tags
