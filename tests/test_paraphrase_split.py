@@ -19,10 +19,12 @@ from efficienteqa.datasets import DATASETS, load_dataset, synthetic
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.envs.synthetic.questions import Question
+from efficienteqa.envs.synthetic.vocabulary import VOCABULARY
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.runner import _rule
 from efficienteqa.geometry import CameraSpec
 from efficienteqa.question import parse_question, singular
+from efficienteqa.reading.aliases import slip_aliases
 from efficienteqa.scenes import Scene, synthetic_questions
 from efficienteqa.stack import Stack
 
@@ -102,17 +104,11 @@ SYNONYMS = {"couch": "sofa", "fridge": "refrigerator", "tv unit": "tv stand", "t
             "bedside table": "nightstand", "bookcase": "bookshelf", "shelving unit": "bookshelf",
             "overhead light": "ceiling lamp", "wall sconce": "wall lamp", "easy chair": "armchair",
             "comfy chair": "armchair", "closet": "wardrobe", "seat": "chair"}
-_TYPO = "a slip in an object's name: the rules hold no list of objects to mend it against"
 _LANDMARK = "the re-phrasing adds a landmark, which is the support it names"
 _BY_TABLE = "the re-phrasing names the room by its table ('the dining table'), not the room"
 # The re-phrasings that still read differently from their originals, each with its reason and
 # its target as read (kind, object, support, rooms), so that a change to either shows here.
 KNOWN = {
-    "syn-104-06": (_TYPO, ("location", "tabel", None, ())),
-    "syn-112-00": (_TYPO, ("count", "chiar", "table", ("dining room",))),
-    "syn-118-00": (_TYPO, ("identification", None, "tv stnad", ("living room",))),
-    "syn-128-07": (_TYPO, ("location", "stoool", None, ())),
-    "syn-106-01": (_TYPO, ("count", "chair", "tabel", ("dining room",))),
     "syn-127-05": (_LANDMARK, ("state", "table lamp", "cabinet", ("hallway",))),
     "syn-100-03": (_LANDMARK, ("existence", "sink", "oven", ("kitchen",))),
     "syn-110-08": (_LANDMARK, ("location", "stove", "wall cabinet", ())),
@@ -121,16 +117,22 @@ KNOWN = {
 }
 
 
+CATEGORIES = sorted(set(VOCABULARY.values()))  # what the houses' objects are called
+
+
 def _read(question: str, words: dict[str, str]):
+    """The target as the rules read it, with the re-phrasings' synonyms and the slips in
+    objects' names mended against the houses' vocabulary (``reading.aliases``)."""
     t = parse_question(question)
     obj = singular(t.object) if t.object else None
+    words = {**words, **slip_aliases([w for w in (obj, t.support) if w], CATEGORIES)}
     return (t.kind, words.get(obj, obj), words.get(t.support, t.support), t.rooms)
 
 
 def test_every_rephrasing_reads_as_its_original(pairs):
     # Before the rules read openings and slips: 24 of 48 read as their originals (after the
     # synonyms above), 0 of 8 typos and 6 of 16 conversational ones ("Hey, ..." was read as a
-    # thing called "hey"); now 38 of 48.
+    # thing called "hey"); 38 of 48 with them, 43 of 48 with slips in objects' names mended.
     differ = {}
     for original, p in pairs:
         got, want = _read(p.question, SYNONYMS), _read(original.question, {})

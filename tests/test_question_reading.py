@@ -156,6 +156,35 @@ def test_an_unanswered_pair_is_no_alias():
     assert resolver.problems
 
 
+def test_a_slip_in_an_objects_name_is_read_against_the_vocabulary():
+    from efficienteqa.reading.aliases import slip_aliases
+
+    vocabulary = ["table", "foosball table", "table lamp", "lamp", "chair", "tv stand", "stool",
+                  "clock", "cup"]
+    got = slip_aliases(["tabel", "chiars", "tv stnad", "stoool", "dining tabel", "tabel lamp",
+                        "couch", "chair", "pcu", "cloc"], vocabulary)
+    assert got == {"tabel": "table", "chiars": "chair", "tv stnad": "tv stand",
+                   "stoool": "stool", "dining tabel": "table", "tabel lamp": "table lamp",
+                   "cloc": "clock"}  # none in three letters ("pcu"); a drop in five
+    # a slip that fits two words of the vocabulary is read as neither
+    assert slip_aliases(["stoo"], ["stool"]) == {"stoo": "stool"}
+    assert slip_aliases(["stoo"], ["stool", "stoop"]) == {}
+
+
+def test_the_resolver_mends_slips_without_embedding_them():
+    embedded: list[str] = []
+
+    def embed(texts):
+        embedded.extend(texts)
+        return _embed(texts)
+
+    resolver = AliasResolver(embed, StubChatModel([]))  # any call would fail the test
+    aliases = resolver.aliases(Target("count", "chiar", "tabel"), ["chair", "table"])
+    assert aliases == (("chiar", "chair"), ("tabel", "table")) and embedded == []
+    target = Target("count", "chiar", "tabel", aliases=aliases)
+    assert target.is_a("chiar", "chair") and target.is_a("tabel", "table")
+
+
 # ----- the agent's options ----------------------------------------------------------------
 def test_the_reading_options_are_checked_and_the_paper_reads_by_rules():
     with pytest.raises(ValueError, match="reading"):

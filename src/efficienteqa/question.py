@@ -240,7 +240,7 @@ def mend(text: str) -> str:
     return _TYPO_RE.sub(lambda m: _TYPOS[m.group(1)], text)
 
 
-def _slips(word: str) -> set[str]:
+def slips(word: str) -> set[str]:
     """How ``word`` comes out with one slip: two neighbouring letters swapped (four letters or
     more), one letter dropped or doubled (five or more)."""
     out = {word[:i] + word[i + 1] + word[i] + word[i + 2:] for i in range(len(word) - 1)}
@@ -260,7 +260,7 @@ _SLIP_WORDS = (*_words("where which there color colour between around open close
 _REAL_WORDS = frozenset(_words("round close lunge", " "))
 _known = (_FUNCTION | _ING_NOUNS | _PEOPLE | _REAL_WORDS | set(_TYPOS)
           | {w for p in _PLACES for w in p.split()} | {w for t, _ in _ROOM_WORDS for w in t.split()})
-_slipped = [(typed, word) for word in _SLIP_WORDS for typed in _slips(word) if typed not in _known]
+_slipped = [(typed, word) for word in _SLIP_WORDS for typed in slips(word) if typed not in _known]
 _fits = Counter(typed for typed, _ in _slipped)
 _SLIPS = {typed: word for typed, word in _slipped if _fits[typed] == 1}
 

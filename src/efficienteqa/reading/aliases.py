@@ -6,7 +6,11 @@
 ``AliasResolver`` finds those pairs once per episode and stores them in ``Target.aliases``,
 which the gate, the steering, the sightings and the hints read through ``Target.is_a``:
 
-- every object or support word of the target that is no category of the vocabulary (after
+- a word of the target one slip of the keyboard away from a word of the vocabulary (two
+  neighbouring letters swapped, one dropped or doubled: ``question.slips``), where that fits one
+  vocabulary word only and mending it makes the phrase a category, is that category ("tabel" a
+  "table", "tv stnad" a "tv stand"): the rules hold no list of objects, the vocabulary is one;
+- every other object or support word of the target that is no category of the vocabulary (after
   case and plural) is embedded with the categories (the project's MiniLM, ``relevancy.text``);
   where its words already name a category ("dining table" a "table"), only the categories
   closer to them than that one are candidates (so "dining table" is never a "chair");
@@ -30,7 +34,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from efficienteqa.models.base import ChatModel, Message
-from efficienteqa.question import Target, names, singular
+from efficienteqa.question import Target, names, singular, slips
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.reading"  # reading/prompts/same.txt
@@ -62,6 +66,10 @@ class AliasResolver:
                  if not any(singular(t.lower()) == singular(c) for c in categories)]
         if not words or not categories:
             return ()
+        mended = slip_aliases(words, categories)
+        words = [w for w in words if w not in mended]
+        if not words:
+            return tuple(mended.items())
         sims = np.asarray(self.embed(words)) @ np.asarray(self.embed(categories)).T
         clear: list[tuple[str, str]] = []
         unsure: list[tuple[str, str]] = []
@@ -78,7 +86,7 @@ class AliasResolver:
             if not sure:
                 unsure += [(word, categories[j]) for j in order[:self.top]
                            if sims[i, j] >= self.unsure]
-        return (*clear, *self._ask(unsure))
+        return (*mended.items(), *clear, *self._ask(unsure))
 
     def _ask(self, pairs: list[tuple[str, str]]) -> list[tuple[str, str]]:
         """The pairs the model says name the same kind of object: one call for all."""
@@ -94,3 +102,35 @@ class AliasResolver:
             self.problems.append(f"{len(pairs) - len(said)} of {len(pairs)} pairs unanswered in "
                                  f"{reply[:60]!r}: not aliases")
         return [p for i, p in enumerate(pairs) if said.get(i + 1, False)]
+
+
+def slip_aliases(words: Sequence[str], categories: Sequence[str]) -> dict[str, str]:
+    """{word: category} for the words that name a category once their slips are mended: each
+    token (or its singular) that is no word of the categories and is one slip
+    (``question.slips``) of exactly one of them is read as that one; the mended phrase is then
+    the category, or ends with it as whole words ("dining tabel" a "table"; the longest such:
+    "wooden tabel lamp" a "table lamp", not a "lamp"). A longer category that merely ends with
+    the phrase is a kind of it, not its name ("tabel" is no "foosball table")."""
+    vocabulary = {t for c in categories for t in c.lower().split()}
+    typed: dict[str, set[str]] = {}
+    for token in vocabulary:
+        for slip in slips(token):
+            typed.setdefault(slip, set()).add(token)
+
+    def mend(token: str) -> str:
+        if token in vocabulary or singular(token) in vocabulary:
+            return token
+        fits = typed.get(token) or typed.get(singular(token)) or set()
+        return next(iter(fits)) if len(fits) == 1 else token
+
+    out: dict[str, str] = {}
+    for word in words:
+        tokens = word.lower().split()
+        fixed = " ".join(map(mend, tokens))
+        if fixed != " ".join(tokens):
+            phrase = singular(fixed)
+            named = [c for c in categories if phrase == singular(c.lower())
+                     or phrase.endswith(" " + singular(c.lower()))]
+            if named:
+                out[word] = max(named, key=len)
+    return out
