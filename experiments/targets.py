@@ -38,8 +38,10 @@ from typing import Any
 
 import numpy as np
 
+from efficienteqa.agent import AgentConfig
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question
+from efficienteqa.knobs import with_leaves
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stop.rules import env_step_budget
@@ -61,7 +63,7 @@ def explore_rows(args: argparse.Namespace) -> list[dict[str, Any]]:
     for seed, env, budget, q in bench.steering_questions(ns):
         if len(rows) >= args.questions:
             break
-        row = bench._steer(env, q, bench.agent_config(ns), budget, seed, args.repeats, False,
+        row = bench._steer(env, q, _config(ns, args), budget, seed, args.repeats, False,
                            (DEFAULT, YARDSTICK))
         if not row["reachable"]:
             print(f"{q.id}: no view of the evidence is reachable from the start; left out")
@@ -85,11 +87,24 @@ def location_rows(args: argparse.Namespace, skip: set[str]) -> list[dict[str, An
                     continue
                 if len(rows) >= args.location:
                     break
-                row = bench._steer(env, q, bench.agent_config(ns), env_step_budget(env), seed,
+                row = bench._steer(env, q, _config(ns, args), env_step_budget(env), seed,
                                    args.repeats, False, (DEFAULT, YARDSTICK))
                 if row["reachable"]:
                     rows.append(_mark(row, q, env))
     return rows
+
+
+def _config(ns: argparse.Namespace, args: argparse.Namespace) -> AgentConfig:
+    """The bench's agent configuration with the steering's ``--target`` overrides."""
+    overrides = {}
+    for item in args.target:
+        key, _, value = item.partition("=")
+        try:
+            overrides[key] = json.loads(value)
+        except ValueError:
+            overrides[key] = value
+    config = bench.agent_config(ns)
+    return with_leaves(config, target=overrides) if overrides else config
 
 
 def _mark(row: dict[str, Any], q: Question, env: SyntheticEnv) -> dict[str, Any]:
@@ -241,6 +256,9 @@ def main() -> None:
     ap.add_argument("--audit", action=argparse.BooleanOptionalAction, default=True,
                     help="walk the run's episodes again for the stop-frame rows")
     ap.add_argument("--out", type=Path, default=None, help="a folder for targets.json")
+    ap.add_argument("--target", action="append", default=[], metavar="KEY=VALUE",
+                    help="an override of the steering's constants (TargetConfig), e.g. "
+                         "glance=true; repeatable")
     args = ap.parse_args()
     from experiments import stop_audit
 

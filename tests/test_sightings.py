@@ -296,3 +296,38 @@ def test_a_vlms_boxes_fill_the_instance_map_and_the_count_gate_reads_it():
     assert len(perception.instances) == 3
     perception.reset()
     assert len(perception.instances) == 0
+
+
+def test_a_door_in_view_is_sighted_where_it_stands_never_with_the_rooms_its_label_joins():
+    from dataclasses import replace
+
+    from efficienteqa.envs.base import DoorSides, ObjectLabel
+    from test_semantic_perception import LABELS
+
+    class WithDoor(FakeLabels):
+        def label(self, instance_id):
+            if instance_id == 13:
+                return ObjectLabel("door", "white", "open", "kitchen",
+                                   DoorSides(("kitchen", "office"), 4.5, 1.0, (-1.0, 0.0)))
+            return LABELS.get(instance_id)
+
+    obs = make_frame()
+    instance, depth = obs.instance.copy(), obs.depth_m.copy()
+    instance[10:30, 20:28], depth[10:30, 20:28] = 13, 3.5
+    obs = replace(obs, instance=instance, depth_m=depth)
+    for target in (SOFA, Target()):  # whatever the question, doors are sighted
+        seen = SemanticPerception(WithDoor()).sightings(obs, target)
+        [door] = seen.doors
+        assert door.category == "door" and door.room is None  # the label's sides unread
+        assert abs(door.xy[0] - (obs.pose.x + 3.5)) < 0.3
+        assert [t.category for t in seen.things] == (["sofa"] if target == SOFA else [])
+
+
+def test_a_doorway_box_is_a_door_with_the_room_seen_through_it():
+    obs = make_frame()  # the wall at 4 m, rows 10-29
+    h, w = obs.depth_m.shape
+    box = (20 * 1000 / w, 10 * 1000 / h, 28 * 1000 / w, 34 * 1000 / h)
+    seen = project(SightingReply("kitchen", (("hallway", Region(box)),), ()), obs)
+    [door] = seen.doors
+    assert door.room == "hallway" and abs(door.xy[0] - (obs.pose.x + 4.0)) < 0.3
+    assert not project(SightingReply("kitchen", (("hallway", Region()),), ()), obs).doors

@@ -160,3 +160,49 @@ def test_a_doorway_out_of_a_room_seen_keeps_its_weight_where_a_corner_of_it_does
     corner, doorway = prior(1.0)
     assert corner < 1e-3 and doorway == 1.0
     assert list(prior(0.0)) == [1e-6, 1e-6]  # by the room they lie in alone: both ruled out
+
+
+def _door(xy: tuple[float, float], room: str | None = None):
+    from efficienteqa.perception.base import Sighting
+
+    return Sighting("door", xy, 2.0, 500, False, room)
+
+
+def test_a_door_whose_far_side_is_unknown_is_glanced_through_before_the_frontiers():
+    # A hallway along y = 1-3 with a door in its wall at (6, 3.2): the named office unseen.
+    hall = _box(0.5, 1.0, 9.5, 3.0)
+    island = _mask(hall)
+    pose = Pose2D(2.0, 2.0, 0.0)
+
+    def first(glance: bool):
+        ex = TargetExplorer(FrontierExplorer(), TargetConfig(glance=glance))
+        ex.set_target(Target("existence", "desk", None, ("office",)))
+        ex.see(GRID, Sightings({"hallway": hall}, doors=(_door((6.0, 3.2)),)))
+        return ex, ex.decide(_state(island, _mask(_box(0.5, 1.0, 3.0, 3.0)), (2.0, 2.0)),
+                             pose, None, 1)
+
+    ex, decision = first(True)
+    assert decision.reason == "glance through a door"
+    gap = np.hypot(decision.pose.x - 6.0, decision.pose.y - 3.2)
+    assert abs(gap - 1.2) < 0.3  # glance_m before it
+    facing = math.atan2(3.2 - decision.pose.y, 6.0 - decision.pose.x)
+    assert abs(math.remainder(decision.pose.yaw - facing, math.tau)) < math.radians(10)
+    assert first(False)[1].reason != "glance through a door"
+    # standing there facing it, the door is glanced: the frontiers decide again
+    again = ex.decide(_state(island, island.copy(), (decision.pose.x, decision.pose.y)),
+                      decision.pose, None, 2)
+    assert again.reason != "glance through a door" and ex._doors[0].glanced
+
+
+def test_a_door_with_both_sides_seen_or_a_room_named_through_it_needs_no_glance():
+    hall = _box(0.5, 1.0, 9.5, 3.0)
+    island = _mask(hall)
+    for seen in (Sightings({"hallway": hall, "bathroom": _box(5.0, 3.3, 7.0, 3.9)},
+                           doors=(_door((6.0, 3.2)),)),
+                 Sightings({"hallway": hall}, doors=(_door((6.0, 3.2), "bathroom"),))):
+        ex = TargetExplorer(FrontierExplorer(), TargetConfig(glance=True))
+        ex.set_target(Target("existence", "desk", None, ("office",)))
+        ex.see(GRID, seen)
+        decision = ex.decide(_state(island, _mask(_box(0.5, 1.0, 3.0, 3.0)), (2.0, 2.0)),
+                             Pose2D(2.0, 2.0, 0.0), None, 1)
+        assert decision.reason != "glance through a door" and ex._doors[0].glanced

@@ -188,6 +188,16 @@ class TargetConfig:
     # where the top of the view (TOP_OF_VIEW_DEG) reaches a ceiling 1.1 m above the camera.
     look_up: bool = True
     overhead_view_m: float = 2.8
+    # Glance through doors: while the room to search is unseen, walk to the nearest door whose
+    # far side no frame has shown (``Sightings.doors``, merged within door_merge_m) and stand
+    # glance_m before it, facing it, so that the frame names the room beyond before any step is
+    # spent in it; a door is glanced once the robot stood so (or after glance_tries moves), or
+    # once floor of two rooms was seen within door_side_m of it.
+    glance: bool = False
+    glance_m: float = 1.2
+    glance_tries: int = 3
+    door_merge_m: float = 1.0
+    door_side_m: float = 1.2
     # After a move of the steering's own, the frontier explorer chooses afresh instead of
     # keeping the frontier it committed to before (False: it keeps it, as before).
     fresh_frontier: bool = True

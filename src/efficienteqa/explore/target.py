@@ -63,6 +63,14 @@ OVERHEAD_WORDS = ("ceiling", "chandelier", "pendant")  # words of things hung fr
 
 
 @dataclass
+class _Door:
+    xy: np.ndarray
+    room: str | None  # the room seen through it, where the perception says
+    glanced: bool = False
+    tries: int = 0
+
+
+@dataclass
 class _Thing:
     category: str
     xy: np.ndarray
@@ -90,6 +98,7 @@ class TargetExplorer:
         self._rooms: dict[str, np.ndarray] = {}  # room -> bool grid of cells whose floor was seen
         self._spec: GridSpec | None = None
         self._things: list[_Thing] = []
+        self._doors: list[_Door] = []
         self._looks: list[float] = []  # yaws still to look at, in the named room
         self._searched: set[str] = set()
         self._room_steps = 0
@@ -118,6 +127,14 @@ class TargetExplorer:
             grid[i[ok], j[ok]] = True
         for s in seen.things:
             self._add_thing(s)
+        for d in seen.doors:
+            xy = np.asarray(d.xy, float)
+            known = next((k for k in self._doors
+                          if np.linalg.norm(k.xy - xy) <= self.config.door_merge_m), None)
+            if known is None:
+                self._doors.append(_Door(xy, d.room))
+            elif known.room is None:
+                known.room = d.room
 
     def _add_thing(self, s: Sighting) -> None:
         if (self.target.is_a(self.target.object, s.category)
@@ -221,6 +238,10 @@ class TargetExplorer:
         if (cfg.go_to_room and room is not None and here != room and room not in self._searched
                 and step >= self._room_rest_until):
             decision = self._to_room(state, pose, room, step)
+            if decision is not None:
+                return decision
+        if cfg.glance and room is not None and self._room_cells(room) < cfg.min_room_cells:
+            decision = self._glance(state, pose)
             if decision is not None:
                 return decision
         decision = self.frontier.decide(state, pose, values, step)
@@ -334,6 +355,49 @@ class TargetExplorer:
                 continue
             return decision
         return None
+
+    def _glance(self, state: MapState, pose: Pose2D) -> Decision | None:
+        """A look through the nearest door whose far side is unknown (``TargetConfig.glance``):
+        a pose ``glance_m`` before it on this side, facing it; None when every door known is
+        glanced."""
+        cfg = self.config
+        fr = self.frontier.config
+        grid = state.island_grid
+        dist = grid.distance_field((pose.x, pose.y), self._radius(state, pose), fr.snap_m)
+        open_doors = []
+        for door in self._doors:
+            if door.glanced:
+                continue
+            gap = float(np.linalg.norm(pose.xy - door.xy))
+            facing = abs(float(wrap_angle(math.atan2(door.xy[1] - pose.y, door.xy[0] - pose.x)
+                                          - pose.yaw)))
+            if ((gap <= cfg.glance_m + cfg.reached_m + 0.3 and facing < math.radians(30))
+                    or door.tries >= cfg.glance_tries or door.room is not None
+                    or len(self._rooms_near(door.xy, cfg.door_side_m)) >= 2):
+                door.glanced = True  # seen through, tried enough, or both sides known
+                continue
+            i, j = state.spec.world_to_cell(door.xy)
+            far = float(dist[i, j]) if state.spec.contains((i, j)) else np.inf
+            open_doors.append((far if np.isfinite(far) else 1e3 + gap, door))
+        for _, door in sorted(open_doors, key=lambda t: t[0]):
+            door.tries += 1
+            goal = self._stand_near(state, pose, door.xy, cfg.glance_m, None)
+            decision = None if goal is None else self._new_view(
+                self._move(state, pose, goal, door.xy, "glance through a door"), pose)
+            if decision is not None:
+                return decision
+            door.glanced = True  # no new view towards it from here
+        return None
+
+    def _rooms_near(self, xy: np.ndarray, within_m: float) -> set[str]:
+        """The rooms with seen floor within ``within_m`` of ``xy`` (3 cells at least each)."""
+        if self._spec is None:
+            return set()
+        i, j = (int(v) for v in self._spec.world_to_cell(np.asarray(xy, float)))
+        r = int(round(within_m / self._spec.resolution_m))
+        rows, cols = self._spec.shape
+        i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, rows), max(j - r, 0), min(j + r + 1, cols)
+        return {room for room, g in self._rooms.items() if g[i0:i1, j0:j1].sum() >= 3}
 
     def _inspected_things(self) -> list[_Thing]:
         """The things worth walking up to, in the named room when the frame said which room:

@@ -69,9 +69,13 @@ class Sighting:
 class Sightings:
     """What a frame shows of the places and things a question points at, for the explorer:
     ``floor`` maps each room whose floor is in view to (N, 2) world points of that floor;
-    ``things`` are the target's objects in view. A perception that cannot tell by itself
-    (images read by a VLM) gets them from the model (``perception.sightings.ModelSightings``);
-    with none, the explorer steers by semantic values alone."""
+    ``things`` are the target's objects in view; ``doors`` the doors and doorways in view, each
+    a ``Sighting`` of category "door" whose ``room`` is the room seen through it where the
+    perception says so (a VLM's doorways), else None (the floor beyond names it). A perception
+    that cannot tell by itself (images read by a VLM) gets them from the model
+    (``perception.sightings.ModelSightings``); with none, the explorer steers by semantic values
+    alone."""
 
     floor: Mapping[str, np.ndarray]
     things: tuple[Sighting, ...] = ()
+    doors: tuple[Sighting, ...] = ()

@@ -644,9 +644,10 @@ def object_regions(obs: Observation, labels: SceneLabels, described: FrameDescri
 
 def sightings(obs: Observation, labels: SceneLabels, target: Target,
               noise: NoiseConfig | None = None) -> Sightings:
-    """What the frame shows of the rooms (floor points per room, as ``floor_view`` names them)
-    and of the target's things (objects whose category the question names, from
-    GLIMPSE_PIXELS scaled): only what the frame shows, like the text."""
+    """What the frame shows of the rooms (floor points per room, as ``floor_view`` names them),
+    of the target's things (objects whose category the question names, from GLIMPSE_PIXELS
+    scaled) and of the doors (where each is; no room through it: the floor beyond says):
+    only what the frame shows, like the text."""
     h, w = obs.depth_m.shape
     k = SIGHTING_STRIDE
     points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)
@@ -655,22 +656,28 @@ def sightings(obs: Observation, labels: SceneLabels, target: Target,
     xy = points[::k, ::k, :2]
     floor = {room: xy[index == n] for n, room in enumerate(view.rooms) if (index == n).any()}
     things: list[Sighting] = []
+    doors: list[Sighting] = []
     wanted = target.things
-    if wanted and obs.instance is not None:
+    if obs.instance is not None:
         glimpse = max(1, round(GLIMPSE_PIXELS * h * w / REFERENCE_AREA_PX))
         rooms = set(view.in_view(scaled_min_pixels(h, w)))
         here = labels.room_at(obs.pose.x, obs.pose.y)
         camera_xy = (float(obs.cam_to_world[0, 3]), float(obs.cam_to_world[1, 3]))
         for o in visible_objects(obs, labels, glimpse, noise):
-            if not any(target.is_a(t, o.label.category) for t in wanted):
+            door = o.label.category == "door"  # where it is only: the rooms it joins are
+            # what the floor beyond shows, never the label's
+            if not door and not any(target.is_a(t, o.label.category) for t in wanted):
                 continue
             mask = (obs.instance == o.instance_id) & (obs.depth_m > 0)
             rows, cols = np.nonzero(mask)
             p = points[mask]
-            where = _where(o.label, rooms, here, camera_xy)
-            room = where[len("in the "):] if where and where.startswith("in the ") else None
             cut = bool(cols.min() == 0 or cols.max() == w - 1 or rows.min() == 0)
-            things.append(Sighting(o.label.category, (float(np.median(p[:, 0])),
-                                                      float(np.median(p[:, 1]))),
-                                   float(np.percentile(p[:, 2], 98)), o.pixels, cut, room))
-    return Sightings(floor, tuple(things))
+            place = (float(np.median(p[:, 0])), float(np.median(p[:, 1])))
+            top = float(np.percentile(p[:, 2], 98))
+            if door:
+                doors.append(Sighting("door", place, top, o.pixels, cut, None))
+            if any(target.is_a(t, o.label.category) for t in wanted):
+                where = _where(o.label, rooms, here, camera_xy)
+                room = where[len("in the "):] if where and where.startswith("in the ") else None
+                things.append(Sighting(o.label.category, place, top, o.pixels, cut, room))
+    return Sightings(floor, tuple(things), tuple(doors))

@@ -14,7 +14,9 @@ turns the reply into the same ``Sightings`` with the frame's depth and pose:
 - a thing: the points of its box (less the floor) at the depth most of the box's middle half
   shows (a box also holds the wall behind a chair): the median x, y, the 98th percentile of z;
   cut when the box touches the left, right or top edge; its room the room of the nearest floor
-  point named, within ``ROOM_M``.
+  point named, within ``ROOM_M``;
+- a doorway's box is also a door (``Sightings.doors``), placed as a thing is (its frame, the
+  nearest surface off the floor in the box), with the room the reply saw through it.
 
 The same call reads a text perception's description (``images`` False): the objects are listed
 by number, the reply names numbers, and each number's pixels come from the perception's own
@@ -276,7 +278,19 @@ def project(reply: SightingReply, obs: Observation,
         xy = (float(np.median(p[:, 0])), float(np.median(p[:, 1])))
         things.append(Sighting(name, xy, float(np.percentile(p[:, 2], 98)), pixels, cut,
                                _room_near(xy, floor) or reply.room, p[::STRIDE]))
-    return Sightings(floor, tuple(things))
+    doors = []  # a doorway boxed: where its frame stands (the box's nearest surface off the
+    # floor), with the room the reply saw through it
+    for room, region in reply.doorways:
+        if region.box is None:
+            continue
+        mask = box_mask(region.box, (h, w)) & valid & ~on_floor
+        p = _thing_points(points, depth, mask, box_mask(_middle(region.box), (h, w)) & mask)
+        if len(p):
+            cut = (region.box[0] <= EDGE or region.box[2] >= BOX_SCALE - EDGE
+                   or region.box[1] <= EDGE)
+            doors.append(Sighting("door", (float(np.median(p[:, 0])), float(np.median(p[:, 1]))),
+                                  float(np.percentile(p[:, 2], 98)), int(mask.sum()), cut, room))
+    return Sightings(floor, tuple(things), tuple(doors))
 
 
 def _floor(reply: SightingReply, points: np.ndarray,
