@@ -95,16 +95,20 @@ def location_rows(args: argparse.Namespace, skip: set[str]) -> list[dict[str, An
 
 
 def _config(ns: argparse.Namespace, args: argparse.Namespace) -> AgentConfig:
-    """The bench's agent configuration with the steering's ``--target`` overrides."""
-    overrides = {}
-    for item in args.target:
-        key, _, value = item.partition("=")
-        try:
-            overrides[key] = json.loads(value)
-        except ValueError:
-            overrides[key] = value
+    """The bench's agent configuration with the ``--target`` (steering) and ``--sfe``
+    (frontier explorer) overrides."""
     config = bench.agent_config(ns)
-    return with_leaves(config, target=overrides) if overrides else config
+    for section in ("target", "sfe"):
+        overrides = {}
+        for item in getattr(args, section):
+            key, _, value = item.partition("=")
+            try:
+                overrides[key] = json.loads(value)
+            except ValueError:
+                overrides[key] = value
+        if overrides:
+            config = with_leaves(config, **{section: overrides})
+    return config
 
 
 def _mark(row: dict[str, Any], q: Question, env: SyntheticEnv) -> dict[str, Any]:
@@ -259,6 +263,9 @@ def main() -> None:
     ap.add_argument("--target", action="append", default=[], metavar="KEY=VALUE",
                     help="an override of the steering's constants (TargetConfig), e.g. "
                          "glance=true; repeatable")
+    ap.add_argument("--sfe", action="append", default=[], metavar="KEY=VALUE",
+                    help="an override of the frontier explorer's constants (SFEConfig), e.g. "
+                         "stand_in_sight=false; repeatable")
     args = ap.parse_args()
     from experiments import stop_audit
 

@@ -206,3 +206,30 @@ def test_a_door_with_both_sides_seen_or_a_room_named_through_it_needs_no_glance(
         decision = ex.decide(_state(island, _mask(_box(0.5, 1.0, 3.0, 3.0)), (2.0, 2.0)),
                              Pose2D(2.0, 2.0, 0.0), None, 1)
         assert decision.reason != "glance through a door" and ex._doors[0].glanced
+
+
+def test_a_standing_point_sees_its_frontier_not_the_wall_of_a_hallway():
+    # A 1.6 m hallway (y 2.4-4.0) over a wall (y 2.2-2.4) with a doorway at x 4-5 into a room
+    # below. A frontier in the hallway faces north: backing off 1.5 m against it lands in the
+    # room, behind the wall; the standing point must be in the hallway, in sight of it.
+    from efficienteqa.explore.base import Frontier
+    from efficienteqa.explore.settings import SFEConfig
+    from efficienteqa.explore.sfe import in_sight
+
+    hall, room, door = _box(0.5, 2.45, 9.5, 4.0), _box(3.0, 0.5, 6.0, 2.15), _box(4.0, 2.1, 5.0, 2.5)
+    wall = _box(0.5, 2.2, 9.5, 2.4)
+    island = _mask(np.concatenate([hall, room, door]))
+    occupied = _mask(wall) & ~_mask(door)
+    state = MapState(GRID, island, occupied, island.copy(), island, (2.0, 3.0))
+    frontier = Frontier((0, 0), (3.5, 3.1), (0.0, 1.0), 5)
+
+    def stand(in_sight_rule: bool) -> np.ndarray:
+        explorer = FrontierExplorer(SFEConfig(stand_in_sight=in_sight_rule))
+        stands, ok = explorer._standing_points(state, [frontier], island, np.array([1.5]), 1.0)
+        assert ok[0]
+        return stands[0]
+
+    plain, seeing = stand(False), stand(True)
+    assert plain[1] < 2.2  # the plain rule: in the room, behind the wall
+    assert 2.4 < seeing[1] < 3.1 and in_sight(occupied, GRID, seeing[None], np.array([[3.5, 3.1]]))[0]
+    assert not in_sight(occupied, GRID, plain[None], np.array([[3.5, 3.1]]))[0]

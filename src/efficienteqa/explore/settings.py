@@ -117,12 +117,18 @@ class SFEConfig:
     skip_idle: bool = True
     idle_turn_deg: float = 30.0
     idle_retries: int = 4
+    # A standing point must see its frontier: no mapped obstacle on the straight line between
+    # them. Backing off 1.5 m from a frontier in a 1.6 m hallway crosses its wall, and the
+    # nearest reachable cell was then a room off the hallway, facing the wall (house 0's README
+    # question spent 6 of its first 10 steps so). The longest clear back-off wins; a frontier
+    # with none keeps the plain rule (False: the plain rule, as the paper).
+    stand_in_sight: bool = True
 
 
 # DESIGN 3.2's explorer: every SFEConfig option beyond it off (the paper preset; the stepping
 # options stop_clearance_m and the refusal retries are set apart, by AgentConfig).
 PAPER_SFE: dict[str, Any] = {"skip_idle": False, "approach_unreachable": False,
-                             "view_gain": False}
+                             "view_gain": False, "stand_in_sight": False}
 
 # The frontier explorer's named option sets: the defaults, or the paper's (every option beyond
 # DESIGN 3.2 off).

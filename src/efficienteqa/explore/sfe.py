@@ -23,6 +23,7 @@ from efficienteqa.explore.frontiers import (
 )
 from efficienteqa.explore.settings import SFEConfig
 from efficienteqa.geometry import Pose2D, wrap_angle
+from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.mapping.navgrid import OccupancyGrid, path_length, truncate_path
 from efficienteqa.mapping.state import MapState
 
@@ -236,7 +237,19 @@ class FrontierExplorer:
             hit = on_reachable(xy)
             stands[hit] = xy[hit]
             ok |= hit
-        return stands, ok
+        if not self.config.stand_in_sight:
+            return stands, ok
+        # the same order, each standing point also in sight of its frontier; a frontier with
+        # no such point keeps the one above
+        seen = np.zeros(len(points), bool)
+        clear = stands.copy()
+        close = np.linalg.norm(near - points, axis=1) <= max_shift_m
+        for xy, fits in ((near, close), *((points - f * backoff_m[:, None] * normals, True)
+                                          for f in (0.0, 1 / 3, 2 / 3, 1.0))):
+            hit = fits & on_reachable(xy) & in_sight(state.occupied, spec, xy, points)
+            clear[hit] = xy[hit]
+            seen |= hit
+        return np.where(seen[:, None], clear, stands), ok | seen
 
     def _facing(self, path: np.ndarray, frontier_xy: np.ndarray, yaw: float) -> float:
         """Yaw (rad) from the path end towards the frontier; the last path direction when the
@@ -247,6 +260,21 @@ class FrontierExplorer:
         seg = np.diff(path, axis=0)
         seg = seg[np.linalg.norm(seg, axis=1) > 1e-9]
         return math.atan2(seg[-1][1], seg[-1][0]) if len(seg) else yaw
+
+
+def in_sight(occupied: np.ndarray, spec: GridSpec, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(K,) whether the segments a[k] -> b[k] (metres) cross no ``occupied`` cell (sampled
+    every half cell; cells off the grid are not obstacles)."""
+    if not len(a):
+        return np.zeros(0, bool)
+    n = max(2, int(np.ceil(np.linalg.norm(b - a, axis=1).max() / (spec.resolution_m / 2))) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    pts = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
+    i, j = spec.world_to_cell(pts.reshape(-1, 2))
+    inside = spec.contains((i, j))
+    hit = np.zeros(len(i), bool)
+    hit[inside] = occupied[i[inside], j[inside]]
+    return np.asarray(~hit.reshape(len(a), n).any(axis=1))
 
 
 def ray_gain(state: MapState, xy: np.ndarray, range_m: float, n_rays: int = 360
