@@ -162,16 +162,16 @@ def ask_command(
         console.print(f"[yellow]interrupted[/yellow]{_interrupted(stop, out, rerun, record)}",
                       highlight=False, soft_wrap=True)
         raise typer.Exit(130) from None
-    result, rec = done.result, done.record
-    oracle = rec.get("oracle_steps")
+    from efficienteqa.report.episode import episode_lines
+
+    rec = done.record
     say = console.print
-    say(f"[bold]answer:[/bold] {result.answer or '(none)'}  (confidence "
-        f"{result.confidence:.2f})", highlight=False)
-    say(f"steps: {result.steps} of {result.budget}" + (f" (oracle {oracle})" if oracle else "")
-        + f"   stop: {result.stop_reason}   time: {result.wall_s:.0f} s", highlight=False)
-    reference = rec["reference"]["answer"] if rec.get("reference") else reference
-    if reference:
-        say(f"reference answer: {reference}", highlight=False)
+    lines = episode_lines(rec)  # as the README's demo block shows them
+    if not rec.get("reference") and reference:
+        lines.append(f"reference answer: {reference}")
+    for n, line in enumerate(lines):
+        say(f"[bold]answer:[/bold]{escape(line[len('answer:'):])}" if n == 0 else escape(line),
+            highlight=False)
     shown = {k: v for k, v in rec["backends"].items() if v and k != "capabilities"}
     say(redact_urls(f"back-ends: {', '.join(f'{k}={v}' for k, v in shown.items())}"),
         highlight=False, soft_wrap=True)

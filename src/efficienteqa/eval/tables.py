@@ -18,7 +18,9 @@ Published runs (``results/``): ``publish_run`` writes a run's ``summary.json`` a
 its bootstrap interval, cost, optional paired differences against a reference run), deterministic
 (no dates, no absolute paths); ``regenerate_readme`` rewrites every README block
 ``<!-- results: efficienteqa report FOLDER... --markdown -->`` ... ``<!-- /results -->`` from its
-folders, in-process, so a test can check the README against ``results/``.
+folders, in-process, so a test can check the README against ``results/``; a block
+``<!-- demo: results/demo/episode.json -->`` ... ``<!-- /demo -->`` is what ``ask`` printed of
+that committed episode (``episode_lines``, the same lines the command prints).
 """
 
 from __future__ import annotations
@@ -64,6 +66,7 @@ from efficienteqa.eval.summary import (
     summary_record,
 )
 from efficienteqa.redact import redact_urls, redacted
+from efficienteqa.report.episode import episode_lines
 
 SEMANTIC_WARNING = ("Perception is semantic-sensor: the agent reads the simulator's object labels as "
                     "text, not pixels, so these are not image-model numbers.")
@@ -421,6 +424,21 @@ def report_markdown(folders: Sequence[Path], paired_against: Path | None = None,
     return markdown_table(summaries, paired_differences(summaries, reference))
 
 
+DEMO_BLOCK = re.compile(r"<!-- demo: (?P<path>[^\n]*?) -->\n(?P<body>.*?)<!-- /demo -->", re.DOTALL)
+
+
+def demo_block(path: str, root: Path) -> str:
+    """The README's demo block from a committed episode (``results/demo/episode.json``, made
+    by the README's command): what ``ask`` printed, in a code block."""
+    try:
+        record = json.loads((root / path).read_text())
+    except (OSError, ValueError) as exc:
+        raise EfficientEQAError(f"cannot read the demo episode {path}: {exc}") from None
+    body = "\n".join([*episode_lines(record), "episode: out/demo/episode.json",
+                      "report:  out/demo/report.html"])
+    return f"<!-- demo: {path} -->\n```\n{body}\n```\n<!-- /demo -->"
+
+
 def readme_blocks(text: str) -> list[tuple[str, str]]:
     """The results blocks of a README: (command, body) for each, in order."""
     return [(m["command"], m["body"]) for m in README_BLOCK.finditer(text)]
@@ -428,10 +446,11 @@ def readme_blocks(text: str) -> list[tuple[str, str]]:
 
 def regenerate_readme(text: str, root: Path) -> str:
     """``text`` with the body of every results block replaced by what its command generates
-    from the run folders under ``root`` (read in this process; nothing is written)."""
+    from the run folders under ``root``, and every demo block by its episode's lines (read in
+    this process; nothing is written)."""
     def block(m: re.Match[str]) -> str:
         args = parse_report_command(m["command"])
         body = report_markdown(args.folders, args.paired_against, root)
         return f"<!-- results: {m['command']} -->\n{body}<!-- /results -->"
 
-    return README_BLOCK.sub(block, text)
+    return DEMO_BLOCK.sub(lambda m: demo_block(m["path"], root), README_BLOCK.sub(block, text))

@@ -103,3 +103,18 @@ def problem_counts(result: EpisodeResult) -> dict[str, int]:
     return {"explore": sum(len(r.explore_problems) for r in result.records),
             "relevancy": sum(len(r.relevancy_problems) for r in result.records),
             "answer": len(result.answer_result.problems)}
+
+
+def episode_lines(record: dict[str, Any]) -> list[str]:
+    """What ``efficienteqa ask`` prints of an episode first, from its ``episode.json`` record:
+    the answer and its confidence, the steps, the stop and the time, the reference answer."""
+    oracle = record.get("oracle_steps")
+    lines = [f"answer: {record.get('answer') or '(none)'}  (confidence "
+             f"{record.get('confidence') or 0.0:.2f})",
+             f"steps: {record['steps']} of {record['budget']}"
+             + (f" (oracle {oracle})" if oracle else "")
+             + f"   stop: {record['stop_reason']}   time: {record['timing']['wall_s']:.0f} s"]
+    reference = (record.get("reference") or {}).get("answer")
+    if reference:
+        lines.append(f"reference answer: {reference}")
+    return lines
