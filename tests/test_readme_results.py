@@ -213,3 +213,27 @@ def test_published_runs_come_from_clean_commits():
     dirty = sorted(name for name, run in runs.items()
                    if "dirty" in str(run.get("code_version", "dirty")))
     assert not dirty, dirty
+
+
+def test_the_readme_demo_block_is_what_ask_printed_of_its_committed_episode(tmp_path):
+    """The README's demo block is generated from ``results/demo/episode.json`` (a clean commit's
+    run of the README's command), in the lines ``ask`` prints, so it cannot go stale."""
+    from efficienteqa.report.episode import episode_lines
+
+    text = (ROOT / "README.md").read_text()
+    assert "<!-- demo: results/demo/episode.json -->" in text
+    record = json.loads((ROOT / "results/demo/episode.json").read_text())
+    assert not record["code_version"].endswith("-dirty")
+    assert record["question"] == "What is on the desk in the office?"  # the Makefile's
+    assert record["scene"].startswith("synthetic:0")
+    assert "\n".join(episode_lines(record)) in text
+    # the machinery: a stale block is rewritten from its episode, the text around it kept
+    (tmp_path / "results/demo").mkdir(parents=True)
+    (tmp_path / "results/demo/episode.json").write_text(json.dumps(
+        {**record, "answer": "a lamp", "steps": 7, "timing": {"wall_s": 9.4}}))
+    stale = "Before.\n<!-- demo: results/demo/episode.json -->\n```\nold\n```\n<!-- /demo -->\nAfter.\n"
+    fresh = regenerate_readme(stale, tmp_path)
+    assert fresh.startswith("Before.\n") and fresh.endswith("<!-- /demo -->\nAfter.\n")
+    assert "answer: a lamp  (confidence" in fresh and f"steps: 7 of {record['budget']}" in fresh
+    assert "time: 9 s" in fresh and "old" not in fresh
+    assert regenerate_readme(fresh, tmp_path) == fresh
