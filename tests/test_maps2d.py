@@ -140,6 +140,22 @@ def test_mapper_on_an_empty_floor():
     assert path is not None
 
 
+def test_where_the_robot_stands_is_free_inside_a_disk_blocked_before():
+    # A refused goal marks a disk; a later move that comes up short can end inside it. The
+    # robot's own cell must stay free, or its island is empty and no frontier is left.
+    camera = CameraSpec(width=160, height=120)
+    spec = VolumeSpec.around((0.0, 0.0), (8.0, 8.0), floor_z=0.0)
+    mapper = Mapper(spec, floor_z=0.0, start_xy=(1.0, 4.0))
+    mapper.update(floor_observation(Pose2D(1.0, 4.0, 0.0), camera))
+    mapper.block((3.0, 4.0), 0.3)
+    before = mapper.state((1.0, 4.0))
+    assert not before.free[spec.grid.world_to_cell((3.0, 4.0))]
+    state = mapper.state((3.1, 4.0))  # the robot ended its move in the blocked disk
+    here = spec.grid.world_to_cell((3.1, 4.0))
+    assert state.free[here] and state.island[here] and not state.occupied[here]
+    assert state.island.sum() > 1000  # the room, not an empty island
+
+
 def test_mapper_skips_mostly_invalid_frames():
     camera = CameraSpec(width=160, height=120)
     spec = VolumeSpec.around((0.0, 0.0), (8.0, 8.0), floor_z=0.0)

@@ -155,8 +155,10 @@ class Mapper:
         self._stood |= disk(self.spec, xy, self.robot_radius_m)
         # The start disk is free unless an obstacle was seen there (a wall within 1 m).
         start = self.start_disk & ~self._occupied
-        free = (self._free | self._stood | start) & ~self._blocked
-        occupied = (self._occupied & ~self._stood) | self._blocked
+        # Where the robot stood is free, a disk marked blocked around it before or not: a move
+        # that came up short can end inside the disk its refused goal marked.
+        free = ((self._free | start) & ~self._blocked) | self._stood
+        occupied = (self._occupied | self._blocked) & ~self._stood
         explored = self._explored | self.start_disk
         i, j = self.spec.world_to_cell(xy)
         return MapState(spec=self.spec, free=free, occupied=occupied, explored=explored,
