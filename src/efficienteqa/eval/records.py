@@ -61,6 +61,10 @@ FORMAT_1_MISSING = {"gate": "none", "steering": "none"}
 # verdict; DESIGN 9).
 ADDED_SETTINGS = {"reading": "rules", "matching": "words", "gate_final": False,
                   "step_weight": "relevancy"}
+# Settings of the configuration tree added while format 4 is written, by section, and what a
+# run that did not record them ran with: a count question's group merged across views by
+# position (before the instance map, DESIGN 9).
+ADDED_NESTED = {("stop", "count_from"): "views"}
 # The stack's None (or a setting it did not record yet): each call's own temperature, 0 for
 # every call of a run; the relevancy model on the GPU torch sees, else the CPU; no download of
 # its weights; images at 512 px, as JPEG for openai: servers and PNG for the local one ("auto").
@@ -331,8 +335,17 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
                     out[key] = config
     for key in keys:
         out[key] = nest_config(out[key])
+    filled: set[str] = set()
+    for key in ("config", "method_config", "preset_config"):
+        if isinstance(out.get(key), dict):
+            for (section, name), value in ADDED_NESTED.items():
+                if isinstance(out[key].get(section), dict) and name not in out[key][section]:
+                    out[key] = {**out[key], section: {**out[key][section], name: value}}
+                    filled.add(name)
     if manifest.get("format", 1) < 4:  # noted, so a label does not name them as changes
-        out["unrecorded"] = sorted(name for _, name in ADDED_IN_FORMAT_4)
+        filled |= {name for _, name in ADDED_IN_FORMAT_4}
+    if filled:
+        out["unrecorded"] = sorted(filled)
         for key in ("config", "method_config", "preset_config"):
             if isinstance(out.get(key), dict):
                 out[key] = {**out[key]}
