@@ -342,15 +342,15 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
                 if isinstance(out[key].get(section), dict) and name not in out[key][section]:
                     out[key] = {**out[key], section: {**out[key][section], name: value}}
                     filled.add(name)
-    if manifest.get("format", 1) < 4:  # noted, so a label does not name them as changes
-        filled |= {name for _, name in ADDED_IN_FORMAT_4}
-    if filled:
-        out["unrecorded"] = sorted(filled)
+    if manifest.get("format", 1) < 4:
+        filled |= {added for _, added in ADDED_IN_FORMAT_4}
         for key in ("config", "method_config", "preset_config"):
             if isinstance(out.get(key), dict):
                 out[key] = {**out[key]}
-                for (section, name), value in ADDED_IN_FORMAT_4.items():
-                    out[key][section] = {name: value, **out[key].get(section, {})}
+                for (section, added), default in ADDED_IN_FORMAT_4.items():
+                    out[key][section] = {added: default, **out[key].get(section, {})}
+    if filled:  # noted, so a label does not name them as changes
+        out["unrecorded"] = sorted(filled)
     out["format"] = RUN_FORMAT
     return out
 
