@@ -21,6 +21,9 @@ takes these steps before any frontier, first that applies:
    robot not in it: head for the reachable cell of that floor nearest its middle.
 4. **search ends**: for "Is there an X in the R?", the named room searched without the X in
    view: ``done`` with reason "searched" (the robot answers from what it saw).
+5. **glance** (``glance``, off: it measured the same): while the room to search is unseen, stand
+   ``glance_m`` before the nearest door whose far side no frame has shown (``Sightings.doors``),
+   facing it.
 
 No move is returned that would take the view the robot already holds (``_new_view``, one
 idle check for every move above and the frontier explorer's): such a move is dropped and the
@@ -151,15 +154,10 @@ class TargetExplorer:
     def room_at(self, xy: tuple[float, float], within_m: float = 0.0) -> str | None:
         """The room whose seen floor holds the point, or with ``within_m`` the room with the
         most seen floor within that many metres (None when no frame showed any)."""
-        if self._spec is None:
+        window = self._window(xy, within_m)
+        if window is None:
             return None
-        i, j = (int(v) for v in self._spec.world_to_cell(np.asarray(xy, float)))
-        r = int(round(within_m / self._spec.resolution_m))
-        rows, cols = self._spec.shape
-        i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, rows), max(j - r, 0), min(j + r + 1, cols)
-        if i0 >= i1 or j0 >= j1:
-            return None
-        counts = {room: int(g[i0:i1, j0:j1].sum()) for room, g in self._rooms.items()}
+        counts = {room: int(g[window].sum()) for room, g in self._rooms.items()}
         best = max(counts, key=lambda k: counts[k], default=None)
         return best if best is not None and counts[best] > 0 else None
 
@@ -391,13 +389,22 @@ class TargetExplorer:
 
     def _rooms_near(self, xy: np.ndarray, within_m: float) -> set[str]:
         """The rooms with seen floor within ``within_m`` of ``xy`` (3 cells at least each)."""
-        if self._spec is None:
+        window = self._window(xy, within_m)
+        if window is None:
             return set()
+        return {room for room, g in self._rooms.items() if g[window].sum() >= 3}
+
+    def _window(self, xy: np.ndarray | tuple[float, float], within_m: float
+                ) -> tuple[slice, slice] | None:
+        """The map cells within ``within_m`` of ``xy`` each way, as slices; None off the map
+        (or before any frame)."""
+        if self._spec is None:
+            return None
         i, j = (int(v) for v in self._spec.world_to_cell(np.asarray(xy, float)))
         r = int(round(within_m / self._spec.resolution_m))
         rows, cols = self._spec.shape
         i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, rows), max(j - r, 0), min(j + r + 1, cols)
-        return {room for room, g in self._rooms.items() if g[i0:i1, j0:j1].sum() >= 3}
+        return None if i0 >= i1 or j0 >= j1 else (slice(i0, i1), slice(j0, j1))
 
     def _inspected_things(self) -> list[_Thing]:
         """The things worth walking up to, in the named room when the frame said which room:
