@@ -144,7 +144,11 @@ def explore_targets(rows: Sequence[dict[str, Any]], more_where: Sequence[dict[st
             "location_first_sight_x_oracle": x(where, DEFAULT),
             "location_yardstick_x_oracle": x(where, YARDSTICK),
             "idle_steps": f["idle"], "idle_walks": f["idle_walks"],
-            "explored_early": f["explored_early_n"]}
+            "explored_early": f["explored_early_n"],
+            "by_category": {c: {"questions": len(sub), "first_sight_x_oracle": x(sub, DEFAULT),
+                                "yardstick_x_oracle": x(sub, YARDSTICK)}
+                            for c in sorted({r["category"] for r in rows})
+                            for sub in [[r for r in rows if r["category"] == c]]}}
 
 
 def run_targets(folder: Path) -> dict[str, Any]:
@@ -212,6 +216,9 @@ def table(explore: dict[str, Any] | None, run: dict[str, Any] | None,
             f"{e['idle_steps']} in {e['idle_walks']} of {e['episodes']} walks | 0 |",
             f"| 'explored' before step {bench.EXPLORED_EARLY_STEP} (failures), exploration | "
             f"{e['explored_early']}/{e['episodes']} | 0 |"]
+        lines += [f"| ... {c} questions ({v['questions']}), first sight / oracle | "
+                  f"{f(v['first_sight_x_oracle'])} (yardstick {f(v['yardstick_x_oracle'])}) | - |"
+                  for c, v in e.get("by_category", {}).items()]
     if run:
         r = run
         lines += [
