@@ -290,7 +290,8 @@ def main() -> None:
     if args.out:
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "targets.json").write_text(json.dumps(
-            {"code_version": version, "args": {k: str(v) for k, v in vars(args).items()},
+            {"code_version": version,
+             "args": {k: str(v) for k, v in vars(args).items() if k != "out"},  # no machine path
              "explore": explore, "run": run, "audit": audit, "explore_rows": rows,
              "location_rows": where,
              "walks": walks}, indent=1))
