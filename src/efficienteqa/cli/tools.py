@@ -218,7 +218,7 @@ def perception_evaluate(
     from rich.progress import Progress
 
     from efficienteqa.datasets.synthetic import parse_seeds
-    from efficienteqa.perception.pixels.backend import PixelPerception
+    from efficienteqa.perception.pixels.backend import CLOSE_READS, PixelPerception
     from efficienteqa.perception.pixels.evaluate import (
         check_heldout,
         evaluate,
@@ -245,8 +245,8 @@ def perception_evaluate(
     if close_reads is not None and close_reads < 0:
         raise EfficientEQAError("--close-reads must be 0 or more")
     walks = read_poses(poses) if poses is not None else None
-    perception = (PixelPerception.load(weights) if close_reads is None
-                  else PixelPerception.load(weights, close_reads=close_reads))
+    perception = PixelPerception.load(
+        weights, close_reads=CLOSE_READS if close_reads is None else close_reads)
     held_out = frozenset(perception.record.get("data", {}).get("heldout_model_keys", []))
     trained_on = perception.record.get("data", {}).get("assets", DEFAULT_ASSETS)
     frames = heldout_frames(houses, frames_per_house, seed, walks, held_out, assets, trained_on)
