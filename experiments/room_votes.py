@@ -163,15 +163,19 @@ def walk_episode(env: Any, question: str, votes: bool) -> tuple[int, list[dict[s
     last: list[Any] = []
 
     def capture(rgb: np.ndarray, depth: np.ndarray) -> Any:
-        last[:] = [classify(rgb, depth)]
-        return last[0]
+        # the step's first call reads the whole frame; close reads call again on crops
+        classes = classify(rgb, depth)
+        last.append(classes)
+        return classes
 
     perception.classify = capture  # type: ignore[attr-defined]
 
     def hook(record: StepRecord, obs: Any, _: Any) -> None:
-        if not record.valid or not last:
+        calls = last[:]
+        last.clear()
+        if not record.valid or not calls:
             return
-        c = last[0]
+        c = calls[0]
         xy, rooms = true_floor(obs, truth)
         here = truth.room_at(obs.pose.x, obs.pose.y)
         frames.append({"category": c.category, "colour": c.colour, "state": c.state,
@@ -300,7 +304,7 @@ def seen_cache(folder: Path) -> list[list[dict[str, Any]]]:
             regions = [(c, m) for c, m, sure in segment.regions_of(
                 small, depth_small, names.index("door"), classes.confidence)
                 if sure >= classes.min_confidence.get(names[c], segment.MIN_CONFIDENCE)]
-            points = backproject(depth_small, segment._scaled(k, fy, fx), pose)
+            points = backproject(depth_small, segment.scaled_intrinsics(k, fy, fx), pose)
             seen = {}
             for t in THRESHOLDS:
                 segment.OBJECT_CONFIDENCE = t

@@ -84,6 +84,23 @@ def test_a_wall_keeps_the_objects_vote_in_its_own_room():
     assert open_plan.room_at(1.0, 1.5) == open_plan.room_at(3.0, 1.5)
 
 
+def test_a_table_on_wall_cells_still_votes_for_the_room_around_it():
+    """Pixels of a dining table taken for wall mark its own cells as bounds (seen on the
+    agent's walks): the table still votes for the region around it (OBJECT_NEAR_M)."""
+    prior = _blind_prior("living room", "dining room")
+    floor = _square(0.0, 3.0, 0.0, 3.0)
+    on_table = _square(1.3, 1.7, 1.3, 1.7)  # "wall" pixels where the table stands
+    floor = floor[~((np.abs(floor - 1.5) < 0.35).all(1))]  # the table hides its floor
+    seen = _seen(floor, "living room", [("table", (1.5, 1.5))], on_table)
+    assert RoomVotes(ROOMS, prior).add((0,), seen).room_at(0.3, 0.3) == "dining room"
+    saved = rooms.OBJECT_NEAR_M
+    try:
+        rooms.OBJECT_NEAR_M = 0.0  # the vote of its own cell only: none
+        assert RoomVotes(ROOMS, prior).add((0,), seen).room_at(0.3, 0.3) == "living room"
+    finally:
+        rooms.OBJECT_NEAR_M = saved
+
+
 def test_the_floor_outweighs_one_ambiguous_object():
     """A chair seen on a kitchen floor leaves it a kitchen: one object is weak evidence."""
     votes = RoomVotes(ROOMS, _blind_prior("kitchen", "bathroom"))

@@ -7,7 +7,10 @@ frames of one episode, on a ROOM_CELL_M grid (the describer's): each cell's pred
 pixels per room type, the wall and door pixels that bound rooms, and the objects seen with
 confidence. Rooms are *regions*: seen floor cells connected without crossing a wall or a door
 (walls and doors seen, closed over doorway-wide gaps). A region's room type is the best sum of
-its floor's evidence and of its objects' log prior ratios, log P(room | category) - log P(room).
+its floor's evidence and of its objects' log prior ratios, log P(room | category) - log P(room);
+an object votes for the region it stands in, grown OBJECT_REACH_M under furniture, or, where its
+own cell is a wall's (a table's pixels taken for wall), for the commonest region within
+OBJECT_NEAR_M.
 The floor's evidence is FLOOR_WEIGHT x the mean over its predicted floor pixels of
 log P(predicted type | room type): the network's floor confusions, so a floor it tells well (a
 hallway's) holds against objects and a wood floor it confuses (living room, dining room, office)
@@ -43,6 +46,9 @@ OBJECT_CONFIDENCE = 0.7  # an object votes when its region's mean probability re
 # (0.6: 86.8%, 0.8: 86.2%)
 OBJECT_REACH_M = 1.0  # an object votes for a region this close, not across a wall (0.5-2 m the
 # same, *)
+OBJECT_NEAR_M = 0.3  # an object on a wall's or door's cell votes for the commonest region
+# this close (agent's walks at 64713fd, floor of dining rooms right: 3900-3909 29.3 -> 38.0%,
+# held-out 2000-2001 and 100-104 55.8 -> 65.4%; 0.5 the same; results/perception/room_votes.json)
 OBJECT_MERGE_M = 0.5  # sightings of one category this close are one object (not tuned)
 WALL_BAND_M = (0.1, 2.0)  # wall pixels at these heights bound rooms: not the floor, not the
 # ceiling, not a doorway's lintel (not tuned)
@@ -262,9 +268,10 @@ class RoomVotes:
         o = np.array(origin)
         h, w = free.shape
         reach = _grow(regions, bound, reach_cells)
+        near_cells = int(round(OBJECT_NEAR_M / ROOM_CELL_M))
         for (category, _, _), xy in sorted(self._objects.items()):
             i, j = self._cells(np.array(xy))[0] - o
-            region = reach[i, j] if 0 <= i < h and 0 <= j < w else 0
+            region = _region_near(reach, i, j, near_cells)
             if region == 0:
                 continue
             ratio = self._ratio[category]
@@ -274,6 +281,20 @@ class RoomVotes:
         best[0] = -1  # not a region
         room = np.where(regions > 0, best[regions], -1)
         return RoomMap(self.rooms, origin, room, nearest, distance_m)
+
+
+def _region_near(reach: np.ndarray, i: int, j: int, cells: int) -> int:
+    """The region at cell (i, j) of ``reach`` or, where that cell is a wall's or a door's (a
+    table's pixels the network took for wall, or the object's own middle), the commonest region
+    within ``cells`` of it; 0 for none."""
+    h, w = reach.shape
+    if not (0 <= i < h and 0 <= j < w):
+        return 0
+    if reach[i, j] or not cells:
+        return int(reach[i, j])
+    window = reach[max(i - cells, 0):i + cells + 1, max(j - cells, 0):j + cells + 1]
+    found = window[window > 0]
+    return int(np.bincount(found).argmax()) if len(found) else 0
 
 
 def _grow(regions: np.ndarray, bound: np.ndarray, cells: int) -> np.ndarray:
