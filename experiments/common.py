@@ -33,6 +33,7 @@ from efficienteqa.mapping.state import MapState
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.observation import Observation
 from efficienteqa.perception.semantic import SemanticPerception
+from efficienteqa.reading.target import TargetReading
 from efficienteqa.relevancy.text import WordOverlapScorer
 from efficienteqa.stop.rules import StopConfig
 from efficienteqa.vc.grouping import RuleGrouper
@@ -140,14 +141,16 @@ def explore_episode(env: SyntheticEnv, config: AgentConfig, question: str = "Wha
                     seen: Callable[[np.ndarray], bool] | None = None,
                     near: Callable[[tuple[float, float]], float] | None = None,
                     coverage: bool = False, to_budget: bool = False,
-                    on_step: Callable[[StepRecord, Observation, ExploreStep | None], None] | None = None
-                    ) -> Episode:
+                    on_step: Callable[[StepRecord, Observation, ExploreStep | None], None] | None = None,
+                    reading: TargetReading | None = None) -> Episode:
     """One episode of the agent's loop with ``config`` (its explorer, seed, budget, prompts,
     exploration options, steering) and ``scorer`` as its semantic scorer; the early stop is
     off. It ends at the budget, when nothing is left to explore, or, unless ``to_budget``,
     when ``seen`` (of a frame's instance ids) first holds, before that step's move. ``near``:
     the path distance to the evidence of a point (``first_near``); ``coverage``: the floor
-    share explored after each step; ``on_step``: called with the agent's hook arguments first.
+    share explored after each step; ``on_step``: called with the agent's hook arguments first;
+    ``reading``: a reading by rules and words that adds the named room's neighbours
+    (``TargetConfig.near_rooms``).
     """
     # No language model here: the question is read by rules, its words matched as words.
     config = with_leaves(config, stop=StopConfig(enabled=False), gate="none", reading="rules",
@@ -155,7 +158,7 @@ def explore_episode(env: SyntheticEnv, config: AgentConfig, question: str = "Wha
     perception = SemanticPerception(env.scene_labels())
     answerer = RagAnswerer(StubChatModel(lambda messages: "unknown"), RuleGrouper(), m=1,
                            direct=True)
-    agent = Agent(perception, scorer, WordOverlapScorer(), answerer, config)
+    agent = Agent(perception, scorer, WordOverlapScorer(), answerer, config, reading=reading)
     floor = truth_floor(env, config=config) if coverage else None
     ep = Episode()
     moved: list[StepRecord] = []  # steps whose decision sent the robot on (filled in after)

@@ -41,6 +41,7 @@ from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
 from efficienteqa.explore.settings import EXPLORATIONS, REFUSAL_RETRIES
 from efficienteqa.knobs import with_leaves
+from efficienteqa.reading.target import TargetReading
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stop.rules import env_step_budget
@@ -414,9 +415,10 @@ def steering_method(name: str) -> str:
 
 def _steer(env: SyntheticEnv, q: Question, config: AgentConfig, budget: int, seed: int,
            repeats: int, to_budget: bool,
-           methods: tuple[str, ...] = ("frontier-only", "sfe:oracle")) -> dict:
+           methods: tuple[str, ...] = ("frontier-only", "sfe:oracle"),
+           reading: TargetReading | None = None) -> dict:
     """Each method's episodes over ``repeats`` explorer seeds (SFE samples frontiers), run by
-    the agent with ``config``'s exploration options."""
+    the agent with ``config``'s exploration options (``reading``: ``explore_episode``'s)."""
     distance_m = evidence_distance(env, q)
 
     def seen(instance: np.ndarray) -> bool:
@@ -443,7 +445,7 @@ def _steer(env: SyntheticEnv, q: Question, config: AgentConfig, budget: int, see
         for r in range(repeats):
             ep = explore_episode(env, with_leaves(method, seed=seed * 1000 + r), q.question,
                                  scorer=scorer, seen=seen, near=distance_m, coverage=True,
-                                 to_budget=to_budget)
+                                 to_budget=to_budget, reading=reading)
             got["first_seen"].append(ep.first_seen)
             # Seeing implies having got near enough.
             got["near"].append(ep.first_near or ep.first_seen or budget + 1)

@@ -42,8 +42,12 @@ from efficienteqa.agent import AgentConfig
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.knobs import with_leaves
+from efficienteqa.models.backends import build_chat_model
+from efficienteqa.reading.adjacency import RoomAdjacency
+from efficienteqa.reading.target import TargetReading
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions
+from efficienteqa.stack import parse_vlm
 from efficienteqa.stop.rules import env_step_budget
 from experiments import explore_bench as bench
 from experiments.common import seed_set
@@ -64,7 +68,7 @@ def explore_rows(args: argparse.Namespace) -> list[dict[str, Any]]:
         if len(rows) >= args.questions:
             break
         row = bench._steer(env, q, _config(ns, args), budget, seed, args.repeats, False,
-                           (DEFAULT, YARDSTICK))
+                           (DEFAULT, YARDSTICK), args.reading)
         if not row["reachable"]:
             print(f"{q.id}: no view of the evidence is reachable from the start; left out")
             continue
@@ -88,7 +92,7 @@ def location_rows(args: argparse.Namespace, skip: set[str]) -> list[dict[str, An
                 if len(rows) >= args.location:
                     break
                 row = bench._steer(env, q, _config(ns, args), env_step_budget(env), seed,
-                                   args.repeats, False, (DEFAULT, YARDSTICK))
+                                   args.repeats, False, (DEFAULT, YARDSTICK), args.reading)
                 if row["reachable"]:
                     rows.append(_mark(row, q, env))
     return rows
@@ -109,6 +113,17 @@ def _config(ns: argparse.Namespace, args: argparse.Namespace) -> AgentConfig:
         if overrides:
             config = with_leaves(config, **{section: overrides})
     return config
+
+
+def _reading(args: argparse.Namespace) -> TargetReading | None:
+    """The rules' reading with the named room's neighbours from ``--vlm`` where the steering
+    asks for them (``--target near_rooms=true``); None otherwise (no model)."""
+    if not _config(argparse.Namespace(exploration="default", prompts="default",
+                                      map_extent="start", stop_clearance=None,
+                                      refusal_retries=None), args).explore.target_config().near_rooms:
+        return None
+    model = build_chat_model(parse_vlm(args.vlm, images=False))
+    return TargetReading("rules", "words", adjacency=RoomAdjacency(model))
 
 
 def _mark(row: dict[str, Any], q: Question, env: SyntheticEnv) -> dict[str, Any]:
@@ -273,8 +288,13 @@ def main() -> None:
     ap.add_argument("--sfe", action="append", default=[], metavar="KEY=VALUE",
                     help="an override of the frontier explorer's constants (SFEConfig), e.g. "
                          "stand_in_sight=false; repeatable")
+    ap.add_argument("--vlm", default="local:qwen2.5-coder-1.5b",
+                    help="the language model of the rooms next to the named one, where "
+                         "--target near_rooms=true asks for them")
     args = ap.parse_args()
     from experiments import stop_audit
+
+    args.reading = _reading(args)
 
     version = code_version()  # the code as the run starts
     rows = [] if args.no_explore else explore_rows(args)
@@ -291,7 +311,8 @@ def main() -> None:
         args.out.mkdir(parents=True, exist_ok=True)
         (args.out / "targets.json").write_text(json.dumps(
             {"code_version": version,
-             "args": {k: str(v) for k, v in vars(args).items() if k != "out"},  # no machine path
+             "args": {k: str(v) for k, v in vars(args).items()
+                      if k not in ("out", "reading")},  # no machine path
              "explore": explore, "run": run, "audit": audit, "explore_rows": rows,
              "location_rows": where,
              "walks": walks}, indent=1))

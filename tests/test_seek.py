@@ -159,6 +159,51 @@ def test_frontiers_in_rooms_the_question_rules_out_weigh_almost_nothing():
     assert list(ex.frontier.prior(frontiers)) == [1.0, 1.0, 1.0, 1.0]  # type: ignore[misc]
 
 
+def test_a_room_usually_next_to_the_named_one_is_not_ruled_out_while_it_is_unseen():
+    """``TargetConfig.near_rooms``: the language model says an office is usually off a
+    bathroom (``Target.near_rooms``): while no office floor is seen, the bathroom's frontier is
+    not ruled out; once the office is seen, it is again."""
+    from efficienteqa.explore.settings import TargetConfig
+
+    target = replace(parse_question("What is on the desk in the office?"),
+                     near_rooms=("bathroom",))
+    frontiers = [Frontier((0, 0), xy, (1.0, 0.0), 5) for xy in [(1.5, 1.5), (5.0, 3.0)]]
+    spec = GridSpec.covering(0.0, 0.0, 10.0, 4.0, resolution_m=0.1)
+    floor = {"bathroom": np.array([[1.0 + 0.1 * i, 1.0 + 0.1 * j] for i in range(10)
+                                   for j in range(10)]),
+             "hallway": np.array([[4.0 + 0.1 * i, 3.0] for i in range(20)])}
+    weights = {}
+    for near in (False, True):
+        ex = TargetExplorer(FrontierExplorer(), TargetConfig(near_rooms=near))
+        ex.set_target(target)
+        ex.see(spec, Sightings(floor))
+        weights[near] = list(ex.frontier.prior(frontiers))  # type: ignore[misc]
+    assert weights[False][0] < 1e-3 and weights[True] == [1.0, 1.0]
+    office = {"office": np.array([[8.0 + 0.1 * i, 1.0 + 0.1 * j] for i in range(10)
+                                  for j in range(10)])}
+    ex.see(spec, Sightings(office))  # the named room in view: its neighbours lead nowhere new
+    assert ex.frontier.prior(frontiers)[0] < 1e-3  # type: ignore[misc]
+
+
+def test_the_rooms_next_to_a_room_come_from_one_checked_call_per_room():
+    from efficienteqa.models.stub import StubChatModel
+    from efficienteqa.reading.adjacency import RoomAdjacency
+
+    calls: list[str] = []
+
+    def reply(messages) -> str:  # noqa: ANN001
+        calls.append(messages[-1].text)
+        if messages[-1].text.strip().endswith("Room: kitchen"):
+            return "no idea"
+        return '{"next_to": ["Kitchen", "dining room", "the moon", "hall", "study"]}'
+
+    adjacency = RoomAdjacency(StubChatModel(reply))
+    assert adjacency.near("dining room") == ("kitchen", "hallway", "office")  # canonical, 3
+    assert adjacency.near("dining room") == ("kitchen", "hallway", "office")
+    assert len(calls) == 1  # once per room type
+    assert adjacency.near("kitchen") == () and "kitchen" in adjacency.problems[0]
+
+
 def test_the_rooms_frames_showed_are_remembered():
     ex, _ = _explorer("What is on the desk in the office?")
     assert ex.room_at((8.5, 1.5)) == "office" and ex.room_at((1.5, 1.5)) == "bathroom"

@@ -62,6 +62,10 @@ class Target:
     # Where no room is named: the rooms such an object is usually in, most likely first (a
     # prior from the language model, never from the generator's catalogue); () when unknown.
     likely_rooms: tuple[str, ...] = ()
+    # Where a room is named: the rooms it is usually next to, most likely first (a prior from
+    # the language model, ``reading.adjacency``, never from the generator's layouts); () when
+    # not asked.
+    near_rooms: tuple[str, ...] = ()
 
     @property
     def room(self) -> str | None:
@@ -90,6 +94,8 @@ class Target:
             out["aliases"] = [list(a) for a in self.aliases]
         if self.likely_rooms:
             out["likely_rooms"] = list(self.likely_rooms)
+        if self.near_rooms:
+            out["near_rooms"] = list(self.near_rooms)
         return out
 
 

@@ -37,6 +37,7 @@ from efficienteqa.models.client import IMAGE_DETAILS, IMAGE_FORMATS
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
 from efficienteqa.perception.sightings import ModelSightings
+from efficienteqa.reading.adjacency import RoomAdjacency
 from efficienteqa.reading.aliases import AliasResolver
 from efficienteqa.reading.reader import ModelReader
 from efficienteqa.reading.target import TargetReading
@@ -384,8 +385,10 @@ def perception_vocabulary(perception: Perception) -> tuple[str, ...]:
 def build_reading(config: AgentConfig, perception: Perception, model: ChatModel,
                   relevancy: RelevancyScorer) -> TargetReading | None:
     """How the agent reads the question's target (``AgentConfig.reading``/``matching``); None
-    for the rules and the words alone (no call, nothing to load)."""
-    if (config.explore.reading, config.explore.matching) == ("rules", "words"):
+    for the rules and the words alone (no call, nothing to load), unless the steering asks
+    for the rooms next to the named one (``TargetConfig.near_rooms``)."""
+    near = config.explore.steering == "target" and config.explore.target_config().near_rooms
+    if (config.explore.reading, config.explore.matching) == ("rules", "words") and not near:
         return None
     reader = ModelReader(model) if config.explore.reading != "rules" else None
     resolver = None
@@ -393,7 +396,8 @@ def build_reading(config: AgentConfig, perception: Perception, model: ChatModel,
         embed = getattr(relevancy, "embed", None) or build_relevancy("minilm").embed  # type: ignore[attr-defined]
         resolver = AliasResolver(embed, model)
     return TargetReading(config.explore.reading, config.explore.matching, reader, resolver,
-                         perception_vocabulary(perception))
+                         perception_vocabulary(perception),
+                         RoomAdjacency(model) if near else None)
 
 
 @dataclass

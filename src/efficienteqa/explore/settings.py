@@ -204,6 +204,11 @@ class TargetConfig:
     glance_tries: int = 3
     door_merge_m: float = 1.0
     door_side_m: float = 1.2
+    # Rooms next to the named one: while it is unseen, a frontier in a room the language model
+    # says is usually next to it (``Target.near_rooms``, ``reading.adjacency``: one call per
+    # room type) is not ruled out (weight 1, as in a hallway): the way there may lead through
+    # it (False: only hallways lead on).
+    near_rooms: bool = False
     # After a move of the steering's own, the frontier explorer chooses afresh instead of
     # keeping the frontier it committed to before (False: it keeps it, as before).
     fresh_frontier: bool = True

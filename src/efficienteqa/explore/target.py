@@ -189,7 +189,9 @@ class TargetExplorer:
             if room in (here, ahead):
                 out[k] = cfg.in_target
             elif (named and here is not None and ahead is not None
-                  and here not in CONNECTORS and here not in self.target.rooms):
+                  and here not in CONNECTORS and here not in self.target.rooms
+                  and not (cfg.near_rooms and here in self.target.near_rooms
+                           and self._room_cells(room) < cfg.min_room_cells)):
                 out[k] = cfg.elsewhere
         return out
 

@@ -5,7 +5,8 @@ perception names (``matching``); both are ``AgentConfig`` options.
 one call, each field checked, the rules' field where it fails), "rules+rooms" (the rules'
 target with the model's likely rooms only, one call where the question names no room).
 ``matching``: "words" (the question's words name a category by themselves) or "meaning"
-(``aliases.AliasResolver`` over the perception's vocabulary).
+(``aliases.AliasResolver`` over the perception's vocabulary). With an ``adjacency``
+(``TargetConfig.near_rooms``), a named room's usual neighbours (``adjacency.RoomAdjacency``).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 from efficienteqa.question import Target, parse_question
+from efficienteqa.reading.adjacency import RoomAdjacency
 from efficienteqa.reading.aliases import MATCHINGS, AliasResolver
 from efficienteqa.reading.reader import READINGS, ModelReader
 
@@ -21,7 +23,8 @@ from efficienteqa.reading.reader import READINGS, ModelReader
 class TargetReading:
     def __init__(self, reading: str = "rules", matching: str = "words",
                  reader: ModelReader | None = None, resolver: AliasResolver | None = None,
-                 vocabulary: Sequence[str] = ()) -> None:
+                 vocabulary: Sequence[str] = (), adjacency: RoomAdjacency | None = None
+                 ) -> None:
         if reading not in READINGS:
             raise ValueError(f"reading must be one of {READINGS}, not {reading!r}")
         if matching not in MATCHINGS:
@@ -32,11 +35,13 @@ class TargetReading:
             raise ValueError("matching by meaning needs an alias resolver")
         self.reading, self.matching = reading, matching
         self.reader, self.resolver, self.vocabulary = reader, resolver, tuple(vocabulary)
+        self.adjacency = adjacency
 
     @property
     def problems(self) -> list[str]:
         return [*(self.reader.problems if self.reader else []),
-                *(self.resolver.problems if self.resolver else [])]
+                *(self.resolver.problems if self.resolver else []),
+                *(self.adjacency.problems if self.adjacency else [])]
 
     def target(self, question: str) -> Target:
         target = parse_question(question)
@@ -47,4 +52,6 @@ class TargetReading:
             target = replace(target, likely_rooms=self.reader.read(question).likely_rooms)
         if self.resolver is not None and self.matching == "meaning":
             target = replace(target, aliases=self.resolver.aliases(target, self.vocabulary))
+        if self.adjacency is not None and target.room is not None:
+            target = replace(target, near_rooms=self.adjacency.near(target.room))
         return target
