@@ -3,7 +3,9 @@
 Every process that uses a local model server holds a shared lock on the server's lease file
 (``server/<model>.lease``) for as long as it lives (``hold_lease``, taken before the server is
 looked up, so a server cannot be stopped between being found and being used). The keeper, a
-small detached process started beside each server it should stop, checks every few seconds
+small detached process started beside each server it should stop (``python -m
+efficienteqa.models.local keep MODEL IDLE_S``: ``server.keep_main``, which calls ``keep``
+here), checks every few seconds
 whether it can take the lease exclusively: when it can, nobody uses the server; once that has
 lasted ``idle_s`` seconds it stops the server while still holding the lease, so a command that
 arrives meanwhile waits, then starts a fresh one. Two commands that share a server never see it
@@ -17,7 +19,6 @@ from __future__ import annotations
 
 import fcntl
 import os
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -91,29 +92,3 @@ def keep(lease: Path, idle_s: float, alive: Callable[[], bool], stop: Callable[[
                 fcntl.flock(handle, fcntl.LOCK_UN)
             time.sleep(poll_s)
     return False
-
-
-def main(argv: list[str]) -> int:
-    """``python -m efficienteqa.models.local.keeper MODEL IDLE_S``: keep the server of MODEL
-    (started by ``server.serve``) until it has been idle IDLE_S seconds."""
-    from efficienteqa.models.local import server
-
-    name, idle_s = argv[0], float(argv[1])
-    info = server.status(name)
-    if info is None:
-        return 0
-    started = info.pid
-
-    def alive() -> bool:
-        now = server.status(name)
-        return now is not None and now.pid == started  # a restarted server has its own keeper
-
-    def stop() -> None:
-        server.stop(name)
-
-    keep(server.lease_file(name), idle_s, alive, stop)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))

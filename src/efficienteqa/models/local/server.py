@@ -273,7 +273,7 @@ def serve(name: str = DEFAULT_MODEL, port: int | None = None, threads: int = 2, 
         _pid_file(name).write_text(json.dumps(asdict(info)))
         _wait_healthy(info, timeout_s, proc)
         if idle_s > 0:
-            keeper = [sys.executable, "-m", "efficienteqa.models.local.keeper", name, str(idle_s)]
+            keeper = [sys.executable, "-m", "efficienteqa.models.local", "keep", name, str(idle_s)]
             with _log_file(f"{name}.keeper").open("ab") as out:
                 subprocess.Popen(keeper, stdin=subprocess.DEVNULL, stdout=out,
                                  stderr=subprocess.STDOUT, start_new_session=True, close_fds=True)
@@ -297,3 +297,24 @@ def ensure_server(name: str = DEFAULT_MODEL) -> str:
         print(f"efficienteqa: started the local model server for {name} on {HOST}:{info.port}; "
               f"it {after} (efficienteqa models stop ends it now)", file=sys.stderr)
     return info.base_url
+
+
+def keep_main(argv: list[str]) -> int:
+    """``python -m efficienteqa.models.local keep MODEL IDLE_S``: the keeper process of
+    MODEL's server (started by ``serve``), which stops it once idle IDLE_S seconds
+    (``keeper.keep``)."""
+    name, idle_s = argv[0], float(argv[1])
+    info = status(name)
+    if info is None:
+        return 0
+    started = info.pid
+
+    def alive() -> bool:
+        now = status(name)
+        return now is not None and now.pid == started  # a restarted server has its own keeper
+
+    def stop_it() -> None:
+        stop(name)
+
+    keeper.keep(lease_file(name), idle_s, alive, stop_it)
+    return 0
