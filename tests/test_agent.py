@@ -247,7 +247,7 @@ def test_vlm_specs():
     assert (b.kind, b.model, b.base_url, b.images) == ("openai", "gpt-4o", "http://localhost:8000/v1", True)
     assert parse_vlm("local:smollm2-135m", images=False).base_url is None
     for bad in ("gpt-4o", "ollama:llava", "local:"):
-        with pytest.raises(EfficientEQAError, match="cannot read --vlm"):
+        with pytest.raises(EfficientEQAError, match="cannot read --backends.vlm"):
             parse_vlm(bad, images=False)
 
 

@@ -53,7 +53,7 @@ def test_ask_with_a_bad_scene_start_or_model_is_one_line(cli):
                           (["--start", "nan,0,0"], "is not finite"),
                           (["--scene", "synthetic:-1"], "integer seed of 0 or more"),
                           (["--start", "100,100,0", "--assets", "builtin"], "is not on the floor"),
-                          (["--vlm", "gpt-4o", "--assets", "builtin"], "cannot read --vlm")):
+                          (["--vlm", "gpt-4o", "--assets", "builtin"], "cannot read --backends.vlm")):
         result = cli("ask", "Where is the sofa?", *args)
         assert result.returncode == 1, (args, result.stdout, result.stderr)
         assert message in result.stdout and "Traceback" not in result.stdout + result.stderr
@@ -308,12 +308,13 @@ def test_ask_refuses_a_configuration_of_another_method(cli, tmp_path):
 
 @pytest.mark.parametrize("command", ["ask", "eval"])
 def test_help_groups_the_options_in_panels(cli, command):
-    """``--help`` in panels, in this order: what is asked, the method, its back-ends,
-    the options beyond the paper, where the output goes."""
+    """``--help-all`` in panels, in this order: what is asked, the method, its back-ends,
+    the options beyond the paper, where the output goes (``--help`` leaves out the constants'
+    panel)."""
     import os
     import re
 
-    result = cli(command, "--help", env={**os.environ, "COLUMNS": "200", "NO_COLOR": "1",
+    result = cli(command, "--help-all", env={**os.environ, "COLUMNS": "200", "NO_COLOR": "1",
                                           "TERM": "dumb"})
     assert result.returncode == 0, result.stderr
     panels: dict[str, list[str]] = {}

@@ -593,7 +593,7 @@ def test_an_unreachable_openai_server_fails_before_the_work_with_its_own_hint(pr
     message = str(raised.value)
     assert "\n" not in message and message.startswith(f"model server at {base_url}")
     assert "unreachable after 1 tries" in message
-    assert "models serve" not in message and f"--vlm openai:m@{base_url}" in message
+    assert "models serve" not in message and f"--backends.vlm openai:m@{base_url}" in message
 
 
 def test_the_probe_retries_once_whatever_the_retries(serve, private_cache):
@@ -699,7 +699,7 @@ def test_timeout_and_retries_reach_the_client_from_the_stack():
 
 def test_a_timeout_names_the_option(serve, tmp_path):
     server = serve(Reply(delay_s=2.0))
-    with pytest.raises(EfficientEQAError, match="raise --timeout-s"):
+    with pytest.raises(EfficientEQAError, match="raise --backends.timeout-s"):
         make_client(server, tmp_path, timeout_s=0.2, max_retries=0).chat(ask())
 
 
@@ -920,7 +920,7 @@ def test_a_missing_key_names_the_flag_that_changes_it(tmp_path, monkeypatch):
     with pytest.raises(EfficientEQAError) as raised:
         OpenAIChatClient(ClientConfig(base_url="http://127.0.0.1:9/v1", model="m",
                                       api_key_env="EFFICIENTEQA_TEST_KEY"))
-    assert "--api-key-env none" in str(raised.value) and "None" not in str(raised.value)
+    assert "--backends.api-key-env none" in str(raised.value) and "None" not in str(raised.value)
 
 
 @pytest.mark.slow
@@ -1031,4 +1031,4 @@ def test_an_unreachable_judge_is_named_as_the_judge(private_cache, monkeypatch):
     backend = replace(parse_vlm(f"openai:gpt-4o@{url}", images=False), retries=0)
     with pytest.raises(EfficientEQAError) as vlm:
         build_chat_model(backend)
-    assert f"the server of --vlm openai:gpt-4o@{url}" in str(vlm.value)
+    assert f"the server of --backends.vlm openai:gpt-4o@{url}" in str(vlm.value)

@@ -93,7 +93,7 @@ def test_open_ended_rows_have_no_letter_grade(tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--dataset", "synthetic"], "--closed-set is HM-EQA's multiple-choice mode"),
+    (["--dataset", "synthetic"], "--eval.closed-set is HM-EQA's multiple-choice mode"),
     (["--dataset", "hm-eqa", "--method", "efficienteqa"], "answers open-ended only"),
 ])
 def test_closed_set_outside_blind_on_hm_eqa_is_one_line(cli, tmp_path, args, message):

@@ -156,8 +156,10 @@ def test_ask_help_shows_the_openai_server_form_and_every_section(cli):
     assert result.returncode == 0, result.said
     out = result.stdout
     assert "openai:MODEL@BASE_URL" in out
-    assert "--stop.z-gated" in out and "--explore.sfe.view-gain" in out
+    assert "--stop.z-gated" in out and "--help-all" in out
     assert "Beyond the paper." in out
+    result = cli("ask", "--help-all", env=env)
+    assert result.returncode == 0 and "--explore.sfe.view-gain" in result.stdout
 
 
 def test_constants_that_cannot_act_are_refused_in_one_line():
@@ -175,7 +177,7 @@ def test_constants_that_cannot_act_are_refused_in_one_line():
                                  ({"explore.target.room_tries": 3, "steering": "none"}, None,
                                   "does not steer"),
                                  ({"explore.target.room_tries": 3}, "explore-eqa",
-                                  "explore-eqa never does")):
+                                  "explore-eqa never steers")):
         with pytest.raises(EfficientEQAError, match=words) as raised:
             resolve(given, preset)
         assert "\n" not in str(raised.value)
@@ -190,19 +192,20 @@ def test_constants_that_cannot_act_are_refused_in_one_line():
 def test_config_prints_a_file_that_reads_back_to_the_same_run(tmp_path, preset):
     """`efficienteqa config` shows what a run would use, as a --config file: read back, the same
     run (the method's own settings are comments, as eval refuses them given otherwise)."""
-    from efficienteqa.presets import load_config, resolve, to_toml
+    from efficienteqa.presets import resolve, to_toml
 
-    given = {"stop.z_gated": 2.0} if preset in ("default", "explore-eqa-per-token") else {
+    given = {"stop.z_gated": 2.0} if preset == "default" else {"answer.top_k": 3} if (
+        preset == "explore-eqa-per-token") else {
         "stop.z_th": 2.0, "explore.sfe.view_gain": False, "explore.sfe.frontier.temp_free": 1.5,
         "backends.vlm": 'openai:m@http://h/v1', "scene.hm3d_root": Path("/data/hm3d")}
     run = resolve(given, preset).run
     path = tmp_path / "run.toml"
     path.write_text(to_toml(run))
-    assert resolve(load_config(path)).run == run
+    assert resolve({}, config_file=path).run == run
 
 
 def test_the_config_command_prints_the_run_it_would_make(cli, tmp_path):
-    from efficienteqa.presets import load_config, resolve
+    from efficienteqa.presets import resolve
 
     result = cli("config", "--preset", "explore-eqa", "--answer.top-k", "3")
     assert result.returncode == 0, result.said
@@ -210,7 +213,7 @@ def test_the_config_command_prints_the_run_it_would_make(cli, tmp_path):
     assert "[stop]\n" in out and "top_k = 3" in out and "(set by eval.method)" in out
     path = tmp_path / "c.toml"
     path.write_text(out)
-    assert resolve(load_config(path)).run == resolve({"top_k": 3}, "explore-eqa").run
+    assert resolve({}, config_file=path).run == resolve({"top_k": 3}, "explore-eqa").run
 
 
 def test_the_cli_makes_its_options_without_loading_the_agent():
@@ -224,3 +227,38 @@ def test_the_cli_makes_its_options_without_loading_the_agent():
             "'efficienteqa.stack', 'efficienteqa.report.rerun_log') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("given,preset,words", [
+    ({"stop.z_gated": 2.0}, "paper-offline", "leaves the stop to Z_th"),
+    ({"stop.gate_final": False, "stop.gate": "none"}, None, "does not judge every frame"),
+    ({"stop.sigma_floor": 0.2}, "paper-offline", "has no 'floor' part"),
+    ({"stop.sim_abs": 0.5, "stop.rule": "lookback"}, None, "has no 'absolute' part"),
+    ({"backends.sightings": "model"}, "paper-offline", "nothing reads the question's target"),
+    ({"explore.reading": "model"}, "paper-offline", "nothing reads the question's target"),
+    ({"backends.grouping": "rules", "answer.answer": "direct"}, None, "nothing to group"),
+    ({"stop.z_th": 2.0, "stop.enabled": False, "stop.gate": "none"}, None, "early stop is off"),
+])
+def test_a_setting_the_run_would_ignore_is_refused_and_shown_as_ignored(given, preset, words):
+    """One list says when a setting acts (``inert.inert``): given on the command line where it
+    cannot act, it is refused in one line; where a preset sets it, ``config`` says so."""
+    from efficienteqa.errors import EfficientEQAError
+    from efficienteqa.presets import resolve, to_toml
+
+    with pytest.raises(EfficientEQAError, match=words) as raised:
+        resolve(given, preset)
+    assert "\n" not in str(raised.value) and "does not act" in str(raised.value)
+    path, value = next(iter(given.items()))
+    shown = to_toml(resolve({k: v for k, v in given.items() if k != path}, preset).run)
+    key = path.split(".")[1]
+    assert any(line.startswith(f"{key} = ") and "# does not act" in line
+               for line in shown.splitlines()), shown
+
+
+def test_config_marks_what_the_paper_preset_leaves_unused():
+    from efficienteqa.presets import resolve, to_toml
+
+    shown = to_toml(resolve({}, "paper-offline").run).splitlines()
+    ignored = {line.split(" = ")[0] for line in shown if "# does not act" in line}
+    assert {"z_gated", "gate_final", "sigma_floor", "sim_abs", "sightings"} <= ignored
+    assert not any(line.startswith("z_th = ") and "# does not act" in line for line in shown)

@@ -204,7 +204,7 @@ def test_hm_eqa_offline_is_one_clear_line(monkeypatch):
     with pytest.raises(EfficientEQAError) as err:
         load_dataset("hm-eqa")
     text = str(err.value)
-    assert "\n" not in text and "download failed" in text and "--hm-eqa-path FOLDER" in text
+    assert "\n" not in text and "download failed" in text and "--eval.hm-eqa-path FOLDER" in text
 
 
 # -- dataset names --------------------------------------------------------------------------------

@@ -141,7 +141,7 @@ def test_agent_methods_on_hm3d_scenes_need_habitat_before_any_episode(tmp_path, 
                          question="Is the lamp on?", answer="yes", category="state")]
     with pytest.raises(EfficientEQAError, match="explores the HM3D scenes") as err:
         run_eval(spec("efficienteqa"), hm3d, tmp_path)
-    assert "--env habitat --hm3d-root" in err.value.fix
+    assert "--scene.env habitat --scene.hm3d-root" in err.value.fix
     monkeypatch.setitem(sys.modules, "habitat_sim", None)  # not installed
     with pytest.raises(EfficientEQAError, match="Habitat-Sim is not installed"):
         run_eval(spec("efficienteqa", env="habitat", hm3d_root=str(tmp_path)), hm3d, tmp_path / "b")

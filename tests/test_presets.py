@@ -235,8 +235,8 @@ def test_the_paper_presets_judge_follows_a_vlm_given_on_the_command_line():
 def test_a_z_th_that_cannot_act_is_refused_in_one_line(gate):
     """A gate that judges every frame stops a frame it passes at z_gated, and never one it
     turns down: Z_th decides nothing there."""
-    with pytest.raises(EfficientEQAError, match=f"--stop.z-th 2 does not act with the {gate} gate") \
-            as raised:
+    with pytest.raises(EfficientEQAError, match=f"--stop.z-th 2 does not act: the {gate} gate "
+                       "judges every frame") as raised:
         resolve({"z_th": 2.0, "gate": gate})
     assert "--stop.z-gated" in str(raised.value) and "\n" not in str(raised.value)
     for acting in ("model", "none"):

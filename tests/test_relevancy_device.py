@@ -57,7 +57,7 @@ def test_missing_weights_name_the_command_line_fixes(torch, kind):  # noqa: F811
     with pytest.raises(EfficientEQAError) as err:
         make_scorer(kind, model_id_or_path="efficienteqa-tests/not-a-cached-model", device="cpu")
     fix = err.value.fix
-    assert "--relevancy-weights" in fix and "--allow-download" in fix
+    assert "--backends.relevancy-weights" in fix and "--backends.allow-download" in fix
     assert "allow_download=True" not in fix  # a keyword no command line can give
 
 

@@ -213,7 +213,7 @@ def test_a_dead_or_hung_server_fails_the_probe_in_one_line(vlm):
     with pytest.raises(EfficientEQAError) as raised:
         build_chat_model(backend(server, timeout_s=0.3, retries=0))
     assert time.monotonic() - start < 2.5
-    assert "\n" not in str(raised.value) and "raise --timeout-s" in str(raised.value)
+    assert "\n" not in str(raised.value) and "raise --backends.timeout-s" in str(raised.value)
     unknown = vlm(models=("other-model",))
     with pytest.raises(RequestRejected, match="does not exist"):
         build_chat_model(backend(unknown))
@@ -298,7 +298,7 @@ def test_500s_exhaust_the_retries_in_one_line(vlm):
 def test_a_server_that_hangs_after_the_probe_times_out_per_call(vlm):
     server = vlm(hang_s=2.0, hang_after=2)
     client = build_chat_model(backend(server, timeout_s=0.3, retries=1))
-    with pytest.raises(EfficientEQAError, match=r"within 0.3 s \(2 tries\).*--timeout-s"):
+    with pytest.raises(EfficientEQAError, match=r"within 0.3 s \(2 tries\).*--backends.timeout-s"):
         client.chat([Message("user", prompts()["match"])])
 
 
@@ -343,7 +343,7 @@ def test_the_openai_key_never_reaches_the_test_server(vlm, monkeypatch):
 def test_a_server_with_its_own_key(vlm, monkeypatch):
     monkeypatch.setenv("VLLM_API_KEY", "vllm-key-1")
     server = vlm(api_key="vllm-key-1")
-    with pytest.raises(RequestRejected, match=r"HTTP 401.*no key was sent.*--api-key-env"):
+    with pytest.raises(RequestRejected, match=r"HTTP 401.*no key was sent.*--backends.api-key-env"):
         build_chat_model(backend(server, api_key_env="none"))
     client = build_chat_model(backend(server, api_key_env="VLLM_API_KEY"))
     assert client.capabilities.logprobs

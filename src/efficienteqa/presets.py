@@ -233,11 +233,10 @@ def resolve(given: Mapping[str, Any], preset: str | None = None,
     ``preset``. Where the named configuration grades with its own VLM (the paper preset's "the
     same GPT-4o grades") and the command line names another VLM but no judge, the judge follows
     that VLM, so the user's server grades too and no key goes to the configuration's server
-    unasked. Z_th given where the gate decides instead (``stop.rules.z_th_acts``) is refused, and
-    so is a value the run would not use (``_check_acts``; ``by_method``: the run's episodes are
-    the method's configuration, as ``eval`` runs them; ``ask`` runs the agent as configured)."""
-    from efficienteqa.stop.rules import z_th_acts
-
+    unasked. A value given on the command line that the run would not use is refused in one line
+    (``_check_acts``, ``inert.inert``; ``by_method``: the run's episodes are the method's
+    configuration, as ``eval`` runs them; ``ask`` runs the agent as configured); one a preset or
+    a file sets is marked where ``config`` prints the run (``to_toml``)."""
     named: dict[str, Any] = {}
     if preset is not None:
         named.update(load_preset(preset))
@@ -250,13 +249,7 @@ def resolve(given: Mapping[str, Any], preset: str | None = None,
             "backends.vlm") and "backends.vlm" in given and "eval.judge" not in given):
         values["eval.judge"] = given["backends.vlm"]
     run = build_run(values)
-    if "stop.z_th" in values and not z_th_acts(run.stop.gate):
-        raise EfficientEQAError(
-            f"--stop.z-th {values['stop.z_th']:g} does not act with the {run.stop.gate} gate: it "
-            f"judges every frame, and a frame it passes stops at --stop.z-gated "
-            f"({run.stop.z_gated:g}), one it turns down never",
-            fix="use --stop.z-gated, or --stop.gate model or none (Z_th then decides)")
-    _check_acts(run, values, by_method)
+    _check_acts(run, values, given, by_method)
     name = Path(config_file).stem if config_file is not None else preset
     return Resolved(run, name, build_run(named))
 
@@ -266,11 +259,23 @@ def resolve(given: Mapping[str, Any], preset: str | None = None,
 METHOD_SET = ("explore.explorer", "answer.confidence", "answer.answer_at")
 
 
-def _check_acts(run: RunConfig, values: Mapping[str, Any], by_method: bool) -> None:
+# How to make a refused setting act, where there is more to say than "leave it out".
+_ACTS_WITH = {
+    "stop.z_th": "use --stop.z-gated, or --stop.gate model or none (Z_th then decides)",
+    "stop.z_gated": "use --stop.z-th, or a gate that judges every frame (--stop.gate rules)",
+    "explore.sfe": "leave them out, or use a frontier explorer (sfe, frontier-only)",
+    "explore.target": "leave them out, or use --explore.steering target with --eval.method "
+                      "efficienteqa",
+}
+
+
+def _check_acts(run: RunConfig, values: Mapping[str, Any], asked: Mapping[str, Any],
+                by_method: bool) -> None:
     """What the method sets (its explorer, confidence reading and answer source) is refused
-    when given otherwise, and the explorer's and the steering's constants act only where that
-    explorer and that steering run: each is refused in one line rather than ignored."""
+    when given otherwise, and a setting ``asked`` for on the command line that the run would not
+    use (``inert.inert``) is refused in one line rather than ignored."""
     from efficienteqa.eval.methods import effective_config
+    from efficienteqa.inert import inert
 
     method = run.eval.method
     agent = (effective_config(method, run.agent) if by_method else None) or run.agent
@@ -282,17 +287,22 @@ def _check_acts(run: RunConfig, values: Mapping[str, Any], by_method: bool) -> N
                                     f"method {method} sets it ({ran})",
                                     fix="choose the method instead (--eval.method; efficienteqa, "
                                     "explore-eqa, explore-eqa-blackbox, frontier-only, random)")
-    explorer, steering = agent.explore.explorer, agent.explore.steering
-    if run.explore.sfe and explorer not in ("sfe", "frontier-only"):
-        raise EfficientEQAError(f"--explore.sfe.* sets the frontier explorer's constants, and "
-                                f"this run explores with {explorer!r}",
-                                fix="leave them out, or use a frontier explorer (sfe, frontier-only)")
-    if run.explore.target and steering == "none":
-        raise EfficientEQAError("--explore.target.* sets the steering's constants, and this run "
-                                "does not steer by the question's target (explore.steering none"
-                                + ("" if steering == run.explore.steering else f"; {method} never does")
-                                + ")", fix="leave them out, or use --explore.steering target "
-                                "with --eval.method efficienteqa")
+    idle = inert(run, agent)
+    for path, value in asked.items():
+        group = next((s for s in ("explore.sfe", "explore.target")
+                        if path == s or path.startswith(s + ".")), None)
+        why = idle.get(group or path)
+        if why is None:
+            continue
+        if group is not None:
+            why = why + (f" (explore.steering none; {method} never steers)"
+                    if group == "explore.target" and agent.explore.steering
+                    != run.explore.steering else "")
+            raise EfficientEQAError(f"--{group}.* sets constants that do not act: {why}",
+                                    fix=_ACTS_WITH[group])
+        shown = f"{value:g}" if isinstance(value, float) else value
+        raise EfficientEQAError(f"--{path.replace('_', '-')} {shown} does not act: {why}",
+                                fix=_ACTS_WITH.get(path, "leave it out"))
 
 
 def build_config(values: Mapping[str, Any] = {}) -> AgentConfig:  # noqa: B006 - read only
@@ -307,12 +317,16 @@ def build_stack(values: Mapping[str, Any] = {}) -> Stack:  # noqa: B006 - read o
 
 def to_toml(run: RunConfig) -> str:
     """``run`` as a ``--config`` file: one table per section, every value (a None, which TOML
-    cannot hold, as a comment), the overrides of ``explore.sfe``/``explore.target`` as tables of
-    their own; ``load_config`` reads it back to the same run."""
+    cannot hold, as a comment; a value the run would not use, ``inert.inert``, with a comment
+    that says so), the overrides of ``explore.sfe``/``explore.target`` as tables of their own; ``load_config``
+    reads it back to the same run."""
     import json
     from dataclasses import asdict
 
-    from efficienteqa.stop.rules import z_th_acts
+    from efficienteqa.eval.methods import effective_config
+    from efficienteqa.inert import inert
+
+    idle = inert(run, effective_config(run.eval.method, run.agent) or run.agent)
 
     def value(v: Any) -> str:
         if isinstance(v, bool):
@@ -337,8 +351,8 @@ def to_toml(run: RunConfig) -> str:
                 lines.append(f"# {key} = (left to its default)")
             elif f"{name}.{key}" in METHOD_SET:
                 lines.append(f"# {key} = {value(v)}  (set by eval.method)")
-            elif f"{name}.{key}" == "stop.z_th" and not z_th_acts(run.stop.gate):
-                lines.append(f"# {key} = {value(v)}  (does not act with the {run.stop.gate} gate)")
+            elif (why := idle.get(f"{name}.{key}", idle.get(name))) is not None:
+                lines.append(f"{key} = {value(v)}  # does not act: {why}")
             else:
                 lines.append(f"{key} = {value(v)}")
         lines.append("")

@@ -85,7 +85,7 @@ class Scene:
 
 
 ENVS = ("synthetic", "habitat")
-FIX_HABITAT = "run hm3d scenes with --env habitat --hm3d-root FOLDER (see docs/habitat.md)"
+FIX_HABITAT = "run hm3d scenes with --scene.env habitat --scene.hm3d-root FOLDER (see docs/habitat.md)"
 
 
 def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic",
@@ -121,18 +121,18 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
     if kind == "ros2":
         if env == "habitat":
             raise EfficientEQAError(f"scene {spec!r} is a live robot, not a Habitat scene",
-                                    fix="run it without --env habitat")
+                                    fix="run it without --scene.env habitat")
         from efficienteqa.envs.ros2.env import open_ros2
 
         return Scene(open_ros2(arg or None), f"ros2:{Path(arg).name}" if arg else "ros2")
     if kind != "synthetic":
         raise EfficientEQAError(f"unknown scene {spec!r}",
                                 fix="use synthetic:SEED, recorded:FILE.mcap, recorded:FOLDER, "
-                                    "hm3d:SCENE with --env habitat, or ros2[:PARAMS.toml] (a "
+                                    "hm3d:SCENE with --scene.env habitat, or ros2[:PARAMS.toml] (a "
                                     "live robot)")
     if env != "synthetic":
         raise EfficientEQAError(f"scene {spec!r} is a generated house, not a Habitat scene",
-                                fix="run synthetic scenes with --env synthetic (the default)")
+                                fix="run synthetic scenes with --scene.env synthetic (the default)")
     try:
         seed = int(arg)
     except ValueError:

@@ -1,8 +1,8 @@
 """Build an agent from back-end names: the one place that turns configuration into objects.
 
 The default stack is the offline one (DESIGN 5): semantic-sensor perception, Qwen2.5-Coder-1.5B on
-the local llama.cpp server, MiniLM text relevancy. ``--vlm openai:gpt-4o --perception rgb
---relevancy blip2-itm`` is the paper's stack, by configuration alone.
+the local llama.cpp server, MiniLM text relevancy. ``--backends.vlm openai:gpt-4o --backends.perception rgb
+--backends.relevancy blip2-itm`` is the paper's stack, by configuration alone.
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
               retries: int | None = None, api_key_env: str | None = None,
               image_format: str | None = None, image_max_side: int | None = None,
               image_detail: str | None = None, capabilities: str | None = None,
-              flag: str = "--vlm") -> ChatBackend:
+              flag: str = "--backends.vlm") -> ChatBackend:
     """The back-end of a VLM spec and the server options (None, and an ``image_format`` of
     ``IMAGE_FORMAT_AUTO``: ``ChatBackend``'s default); a bad value fails here, in one line,
     before anything is built. ``flag``: the option that named it, for its errors ("--judge")."""
@@ -67,29 +67,30 @@ def parse_vlm(spec: str, images: bool, cache: bool = True,
                                     "e.g. local:qwen2.5-coder-1.5b or openai:gpt-4o")
     if temperature is not None and not 0.0 <= temperature <= 2.0:
         raise EfficientEQAError(f"temperature {temperature} is outside 0-2",
-                                fix="use e.g. --temperature 1 (the paper's) or leave it out (0)")
+                                fix="use e.g. --backends.temperature 1 (the paper's) or leave it out (0)")
     if timeout_s is not None and not (timeout_s > 0 and math.isfinite(timeout_s)):
         raise EfficientEQAError(f"timeout {timeout_s} s is not a positive number",
-                                fix="use e.g. --timeout-s 60")
+                                fix="use e.g. --backends.timeout-s 60")
     if retries is not None and retries < 0:
-        raise EfficientEQAError(f"retries {retries} is negative", fix="use --retries 0 or more")
+        raise EfficientEQAError(f"retries {retries} is negative", fix="use --backends.retries 0 or more")
     if image_format == IMAGE_FORMAT_AUTO:
         image_format = None
     if image_format is not None and image_format not in IMAGE_FORMATS:
         choices = " | ".join((IMAGE_FORMAT_AUTO, *IMAGE_FORMATS))
         raise EfficientEQAError(f"unknown image format {image_format!r}",
-                                fix=f"use --image-format {choices}")
+                                fix=f"use --backends.image-format {choices}")
     if image_detail is not None and image_detail not in IMAGE_DETAILS:
         raise EfficientEQAError(f"unknown image detail {image_detail!r}",
-                                fix=f"use --image-detail {', '.join(IMAGE_DETAILS)}")
+                                fix=f"use --backends.image-detail {', '.join(IMAGE_DETAILS)}")
     if image_max_side is not None and image_max_side < 16:
         raise EfficientEQAError(f"image max side {image_max_side} px is too small",
-                                fix="use --image-max-side 16 or more (e.g. 512)")
+                                fix="use --backends.image-max-side 16 or more (e.g. 512)")
     if capabilities is not None:
         if kind != "openai":
-            raise EfficientEQAError(f"--capabilities describes an openai: server; {spec} is the "
+            raise EfficientEQAError(f"--backends.capabilities describes an openai: server; {spec} is the "
                                     "embedded one, whose capabilities are known",
-                                    fix="leave out --capabilities, or use --vlm openai:MODEL@URL")
+                                    fix="leave out --backends.capabilities, or use --backends.vlm "
+                                        "openai:MODEL@URL")
         read_capabilities(Path(capabilities), images)  # a bad file fails here, before the work
     if kind == "local" and not url:  # its server starts on demand: $EFFICIENTEQA_SERVER_IDLE_S
         from efficienteqa.models.local.keeper import idle_seconds
@@ -150,12 +151,12 @@ def check_stack(stack: Stack) -> None:
     SIGHTINGS.check(stack.sightings)
     if stack.sightings == "perception" and stack.perception == "rgb":
         raise EfficientEQAError("rgb perception gives no sightings of its own",
-                                fix="use --sightings model (one call to the VLM per step)")
+                                fix="use --backends.sightings model (one call to the VLM per step)")
     if stack.relevancy in TEXT_RELEVANCY and stack.perception == "rgb":
         raise EfficientEQAError(
-            f"relevancy scorer {stack.relevancy!r} reads text, but --perception rgb gives images",
-            fix="use --relevancy vlm-match (the VLM judges each frame) or blip2-itm (BLIP-2 "
-                "weights), or --perception semantic")
+            f"relevancy scorer {stack.relevancy!r} reads text, but --backends.perception rgb gives images",
+            fix="use --backends.relevancy vlm-match (the VLM judges each frame) or blip2-itm (BLIP-2 "
+                "weights), or --backends.perception semantic")
 
 
 def check_relevancy_weights(kind: str, weights: str) -> None:
@@ -178,7 +179,7 @@ def _semantic(env: Environment, **_: Any) -> Perception:
     if labels is None:
         raise EfficientEQAError(
             f"semantic-sensor perception needs object labels, which {type(env).__name__} "
-            "does not give", fix="use --perception rgb with an image VLM")
+            "does not give", fix="use --backends.perception rgb with an image VLM")
     from efficienteqa.perception.semantic import SemanticPerception
 
     return SemanticPerception(labels())
@@ -238,7 +239,7 @@ def explore_scorer_name(stack: Stack, perception: Perception, config: AgentConfi
     if name != "vlm" and perception.modality != "text":
         raise EfficientEQAError(f"explore scorer {name!r} reads direction texts, which "
                                 f"{perception.name} perception does not give",
-                                fix="use --perception semantic, or --explore-scorer vlm")
+                                fix="use --backends.perception semantic, or --backends.explore-scorer vlm")
     return name
 
 
@@ -261,7 +262,7 @@ def answer_name(config: AgentConfig, model: ChatModel) -> str:
     if config.answer.answer_at != "retrieval":
         if config.answer.answer == "direct":
             raise EfficientEQAError("the direct answer reads the retrieved frames, and this "
-                                    "method answers at every step", fix="use --answer paper")
+                                    "method answers at every step", fix="use --answer.answer paper")
         return "paper"
     if config.answer.answer == "auto":
         return "direct" if model.capabilities.logprobs else "paper"
@@ -326,9 +327,9 @@ def build_gate(name: str, perception: Perception, model: ChatModel,
     describes = hasattr(perception, "describe") and sights
     if name == "auto":
         name = "rules" if describes else "sightings" if sights else "model"
-    reads = {"sightings": (sights, "sightings", "--sightings model, or --gate model"),
+    reads = {"sightings": (sights, "sightings", "--backends.sightings model, or --stop.gate model"),
              "rules": (describes, "object descriptions",
-                       "--gate model (one yes/no call to the VLM)")}
+                       "--stop.gate model (one yes/no call to the VLM)")}
     if name in reads:
         able, what, fix = reads[name]
         if not able:
@@ -420,8 +421,8 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
                                            **stack.server_options()))
     if perception.modality == "image" and not model.capabilities.images:
         raise EfficientEQAError(f"model {model.name!r} cannot read images",
-                                fix="use --perception semantic, or an image VLM such as "
-                                    "--vlm openai:gpt-4o")
+                                fix="use --backends.perception semantic, or an image VLM such as "
+                                    "--backends.vlm openai:gpt-4o")
     recorder = RecordingChatModel(model)
     perception = SIGHTINGS.build(stack.sightings, perception=perception, model=recorder, env=env)
     if relevancy is None and stack.relevancy == "vlm-match":  # the agent's own model as ITM

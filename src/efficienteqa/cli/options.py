@@ -2,7 +2,9 @@
 
 ``@run_options(...)`` gives a command one typer option per value of ``runconfig.RunConfig``:
 ``--stop.z-th`` (the flat ``--z-th`` of before the sections stays, hidden, for one release), grouped in
-``--help`` by section, each with its field's help and default, options beyond the paper marked.
+``--help`` by section, each with its field's help and default, options beyond the paper marked;
+the explorer's and the steering's constants (``--explore.sfe.*``, ``--explore.target.*``) only
+in ``--help-all``.
 Left out, an option is None, so a value the user gave is told apart from a default, and
 ``--config``/``--preset`` fill only what was left out (``presets.resolve``). The command itself
 receives ``run: presets.Resolved`` in their place.
@@ -33,6 +35,7 @@ CONFIG_HELP = ("A TOML file with a table per group below, named as the options' 
                "(a stop table holding z_th = 2 sets --stop.z-th), and base = \"PRESET\" to start "
                "from a preset. Fills options not given on the command line, before --preset.")
 _SEP = "__"  # a path as a Python parameter name: stop__z_th
+CONSTANTS_PANEL = ": constants"  # the panel of the constants only --help-all shows
 
 
 def _flag(name: str) -> str:
@@ -63,13 +66,25 @@ def _parameter(leaf: Leaf, alias: bool = False) -> inspect.Parameter | None:
     else:
         decls = [_flag(flat)] if alias and flat else [f"--{dotted}"]
     kind: Any = str if leaf.kind is dict else leaf.kind
-    option = typer.Option(None, *decls, help=help_text, show_default=False, hidden=alias,
+    option = typer.Option(None, *decls, help=help_text, show_default=False, hidden=alias or deep,
                           rich_help_panel=SECTION_TITLES[leaf.path[0]] + (
-                              ": constants" if deep else ""),
+                              CONSTANTS_PANEL if deep else ""),
                           metavar="JSON" if leaf.kind is dict else None)
     return inspect.Parameter(("alias" + _SEP if alias else "") + _SEP.join(leaf.path),
                              inspect.Parameter.KEYWORD_ONLY, default=option,
                              annotation=kind | None)
+
+
+def _help_all(ctx: click.Context, _: click.Parameter, value: bool) -> None:
+    """``--help-all``: the help with the constants ``--help`` leaves out (their panels end in
+    CONSTANTS_PANEL), then exit."""
+    if not value or ctx.resilient_parsing:
+        return
+    for p in ctx.command.params:
+        if str(getattr(p, "rich_help_panel", "") or "").endswith(CONSTANTS_PANEL):
+            p.hidden = False  # type: ignore[attr-defined]
+    typer.echo(ctx.get_help(), color=ctx.color)
+    ctx.exit()
 
 
 def tree_leaves(sections: Iterable[str] | None = None,
@@ -107,11 +122,18 @@ def run_options(sections: Iterable[str] | None = None,
         def wrapper(**kwargs: Any) -> Any:
             from efficienteqa.presets import resolve
 
+            kwargs.pop("help_all", None)  # acted already, eagerly (_help_all)
             given = given_values(chosen, kwargs)
             run = resolve(given, kwargs.pop("preset"), kwargs.pop("config_file"),
                           by_method=by_method)
             return command(run=run, **kwargs)
 
+        named.append(inspect.Parameter(
+            "help_all", inspect.Parameter.KEYWORD_ONLY, annotation=bool,
+            default=typer.Option(False, "--help-all", is_eager=True, expose_value=False,
+                                 callback=_help_all, rich_help_panel="Configuration",
+                                 help="Show every option, the explorer's and the steering's "
+                                      "constants included, and exit.")))
         params = [*own, *named, *generated]
         wrapper.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
         wrapper.__annotations__ = {p.name: p.annotation for p in params}

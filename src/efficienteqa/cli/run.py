@@ -129,7 +129,7 @@ def ask_command(
         out, overwrite = ASK_OUT, True
     if r.eval.method != "efficienteqa":
         raise EfficientEQAError(f"ask runs efficienteqa; method {r.eval.method!r} is for eval",
-                                fix="use efficienteqa eval --method with this configuration")
+                                fix="use efficienteqa eval --eval.method with this configuration")
     _check_backends(run)
     start_pose, habitat_start, reference, known_as = _parse_start(start), None, None, None
     check_writable(out)  # before the episode, not after it
@@ -150,7 +150,7 @@ def ask_command(
                                 fix="leave out --start")
     if not question or not question.strip():  # "   " too: before the scene opens, not after
         raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
-                                'the sofa?", or --episode ID with --dataset')
+                                'the sofa?", or --episode ID with --eval.dataset')
     if rerun is not None:  # rerun missing, no viewer, an unwritable file: before the scene opens
         from efficienteqa.report.rerun_log import check_target
 
@@ -294,7 +294,7 @@ def _judge_spec(run: Resolved) -> str | None:
                                 fix="give a judge model (--judge local:MODEL or openai:MODEL)")
     spec = None if spec in ("none", "rule") else spec
     if spec:
-        parse_vlm(spec, images=False, flag="--judge")
+        parse_vlm(spec, images=False, flag="--eval.judge")
     return spec
 
 
@@ -317,12 +317,12 @@ def eval_command(
     resolve(e.method)  # bad input fails before anything slow
     _check_backends(run)
     if e.closed_set and e.dataset != "hm-eqa":
-        raise EfficientEQAError(f"--closed-set is HM-EQA's multiple-choice mode; {e.dataset} has "
-                                "no choices", fix="use --dataset hm-eqa, or leave out --closed-set")
+        raise EfficientEQAError(f"--eval.closed-set is HM-EQA's multiple-choice mode; {e.dataset} has "
+                                "no choices", fix="use --eval.dataset hm-eqa, or leave out --eval.closed-set")
     if e.closed_set and e.method in METHODS and e.method != "blind":
-        raise EfficientEQAError(f"method {e.method!r} answers open-ended only; --closed-set is "
+        raise EfficientEQAError(f"method {e.method!r} answers open-ended only; --eval.closed-set is "
                                 "answered by blind (or a module:function method that sets "
-                                "extra['letter'])", fix="use --method blind")
+                                "extra['letter'])", fix="use --eval.method blind")
     judge = _judge_spec(run)
     check_writable(out)
     spec = RunSpec(method=e.method, dataset=e.dataset, stack=r.backends, config=r.agent,

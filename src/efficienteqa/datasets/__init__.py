@@ -42,7 +42,7 @@ def load_dataset(name: str, *, path: Path | None = None, limit: int | None = Non
     "builtin" boxes for live seeds; the fixed split exists for "sh3d" only).
     """
     if limit is not None and limit < 0:
-        raise EfficientEQAError(f"limit must be >= 0, got {limit}", fix="pass --limit N with N >= 0")
+        raise EfficientEQAError(f"limit must be >= 0, got {limit}", fix="pass --eval.limit N with N >= 0")
     kind, colon, arg = name.strip().partition(":")
     from efficienteqa.datasets.questions_file import is_questions_file, load_questions_file
 
@@ -83,7 +83,7 @@ def load_dataset(name: str, *, path: Path | None = None, limit: int | None = Non
                 raise EfficientEQAError(
                     f"dataset {name!r} names {error}: every house is generated before the "
                     "questions are picked", fix=f"name at most {synthetic.MAX_SEEDS} seeds, "
-                    "e.g. synthetic:2000-2099 --limit 50") from None
+                    "e.g. synthetic:2000-2099 --eval.limit 50") from None
             raise EfficientEQAError(f"dataset {name!r}: {arg!r} is not a list of seeds",
                                     fix=_FIX) from None
         questions = synthetic.load_seeds(seeds, assets)

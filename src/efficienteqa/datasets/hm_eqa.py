@@ -50,7 +50,7 @@ DIGESTS = {
 QUESTION_COLUMNS = ("scene", "floor", "question", "choices", "answer", "label")
 POSE_COLUMNS = ("scene_floor", "init_x", "init_y", "init_z", "init_angle")
 FIX_MALFORMED = "use the published file (delete a cached copy to download it again)"
-FIX_PATH = f"pass --hm-eqa-path FOLDER (holding {QUESTIONS_CSV} and {POSES_CSV}) or set {ENV_VAR}"
+FIX_PATH = f"pass --eval.hm-eqa-path FOLDER (holding {QUESTIONS_CSV} and {POSES_CSV}) or set {ENV_VAR}"
 
 
 def load_hm_eqa(path: Path | None = None, *, closed_set: bool = False) -> list[EvalQuestion]:
@@ -68,7 +68,7 @@ def load_hm_eqa(path: Path | None = None, *, closed_set: bool = False) -> list[E
 def resolve_folder(path: Path | None = None) -> Path:
     """An explicit folder, else ``$EFFICIENTEQA_HM_EQA``, else the cache (downloading there)."""
     if path is not None:
-        return _check_folder(Path(path), "--hm-eqa-path")
+        return _check_folder(Path(path), "--eval.hm-eqa-path")
     if os.environ.get(ENV_VAR):
         return _check_folder(Path(os.environ[ENV_VAR]), ENV_VAR)
     folder = cache_dir("datasets", NAME)

@@ -220,7 +220,7 @@ def open_run(out: Path, manifest: dict[str, Any]) -> Episodes:
 
 
 def _add_questions(run_file: Path, recorded: dict[str, Any], ids: Any) -> None:
-    """A resumed run's question set grows by the questions of this command (a larger --limit):
+    """A resumed run's question set grows by the questions of this command (a larger --eval.limit):
     ``run.json`` lists every question any command of the run asked (``question_ids``), and
     their number (``questions``), so a report counts exactly these. A run recorded before
     runs listed their questions keeps its run.json as it is: which questions its earlier

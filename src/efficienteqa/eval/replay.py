@@ -3,7 +3,7 @@ stop rule, and the answer for another K, from one episode explored to its budget
 
 Exploration does not depend on the stop rule or on K: the relevancy stopper only reads the
 frames (``agent.Agent.run`` feeds it one Sim per valid frame and nothing else reads its state),
-and the top-K heap is filled as the robot goes. So an episode run with ``--no-early-stop``,
+and the top-K heap is filled as the robot goes. So an episode run with ``--stop.no-early-stop``,
 whose ``episode.json`` records every step's pose, validity and Sim, holds every shorter
 episode: the one that the rule would have stopped is its prefix up to the stop step.
 
@@ -17,7 +17,8 @@ episode: the one that the rule would have stopped is its prefix up to the stop s
   synthetic simulator is deterministic: ``SyntheticEnv.observe(Pose2D(x, y, yaw))`` at a
   recorded pose (JSON round-trips floats exactly) renders the frame the agent saw, and the
   stack's perception describes it as the agent did. Checked: on a run of the synthetic split
-  (``efficienteqa eval --method frontier-only --dataset synthetic --limit 3 --no-early-stop``)
+  (``efficienteqa eval --eval.method frontier-only --eval.dataset synthetic --eval.limit 3
+  --stop.no-early-stop``)
   the re-observed descriptions of the retrieved steps, numbered as ``answer.calls.evidence_text``
   numbers them, are exactly the evidence of the answer prompt stored in ``model.exchanges``
   (``answer_prompt_matches`` checks one episode; the benchmark checks every episode it replays).
@@ -119,7 +120,7 @@ def replay_episode_stop(per_step: Sequence[Mapping[str, Any]], recorded_reason: 
     only of flagged frames, cannot be."""
     if recorded_reason == "relevancy":
         raise ValueError("this episode stopped early: its frames after the stop were never "
-                         "seen, so other stops cannot be replayed (run with --no-early-stop)")
+                         "seen, so other stops cannot be replayed (run with --stop.no-early-stop)")
     frames = recorded_frames(per_step)
     step = replay_stop([(f.step, f.sim, f.eligible) for f in frames], config)
     if step is None:

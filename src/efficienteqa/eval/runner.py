@@ -228,8 +228,8 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
             if spec.env != "habitat" or spec.hm3d_root is None:
                 raise EfficientEQAError(
                     f"method {spec.method!r} explores the HM3D scenes of {spec.dataset} in Habitat-Sim",
-                    fix="add --env habitat --hm3d-root FOLDER (docs/habitat.md), or run --method "
-                        "blind, or use --dataset synthetic")
+                    fix="add --scene.env habitat --scene.hm3d-root FOLDER (docs/habitat.md), or "
+                        "run --eval.method blind, or use --eval.dataset synthetic")
             from efficienteqa.envs.habitat.env import import_habitat_sim
             from efficienteqa.envs.habitat.scenes import check_root
 
@@ -238,7 +238,7 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
         unknown = sorted(kinds - {"synthetic", "hm3d", "recorded"})
         if unknown:
             raise EfficientEQAError(f"no environment back-end opens {', '.join(unknown)} scenes",
-                                    fix="use --dataset synthetic or hm-eqa")
+                                    fix="use --eval.dataset synthetic or hm-eqa")
         from efficienteqa.envs.recorded import parse_spec
 
         for scene in sorted({q.scene for q in todo if q.scene.startswith("recorded:")}):
@@ -257,7 +257,7 @@ def _prepare(spec: RunSpec, todo: Sequence[EvalQuestion]) -> None:
                                        cache=spec.stack.cache, **spec.stack.server_options()))
     if spec.judge is not None and spec.judge != spec.stack.vlm:
         build_chat_model(parse_vlm(spec.judge, images=False, cache=spec.stack.cache,
-                                   flag="--judge"))
+                                   flag="--eval.judge"))
     if resolve(spec.method) is run_agent_method:
         config = method_config(spec.method, spec.config)
         if config.answer.confidence == "token" or config.answer.answer == "direct":

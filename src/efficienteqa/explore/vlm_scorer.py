@@ -14,7 +14,7 @@ open, one call with both images (the unmarked one first, labelled), was not take
 model can be run here to measure whether it answers as well, and it would make the
 exploration call the only one with two images and letters that refer to the second. The cost
 is one more call per prompted step (the GSV prompt is short: the question and one image) and no
-change for text models. Every configuration, ``--prompts paper`` included, does this.
+change for text models. Every configuration, ``--explore.prompts paper`` included, does this.
 """
 
 from __future__ import annotations

@@ -69,7 +69,8 @@ class ChatBackend:
     probe: bool = True
     # a JSON file of what the server can do (``read_capabilities``), in place of the probe
     capabilities_file: str | None = None
-    flag: str = "--vlm"  # the option that named it, for the errors ("--judge" for a judge)
+    flag: str = "--backends.vlm"  # the option that named it, for the errors ("--eval.judge" for a
+    # judge)
 
     @property
     def key_env(self) -> str | None:

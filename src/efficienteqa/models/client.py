@@ -122,7 +122,7 @@ class ClientConfig:
                                     fix="use at least 16 px, e.g. 512")
         if not (self.timeout_s > 0 and math.isfinite(self.timeout_s)):
             raise EfficientEQAError(f"timeout {self.timeout_s} s is not a positive number",
-                                    fix="use e.g. --timeout-s 60")
+                                    fix="use e.g. --backends.timeout-s 60")
         if self.max_retries < 0:
             raise EfficientEQAError(f"retries {self.max_retries} is negative",
                                     fix="use 0 (one try) or more")
@@ -371,7 +371,7 @@ class OpenAIChatClient:
         return self._capabilities
 
     def declare(self, capabilities: Capabilities) -> Capabilities:
-        """Take ``capabilities`` as the server's, without asking it (``--capabilities FILE``)."""
+        """Take ``capabilities`` as the server's, without asking it (``--backends.capabilities FILE``)."""
         self._capabilities = capabilities
         return capabilities
 
@@ -478,7 +478,7 @@ class OpenAIChatClient:
         key = os.environ.get(env)
         if not key:
             raise EfficientEQAError(f"environment variable {env} is not set",
-                                    fix=f"export {env}=..., or --api-key-env none for a server that "
+                                    fix=f"export {env}=..., or --backends.api-key-env none for a server that "
                                         "needs no key")
         return key
 
@@ -586,8 +586,9 @@ class OpenAIChatClient:
         if isinstance(error, openai.APITimeoutError):
             return EfficientEQAError(f"{where} did not answer within {self.config.timeout_s:g} s "
                                      f"({tries} tries)",
-                                     fix="raise --timeout-s (each try's limit) or lower --retries, "
-                                         "or check that the server is not stuck")
+                                     fix="raise --backends.timeout-s (each try's limit) or lower "
+                                         "--backends.retries, or check that the server is not "
+                                         "stuck")
         if isinstance(error, openai.APIConnectionError):
             cause = error.__cause__ or error
             detail = self._redact(_one_line(f"{type(cause).__name__}: {cause}", 200))
@@ -612,8 +613,8 @@ class OpenAIChatClient:
         if status in (401, 403):
             if self.config.api_key_env is None:
                 return "no key was sent: name the variable holding this server's key with " \
-                       "--api-key-env NAME"
-            return f"check the API key in ${self.config.api_key_env} (--api-key-env names another)"
+                       "--backends.api-key-env NAME"
+            return f"check the API key in ${self.config.api_key_env} (--backends.api-key-env names another)"
         if status == 404:
             return "check base_url (it usually ends in /v1) and the model name"
         if status == 429:

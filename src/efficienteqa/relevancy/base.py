@@ -6,9 +6,9 @@ probability, word overlap). Higher means more relevant; each back-end documents 
 Back-ends are imported only when built, so importing this module costs nothing.
 
 The image scorers load Hugging Face weights: from the cache, from a local folder
-(``--relevancy-weights DIR``) or, only when allowed (``--allow-download``), from the Hub; they
-run on ``--device`` (``resolve_device``: "auto" is the GPU torch sees, else the CPU, and half
-precision on a GPU).
+(``--backends.relevancy-weights DIR``) or, only when allowed (``--backends.allow-download``),
+from the Hub; they run on ``--backends.device`` (``resolve_device``: "auto" is the GPU torch
+sees, else the CPU, and half precision on a GPU).
 """
 
 from __future__ import annotations
@@ -73,7 +73,7 @@ def weights_missing(model_id: str, exc: BaseException) -> EfficientEQAError:
     return EfficientEQAError(
         f"weights of {model_id!r} are not in the Hugging Face cache or at that path",
         fix=f"run `hf download {model_id} --local-dir DIR` on a machine with internet and pass "
-            "--relevancy-weights DIR, or let it download with --allow-download")
+            "--backends.relevancy-weights DIR, or let it download with --backends.allow-download")
 
 
 DEVICES = "auto, cpu, cuda or cuda:N"

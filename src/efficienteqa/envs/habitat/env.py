@@ -97,7 +97,7 @@ class HabitatEnv:
             raise self._unlabelled
         if self.semantic and files.semantic is None:
             raise EfficientEQAError(f"scene {files.scene} has no semantic annotations",
-                                    fix="use --perception rgb, or an HM3D-Semantics scene")
+                                    fix="use --backends.perception rgb, or an HM3D-Semantics scene")
         self.sim = hs.Simulator(self._configuration(hs, gpu_device_id))
         try:
             self.pathfinder = self.sim.pathfinder
@@ -165,7 +165,7 @@ class HabitatEnv:
                 f"Habitat-Sim loaded {self.files.scene} without its semantic annotations "
                 f"({self.files.dataset_config} names none for it)",
                 fix=f"use the {DATASET_CONFIG} of the same HM3D-Semantics download as the "
-                    "scene, or --perception rgb")
+                    "scene, or --backends.perception rgb")
 
     def _floor_triangles(self) -> np.ndarray:
         """Navmesh triangles (3N, 3) lying on the start's floor (Habitat frame)."""
@@ -258,7 +258,7 @@ class HabitatEnv:
             raise self._unlabelled
         if not self.semantic:
             raise EfficientEQAError(f"scene {self.files.scene} is loaded without its semantic sensor",
-                                    fix="use --perception rgb with an image VLM, or an "
+                                    fix="use --backends.perception rgb with an image VLM, or an "
                                         "HM3D-Semantics scene")
         if self._labels is None:
             self._labels = HabitatLabels(self.sim.semantic_scene)
@@ -314,7 +314,7 @@ def _unloadable_annotations(files: SceneFiles) -> EfficientEQAError | None:
         f"scene {files.scene} has HM3D-Semantics files but no {DATASET_CONFIG} was found, so "
         "Habitat-Sim would read every object id as 0",
         fix=f"put {DATASET_CONFIG} (from the HM3D semantics download) in "
-            f"{files.semantic.parent.parent}, or use --perception rgb")
+            f"{files.semantic.parent.parent}, or use --backends.perception rgb")
 
 
 def open_habitat_scene(root: Path, scene: str, start: HabitatStart | None = None,
