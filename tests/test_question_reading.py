@@ -247,3 +247,29 @@ def test_an_episode_reads_its_question_once_and_records_the_target(env_seed3):
     assert len(reads) == 1
     assert result.target.object == "stool"
     assert result.target.likely_rooms == ("kitchen", "dining room")
+
+
+def test_the_relevancy_can_read_the_question_in_the_perceptions_words():
+    """``StopConfig.question_words`` "perceived": rooms by their canonical names, slips mended
+    and the target's resolved phrases in the perception's words; the generator's own words
+    (and a question with nothing to mend) stay as asked."""
+    from dataclasses import replace
+
+    from efficienteqa.question import parse_question, perceived_words
+
+    q = "Is there a couch in the lounge?"
+    target = replace(parse_question(q), aliases=(("couch", "sofa"),))
+    assert perceived_words(q, target) == "is there a sofa in the living room?"
+    assert perceived_words("Wher are the couches?", target) == "where are the sofas?"
+    q = "Is there a sofa in the living room?"
+    assert perceived_words(q, parse_question(q)) == q
+    q = "What colour is the bed in the bedroom?"
+    assert perceived_words(q, parse_question(q)) == q  # no spelling "mended"
+
+
+def test_the_agent_scores_frames_against_the_question_in_the_words_it_is_told():
+    from efficienteqa.stop.rules import StopConfig
+
+    assert StopConfig().question_words == "asked"  # the paper's: the question as typed
+    with pytest.raises(ValueError, match="question_words"):
+        StopConfig(question_words="typed")

@@ -54,7 +54,7 @@ from efficienteqa.mapping.state import MapState
 from efficienteqa.mapping.tsdf import VolumeSpec
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
-from efficienteqa.question import Target, parse_question
+from efficienteqa.question import Target, parse_question, perceived_words
 from efficienteqa.reading.target import TargetReading
 from efficienteqa.relevancy.base import RelevancyScorer, check_question
 from efficienteqa.stop.gate import AnswerGate
@@ -307,6 +307,8 @@ class Agent:
         # the gate and the answer's count read (StopConfig.count_from)
         remember = (getattr(self.perception, "instances_seen", None)
                     if cfg.stop.count_from == "instances" and target.kind == "count" else None)
+        scored = (perceived_words(question, target) if cfg.stop.question_words == "perceived"
+                  else question)  # what the relevancy reads (StopConfig.question_words)
         frames: dict[int, str | np.ndarray] = {}  # flagged frames the gate may still judge
         stopper = RelevancyStopper(cfg.stop)
         top: TopK[str | np.ndarray] = TopK(cfg.answer.top_k)
@@ -332,9 +334,9 @@ class Agent:
                         remember(obs, target)
                 with self._phase(f"step {step}"):  # relevancy may be a model call too
                     if self.relevancy.modality == "image":
-                        sim = self.relevancy.score(question, image=obs.rgb)
+                        sim = self.relevancy.score(scored, image=obs.rgb)
                     else:
-                        sim = self.relevancy.score(question, text=self.perception.relevancy_text(obs))
+                        sim = self.relevancy.score(scored, text=self.perception.relevancy_text(obs))
             if record.valid and math.isnan(sim):  # an unreadable reply: no Sim, never an outlier
                 record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
             elif record.valid:

@@ -399,3 +399,23 @@ def names(thing: str, category: str) -> bool:
     other as a whole word."""
     a, b = singular(thing.lower()), singular(category.lower())
     return a == b or a.endswith(" " + b) or b.endswith(" " + a)
+
+
+def perceived_words(question: str, target: Target) -> str:
+    """``question`` in the words the perception uses, for the relevancy's Sim: slips of the
+    keyboard in question and room words mended (``_SLIPS``), each room named by its canonical
+    name ("the lounge" -> "the living room"), and each phrase the target resolved to a category
+    (``Target.aliases``: "couch" -> "sofa", "tabel" -> "table") replaced by it. ``question``
+    itself where that changes nothing but case: the generator's own words score as they
+    always did."""
+    text = re.sub(r"(?<![\w'-])[a-z]+(?![\w'-])", lambda m: _SLIPS.get(m.group(0), m.group(0)),
+                  " ".join(question.replace("\u2019", "'").lower().split()))
+    text = re.sub(r"\b(" + "|".join(re.escape(w) for w, room in _ROOM_WORDS if w != room)
+                  + r")\b", lambda m: canonical_room(m.group(1)) or m.group(1), text)
+    for words, category in sorted(target.aliases, key=lambda a: -len(a[0])):
+        name = category.lower()
+        many = name + ("es" if name.endswith(("s", "x", "ch", "sh")) else "s")
+        text = re.sub(rf"\b{re.escape(words.lower())}(s|es)?\b",
+                      lambda m: many if m.group(1) else name, text)  # noqa: B023 - used at once
+    return question if text == question.lower() else text
+

@@ -108,6 +108,7 @@ def env_step_budget(env: object) -> int | None:
 
 
 COUNT_FROM = ("instances", "views")  # StopConfig.count_from
+QUESTION_WORDS = ("asked", "perceived")  # StopConfig.question_words
 
 
 @dataclass(frozen=True)
@@ -145,6 +146,11 @@ class StopConfig:
     gate_final: bool = knob(True, beyond=True, help="Stop at a frame the rules gate finds "
                             "answers outright (a count group wholly in view) without waiting for "
                             "a relevancy outlier.")
+    question_words: str = knob("asked", beyond=True, help="The question the relevancy scores "
+                               "frames against: asked (as the user typed it) | perceived (typos "
+                               "mended, rooms by their canonical names, the phrases the target "
+                               "resolved to categories in the perception's words: 'the couch in "
+                               "the lounge' scores as 'the sofa in the living room').")
     count_from: str = knob("instances", beyond=True, help="Where a count question's group "
                            "comes from, for the gate and the direct answer's count: instances "
                            "(the episode's instance map, each object once over all views: "
@@ -155,6 +161,9 @@ class StopConfig:
         rule_parts(self.rule)  # raises on an unknown name
         if self.gate not in GATES:
             raise ValueError(f"gate must be one of {GATES}, not {self.gate!r}")
+        if self.question_words not in QUESTION_WORDS:
+            raise ValueError(f"question_words must be one of {QUESTION_WORDS}, not "
+                             f"{self.question_words!r}")
         if self.count_from not in COUNT_FROM:
             raise ValueError(f"count_from must be one of {COUNT_FROM}, not {self.count_from!r}")
         for name in ("z_th", "z_gated", "sigma_floor", "sim_abs"):
