@@ -536,11 +536,19 @@ def distinct_labels(summaries: Sequence[RunSummary]) -> list[str]:
         for i, s in enumerate(summaries):
             if counts[out[i]] > 1:
                 same = [t for t in summaries if t.label == s.label]
-                extra = [str(_lookup(s, k)) for k in keys
+                extra = [_shown(k, _lookup(s, k)) for k in keys
                          if len({str(_lookup(t, k)) for t in same}) > 1]
                 if extra:
                     out[i] = f"{out[i]} ({', '.join(extra)})"
     return out
+
+
+def _shown(key: str, value: Any) -> str:
+    """A back-end that tells two runs apart, as their labels say it: the judge as "judge X", or
+    "rule judge only" where the run had no LLM judge; another missing one as "no KEY"."""
+    if key == "judge":
+        return f"judge {value}" if value else "rule judge only"
+    return f"no {key}" if value is None else str(value)
 
 
 def _lookup(s: RunSummary, key: str) -> Any:
