@@ -4,9 +4,11 @@
     python examples/ask_from_python.py --vlm openai:gpt-4o --perception rgb
     python examples/ask_from_python.py --vlm openai:MODEL@http://127.0.0.1:8000/v1 --perception rgb
 
-``Stack`` names the back-ends (the same names as the command line's options) and
-``AgentConfig`` the agent's knobs; ``ask`` opens the scene, runs explore -> stop -> answer and
-writes ``episode.json`` and ``report.html`` into the output folder.
+``run_config`` makes the run's whole configuration from a preset and settings named as the
+command line names them (``backends.vlm`` is ``--backends.vlm``), checked as the command line
+checks them; ``ask`` opens the scene, runs explore -> stop -> answer and writes
+``episode.json`` and ``report.html`` into the output folder. ``efficienteqa config`` prints the
+same configuration as a TOML file.
 """
 
 from __future__ import annotations
@@ -14,9 +16,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from efficienteqa.agent import AgentConfig
 from efficienteqa.ask import ask
-from efficienteqa.stack import Stack, default_relevancy
+from efficienteqa.backends import Stack
+from efficienteqa.presets import run_config
+from efficienteqa.stack import default_relevancy
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -30,10 +33,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/example"))
     args = parser.parse_args(argv)
 
-    stack = Stack(vlm=args.vlm, perception=args.perception,
-                  relevancy=default_relevancy(args.perception))
-    config = AgentConfig.of(max_steps=args.max_steps)
-    done = ask(args.question, args.scene, args.out, stack=stack, config=config, assets=args.assets)
+    run = run_config(None, {"backends.vlm": args.vlm,
+                            "backends.perception": args.perception,
+                            "backends.relevancy": default_relevancy(args.perception),
+                            "explore.max_steps": args.max_steps,
+                            "scene.assets": args.assets})
+    done = ask(args.question, args.scene, args.out, run=run)
     result = done.result
     print(f"answer: {result.answer} (confidence {result.confidence:.2f})")
     print(f"steps: {result.steps}, stopped by {result.stop_reason}")

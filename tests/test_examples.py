@@ -71,3 +71,28 @@ def test_the_custom_environment_sees_its_box_where_it_is():
     assert np.all((points[:, 0] > x0 - 0.02) & (points[:, 0] < x1 + 0.02))
     assert np.all((points[:, 2] > z0 - 0.02) & (points[:, 2] < z1 + 0.02))
     assert not env.is_navigable(4.5, 1.5) and env.is_navigable(1.0, 1.6)
+
+
+@needs_egl
+def test_a_run_built_in_python_is_the_run_the_episode_records(vlm, tmp_path):
+    """``ask(..., run=)`` takes the whole tree (``presets.run_config``: checked as the command
+    line checks it); the episode records that tree's agent and back-ends."""
+    from efficienteqa.ask import ask
+    from efficienteqa.errors import EfficientEQAError
+    from efficienteqa.presets import run_config
+    from efficienteqa.records import plain
+    from efficienteqa.stack import Stack
+
+    run = run_config("default", {"backends.vlm": f"openai:test-vlm@{vlm.base_url}",
+                                 "backends.perception": "rgb", "backends.relevancy": "vlm-match",
+                                 "stop.z_gated": 2.0, "explore.max_steps": 3,
+                                 "scene.assets": "builtin"})
+    assert run.stop.z_gated == 2.0 and run.scene.assets == "builtin"
+    done = ask("What is on the desk in the office?", "synthetic:0", tmp_path, run=run,
+               report=False)
+    episode = json.loads(done.episode_json.read_text())
+    assert episode["config"] == plain(run.agent) and episode["steps"] <= 3
+    with pytest.raises(ValueError, match="not both"):
+        ask("Where is the sofa?", "synthetic:0", tmp_path, run=run, stack=Stack())
+    with pytest.raises(EfficientEQAError, match="does not act"):
+        run_config("paper-offline", {"stop.z_gated": 2.0})

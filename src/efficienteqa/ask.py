@@ -24,6 +24,7 @@ from efficienteqa.report.evidence import EvidenceWatch
 from efficienteqa.report.frames import FrameCollector
 from efficienteqa.report.html import write_report
 from efficienteqa.report.rerun_log import RerunLog
+from efficienteqa.runconfig import RunConfig, SceneConfig
 from efficienteqa.scenes import Scene, open_scene
 from efficienteqa.stack import Stack, build_agent
 
@@ -51,8 +52,9 @@ def map_url(result: EpisodeResult) -> str:
     return encode_image(rgb, max_side=max(rgb.shape[:2]), fmt="png")
 
 
-def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = None,
-        config: AgentConfig | None = None, start: Pose2D | None = None,
+def ask(question: str, scene: str | Scene, out: Path, *, run: RunConfig | None = None,
+        stack: Stack | None = None, config: AgentConfig | None = None,
+        start: Pose2D | None = None,
         on_step: StepHook | None = None, model: ChatModel | None = None,
         relevancy: RelevancyScorer | None = None, assets: str = DEFAULT_ASSETS,
         report: bool = True, known_as: str | None = None,
@@ -60,7 +62,10 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
         record_depth: str = "32FC1", replace_rerun: bool = False) -> AskResult:
     """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
     ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``
-    (left open for the caller). ``model`` and ``relevancy`` replace the stack's back-ends (tests
+    (left open for the caller). ``run``: the whole configuration (``presets.run_config``, as
+    ``efficienteqa config`` prints it): its back-ends, its agent and the scene settings a named
+    scene opens with; or, without it, ``stack`` and ``config`` (defaults where left out) and
+    ``assets``. ``model`` and ``relevancy`` replace the stack's back-ends (tests
     inject stubs). ``known_as``: the wording of the scene's own question that ``question``
     re-phrases (the paraphrase split), whose evidence and reference the record then carries.
     ``rerun``: also log the episode to rerun (``report.rerun_log``): a ``.rrd`` file, ``live``
@@ -79,13 +84,18 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
 
     if record is not None:
         check_record_path(record, record_depth)  # before the scene is built
-    stack, config = stack or Stack(), config or AgentConfig()
+    if run is not None and (stack is not None or config is not None or assets != DEFAULT_ASSETS):
+        raise ValueError("give ask() the whole run (run=) or its parts (stack=, config=, "
+                         "assets=), not both")
+    scene_config = run.scene if run is not None else SceneConfig(assets=assets)
+    stack = run.backends if run is not None else stack or Stack()
+    config = run.agent if run is not None else config or AgentConfig()
     shown = (RerunLog.of(rerun, question, config, overwrite=replace_rerun)
              if rerun is not None and not isinstance(rerun, RerunLog) else rerun)
     warnings: list[str] = []
     try:
         return _ask(question, scene, out, stack, config, start, on_step, model, relevancy,
-                    assets, report, known_as, shown, record, record_depth, warnings)
+                    scene_config, report, known_as, shown, record, record_depth, warnings)
     finally:
         if shown is not None:
             shown.close()  # a no-op after finish
@@ -95,12 +105,14 @@ def ask(question: str, scene: str | Scene, out: Path, *, stack: Stack | None = N
 
 def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: AgentConfig,
          start: Pose2D | None, on_step: StepHook | None, model: ChatModel | None,
-         relevancy: RelevancyScorer | None, assets: str, report: bool, known_as: str | None,
+         relevancy: RelevancyScorer | None, where: SceneConfig, report: bool,
+         known_as: str | None,
          shown: RerunLog | None, record: Path | None, record_depth: str,
          warnings: list[str]) -> AskResult:
     from efficienteqa.envs.recorded.write import WalkRecorder
 
-    opened = open_scene(scene, assets) if isinstance(scene, str) else scene
+    opened = (open_scene(scene, where.assets, env=where.env, hm3d_root=where.hm3d_root,
+                         noise=where.noise) if isinstance(scene, str) else scene)
     recorder: WalkRecorder | None = None
     try:
         if start is not None and is_recording(opened.env):

@@ -254,6 +254,16 @@ def resolve(given: Mapping[str, Any], preset: str | None = None,
     return Resolved(run, name, build_run(named))
 
 
+def run_config(preset: str | None = None, values: Mapping[str, Any] | None = None, *,
+               config_file: Path | None = None) -> RunConfig:
+    """The whole configuration of a run, for a library call (``ask(..., run=)``): ``preset``'s
+    (``configs/NAME.toml``) and ``config_file``'s, with ``values`` by dotted path on top
+    (``{"stop.z_th": 2.0, "backends.vlm": "openai:gpt-4o"}``), checked as the command line
+    checks its options: a bad value, or one that would not act, raises ``EfficientEQAError``
+    in one line. It runs the agent as configured (``ask``'s sense)."""
+    return resolve(values or {}, preset, config_file, by_method=False).run
+
+
 # What a method sets on the agent (``eval.methods.method_config``): given otherwise to ``eval``,
 # refused; in a configuration ``config`` prints, a comment.
 METHOD_SET = ("explore.explorer", "answer.confidence", "answer.answer_at")

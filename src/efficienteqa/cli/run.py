@@ -243,9 +243,9 @@ def _asked(run: Resolved, question: str, scene: str, out: Path, overwrite: bool,
                             f"Sim {c.sim:.3f}" + (f"  z {c.z:+.2f}" if c.z is not None else ""))
                     progress.update(task, completed=step.step, info=info)
 
-                return ask(question, opened, out, stack=r.backends, config=r.agent,
-                           start=start_pose, on_step=on_step, known_as=known_as, rerun=rerun,
-                           record=record, replace_rerun=replace_rerun)
+                return ask(question, opened, out, run=r, start=start_pose, on_step=on_step,
+                           known_as=known_as, rerun=rerun, record=record,
+                           replace_rerun=replace_rerun)
         finally:
             opened.env.close()
 
