@@ -58,7 +58,8 @@ def published_spec(**config: object) -> RunSpec:
     """The command that made the default of 9bccb3c (``format_1("default-v2")``): the default
     row as it was, its question read by rules and matched as words."""
     return main_table_spec("default", reading="rules", matching="words", gate_final=False,
-                           map_extent="scene", count_from="views", **config)
+                           map_extent="scene", count_from="views", question_words="asked",
+                           **config)
 
 
 def resume(folder: Path, spec: RunSpec) -> None:

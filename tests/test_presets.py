@@ -132,6 +132,7 @@ MAIN_TABLE_ROWS = {
                       "explore.stop_clearance_m": 0.0, "answer.distinct_views": False,
                       "stop.gate": "none", "explore.steering": "none", "stop.min_step": 10,
                       "explore.reading": "rules", "explore.matching": "words",
+                      "stop.question_words": "asked",
                       # the defaults the paper's algorithm also names
                       "stop.z_th": 3.0, "answer.top_k": 5, "backends.grouping": "llm"},
 }

@@ -118,7 +118,8 @@ def recording_budget(steps: int | None, env: Environment) -> int:
 PAPER_CONFIG = AgentConfig.of(rule="paper", min_step=PAPER_MIN_STEP, gate="none",
                               refusal_retries=0, stop_clearance_m=0.0, prompts="paper",
                               distinct_views=False, exploration="paper", answer="paper",
-                              steering="none", reading="rules", matching="words")
+                              steering="none", reading="rules", matching="words",
+                              question_words="asked")
 
 
 @dataclass

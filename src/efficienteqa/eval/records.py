@@ -63,8 +63,9 @@ ADDED_SETTINGS = {"reading": "rules", "matching": "words", "gate_final": False,
                   "step_weight": "relevancy"}
 # Settings of the configuration tree added while format 4 is written, by section, and what a
 # run that did not record them ran with: a count question's group merged across views by
-# position (before the instance map, DESIGN 9).
-ADDED_NESTED = {("stop", "count_from"): "views"}
+# position (before the instance map, DESIGN 9); the relevancy reading the question as asked
+# (before it could read it in the perception's words).
+ADDED_NESTED = {("stop", "count_from"): "views", ("stop", "question_words"): "asked"}
 # The stack's None (or a setting it did not record yet): each call's own temperature, 0 for
 # every call of a run; the relevancy model on the GPU torch sees, else the CPU; no download of
 # its weights; images at 512 px, as JPEG for openai: servers and PNG for the local one ("auto").

@@ -146,8 +146,9 @@ class StopConfig:
     gate_final: bool = knob(True, beyond=True, help="Stop at a frame the rules gate finds "
                             "answers outright (a count group wholly in view) without waiting for "
                             "a relevancy outlier.")
-    question_words: str = knob("asked", beyond=True, help="The question the relevancy scores "
-                               "frames against: asked (as the user typed it) | perceived (typos "
+    question_words: str = knob("perceived", beyond=True, help="The question the relevancy "
+                               "scores frames against: asked (as the user typed it, the paper's) "
+                               "| perceived (slips "
                                "mended, rooms by their canonical names, the phrases the target "
                                "resolved to categories in the perception's words: 'the couch in "
                                "the lounge' scores as 'the sofa in the living room').")
