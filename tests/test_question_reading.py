@@ -268,9 +268,8 @@ def test_the_relevancy_can_read_the_question_in_the_perceptions_words():
 
 
 def test_the_agent_scores_frames_against_the_question_in_the_words_it_is_told():
-    from efficienteqa.stop.rules import StopConfig
-
     from efficienteqa.agent import PAPER_CONFIG
+    from efficienteqa.stop.rules import StopConfig
 
     assert StopConfig().question_words == "perceived"  # measured on the paraphrase split
     assert PAPER_CONFIG.stop.question_words == "asked"  # the paper's: the question as typed
