@@ -420,3 +420,27 @@ def test_the_records_back_ends_say_the_servers_capabilities_and_the_answers_fall
                          AgentConfig.of(answer="paper"), "test", model=without,
                          relevancy=MentionScorer("desk"))
     assert "fallback" not in chosen.backends["answer"]  # asked for, not fallen back to
+
+
+def test_the_relevancy_scores_frames_against_the_question_in_the_perceptions_words(house4):
+    """``StopConfig.question_words``: "perceived" (the default) names the lounge the living
+    room for the relevancy; "asked" (the paper's) passes the question as typed."""
+    scene, _ = house4
+
+    class Heard(MentionScorer):
+        def __init__(self) -> None:
+            super().__init__("sofa")
+            self.questions: list[str] = []
+
+        def score(self, question: str, *, image=None, text: str | None = None) -> float:  # noqa: ANN001
+            self.questions.append(question)
+            return super().score(question, image=image, text=text)
+
+    asked = "Is the tv in the lounge on?"
+    for words, heard in (("perceived", "is the tv in the living room on?"), ("asked", asked)):
+        scorer = Heard()
+        built = build_agent(scene.env, Stack(grouping="rules", explore_scorer="vlm"),
+                            AgentConfig.of(max_steps=2, question_words=words), "test",
+                            model=seeking_model("tv", "living room"), relevancy=scorer)
+        built.agent.run(scene.env, asked)
+        assert scorer.questions and set(scorer.questions) == {heard}, words
