@@ -274,3 +274,24 @@ def test_a_refused_resume_names_each_changed_setting_by_its_path(tmp_path):
     with pytest.raises(EfficientEQAError, match=r"another config \(answer\.top_k: 5 -> 3; "
                                                 r"stop\.z_gated: 1.0 -> 2.0\)"):
         resume(folder, main_table_spec("default", top_k=3, z_gated=2.0))
+
+
+@pytest.mark.parametrize("row", ["default", "pixels", "paper-offline", "explore-eqa",
+                                 "explore-eqa-blackbox", "frontier-only", "blind"])
+def test_a_published_row_runs_again_from_its_own_run_json(tmp_path, row):
+    """``--config results/main-heldout/ROW/run.json`` is the run the row recorded: the tree it
+    reads back makes a RunSpec whose record the published run accepts as its own (a resume),
+    whatever format the row was written in."""
+    published = PUBLISHED / row / RUN_FILE
+    resolved = presets.resolve({}, config_file=published)
+    run = resolved.run
+    spec = RunSpec(method=run.eval.method, dataset=run.eval.dataset, stack=run.backends,
+                   config=run.agent, judge=run.eval.judge, judge_mode=run.eval.judge_mode,
+                   closed_set=run.eval.closed_set, assets=run.scene.assets,
+                   preset=resolved.preset, preset_config=resolved.preset_run.agent)
+    recorded = json.loads(published.read_text())
+    assert run.eval.limit == recorded["questions"]
+    folder = tmp_path / row
+    folder.mkdir()
+    shutil.copy(published, folder / RUN_FILE)
+    open_run(folder, manifest(spec, recorded["questions"]))  # raises where it is another run

@@ -167,7 +167,9 @@ def load_preset(name: str, *, seen: tuple[str, ...] = ()) -> dict[str, Any]:
 
 def load_config(path: Path) -> dict[str, Any]:
     """The values a configuration file sets (``base`` included); paths in it are relative to
-    the file's folder. Unreadable, not TOML, an unknown option or a wrong type: one error."""
+    the file's folder. Unreadable, not TOML, an unknown option or a wrong type: one error. A
+    run's own record (``run.json``, any format) gives the tree it ran with (``run_values``), so
+    ``--config results/.../run.json`` runs a published row again."""
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -175,7 +177,54 @@ def load_config(path: Path) -> dict[str, Any]:
         raise EfficientEQAError(f"cannot read the configuration {path}: {reason}",
                                 fix="give a TOML file of [section] tables, e.g. a copy of a "
                                 "preset (efficienteqa/configs/*.toml)") from None
+    if Path(path).suffix == ".json":
+        return run_values(text, str(path))
     return _resolve(text, str(path), Path(path).resolve().parent, ())
+
+
+# Where a run's record keeps the tree's eval and scene settings (run.json's top-level keys).
+_RECORD_KEYS = {"eval.method": "method", "eval.dataset": "dataset",
+                "eval.closed_set": "closed_set", "eval.judge": "judge",
+                "eval.judge_mode": "judge_mode", "eval.limit": "questions",
+                "scene.env": "env", "scene.assets": "assets", "scene.hm3d_root": "hm3d_root",
+                "scene.noise": "noise"}
+
+
+def run_values(text: str, where: str) -> dict[str, Any]:
+    """The tree's values a run's ``run.json`` recorded, by dotted path: its options as given
+    (``config``, read in today's format by ``eval.records.upgrade``), its back-ends (``stack``)
+    and its method, dataset, judge, question count and scene settings; a value the record left
+    as None keeps the tree's default."""
+    import json
+
+    from efficienteqa.eval.records import upgrade
+
+    try:
+        record = json.loads(text)
+    except ValueError as exc:
+        raise EfficientEQAError(f"{where} is not JSON: {exc}",
+                                fix="give a run's run.json or a TOML file") from None
+    if not isinstance(record, dict) or not isinstance(record.get("config"), dict):
+        raise EfficientEQAError(f"{where} is no run record (no config in it)",
+                                fix="give the run.json of a run folder, or a TOML file")
+    record = upgrade(record)
+    index = leaf_index()
+    values: dict[str, Any] = {}
+
+    def take(path: str, value: Any) -> None:
+        if value is None or path not in index:
+            return  # left to the default; a setting of an older release that is gone
+        values[path] = check_value(path, value, where)
+
+    for section, fields in record["config"].items():
+        for name, value in (fields.items() if isinstance(fields, dict) else ()):
+            if f"{section}.{name}" not in METHOD_SET:  # the method's own, set by it again
+                take(f"{section}.{name}", value)
+    for name, value in (record.get("stack") or {}).items():
+        take(f"backends.{name}", value)
+    for path, key in _RECORD_KEYS.items():
+        take(path, record.get(key))
+    return values
 
 
 class _Presets(Mapping[str, dict[str, Any]]):

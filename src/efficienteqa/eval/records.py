@@ -27,6 +27,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.mapping.extent import MAP_SIZE_M
 from efficienteqa.records import write_json
 from efficienteqa.redact import redacted
+from efficienteqa.stop.rules import StopConfig, z_th_acts
 
 RUN_FILE = "run.json"
 EPISODES_FILE = "episodes.jsonl"
@@ -343,6 +344,13 @@ def upgrade(manifest: dict[str, Any]) -> dict[str, Any]:
                 if isinstance(out[key].get(section), dict) and name not in out[key][section]:
                     out[key] = {**out[key], section: {**out[key][section], name: value}}
                     filled.add(name)
+    for key in ("config", "method_config", "preset_config"):
+        stop = out.get(key, {}).get("stop") if isinstance(out.get(key), dict) else None
+        if isinstance(stop, dict) and "z_gated" not in stop and z_th_acts(str(stop.get("gate"))):
+            # recorded before z_gated existed, with a gate that leaves the stop to Z_th: any
+            # value acts alike, so it reads as today's default (which that gate ignores)
+            out[key] = {**out[key], "stop": {**stop, "z_gated": StopConfig().z_gated}}
+            filled.add("z_gated")
     if manifest.get("format", 1) < 4:
         filled |= {added for _, added in ADDED_IN_FORMAT_4}
         for key in ("config", "method_config", "preset_config"):
