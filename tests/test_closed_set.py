@@ -118,3 +118,20 @@ def test_the_benchmark_reports_accuracy_against_the_majority_letter():
     assert f["by_category"]["count"] == {"n": 2, "accuracy": 50.0, "majority_letter": "B",
                                          "majority_prior": 100.0, "overall_majority_prior": 100.0}
     assert f["by_category"]["state"]["majority_prior"] == 50.0
+
+
+def test_a_library_caller_gets_the_evals_refusals_and_judge_from_plan_run():
+    """The evaluation's policy is the library's (``eval.plan``), not the command line's: the
+    same refusals, the same judge chosen."""
+    from efficienteqa.errors import EfficientEQAError
+    from efficienteqa.eval.judge import DEFAULT_JUDGE
+    from efficienteqa.eval.plan import plan_run
+    from efficienteqa.presets import run_config
+
+    with pytest.raises(EfficientEQAError, match="HM-EQA's multiple-choice mode"):
+        plan_run(run_config(None, {"eval.closed_set": True, "eval.dataset": "synthetic"}))
+    with pytest.raises(EfficientEQAError, match="rule judge grades synthetic questions only"):
+        plan_run(run_config(None, {"eval.dataset": "hm-eqa", "eval.judge": "rule"}))
+    assert plan_run(run_config("default")).judge is None  # the rule judge grades it, for free
+    spec = plan_run(run_config(None, {"eval.dataset": "hm-eqa", "eval.method": "blind"}))
+    assert spec.judge == DEFAULT_JUDGE and spec.method == "blind"

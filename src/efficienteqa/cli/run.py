@@ -40,22 +40,6 @@ def _parse_start(text: str | None) -> Pose2D | None:
     return Pose2D(x, y, math.radians(yaw_deg))
 
 
-def _check_backends(run: Resolved) -> None:
-    """Bad back-ends fail before anything slow."""
-    from efficienteqa.envs.synthetic.house import check_assets
-    from efficienteqa.stack import check_stack, parse_vlm
-
-    stack = run.run.backends
-    check_assets(run.run.scene.assets)  # before a house is built
-    check_stack(stack)
-    backend = parse_vlm(stack.vlm, images=stack.perception == "rgb",
-                        temperature=stack.temperature, **stack.server_options())
-    if backend.kind == "local":  # a misspelt local model: now, not once the scene is open
-        from efficienteqa.models.local.weights import registry_entry
-
-        registry_entry(backend.model)
-
-
 def _same_question(a: str, b: str) -> bool:
     return " ".join(a.lower().split()) == " ".join(b.lower().split())
 
@@ -130,7 +114,9 @@ def ask_command(
     if r.eval.method != "efficienteqa":
         raise EfficientEQAError(f"ask runs efficienteqa; method {r.eval.method!r} is for eval",
                                 fix="use efficienteqa eval --eval.method with this configuration")
-    _check_backends(run)
+    from efficienteqa.eval.plan import check_backends
+
+    check_backends(r)
     start_pose, habitat_start, reference, known_as = _parse_start(start), None, None, None
     check_writable(out)  # before the episode, not after it
     if record is not None:
@@ -250,14 +236,6 @@ def _asked(run: Resolved, question: str, scene: str, out: Path, overwrite: bool,
             opened.env.close()
 
 
-def _judge_mode(mode: str | None, judge: str) -> str:
-    """The mode of ``judge`` for eval and judge alike: left out, ``eval.judge.DEFAULT_JUDGE_MODE``
-    ("auto": token probabilities for the small local models, the 1-5 grade otherwise)."""
-    from efficienteqa.eval.judge import DEFAULT_JUDGE_MODE, judge_mode
-
-    return judge_mode(mode or DEFAULT_JUDGE_MODE, judge)
-
-
 @app.command("judge")
 def judge_command(
     runs: list[Path] = typer.Argument(..., help="Run folders written by `efficienteqa eval`."),
@@ -269,33 +247,18 @@ def judge_command(
 ) -> None:
     """Grade finished runs again with another judge (e.g. openai:gpt-4o); results are kept."""
     from efficienteqa.eval.judge import DEFAULT_JUDGE
+    from efficienteqa.eval.plan import mode_of
     from efficienteqa.eval.runner import rejudge
     from efficienteqa.stack import parse_vlm
 
     judge = judge or DEFAULT_JUDGE  # the one default judge model, eval's
     parse_vlm(judge, images=False, flag="--judge")
-    mode = _judge_mode(judge_mode, judge)
+    mode = mode_of(judge_mode, judge)
     for folder in runs:
         with console.status(f"grading {folder}..."):
             n, score = rejudge(folder, judge, mode)
         console.print(f"{folder}: {n} episodes graded by {redact_urls(judge)} ({mode}): "
                       f"LLM-Match {score:.1f}", highlight=False, soft_wrap=True)
-
-
-def _judge_spec(run: Resolved) -> str | None:
-    """The run's LLM-Match judge (None: the rule judge alone, or none), checked."""
-    from efficienteqa.eval.methods import default_judge
-    from efficienteqa.stack import parse_vlm
-
-    e = run.run.eval
-    spec = e.judge or ("none" if e.closed_set else default_judge(e.dataset))
-    if spec == "rule" and not e.dataset.startswith("synthetic"):
-        raise EfficientEQAError(f"the rule judge grades synthetic questions only, not {e.dataset}",
-                                fix="give a judge model (--judge local:MODEL or openai:MODEL)")
-    spec = None if spec in ("none", "rule") else spec
-    if spec:
-        parse_vlm(spec, images=False, flag="--eval.judge")
-    return spec
 
 
 @app.command("eval")
@@ -308,29 +271,14 @@ def eval_command(
     """Run a method on a dataset, resumably: one JSON line per episode, graded by the rule judge
     (synthetic) and by LLM-Match (with a judge model)."""
     from efficienteqa.datasets import load_dataset
-    from efficienteqa.eval.methods import METHODS, RunSpec, resolve
+    from efficienteqa.eval.plan import plan_run
     from efficienteqa.eval.records import check_resumable
     from efficienteqa.eval.runner import manifest, run_eval
     from efficienteqa.records import check_writable
 
     r, e = run.run, run.run.eval
-    resolve(e.method)  # bad input fails before anything slow
-    _check_backends(run)
-    if e.closed_set and e.dataset != "hm-eqa":
-        raise EfficientEQAError(f"--eval.closed-set is HM-EQA's multiple-choice mode; {e.dataset} has "
-                                "no choices", fix="use --eval.dataset hm-eqa, or leave out --eval.closed-set")
-    if e.closed_set and e.method in METHODS and e.method != "blind":
-        raise EfficientEQAError(f"method {e.method!r} answers open-ended only; --eval.closed-set is "
-                                "answered by blind (or a module:function method that sets "
-                                "extra['letter'])", fix="use --eval.method blind")
-    judge = _judge_spec(run)
+    spec = plan_run(r, run.preset, run.preset_run.agent)  # the checks that need no scene
     check_writable(out)
-    spec = RunSpec(method=e.method, dataset=e.dataset, stack=r.backends, config=r.agent,
-                   closed_set=e.closed_set, judge=judge, judge_mode=_judge_mode(e.judge_mode,
-                                                                               judge or ""),
-                   preset=run.preset, preset_config=run.preset_run.agent, reports=e.reports,
-                   assets=r.scene.assets, env=r.scene.env, noise=r.scene.noise,
-                   hm3d_root=str(r.scene.hm3d_root) if r.scene.hm3d_root is not None else None)
     # a folder of another run is refused before the dataset's houses are built (minutes with
     # the furniture of --scene.assets sh3d); run_eval checks again under the folder's lock
     check_resumable(out, manifest(spec, 0))

@@ -1,0 +1,82 @@
+"""What an evaluation run is, decided from the configuration tree before anything slow: the
+checks of its back-ends and method, the judge chosen, and the ``RunSpec`` every episode shares.
+
+``efficienteqa eval`` calls ``plan_run``; so can a library caller, with the same refusals in
+the same words (a closed-set run on a dataset without choices, a rule judge on HM-EQA, a
+misspelt local model), each one line and before a house is built.
+"""
+
+from __future__ import annotations
+
+from efficienteqa.agent import AgentConfig
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.eval.judge import DEFAULT_JUDGE_MODE, judge_mode
+from efficienteqa.eval.methods import METHODS, RunSpec, default_judge, resolve
+from efficienteqa.runconfig import RunConfig
+
+
+def check_backends(run: RunConfig) -> None:
+    """Bad back-ends fail before anything slow: unknown furniture, an unknown back-end name, a
+    VLM spec that cannot be read, a local model that is not in the registry."""
+    from efficienteqa.envs.synthetic.house import check_assets
+    from efficienteqa.stack import check_stack, parse_vlm
+
+    stack = run.backends
+    check_assets(run.scene.assets)  # before a house is built
+    check_stack(stack)
+    backend = parse_vlm(stack.vlm, images=stack.perception == "rgb",
+                        temperature=stack.temperature, **stack.server_options())
+    if backend.kind == "local":  # a misspelt local model: now, not once the scene is open
+        from efficienteqa.models.local.weights import registry_entry
+
+        registry_entry(backend.model)
+
+
+def judge_of(run: RunConfig) -> str | None:
+    """The run's LLM-Match judge (None: the rule judge alone, or none), checked: a closed-set
+    run grades its letters, a synthetic dataset is graded by the rule judge for free."""
+    from efficienteqa.stack import parse_vlm
+
+    e = run.eval
+    spec = e.judge or ("none" if e.closed_set else default_judge(e.dataset))
+    if spec == "rule" and not e.dataset.startswith("synthetic"):
+        raise EfficientEQAError(f"the rule judge grades synthetic questions only, not {e.dataset}",
+                                fix="give a judge model (--eval.judge local:MODEL or "
+                                    "openai:MODEL)")
+    spec = None if spec in ("none", "rule") else spec
+    if spec:
+        parse_vlm(spec, images=False, flag="--eval.judge")
+    return spec
+
+
+def mode_of(mode: str | None, judge: str) -> str:
+    """The judge's mode, left out: ``eval.judge.DEFAULT_JUDGE_MODE`` ("auto": token
+    probabilities for the small local models, the 1-5 grade otherwise)."""
+    return judge_mode(mode or DEFAULT_JUDGE_MODE, judge)
+
+
+def plan_run(run: RunConfig, preset: str | None = None,
+             preset_agent: AgentConfig | None = None) -> RunSpec:
+    """The ``RunSpec`` of ``run`` (its method, dataset, back-ends, agent, judge and scenes),
+    after every check that needs no scene: the method exists, the back-ends can be built, the
+    closed-set mode fits the dataset and the method. ``preset`` and ``preset_agent``: the named
+    configuration the options started from, for the run's table label."""
+    e = run.eval
+    resolve(e.method)  # an unknown method fails here
+    check_backends(run)
+    if e.closed_set and e.dataset != "hm-eqa":
+        raise EfficientEQAError(f"--eval.closed-set is HM-EQA's multiple-choice mode; "
+                                f"{e.dataset} has no choices",
+                                fix="use --eval.dataset hm-eqa, or leave out --eval.closed-set")
+    if e.closed_set and e.method in METHODS and e.method != "blind":
+        raise EfficientEQAError(f"method {e.method!r} answers open-ended only; --eval.closed-set "
+                                "is answered by blind (or a module:function method that sets "
+                                "extra['letter'])", fix="use --eval.method blind")
+    judge = judge_of(run)
+    scene = run.scene
+    return RunSpec(method=e.method, dataset=e.dataset, stack=run.backends, config=run.agent,
+                   closed_set=e.closed_set, judge=judge, judge_mode=mode_of(e.judge_mode,
+                                                                            judge or ""),
+                   preset=preset, preset_config=preset_agent or run.agent, reports=e.reports,
+                   assets=scene.assets, env=scene.env, noise=scene.noise,
+                   hm3d_root=str(scene.hm3d_root) if scene.hm3d_root is not None else None)
