@@ -18,7 +18,6 @@ import statistics
 import time
 from pathlib import Path
 
-from efficienteqa.agent import StepRecord
 from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
@@ -26,6 +25,7 @@ from efficienteqa.explore.module import ExploreStep
 from efficienteqa.observation import Observation
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stack import Stack
+from efficienteqa.trace import StepRecord
 
 
 def normalise(text: str) -> str:

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.special import expit
 
-from efficienteqa.agent import AgentConfig, StepRecord
+from efficienteqa.agent import AgentConfig
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
@@ -45,6 +45,7 @@ from efficienteqa.perception.semantic import SemanticPerception
 from efficienteqa.relevancy.text import MiniLMScorer, line_features
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stop.rules import RelevancyStopper, StopConfig
+from efficienteqa.trace import StepRecord
 from experiments.common import auc, explore_episode
 
 FIT_SEEDS = range(1000, 1020)

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import rankdata
 
-from efficienteqa.agent import Agent, AgentConfig, StepRecord
+from efficienteqa.agent import Agent, AgentConfig
 from efficienteqa.answer.rag import RagAnswerer
 from efficienteqa.datasets.synthetic import parse_seeds
 from efficienteqa.envs.synthetic.env import SyntheticEnv
@@ -36,6 +36,7 @@ from efficienteqa.perception.semantic import SemanticPerception
 from efficienteqa.reading.target import TargetReading
 from efficienteqa.relevancy.text import WordOverlapScorer
 from efficienteqa.stop.rules import StopConfig
+from efficienteqa.trace import StepRecord
 from efficienteqa.vc.grouping import RuleGrouper
 
 TRAINING_SEEDS = range(0, 21)  # development houses: tuned on

@@ -147,10 +147,11 @@ def walk(houses: list[int], per_house: int, out: Path, votes: bool, first: int =
 
 def walk_episode(env: Any, question: str, votes: bool) -> tuple[int, list[dict[str, Any]]]:
     """One episode of the agent (see the docstring); per valid step, what ``score`` reads."""
-    from efficienteqa.agent import AgentConfig, StepRecord
+    from efficienteqa.agent import AgentConfig
     from efficienteqa.models.stub import StubChatModel
     from efficienteqa.perception.pixels.dataset import room_type_of
     from efficienteqa.stack import Stack, build_agent
+    from efficienteqa.trace import StepRecord
 
     truth = env.scene_labels()
     model = StubChatModel(lambda messages: "unknown", name="stub")

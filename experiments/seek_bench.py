@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.agent import AgentConfig, StepRecord
+from efficienteqa.agent import AgentConfig
 from efficienteqa.datasets import load_dataset
 from efficienteqa.envs.synthetic.questions import evidence_visible
 from efficienteqa.geometry import Pose2D
@@ -36,6 +36,7 @@ from efficienteqa.models.stub import StubChatModel
 from efficienteqa.records import code_version
 from efficienteqa.scenes import open_scene, synthetic_questions
 from efficienteqa.stack import Stack, build_agent
+from efficienteqa.trace import StepRecord
 
 VARIANTS: dict[str, dict[str, Any]] = {
     "default": {},

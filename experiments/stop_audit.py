@@ -30,7 +30,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-from efficienteqa.agent import AgentConfig, StepRecord
+from efficienteqa.agent import AgentConfig
 from efficienteqa.datasets import load_dataset
 from efficienteqa.envs.synthetic.questions import MIN_EVIDENCE_PIXELS
 from efficienteqa.eval.methods import method_config
@@ -41,6 +41,7 @@ from efficienteqa.report.evidence import evidence_pixels
 from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent
 from efficienteqa.stop.rules import StopConfig
+from efficienteqa.trace import StepRecord
 from experiments.common import idle_steps
 
 THRESHOLDS_PX = (MIN_EVIDENCE_PIXELS, 150)  # the oracle's rule, and the one measured beside it

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.agent import AgentConfig, StepRecord
+from efficienteqa.agent import AgentConfig
 from efficienteqa.envs.base import Observation
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
@@ -49,6 +49,7 @@ from efficienteqa.stop.rules import (
     RelevancyStopper,
     StopConfig,
 )
+from efficienteqa.trace import StepRecord
 
 TOP_K = 5
 WITHIN = 3

@@ -9,7 +9,7 @@ import pytest
 
 from agent_stubs import MentionScorer, seeking_model
 from conftest import needs_egl
-from efficienteqa.agent import AgentConfig, StepRecord
+from efficienteqa.agent import AgentConfig
 from efficienteqa.ask import ask
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import generate_house
@@ -19,6 +19,7 @@ from efficienteqa.observation import Observation
 from efficienteqa.report.evidence import FIELDS, EvidenceWatch, evidence_pixels
 from efficienteqa.scenes import Scene, synthetic_questions
 from efficienteqa.stack import Stack
+from efficienteqa.trace import StepRecord
 
 
 def _frame(pixels: dict[int, int], size: int = 64) -> Observation:

@@ -67,6 +67,7 @@ from efficienteqa.stop.rules import (
     gated_stop,
     step_budget,
 )
+from efficienteqa.trace import EpisodeResult, StepHook, StepRecord, fill_decision, fill_explore
 from efficienteqa.vc.parse import AnswerResult
 
 # Why exploration ended: a relevancy outlier (z > Z_th, past the gate when there is one), the
@@ -122,66 +123,6 @@ PAPER_CONFIG = AgentConfig.of(rule="paper", min_step=PAPER_MIN_STEP, gate="none"
                               question_words="asked")
 
 
-@dataclass
-class StepRecord:
-    """What happened at one step. Poses are (x, y, yaw) in metres and radians."""
-
-    step: int
-    pose: tuple[float, float, float]
-    valid: bool
-    check: StopCheck | None = None
-    prompts: list[dict[str, Any]] = field(default_factory=list)
-    lsv: dict[str, float] = field(default_factory=dict)
-    gsv: float | None = None
-    p_yes: float | None = None
-    frontier_xy: tuple[float, float] | None = None
-    target_xy: tuple[float, float] | None = None
-    n_frontiers: int = 0
-    decision: str = ""
-    blocked: bool = False  # the step's move was refused, every try: the robot stayed
-    short: bool = False  # the move ended away from its goal (a robot's navigation stopped short)
-    refused: int = 0  # moves the environment refused during this step (re-planned or not)
-    calls: list[int] = field(default_factory=list)  # indices into the model exchanges
-    timings_ms: dict[str, float] = field(default_factory=dict)
-    step_answer: dict[str, Any] | None = None  # answer_at="best-step": answer, confidence, value
-    gate: dict[str, Any] | None = None  # the answerability gate's verdict ("ok", "why"): every
-    # frame with a rules gate, the frames the stop flagged with a model gate
-    # What the step's model replies did not say plainly: the explore call's, and the relevancy
-    # and gate calls' (an unreadable relevancy reply leaves ``check`` None: Sim is missing).
-    explore_problems: list[str] = field(default_factory=list)
-    relevancy_problems: list[str] = field(default_factory=list)
-
-
-@dataclass
-class EpisodeResult:
-    question: str
-    answer: str
-    confidence: float
-    steps: int
-    stop_reason: str
-    budget: int
-    records: list[StepRecord]
-    retrieved: list[tuple[int, float]]  # (step, Sim) of the top-K frames, best first
-    answer_result: AnswerResult
-    wall_s: float
-    answer_s: float
-    state: MapState  # the final map, for pictures
-    values: np.ndarray
-    last_decision: Decision | None
-    target: Target = field(default_factory=Target)  # the question's target, as parsed
-
-    @property
-    def trajectory(self) -> list[Pose2D]:
-        return [Pose2D(*r.pose) for r in self.records]
-
-    @property
-    def refused_moves(self) -> int:
-        return sum(r.refused for r in self.records)
-
-
-StepHook = Callable[[StepRecord, Observation, ExploreStep | None], None]
-
-
 def mapper_for(env: SimulatedScene, start_xy: tuple[float, float], **options: Any) -> Mapper:
     """A map over a simulated scene's bounds with the floor at the bottom of the bounds, for
     experiments that compare maps with the scene's truth; ``options`` go to ``Mapper`` (e.g.
@@ -202,6 +143,31 @@ def seen_budget(state: MapState) -> int:
     floor area budgets by (it grows as the map does)."""
     cell = state.spec.resolution_m
     return step_budget(max(float(state.free.sum()) * cell * cell, cell * cell))
+
+
+@dataclass
+class _Episode:
+    """What one episode carries from step to step (``Agent.run``): the question, as read and as
+    the relevancy reads it, the explorer, the stop rule, the gate and the frames it may judge,
+    the top-K heap, the step budget, and how it ended."""
+
+    question: str
+    scored: str
+    target: Target
+    explore: ExploreModule
+    recorded: bool
+    fixed: int | None  # the budget given (None: re-read from the floor seen, every step)
+    budget: int
+    stopper: RelevancyStopper
+    top: TopK[str | np.ndarray]
+    gate: AnswerGate | None
+    sightings: Callable[..., Any] | None
+    remember: Callable[..., Any] | None
+    candidates: list[StepFrame[str | np.ndarray]] = field(default_factory=list)
+    records: list[StepRecord] = field(default_factory=list)
+    frames: dict[int, str | np.ndarray] = field(default_factory=dict)  # frames a model gate judges
+    decision: Decision | None = None
+    stop_reason: str = "budget"
 
 
 class Agent:
@@ -272,8 +238,50 @@ class Agent:
         ``AgentConfig.budget``); else ``explore.max_steps``; else ``step_budget`` of the free
         floor the map has seen so far, re-read every step."""
         question = check_question(question)
-        cfg = self.config
         t0 = time.perf_counter()
+        ep, obs = self._begin(env, question, start, budget)
+        step = 0
+        while step < ep.budget:
+            step += 1
+            record = StepRecord(step, (obs.pose.x, obs.pose.y, obs.pose.yaw),
+                                valid=obs.invalid_fraction < MAX_INVALID_FRACTION)
+            ep.records.append(record)
+            n_calls, said = self._n_calls(), self._problems_said()
+            self._stop(ep, record, obs)  # 1. stop (DESIGN 3.4): this frame's Sim, an outlier?
+            record.relevancy_problems = self._problems_since(said)
+            if ep.stop_reason == "relevancy" or step == ep.budget:
+                ep.explore.mapper.update(obs)  # the last frame is on the final map too
+                record.calls = self._calls_since(n_calls)
+                _notify(on_step, record, obs, None)
+                if ep.recorded and ep.stop_reason != "relevancy" and step == env.length:  # type: ignore[attr-defined]
+                    ep.stop_reason = "ended"
+                break
+            if ep.recorded:  # map the frame, then read the next one: the walk goes where it went
+                ep.explore.mapper.integrate(obs)
+                record.calls = self._calls_since(n_calls)
+                _notify(on_step, record, obs, None)
+                obs, _, ended, _, _ = env.step(obs.pose)
+                if ended:
+                    ep.stop_reason = "ended"
+                    break
+                continue
+            # 2. explore (DESIGN 3.2-3.3): map the frame, choose the next pose, move there
+            obs, ended = self._explore(ep, env, record, obs, n_calls, on_step)
+            if ended:
+                break
+        result, retrieved, answer_s = self._answer(ep)  # 3. answer (DESIGN 3.5)
+        state = ep.explore.mapper.state((obs.pose.x, obs.pose.y))
+        return EpisodeResult(question, result.answer, result.confidence, len(ep.records),
+                             ep.stop_reason, ep.budget, ep.records, retrieved,
+                             result, time.perf_counter() - t0, answer_s, state,
+                             ep.explore.values.smoothed(), ep.decision, ep.target)
+
+    def _begin(self, env: Environment, question: str, start: Pose2D | None,
+               budget: int | None) -> tuple[_Episode, Observation]:
+        """The episode's parts, before its first step: the scene reset, the explorer (steered
+        by the question's target where configured), the target read once, the stop rule, the
+        gate, the top-K heap and the step budget; and the first observation."""
+        cfg = self.config
         fixed = budget if budget is not None else cfg.explore.max_steps
         if fixed is not None and fixed < 1:
             raise ValueError(f"the step budget must be at least 1, not {fixed}")
@@ -296,143 +304,132 @@ class Agent:
             prompts = replace(prompts, min_px=0.0)
         explore = ExploreModule(self._map(env, (obs.pose.x, obs.pose.y)), explorer,
                                 self.scorer, seed=cfg.explore.seed, prompts=prompts, target=target)
-        sightings = (getattr(self.perception, "sightings", None)
-                     if isinstance(explorer, Steered) and not recorded else None)
         ask_about = getattr(self.perception, "ask_about", None)  # model sightings: the question
         if ask_about is not None:
             ask_about(question)
         gate = self.gate if cfg.stop.gate != "none" else None
         if gate is not None:
             gate.reset()
-        # a count question: each frame's objects go to the perception's instance map, which
-        # the gate and the answer's count read (StopConfig.count_from)
-        remember = (getattr(self.perception, "instances_seen", None)
-                    if cfg.stop.count_from == "instances" and target.kind == "count" else None)
-        scored = (perceived_words(question, target) if cfg.stop.question_words == "perceived"
-                  else question)  # what the relevancy reads (StopConfig.question_words)
-        frames: dict[int, str | np.ndarray] = {}  # flagged frames the gate may still judge
-        stopper = RelevancyStopper(cfg.stop)
-        top: TopK[str | np.ndarray] = TopK(cfg.answer.top_k)
-        candidates: list[StepFrame[str | np.ndarray]] = []  # answer_at="best-step"
-        records: list[StepRecord] = []
-        decision: Decision | None = None
-        stop_reason = "budget"
-        budget = fixed if fixed is not None else seen_budget(explore.mapper.state(
-            (obs.pose.x, obs.pose.y)))
-        step = 0
-        while step < budget:
-            step += 1
-            record = StepRecord(step, (obs.pose.x, obs.pose.y, obs.pose.yaw),
-                                valid=obs.invalid_fraction < MAX_INVALID_FRACTION)
-            records.append(record)
-            n_calls = self._n_calls()
-            said = self._problems_said()
-            if record.valid:
-                t = time.perf_counter()
-                frame = self.perception.frame(obs)
-                if remember is not None:
-                    with self._phase(f"step {step}"):  # model sightings are a call
-                        remember(obs, target)
-                with self._phase(f"step {step}"):  # relevancy may be a model call too
-                    if self.relevancy.modality == "image":
-                        sim = self.relevancy.score(scored, image=obs.rgb)
-                    else:
-                        sim = self.relevancy.score(scored, text=self.perception.relevancy_text(obs))
-            if record.valid and math.isnan(sim):  # an unreadable reply: no Sim, never an outlier
-                record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
-            elif record.valid:
-                eligible: bool | None = None
-                if gate is not None and gate.eager:  # a cheap gate judges every frame
-                    with self._phase(f"step {step}"):  # model sightings are a call
-                        verdict = gate.check(question, target, obs, frame)
-                    record.gate = {"ok": verdict.ok, "why": verdict.why}
-                    eligible = verdict.ok
-                record.check = stopper.check(step, sim, eligible)
-                if (cfg.stop.gate_final and gate is not None and gate.eager and record.gate
-                        and verdict.final and cfg.stop.enabled and step >= cfg.stop.min_step):
-                    record.gate["final"] = True
-                    record.check = replace(record.check, stop=True, tested_step=step)
-                view = (View(obs.pose.x, obs.pose.y, obs.pose.yaw,
-                             frame if isinstance(frame, str) else None)
-                        if cfg.answer.distinct_views else None)
-                top.push(sim, step, frame, view)
-                record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
-                if cfg.answer.answer_at == "best-step":
-                    candidates.append(StepFrame(step, sim, frame))
-                if gate is not None and not gate.eager:  # a model gate: flagged frames only
-                    frames[step] = frame
-                    if record.check.stop:
-                        record.check = self._gated(record.check, question, target, obs, frames,
-                                                   records)
-                if record.check.stop:
-                    stop_reason = "relevancy"
-            record.relevancy_problems = self._problems_since(said)
-            said = self._problems_said()  # the explore step's own (its model sightings): explore_problems
-            if stop_reason == "relevancy" or step == budget:
-                explore.mapper.update(obs)  # the last frame is on the final map too
-                record.calls = self._calls_since(n_calls)
-                _notify(on_step, record, obs, None)
-                if recorded and stop_reason != "relevancy" and step == env.length:  # type: ignore[attr-defined]
-                    stop_reason = "ended"
-                break
-            if recorded:  # map the frame, then read the next one: the walk goes where it went
-                explore.mapper.integrate(obs)
-                record.calls = self._calls_since(n_calls)
-                _notify(on_step, record, obs, None)
-                obs, _, ended, _, _ = env.step(obs.pose)
-                if ended:
-                    stop_reason = "ended"
-                    break
-                continue
-            t = time.perf_counter()
-            with self._phase(f"step {step}"):
-                seen = sightings(obs, target) if sightings is not None and record.valid else None
-                out = explore.step(obs, step, question, seen)
-            record.timings_ms["explore"] = 1e3 * (time.perf_counter() - t)
-            record.calls = self._calls_since(n_calls)
-            decision = out.decision
-            if fixed is None:
-                budget = max(step + 1, seen_budget(out.state))
-            _fill(record, out)
-            record.explore_problems += self._problems_since(said)
-            _notify(on_step, record, obs, out)
-            if decision.done:
-                stop_reason = "searched" if decision.reason == "searched" else "explored"
-                break
-            t = time.perf_counter()
-            moved = move(env, explore, obs.pose, decision, step, cfg.explore.refusal_retries)
-            record.timings_ms["env"] = 1e3 * (time.perf_counter() - t)
-            obs, record.refused, record.blocked = moved.obs, moved.refused, moved.blocked
-            record.short = bool(moved.info.get("short"))  # planned on from where it ended
-            if moved.decision is not decision:  # re-planned after a refusal
-                decision = moved.decision
-                _fill_decision(record, decision)
-                if decision.done:
-                    stop_reason = "explored"
-                    break
+        ep = _Episode(
+            question=question, target=target, explore=explore, recorded=recorded, fixed=fixed,
+            gate=gate, stopper=RelevancyStopper(cfg.stop), top=TopK(cfg.answer.top_k),
+            # what the relevancy reads (StopConfig.question_words)
+            scored=(perceived_words(question, target) if cfg.stop.question_words == "perceived"
+                    else question),
+            sightings=(getattr(self.perception, "sightings", None)
+                       if isinstance(explorer, Steered) and not recorded else None),
+            # a count question: each frame's objects go to the perception's instance map, which
+            # the gate and the answer's count read (StopConfig.count_from)
+            remember=(getattr(self.perception, "instances_seen", None)
+                      if cfg.stop.count_from == "instances" and target.kind == "count" else None),
+            budget=fixed if fixed is not None else seen_budget(explore.mapper.state(
+                (obs.pose.x, obs.pose.y))))
+        return ep, obs
+
+    def _stop(self, ep: _Episode, record: StepRecord, obs: Observation) -> None:
+        """The stop module on one frame: its Sim against the question, the gate's verdict, the
+        stop rule's check (``record.check``), the frame offered to the top-K heap; an outlier
+        that passes the gate sets ``ep.stop_reason``."""
+        if not record.valid:
+            return
+        cfg, step = self.config, record.step
         t = time.perf_counter()
+        frame = self.perception.frame(obs)
+        if ep.remember is not None:
+            with self._phase(f"step {step}"):  # model sightings are a call
+                ep.remember(obs, ep.target)
+        with self._phase(f"step {step}"):  # relevancy may be a model call too
+            if self.relevancy.modality == "image":
+                sim = self.relevancy.score(ep.scored, image=obs.rgb)
+            else:
+                sim = self.relevancy.score(ep.scored, text=self.perception.relevancy_text(obs))
+        if math.isnan(sim):  # an unreadable reply: no Sim, never an outlier
+            record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
+            return
+        eligible: bool | None = None
+        gate = ep.gate
+        if gate is not None and gate.eager:  # a cheap gate judges every frame
+            with self._phase(f"step {step}"):  # model sightings are a call
+                verdict = gate.check(ep.question, ep.target, obs, frame)
+            record.gate = {"ok": verdict.ok, "why": verdict.why}
+            eligible = verdict.ok
+        record.check = ep.stopper.check(step, sim, eligible)
+        if (cfg.stop.gate_final and gate is not None and gate.eager and record.gate
+                and verdict.final and cfg.stop.enabled and step >= cfg.stop.min_step):
+            record.gate["final"] = True
+            record.check = replace(record.check, stop=True, tested_step=step)
+        view = (View(obs.pose.x, obs.pose.y, obs.pose.yaw, frame if isinstance(frame, str) else None)
+                if cfg.answer.distinct_views else None)
+        ep.top.push(sim, step, frame, view)
+        record.timings_ms["relevancy"] = 1e3 * (time.perf_counter() - t)
         if cfg.answer.answer_at == "best-step":
-            best = self._best_step(question, candidates, records)
+            ep.candidates.append(StepFrame(step, sim, frame))
+        if gate is not None and not gate.eager:  # a model gate: flagged frames only
+            ep.frames[step] = frame
+            if record.check.stop:
+                record.check = self._gated(record.check, ep.question, ep.target, obs, ep.frames,
+                                           ep.records)
+        if record.check.stop:
+            ep.stop_reason = "relevancy"
+
+    def _explore(self, ep: _Episode, env: Environment, record: StepRecord, obs: Observation,
+                 n_calls: int, on_step: StepHook | None) -> tuple[Observation, bool]:
+        """The explore module's step (the map, the semantic values, the next pose) and the move
+        there; the observation after it, and whether exploration ended (nothing left to explore,
+        or the named room searched)."""
+        step = record.step
+        said = self._problems_said()  # the explore step's own (its model sightings)
+        t = time.perf_counter()
+        with self._phase(f"step {step}"):
+            seen = (ep.sightings(obs, ep.target)
+                    if ep.sightings is not None and record.valid else None)
+            out = ep.explore.step(obs, step, ep.question, seen)
+        record.timings_ms["explore"] = 1e3 * (time.perf_counter() - t)
+        record.calls = self._calls_since(n_calls)
+        decision = ep.decision = out.decision
+        if ep.fixed is None:
+            ep.budget = max(step + 1, seen_budget(out.state))
+        fill_explore(record, out)
+        record.explore_problems += self._problems_since(said)
+        _notify(on_step, record, obs, out)
+        if decision.done:
+            ep.stop_reason = "searched" if decision.reason == "searched" else "explored"
+            return obs, True
+        t = time.perf_counter()
+        moved = move(env, ep.explore, obs.pose, decision, step,
+                     self.config.explore.refusal_retries)
+        record.timings_ms["env"] = 1e3 * (time.perf_counter() - t)
+        record.refused, record.blocked = moved.refused, moved.blocked
+        record.short = bool(moved.info.get("short"))  # planned on from where it ended
+        if moved.decision is not decision:  # re-planned after a refusal
+            ep.decision = moved.decision
+            fill_decision(record, moved.decision)
+            if moved.decision.done:
+                ep.stop_reason = "explored"
+                return moved.obs, True
+        return moved.obs, False
+
+    def _answer(self, ep: _Episode) -> tuple[AnswerResult, list[tuple[int, float]], float]:
+        """The answer module: the K most relevant frames answered (EfficientEQA), or the
+        ExploreEQA baselines' best step; with the frames used and the seconds it took."""
+        t = time.perf_counter()
+        if self.config.answer.answer_at == "best-step":
+            best = self._best_step(ep.question, ep.candidates, ep.records)
             if best is None:  # no valid frame at all: nothing was seen
                 with self._phase("answer"):
-                    result = self.answerer.answer(question, [])
+                    result = self.answerer.answer(ep.question, [])
                 retrieved = []
             else:
                 result, retrieved = best.answer, [(best.step, best.sim)]
         else:
-            top_k = top.best()
-            counted = (asked_count(getattr(self.perception, "instances", None), target)
-                       if cfg.stop.count_from == "instances" else None)
+            top_k = ep.top.best()
+            counted = (asked_count(getattr(self.perception, "instances", None), ep.target)
+                       if self.config.stop.count_from == "instances" else None)
             with self._phase("answer"):
-                result = self.answerer.answer(question, [r.item for r in top_k], target,
+                result = self.answerer.answer(ep.question, [r.item for r in top_k], ep.target,
                                               counted.n if counted is not None else None)
             retrieved = [(r.step, r.sim) for r in top_k]
-        answer_s = time.perf_counter() - t
-        state = explore.mapper.state((obs.pose.x, obs.pose.y))
-        return EpisodeResult(question, result.answer, result.confidence, len(records),
-                             stop_reason, budget, records, retrieved,
-                             result, time.perf_counter() - t0, answer_s, state,
-                             explore.values.smoothed(), decision, target)
+        return result, retrieved, time.perf_counter() - t
 
     def _gated(self, check: StopCheck, question: str, target: Target, obs: Observation,
                frames: dict[int, str | np.ndarray], records: list[StepRecord]) -> StopCheck:
@@ -479,21 +476,6 @@ class Agent:
             records[step - 1].step_answer = {**(records[step - 1].step_answer or {}),
                                              "weight": p}
         return best
-
-
-def _fill(record: StepRecord, out: ExploreStep) -> None:
-    record.explore_problems = list(out.score.info.get("problems") or []) if out.score else []
-    record.prompts = [{"letter": p.letter, "xy": p.xy, "pixel": p.pixel} for p in out.prompts]
-    record.lsv, record.gsv = dict(out.lsv), out.gsv
-    record.p_yes = out.score.p_yes if out.score is not None else None
-    _fill_decision(record, out.decision)
-
-
-def _fill_decision(record: StepRecord, d: Decision) -> None:
-    record.frontier_xy = d.frontier.xy if d.frontier is not None else None
-    record.target_xy = d.target_xy
-    record.n_frontiers = len(d.frontiers)
-    record.decision = d.reason
 
 
 def _notify(hook: StepHook | None, record: StepRecord, obs: Observation,

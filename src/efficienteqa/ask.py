@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from efficienteqa.agent import AgentConfig, EpisodeResult, StepHook, StepRecord
+from efficienteqa.agent import AgentConfig
 from efficienteqa.envs.base import Environment, SceneLabels, is_recording
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.questions import Question
@@ -27,6 +27,7 @@ from efficienteqa.report.rerun_log import RerunLog
 from efficienteqa.runconfig import RunConfig, SceneConfig
 from efficienteqa.scenes import Scene, open_scene
 from efficienteqa.stack import Stack, build_agent
+from efficienteqa.trace import EpisodeResult, StepHook, StepRecord
 
 
 @dataclass

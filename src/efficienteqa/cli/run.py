@@ -201,11 +201,11 @@ def _asked(run: Resolved, question: str, scene: str, out: Path, overwrite: bool,
     progress bar, answer, write."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from efficienteqa.agent import StepRecord
     from efficienteqa.ask import ask
     from efficienteqa.envs.base import is_recording
     from efficienteqa.eval.records import run_lock
     from efficienteqa.scenes import open_scene
+    from efficienteqa.trace import StepRecord
 
     r = run.run
     with run_lock(out):  # a second ask into the folder fails at once, not after exploring

@@ -5,10 +5,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from efficienteqa.agent import AgentConfig, EpisodeResult, StepRecord
+from efficienteqa.agent import AgentConfig
 from efficienteqa.models.recording import Exchange
 from efficienteqa.records import code_version, plain
 from efficienteqa.report.evidence import FIELDS
+from efficienteqa.trace import EpisodeResult, StepRecord
 from efficienteqa.vc.parse import clean_answer
 
 

@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.agent import StepRecord
 from efficienteqa.envs.synthetic.questions import evidence_visible
 from efficienteqa.explore.module import ExploreStep
 from efficienteqa.observation import Observation
+from efficienteqa.trace import StepRecord
 
 FIELDS = ("evidence_first_seen_step", "evidence_in_top_k", "evidence_seen_steps",
           "evidence_stop_pixels")

@@ -7,12 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from efficienteqa.agent import StepRecord
 from efficienteqa.explore.module import ExploreStep
 from efficienteqa.models.client import encode_image
 from efficienteqa.models.recording import image_digest
 from efficienteqa.observation import Observation
 from efficienteqa.perception.image import draw_prompts
+from efficienteqa.trace import StepRecord
 
 THUMB_WIDTH_PX = 320
 SENT_WIDTH_PX = 160  # the images of a model call, shown beside it

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.agent import AgentConfig, EpisodeResult, StepRecord
+from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.module import ExploreStep
 from efficienteqa.geometry import Pose2D
@@ -49,6 +49,7 @@ from efficienteqa.mapping.visualize import map_image
 from efficienteqa.observation import Observation
 from efficienteqa.records import probe_write
 from efficienteqa.stop.rules import StopCheck, rule_parts
+from efficienteqa.trace import EpisodeResult, StepRecord
 from efficienteqa.vc.parse import clean_answer
 
 LIVE = "live"  # the target that spawns a viewer instead of writing a file
