@@ -20,7 +20,8 @@ import numpy as np
 import trimesh
 
 from efficienteqa.envs.synthetic.mesh import MeshPart, box_part
-from efficienteqa.envs.synthetic.render import PointLight, Renderer, SceneGeometry
+from efficienteqa.envs.synthetic.render import Renderer
+from efficienteqa.envs.synthetic.scene_geometry import PointLight, SceneGeometry
 from efficienteqa.envs.synthetic.textures import FLOOR_KINDS, floor_texture, wall_texture
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 

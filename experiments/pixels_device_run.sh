@@ -29,8 +29,8 @@ EEQA() { $PY -c "import sys; from efficienteqa.cli import main; sys.argv[0]='eff
 nvidia-smi -L 2>/dev/null; nproc
 echo "[$(el)s] GL check"
 glcheck() { $PY -c "
-from efficienteqa.envs.synthetic.render import _create_context
-ctx = _create_context(); print(ctx.info['GL_RENDERER'], ctx.info['GL_VERSION'])"; }
+from efficienteqa.envs.synthetic.render_gl import create_context
+ctx = create_context(); print(ctx.info['GL_RENDERER'], ctx.info['GL_VERSION'])"; }
 if ! glcheck; then
   [ -n "$ON_DEVICE" ] || exit 3
   export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json

@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog, parse_properties
+from efficienteqa.envs.synthetic.catalog import Catalog, load_catalog
 from efficienteqa.envs.synthetic.colours import PALETTE, colour_name, mesh_colour, recoloured
 from efficienteqa.envs.synthetic.mesh import MeshPart
 from efficienteqa.envs.synthetic.primitives import builtin_catalog, cylinder_part
+from efficienteqa.envs.synthetic.sh3f import parse_properties
 from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES, canonical_category
 from efficienteqa.errors import EfficientEQAError
 
@@ -215,7 +216,7 @@ def test_second_load_hits_cache(real: tuple[Catalog, Path]) -> None:
 def test_texture_formats_are_read(tmp_path: Path) -> None:
     from PIL import Image
 
-    from efficienteqa.envs.synthetic.catalog import _read_texture
+    from efficienteqa.envs.synthetic.obj_model import _read_texture
 
     buf = io.BytesIO()
     Image.new("RGB", (1024, 512), (10, 200, 30)).save(buf, format="TIFF")

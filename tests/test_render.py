@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from efficienteqa.envs.synthetic.mesh import MeshPart, box_part
-from efficienteqa.envs.synthetic.render import Frame, PointLight, Renderer, SceneGeometry
+from efficienteqa.envs.synthetic.render import Renderer
+from efficienteqa.envs.synthetic.scene_geometry import Frame, PointLight, SceneGeometry
 from efficienteqa.envs.synthetic.textures import FLOOR_KINDS, floor_texture, wall_texture
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world

@@ -61,7 +61,8 @@ def test_on_and_off_look_different(category):
     from efficienteqa.envs.synthetic.build import object_parts
     from efficienteqa.envs.synthetic.env import catalog_for
     from efficienteqa.envs.synthetic.house import PlacedObject
-    from efficienteqa.envs.synthetic.render import Renderer, SceneGeometry
+    from efficienteqa.envs.synthetic.render import Renderer
+    from efficienteqa.envs.synthetic.scene_geometry import SceneGeometry
     from efficienteqa.geometry import CameraSpec, camera_to_world
 
     catalog = catalog_for("sh3d")

@@ -12,7 +12,7 @@ from efficienteqa.envs.synthetic.colours import recoloured
 from efficienteqa.envs.synthetic.house import House, PlacedObject
 from efficienteqa.envs.synthetic.layout import WALL_HEIGHT_M, Wall
 from efficienteqa.envs.synthetic.mesh import MeshPart, box_part, pose_matrix, rgb3
-from efficienteqa.envs.synthetic.render import PointLight, SceneGeometry
+from efficienteqa.envs.synthetic.scene_geometry import PointLight, SceneGeometry
 from efficienteqa.envs.synthetic.textures import floor_texture, wall_texture
 
 FLOOR_KIND = {

@@ -7,11 +7,12 @@ Source: Debian ``sweethome3d-furniture`` (``*.sh3f`` zips of OBJ+MTL models with
 model holding ``colours`` (P, 3), ``materials`` (P,) and per part i ``p{i}_positions``,
 ``p{i}_normals`` (float32), ``p{i}_faces`` (uint32), optional ``p{i}_uvs`` (OBJ convention:
 v = 0 at the image bottom) and ``p{i}_texture`` ((h, w, 3) uint8, top row first, <= 256 px).
+
+Reading a package's listing is in ``sh3f.py``; converting one model in ``obj_model.py``.
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import re
@@ -22,30 +23,30 @@ import zipfile
 from collections.abc import Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
-from io import BytesIO
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 
 from efficienteqa.cache import cache_dir
 from efficienteqa.envs.synthetic.colours import colour_name, mesh_colour, part_mean_rgb
 from efficienteqa.envs.synthetic.decimate import decimate
 from efficienteqa.envs.synthetic.mesh import MeshPart, rgb3
-from efficienteqa.envs.synthetic.vocabulary import (
-    EXCLUDED_SOURCE_CATEGORIES,
-    LAMP_CATEGORIES,
-    SMALL_CATEGORIES,
-    SURFACE_CATEGORIES,
-    canonical_category,
+from efficienteqa.envs.synthetic.obj_model import convert_model
+from efficienteqa.envs.synthetic.sh3f import (
+    PROPERTIES,
+    entry_fields,
+    key_prefix,
+    licence_of,
+    parse_properties,
+    piece_size_m,
+    plan_catalogue,
 )
+from efficienteqa.envs.synthetic.vocabulary import LAMP_CATEGORIES
 from efficienteqa.errors import EfficientEQAError
 
 CACHE_VERSION = "v2"  # bump when the npz/index format or the conversion changes
 MAX_TRIANGLES = 8000  # per model: a 640x480 frame shows no more detail (see decimate.py)
 DEFAULT_SOURCE = "/usr/share/sweethome3d/furniture"
-TEXTURE_MAX_PX = 256
-
 
 _TV_MATERIAL = re.compile(r"screen|display|monitor|lcd", re.I)
 # ("lamp" itself is too loose: Scopia names every material "..._multilamps")
@@ -74,201 +75,7 @@ class CatalogEntry:
     elevation_m: float = 0.0
 
 
-# --- properties and OBJ/MTL parsing ----------------------------------------------------------
-def parse_properties(text: str) -> tuple[dict[str, str], dict[int, dict[str, str]]]:
-    """Java .properties -> (header keys, {N: {key: value}} for ``key#N`` lines)."""
-    header: dict[str, str] = {}
-    pieces: dict[int, dict[str, str]] = {}
-    text = re.sub(r"\\\r?\n[ \t]*", "", text)  # line continuations
-    for raw in text.splitlines():
-        line = raw.strip()
-        if not line or line[0] in "#!":
-            continue
-        m = re.match(r"([^=:\s]+)\s*[=:\s]\s*(.*)$", line)
-        if not m:
-            continue
-        key, value = m[1], re.sub(r"\\u([0-9a-fA-F]{4})", lambda u: chr(int(u[1], 16)), m[2])
-        value = value.replace("\\:", ":").replace("\\=", "=").replace("\\\\", "\\")
-        km = re.fullmatch(r"(\w+)#(\d+)", key)
-        if km:
-            pieces.setdefault(int(km[2]), {})[km[1]] = value
-        else:
-            header[key] = value
-    return header, pieces
-
-
-def _licence(header: dict[str, str]) -> str:
-    text = header.get("license", "").lower()
-    if "public domain" in text or "cc-0" in text or "cc0" in text:
-        return "CC0-1.0"
-    if "attribution 3.0" in text:
-        return "CC-BY-3.0"
-    return "unknown"
-
-
-def _parse_mtl(text: str) -> dict[str, dict]:
-    mats: dict[str, dict] = {}
-    cur: dict = {}
-    for line in text.splitlines():
-        tok = line.split()
-        if not tok:
-            continue
-        if tok[0] == "newmtl":
-            cur = mats.setdefault(" ".join(tok[1:]), {"Kd": (0.8, 0.8, 0.8), "map": None})
-        elif tok[0] == "Kd" and len(tok) >= 4:
-            cur["Kd"] = tuple(float(x) for x in tok[1:4])
-        elif tok[0] == "map_Kd" and len(tok) >= 2:
-            cur["map"] = tok[-1]  # options (-s, -o ...) come first; the file name is last
-    return mats
-
-
-def _read_texture(zf: zipfile.ZipFile, folder: str, name: str) -> np.ndarray | None:
-    """The texture as (h, w, 3) uint8 <= TEXTURE_MAX_PX, or None if missing/unreadable."""
-    from PIL import Image
-
-    wanted = (folder + name.replace("\\", "/")).lower()
-    match = next((n for n in zf.namelist() if n.lower() == wanted), None)
-    if match is None:
-        return None
-    try:
-        img = Image.open(BytesIO(zf.read(match))).convert("RGB")
-    except Exception:  # odd formats (tif variants...): the part keeps its Kd colour
-        return None
-    img.thumbnail((TEXTURE_MAX_PX, TEXTURE_MAX_PX))
-    return np.asarray(img, np.uint8).copy()
-
-
-_Floats = npt.NDArray[np.float64]
-
-
-def _parse_obj(text: str) -> tuple[_Floats, _Floats, _Floats, dict[str, npt.NDArray[np.int64]],
-                                   list[str]]:
-    """-> positions (V, 3), uvs (T, 2), normals (N, 3), {material: [corner rows]}, mtllibs.
-
-    Corner rows are (face, v, vt, vn) with 0-based indices and -1 where absent; polygons are
-    fan-triangulated so every 3 consecutive rows form a triangle.
-    """
-    vs: list[list[str]] = []
-    vts: list[list[str]] = []
-    vns: list[list[str]] = []
-    libs: list[str] = []
-    groups: dict[str, list[tuple[int, ...]]] = {}
-    rows = groups.setdefault("", [])
-    nface = 0
-    for line in text.splitlines():
-        if line.startswith("v "):
-            vs.append(line.split()[1:4])
-        elif line.startswith("vt"):
-            vts.append((line.split()[1:3] + ["0"])[:2])
-        elif line.startswith("vn"):
-            vns.append(line.split()[1:4])
-        elif line.startswith("f "):
-            corners: list[list[int]] = []
-            now = (len(vs), len(vts), len(vns))
-            for token in line.split()[1:]:
-                idx = [int(x) if x else 0 for x in (token.split("/") + ["", ""])[:3]]
-                corners.append([x + n + 1 if x < 0 else x for x, n in zip(idx, now, strict=True)])
-            for k in range(1, len(corners) - 1):  # fan
-                for corner in (corners[0], corners[k], corners[k + 1]):
-                    rows.append((nface, *corner))
-                nface += 1
-        elif line.startswith("usemtl"):
-            rows = groups.setdefault(line[6:].strip(), [])
-        elif line.startswith("mtllib"):
-            libs.append(line[6:].strip())
-    arrays = [np.array(a, np.float64).reshape(-1, w) for a, w in ((vs, 3), (vts, 2), (vns, 3))]
-    counts = [len(a) for a in arrays]
-    out: dict[str, npt.NDArray[np.int64]] = {}
-    for mat, r in groups.items():
-        if not r:
-            continue
-        a = np.array(r, np.int64)
-        a[:, 1:] -= 1  # OBJ indices are 1-based; 0 (absent) becomes -1
-        if (a[:, 1:] >= np.array(counts)).any() or (a[:, 1] < 0).any():
-            raise ValueError(f"face index out of range in material {mat!r}")
-        out[mat] = a
-    return arrays[0], arrays[1], arrays[2], out, libs
-
-
-# --- one model -> canonical mesh parts -------------------------------------------------------
-_OBJ_TO_LOCAL = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], np.float64)  # (x, y, z) -> (x, -z, y)
-
-
-def _slug(text: str) -> str:
-    text = re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", text)  # largeFridge -> large_Fridge
-    return re.sub(r"[^a-z0-9]+", "_", text.lower()).strip("_") or "model"
-
-
-def _size_m(piece: dict[str, str]) -> tuple[float, float, float]:
-    width, depth, height = (round(float(piece[k]) / 100, 5) for k in ("width", "depth", "height"))
-    return width, depth, height
-
-
-def convert_model(zf: zipfile.ZipFile, piece: dict[str, str]) -> list[MeshPart]:
-    """One catalogue piece as MeshParts in the canonical local frame (see module docstring).
-
-    The model's bounding box (after modelRotation) is scaled to exactly width x height x depth
-    (OBJ x, y, z), put on z = 0 and centred in x and y. Raises on unreadable input.
-    """
-    model = piece["model"].lstrip("/")
-    folder = model.rsplit("/", 1)[0] + "/" if "/" in model else ""
-    pos, uv, nrm, groups, libs = _parse_obj(zf.read(model).decode("utf-8", "replace"))
-    mats: dict[str, dict] = {}
-    for lib in libs:
-        with contextlib.suppress(KeyError):  # a missing .mtl leaves every part default grey
-            mats.update(_parse_mtl(zf.read(folder + lib).decode("utf-8", "replace")))
-    if not groups:
-        raise ValueError("model has no faces")
-    rot = np.eye(3)
-    if piece.get("modelRotation"):
-        rot = np.array([float(x) for x in piece["modelRotation"].split()]).reshape(3, 3)
-    used = np.unique(np.concatenate([a[:, 1] for a in groups.values()]))
-    p = pos @ rot.T
-    lo, hi = p[used].min(0), p[used].max(0)
-    w, d, h = _size_m(piece)
-    scale = np.array([w, h, d]) / np.maximum(hi - lo, 1e-9)  # bbox -> catalogue size (OBJ axes)
-    origin = np.array([(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2])
-    local = ((p - origin) * scale) @ _OBJ_TO_LOCAL.T
-    normal_matrix = _OBJ_TO_LOCAL @ np.diag(1 / scale) @ np.linalg.inv(rot).T
-    local_n = nrm @ normal_matrix.T if len(nrm) else nrm
-    textures: dict[str, np.ndarray | None] = {}
-    parts = []
-    for name, rows in groups.items():
-        mat = mats.get(name, {"Kd": (0.8, 0.8, 0.8), "map": None})
-        face = rows[:, 0]
-        # one vertex per distinct (v, vt, vn); corners without a normal get a per-face key
-        keys = rows[:, 1:].copy()
-        keys[:, 2] = np.where(keys[:, 2] >= 0, keys[:, 2], -2 - face)
-        uniq, inv = np.unique(keys, axis=0, return_inverse=True)
-        faces = inv.reshape(-1, 3).astype(np.uint32)
-        verts = local[uniq[:, 0]]
-        tri = verts[faces]
-        fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        vn = np.zeros_like(verts)
-        flat = uniq[:, 2] < 0
-        vn[faces.ravel()] = np.repeat(fn, 3, axis=0)  # flat normals where OBJ has none
-        if (~flat).any():
-            vn[~flat] = local_n[uniq[~flat, 2]]
-        length = np.linalg.norm(vn, axis=1, keepdims=True)
-        vn = np.where(length > 1e-12, vn / np.maximum(length, 1e-12), [0.0, 0.0, 1.0])
-        tex, uvs = None, None
-        if mat["map"] and (uniq[:, 1] >= 0).any():
-            if mat["map"] not in textures:
-                textures[mat["map"]] = _read_texture(zf, folder, mat["map"])
-            tex = textures[mat["map"]]
-            if tex is not None:
-                uvs = np.where(uniq[:, 1:2] >= 0, uv[np.maximum(uniq[:, 1], 0)], 0.0)
-        part = MeshPart(positions=verts.astype(np.float32), normals=vn.astype(np.float32),
-                        faces=faces, colour=rgb3(mat["Kd"]),
-                        uvs=None if uvs is None else uvs.astype(np.float32), texture=tex,
-                        material=name)
-        if part.area_m2 > 0:
-            parts.append(part)
-    if not parts:
-        raise ValueError("model has no visible triangles")
-    return parts
-
-
+# --- one model: its lit materials, its npz file, its conversion ------------------------------
 def _state_materials(category: str, parts: list[MeshPart]) -> tuple[str, ...]:
     """Materials that light up when the object is on: a TV's screen; a lamp's bulbs/shades."""
     if category == "tv":
@@ -282,21 +89,6 @@ def _state_materials(category: str, parts: list[MeshPart]) -> tuple[str, ...]:
         lum = [float(part_mean_rgb(p) @ [0.299, 0.587, 0.114]) for p in parts]
         names = {parts[int(np.argmax(lum))].material}
     return tuple(sorted(names))
-
-
-def _entry_fields(category: str, piece: dict[str, str]) -> dict:
-    """Per-piece fields that do not need the mesh: top_m, elevation_m."""
-    height = float(piece["height"])
-    top = None
-    drop = piece.get("dropOnTopElevation")
-    if category not in SMALL_CATEGORIES:
-        if drop not in (None, ""):
-            # small or negative values mean "drop inside" (bins, boxes) or "nothing on top"
-            if float(drop) >= max(5.0, 0.2 * height):
-                top = round(float(drop) / 100, 4)
-        elif category in SURFACE_CATEGORIES:
-            top = round(height / 100, 4)
-    return {"top_m": top, "elevation_m": round(float(piece.get("elevation") or 0) / 100, 4)}
 
 
 def _save_parts(path: Path, parts: list[MeshPart]) -> None:
@@ -335,11 +127,11 @@ def _convert_job(job: tuple[str, str, dict, str, str, str]) -> dict:
         kind = "tv" if category == "tv" else "lamp" if category in LAMP_CATEGORIES else None
         state = _state_materials(category, parts)
         entry = CatalogEntry(
-            key=key, name=piece["name"], category=category, size_m=_size_m(piece),
+            key=key, name=piece["name"], category=category, size_m=piece_size_m(piece),
             licence=licence, creator=piece.get("creator", "unknown"),
             catalogue=Path(zip_path).stem, colour=colour_name(mesh_colour(parts)),
             state_kind=kind if state else None, state_materials=state,
-            **_entry_fields(category, piece))
+            **entry_fields(category, piece))
         return {"entry": asdict(entry)}
     except Exception as exc:  # one broken model must never stop the conversion
         return {"skipped": [key, f"{type(exc).__name__}: {exc}"]}
@@ -405,48 +197,15 @@ def _frozen(part: MeshPart) -> MeshPart:
     return part
 
 
-PROPERTIES = "PluginFurnitureCatalog.properties"
-_PREFIX = {"BlendSwap-CC-0": "cc0", "BlendSwap-CC-BY": "ccby"}
-
-
 def _signature(path: Path) -> dict:
     st = path.stat()
     return {"file": path.name, "size": st.st_size, "mtime": int(st.st_mtime)}
 
 
-def _plan(zip_path: Path) -> tuple[str, list[tuple[str, dict, str]]]:
-    """(licence, [(key, piece, category)]) for the house-worthy pieces of one catalogue."""
-    with zipfile.ZipFile(zip_path) as zf:
-        header, pieces = parse_properties(zf.read(PROPERTIES).decode("latin-1"))
-    prefix = _PREFIX.get(zip_path.stem, _slug(zip_path.stem))
-    plan, seen = [], set()
-    for _, piece in sorted(pieces.items()):
-        if piece.get("category") in EXCLUDED_SOURCE_CATEGORIES or piece.get("doorOrWindow") \
-                == "true" or not piece.get("model") or "name" not in piece:
-            continue
-        try:
-            height_m = float(piece["height"]) / 100
-            elev_m = float(piece.get("elevation") or 0) / 100
-        except (KeyError, ValueError):
-            continue
-        category = canonical_category(piece["name"], height_m, elev_m)
-        if category is None:
-            continue
-        # the model's folder name is stable across package versions, unlike the piece number
-        model_dir = piece["model"].strip("/").split("/")[-2:][0].removesuffix(".obj")
-        base = f"{prefix}/{_slug(model_dir)}"
-        key, n = base, 2
-        while key in seen:
-            key, n = f"{base}_{n}", n + 1
-        seen.add(key)
-        plan.append((key, piece, category))
-    return _licence(header), plan
-
-
 def _convert_catalogue(zip_path: Path, dest: Path, keys: set[str] | None, progress: bool,
                        workers: int) -> dict:
     """Convert one .sh3f into ``dest`` (built in a temp folder, then renamed into place)."""
-    licence, plan = _plan(zip_path)
+    licence, plan = plan_catalogue(zip_path)
     if keys is not None:
         plan = [p for p in plan if p[0] in keys]
     tmp = dest.with_name(f"{dest.name}.tmp{os.getpid()}")
@@ -505,7 +264,7 @@ def load_catalog(licences: Sequence[str] = ("CC0-1.0",), source_dir: str | Path 
     entries, files, skipped = [], {}, []
     for zip_path in zips:
         dest = root / zip_path.stem
-        prefix = _PREFIX.get(zip_path.stem, _slug(zip_path.stem))
+        prefix = key_prefix(zip_path)
         here = None if wanted is None else {k for k in wanted if k.startswith(prefix + "/")}
         if here is not None and not here:
             continue
@@ -518,7 +277,7 @@ def load_catalog(licences: Sequence[str] = ("CC0-1.0",), source_dir: str | Path 
                 index = None
         if index is None:
             with zipfile.ZipFile(zip_path) as zf:
-                licence = _licence(parse_properties(zf.read(PROPERTIES).decode("latin-1"))[0])
+                licence = licence_of(parse_properties(zf.read(PROPERTIES).decode("latin-1"))[0])
             if licence not in licences:
                 continue
             start = time.perf_counter()

@@ -8,178 +8,40 @@ camera axes (x right, y down, z forward). The projection maps camera +y (down) t
 that increase, so the first row glReadPixels returns (window row 0) is the top of the image:
 frames read back are already in OpenCV order (row 0 = top, column 0 = left). That y flip
 mirrors the winding of every triangle, which does not matter: nothing is culled.
+
+The shaders, context and vertex layout are in ``render_gl.py``; the scene and frame types in
+``scene_geometry.py``.
 """
 
 from __future__ import annotations
 
 import functools
-import hashlib
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Concatenate, ParamSpec, TypeVar
 
 import moderngl
 import numpy as np
 
 from efficienteqa.envs.synthetic.mesh import MeshPart
-from efficienteqa.errors import EfficientEQAError
+from efficienteqa.envs.synthetic.render_gl import (
+    ATTRIBUTES,
+    FAR_M,
+    MAX_LIGHTS,
+    VERTEX_DTYPE,
+    compile_programs,
+    create_context,
+    part_vertices,
+    projection_matrix,
+    texture_key,
+    uniform,
+)
+from efficienteqa.envs.synthetic.scene_geometry import Frame, SceneGeometry
 from efficienteqa.geometry import CameraSpec
 
-NEAR_M = 0.05
-FAR_M = 50.0
-MAX_LIGHTS = 32
 CELL_M = 3.0  # floor grid (metres) for frustum culling
 PREPASS_MIN_PIXELS = 320 * 240  # above this, a depth pre-pass pays for itself on llvmpipe
-_EGL_FIX = "sudo apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri"
-
-_VERTEX_SHADER = """
-#version 330
-uniform mat4 u_view_proj;   // world -> clip
-uniform mat4 u_view;        // world -> camera (OpenCV axes)
-invariant gl_Position;      // the depth pre-pass must produce bit-identical depths
-in vec3 in_pos; in vec3 in_nrm; in vec2 in_uv; in vec3 in_col; in float in_emi; in int in_inst;
-out vec3 v_world; out vec3 v_nrm; out vec2 v_uv; out vec3 v_col; out float v_emi; out float v_z;
-flat out int v_inst;
-void main() {
-    v_world = in_pos; v_nrm = in_nrm; v_uv = in_uv; v_col = in_col; v_emi = in_emi;
-    v_inst = in_inst;
-    v_z = (u_view * vec4(in_pos, 1.0)).z;
-    gl_Position = u_view_proj * vec4(in_pos, 1.0);
-}
-"""
-
-_FRAGMENT_SHADER = """
-#version 330
-uniform sampler2D u_tex;
-uniform bool u_textured;
-uniform bool u_ortho;        // top-down view: the viewer is straight above
-uniform vec3 u_eye;          // camera centre, world
-uniform float u_ambient;
-uniform vec3 u_sun_dir;      // unit vector towards the sun, world
-uniform float u_sun;
-uniform int u_n_lights;
-uniform vec3 u_light_pos[MAX_LIGHTS];
-uniform vec3 u_light_col[MAX_LIGHTS];   // colour * intensity
-uniform float u_light_inv_r2[MAX_LIGHTS];
-in vec3 v_world; in vec3 v_nrm; in vec2 v_uv; in vec3 v_col; in float v_emi; in float v_z;
-flat in int v_inst;
-layout(location = 0) out vec4 f_rgba;
-layout(location = 1) out float f_depth;
-layout(location = 2) out int f_inst;
-void main() {
-    vec4 albedo = vec4(v_col, 1.0);
-    if (u_textured) {
-        vec4 t = texture(u_tex, v_uv);
-#ifdef CUTOUT
-        if (t.a < 0.5) discard;
-#endif
-        albedo.rgb *= t.rgb;
-    }
-    vec3 to_eye = u_ortho ? vec3(0.0, 0.0, 1.0) : normalize(u_eye - v_world);
-    vec3 n = v_nrm;
-    if (dot(n, n) < 1e-6) n = cross(dFdx(v_world), dFdy(v_world));
-    n = normalize(n);
-    if (dot(n, to_eye) < 0.0) n = -n;          // double-sided: face the viewer
-    vec3 lin = albedo.rgb * albedo.rgb;        // sRGB-ish -> linear (gamma 2)
-    vec3 light = vec3(u_ambient + u_sun * max(dot(n, u_sun_dir), 0.0));
-    vec3 spec = vec3(0.0);
-    for (int i = 0; i < u_n_lights; ++i) {
-        vec3 d = u_light_pos[i] - v_world;
-        float d2 = dot(d, d);
-        float w = clamp(1.0 - d2 * u_light_inv_r2[i], 0.0, 1.0);
-        if (w <= 0.0) continue;
-        vec3 l = d * inversesqrt(d2);
-        vec3 c = u_light_col[i] * (w * w);
-        light += c * max(dot(n, l), 0.0);
-        float h = max(dot(n, normalize(l + to_eye)), 0.0);
-        h *= h; h *= h; h *= h; h *= h; h *= h;  // h^32 without pow()
-        spec += c * h;
-    }
-    vec3 lit = sqrt(clamp(lin * light + 0.08 * spec, 0.0, 1.0));
-    f_rgba = vec4(mix(lit, albedo.rgb, clamp(v_emi, 0.0, 1.0)), 1.0);
-    f_depth = v_z;
-    f_inst = v_inst + 1;
-}
-""".replace("MAX_LIGHTS", str(MAX_LIGHTS))
-
-_DEPTH_VERTEX_SHADER = """
-#version 330
-uniform mat4 u_view_proj;
-in vec3 in_pos;
-invariant gl_Position;
-void main() { gl_Position = u_view_proj * vec4(in_pos, 1.0); }
-"""
-
-_DEPTH_FRAGMENT_SHADER = """
-#version 330
-void main() {}
-"""
-
-_VERTEX_DTYPE = np.dtype(
-    [("pos", "f4", 3), ("nrm", "f4", 3), ("uv", "f4", 2), ("col", "f4", 3), ("emi", "f4"),
-     ("inst", "i4")]
-)
-_ATTRIBUTES = ("in_pos", "in_nrm", "in_uv", "in_col", "in_emi", "in_inst")
-
-
-@dataclass
-class PointLight:
-    """A point light: ``position`` (3,) world metres, ``colour`` (3,) RGB in [0, 1].
-
-    Its contribution is ``colour * intensity * (1 - (d / radius_m)^2)^2`` (zero beyond
-    ``radius_m``), times the Lambert term. No shadows: keep the radius inside the room.
-    """
-
-    position: tuple[float, float, float]
-    colour: tuple[float, float, float] = (1.0, 0.95, 0.85)
-    intensity: float = 0.6
-    radius_m: float = 5.0
-
-
-@dataclass
-class SceneGeometry:
-    """Everything drawn: parts (world frame), point lights and global lighting.
-
-    ambient: uniform light level in [0, 1]. sun_direction: direction the sun's light travels
-    (world, need not be unit). sun_intensity: its Lambert weight. sky_colour: RGB in [0, 1] of
-    pixels where nothing is hit.
-    """
-
-    parts: list[MeshPart]
-    lights: list[PointLight] = field(default_factory=list)
-    ambient: float = 0.35
-    sun_direction: tuple[float, float, float] = (-0.35, -0.25, -1.0)
-    sun_intensity: float = 0.45
-    sky_colour: tuple[float, float, float] = (0.62, 0.72, 0.85)
-
-
-@dataclass
-class Frame:
-    """rgb (H, W, 3) uint8; depth_m (H, W) float32 linear depth along the optical axis, 0 where
-    nothing was hit; instance (H, W) int32 part instance_id, -1 where nothing was hit.
-    Row 0 is the top of the image (OpenCV)."""
-
-    rgb: np.ndarray
-    depth_m: np.ndarray
-    instance: np.ndarray
-
-
-def projection_matrix(camera: CameraSpec, near: float = NEAR_M, far: float = FAR_M) -> np.ndarray:
-    """4x4 camera (OpenCV axes) -> clip matrix from the intrinsics K.
-
-    Pixel (u, v) of K (u right, v down, centres at +0.5) lands on window pixel (u, v), so the
-    read-back rows are top-first. NDC z is -1 at ``near`` and +1 at ``far``.
-    """
-    k = camera.intrinsics
-    w, h = camera.width, camera.height
-    return np.array([
-        [2 * k[0, 0] / w, 0.0, 2 * k[0, 2] / w - 1.0, 0.0],
-        [0.0, 2 * k[1, 1] / h, 2 * k[1, 2] / h - 1.0, 0.0],
-        [0.0, 0.0, (far + near) / (far - near), -2 * far * near / (far - near)],
-        [0.0, 0.0, 1.0, 0.0],
-    ])
-
 
 @dataclass
 class _Batch:
@@ -210,40 +72,6 @@ def _current(method: Callable[Concatenate[Renderer, _P], _R]
     return wrapper
 
 
-def _create_context() -> moderngl.Context:
-    try:
-        # moderngl-stubs 5.13 annotates **settings as Dict[str, Any]; the values are plain
-        # settings (backend="egl" is the documented headless call)
-        return moderngl.create_standalone_context(backend="egl")  # type: ignore[arg-type]
-    except Exception as exc:  # missing libEGL / Mesa drivers, no device
-        raise EfficientEQAError(f"cannot create an off-screen EGL OpenGL context: {exc}",
-                                fix=_EGL_FIX) from exc
-
-
-def _texture_key(texture: np.ndarray) -> str:
-    return f"{texture.shape}:{hashlib.blake2b(np.ascontiguousarray(texture).data).hexdigest()}"
-
-
-def _uniform(program: moderngl.Program, name: str) -> moderngl.Uniform:
-    """The program's uniform ``name`` (not a block, attribute or varying of that name)."""
-    member = program[name]
-    if not isinstance(member, moderngl.Uniform):
-        raise TypeError(f"{name!r} is a {type(member).__name__}, not a uniform")
-    return member
-
-
-def _vertices(part: MeshPart, colour: np.ndarray) -> np.ndarray:
-    n = len(part.positions)
-    v = np.empty(n, _VERTEX_DTYPE)
-    v["pos"] = part.positions
-    v["nrm"] = part.normals if part.normals is not None and len(part.normals) == n else 0.0
-    v["uv"] = part.uvs if part.uvs is not None and part.texture is not None else 0.0
-    v["col"] = colour
-    v["emi"] = part.emissive
-    v["inst"] = part.instance_id
-    return v
-
-
 class Renderer:
     """Renders a ``SceneGeometry`` through a ``CameraSpec`` (one GL context per renderer).
 
@@ -256,17 +84,8 @@ class Renderer:
 
     def __init__(self, camera: CameraSpec, depth_prepass: bool | None = None) -> None:
         self.camera = camera
-        self._ctx = _create_context()
-        self._programs = {
-            cutout: self._ctx.program(
-                vertex_shader=_VERTEX_SHADER,
-                fragment_shader=_FRAGMENT_SHADER.replace(
-                    "#version 330", "#version 330\n#define CUTOUT" if cutout else "#version 330"),
-            )
-            for cutout in (False, True)
-        }
-        self._depth_program = self._ctx.program(vertex_shader=_DEPTH_VERTEX_SHADER,
-                                                 fragment_shader=_DEPTH_FRAGMENT_SHADER)
+        self._ctx = create_context()
+        self._programs, self._depth_program = compile_programs(self._ctx)
         self.depth_prepass = depth_prepass
         self._batches: list[_Batch] = []
         self._scene: SceneGeometry | None = None
@@ -339,7 +158,7 @@ class Renderer:
             colour = np.asarray(part.colour, np.float32)
             key = None
             if part.texture is not None and part.uvs is not None:
-                key = _texture_key(part.texture)
+                key = texture_key(part.texture)
                 textures[key] = part.texture
             elif part.texture is not None:  # a texture without uvs: use its mean colour
                 colour = colour * part.texture[..., :3].reshape(-1, 3).mean(0) / 255.0
@@ -357,7 +176,7 @@ class Renderer:
             index, prev_cell = 0, None
             for i in order:
                 part, colour = members[i]
-                verts.append(_vertices(part, colour))
+                verts.append(part_vertices(part, colour))
                 faces.append(part.faces.astype(np.uint32) + offset)
                 offset += len(part.positions)
                 box = np.stack([part.positions.min(0), part.positions.max(0)])
@@ -401,11 +220,11 @@ class Renderer:
         vbo = self._ctx.buffer(verts.tobytes())
         ibo = self._ctx.buffer(faces.astype(np.uint32).tobytes())
         vao = self._ctx.vertex_array(
-            self._programs[cutout], [(vbo, "3f 3f 2f 3f 1f 1i", *_ATTRIBUTES)],
+            self._programs[cutout], [(vbo, "3f 3f 2f 3f 1f 1i", *ATTRIBUTES)],
             index_buffer=ibo, index_element_size=4,
         )
         depth_vao = None if cutout else self._ctx.vertex_array(
-            self._depth_program, [(vbo, f"3f {_VERTEX_DTYPE.itemsize - 12}x", "in_pos")],
+            self._depth_program, [(vbo, f"3f {VERTEX_DTYPE.itemsize - 12}x", "in_pos")],
             index_buffer=ibo, index_element_size=4,
         )
         return _Batch(vao, depth_vao, [vbo, ibo], texture, cutout, cells)
@@ -434,15 +253,15 @@ class Renderer:
             "u_light_pos": pos.tobytes(), "u_light_col": col.tobytes(),
             "u_light_inv_r2": inv_r2.tobytes(), "u_tex": 0,
         }
-        _uniform(self._depth_program, "u_view_proj").write(values["u_view_proj"])
+        uniform(self._depth_program, "u_view_proj").write(values["u_view_proj"])
         for prog in self._programs.values():
             for name, value in values.items():
                 if name not in prog:
                     continue
                 if isinstance(value, bytes):
-                    _uniform(prog, name).write(value)
+                    uniform(prog, name).write(value)
                 else:
-                    _uniform(prog, name).value = value
+                    uniform(prog, name).value = value
 
     def _visible_ranges(self, view_proj: np.ndarray) -> list[list[tuple[int, int]]]:
         """Per batch, the (first index, index count) runs of cells that touch the frustum."""
@@ -494,7 +313,7 @@ class Renderer:
             if not batch_runs:
                 continue
             prog = self._programs[batch.cutout]
-            _uniform(prog, "u_textured").value = batch.texture is not None
+            uniform(prog, "u_textured").value = batch.texture is not None
             if batch.texture is not None:
                 batch.texture.use(0)
             for first, count in batch_runs:
