@@ -250,7 +250,7 @@ def test_a_sightings_source_that_cannot_act_is_refused_in_one_line():
     with pytest.raises(EfficientEQAError, match="rgb perception gives no sightings of its own") \
             as raised:
         check_stack(Stack(perception="rgb", relevancy="vlm-match", sightings="perception"))
-    assert "--sightings model" in str(raised.value)
+    assert "--backends.sightings model" in str(raised.value)
 
 
 def test_the_cli_takes_sightings_from_the_command_line_and_a_config_file(tmp_path):

@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from efficienteqa.explore.base import Decision, Frontier
+from efficienteqa.explore.room_floors import RoomFloors
 from efficienteqa.explore.settings import TargetConfig
 from efficienteqa.explore.sfe import FrontierExplorer, cut_path, idle, settle
 from efficienteqa.geometry import Pose2D, wrap_angle
@@ -98,8 +99,7 @@ class TargetExplorer:
     def reset(self, seed: int) -> None:
         self.frontier.reset(seed)
         self.target = Target()
-        self._rooms: dict[str, np.ndarray] = {}  # room -> bool grid of cells whose floor was seen
-        self._spec: GridSpec | None = None
+        self.floors = RoomFloors()  # the floor each room showed
         self._things: list[_Thing] = []
         self._doors: list[_Door] = []
         self._looks: list[float] = []  # yaws still to look at, in the named room
@@ -119,15 +119,7 @@ class TargetExplorer:
     # ----- what the frames showed ------------------------------------------------------------
     def see(self, spec: GridSpec, seen: Sightings) -> None:
         """Fuse one frame's sightings: the floor of each room in view, the target's things."""
-        if self._spec is None or self._spec.shape != spec.shape:
-            self._spec, self._rooms = spec, {}
-        for room, xy in seen.floor.items():
-            if not len(xy):
-                continue
-            grid = self._rooms.setdefault(room, np.zeros(spec.shape, bool))
-            i, j = spec.world_to_cell(np.asarray(xy))
-            ok = spec.contains((i, j))
-            grid[i[ok], j[ok]] = True
+        self.floors.add(spec, seen.floor)
         for s in seen.things:
             self._add_thing(s)
         for d in seen.doors:
@@ -152,14 +144,8 @@ class TargetExplorer:
         self._things.append(_Thing(s.category, xy, s.top_m, s.room))
 
     def room_at(self, xy: tuple[float, float], within_m: float = 0.0) -> str | None:
-        """The room whose seen floor holds the point, or with ``within_m`` the room with the
-        most seen floor within that many metres (None when no frame showed any)."""
-        window = self._window(xy, within_m)
-        if window is None:
-            return None
-        counts = {room: int(g[window].sum()) for room, g in self._rooms.items()}
-        best = max(counts, key=lambda k: counts[k], default=None)
-        return best if best is not None and counts[best] > 0 else None
+        """The room whose seen floor holds the point, or the most of it within ``within_m``."""
+        return self.floors.room_at(xy, within_m)
 
     def goal_room(self) -> str | None:
         """The room to search now: the named one; where none is named (``likely_rooms``), the
@@ -168,7 +154,7 @@ class TargetExplorer:
         if self.target.room is not None or not self.config.likely_rooms:
             return self.target.room
         left = [r for r in self.target.likely_rooms if r not in self._searched]
-        seen = [r for r in left if self._room_cells(r) >= self.config.min_room_cells]
+        seen = [r for r in left if self.floors.size(r) >= self.config.min_room_cells]
         order = seen or left
         return order[0] if order else None
 
@@ -191,7 +177,7 @@ class TargetExplorer:
             elif (named and here is not None and ahead is not None
                   and here not in CONNECTORS and here not in self.target.rooms
                   and not (cfg.near_rooms and here in self.target.near_rooms
-                           and self._room_cells(room) < cfg.min_room_cells)):
+                           and self.floors.size(room) < cfg.min_room_cells)):
                 out[k] = cfg.elsewhere
         return out
 
@@ -221,12 +207,12 @@ class TargetExplorer:
                 return decision
             self._searched.add(room)
         if (cfg.scan_connectors and room is not None and here in CONNECTORS
-                and self._room_cells(room) < cfg.min_room_cells
+                and self.floors.size(room) < cfg.min_room_cells
                 and all(np.linalg.norm(pose.xy - p) > cfg.scan_apart_m for p in self._scans)):
             self._scans.append(pose.xy.copy())  # the named room unseen: look down the hallway
             self._looks = [pose.yaw + math.radians(120), pose.yaw + math.radians(240)]
         if (self._looks and here != room and room is not None
-                and self._room_cells(room) >= cfg.min_room_cells):
+                and self.floors.size(room) >= cfg.min_room_cells):
             self._looks = []  # the named room came into view: no need to look further
         if self._looks and here != room:
             decision = self._look(pose)
@@ -240,7 +226,7 @@ class TargetExplorer:
             decision = self._to_room(state, pose, room, step)
             if decision is not None:
                 return decision
-        if cfg.glance and room is not None and self._room_cells(room) < cfg.min_room_cells:
+        if cfg.glance and room is not None and self.floors.size(room) < cfg.min_room_cells:
             decision = self._glance(state, pose)
             if decision is not None:
                 return decision
@@ -259,7 +245,7 @@ class TargetExplorer:
         cfg = self.config
         if room not in self._centred:  # one move towards the middle of the room
             self._centred.add(room)
-            middle = self._middle(state, room)
+            middle = self.floors.middle(state.spec, room)
             # a thing on the ceiling (at its middle, as a rule) is above the view from near it
             back_m = cfg.overhead_view_m if cfg.look_up and self._overhead() else 0.0
             if abs(np.linalg.norm(middle - pose.xy) - back_m) > 1.0 or back_m > 0:
@@ -282,7 +268,7 @@ class TargetExplorer:
             return None
         self._search_moves[room] = moves + 1
         self._search_covered[room] = covered
-        uncovered = hull_mask(self._rooms[room]) & ~state.explored & ~state.occupied
+        uncovered = hull_mask(self.floors.cells[room]) & ~state.explored & ~state.occupied
         gap = state.spec.cell_to_world(np.argwhere(uncovered)).mean(axis=0)
         goal = self._stand_near(state, pose, gap, cfg.search_view_m, room)
         decision = None if goal is None else self._new_view(
@@ -308,7 +294,7 @@ class TargetExplorer:
     def coverage(self, state: MapState, room: str) -> float:
         """How much of ``room`` its views covered (``mapping.coverage.room_coverage``: the
         explored share of the hull of its floor seen so far)."""
-        cells = self._rooms.get(room)
+        cells = self.floors.cells.get(room)
         return 0.0 if cells is None else room_coverage(cells, state.explored, state.occupied)
 
     def _new_view(self, decision: Decision | None, pose: Pose2D) -> Decision | None:
@@ -373,7 +359,7 @@ class TargetExplorer:
                                           - pose.yaw)))
             if ((gap <= cfg.glance_m + cfg.reached_m + 0.3 and facing < math.radians(30))
                     or door.tries >= cfg.glance_tries or door.room is not None
-                    or len(self._rooms_near(door.xy, cfg.door_side_m)) >= 2):
+                    or len(self.floors.near(door.xy, cfg.door_side_m)) >= 2):
                 door.glanced = True  # seen through, tried enough, or both sides known
                 continue
             i, j = state.spec.world_to_cell(door.xy)
@@ -388,25 +374,6 @@ class TargetExplorer:
                 return decision
             door.glanced = True  # no new view towards it from here
         return None
-
-    def _rooms_near(self, xy: np.ndarray, within_m: float) -> set[str]:
-        """The rooms with seen floor within ``within_m`` of ``xy`` (3 cells at least each)."""
-        window = self._window(xy, within_m)
-        if window is None:
-            return set()
-        return {room for room, g in self._rooms.items() if g[window].sum() >= 3}
-
-    def _window(self, xy: np.ndarray | tuple[float, float], within_m: float
-                ) -> tuple[slice, slice] | None:
-        """The map cells within ``within_m`` of ``xy`` each way, as slices; None off the map
-        (or before any frame)."""
-        if self._spec is None:
-            return None
-        i, j = (int(v) for v in self._spec.world_to_cell(np.asarray(xy, float)))
-        r = int(round(within_m / self._spec.resolution_m))
-        rows, cols = self._spec.shape
-        i0, i1, j0, j1 = max(i - r, 0), min(i + r + 1, rows), max(j - r, 0), min(j + r + 1, cols)
-        return None if i0 >= i1 or j0 >= j1 else (slice(i0, i1), slice(j0, j1))
 
     def _inspected_things(self) -> list[_Thing]:
         """The things worth walking up to, in the named room when the frame said which room:
@@ -426,14 +393,8 @@ class TargetExplorer:
             distance = max(distance, above / math.tan(math.radians(TOP_OF_VIEW_DEG - 4)))
         return distance
 
-    def _room_cells(self, room: str) -> int:
-        return int(self._rooms[room].sum()) if room in self._rooms else 0
-
-    def _middle(self, state: MapState, room: str) -> np.ndarray:
-        return state.spec.cell_to_world(np.argwhere(self._rooms[room])).mean(axis=0)
-
     def _to_room(self, state: MapState, pose: Pose2D, room: str, step: int) -> Decision | None:
-        cells = self._rooms.get(room)
+        cells = self.floors.cells.get(room)
         if cells is None or cells.sum() < self.config.min_room_cells:
             return None
         self._room_steps += 1
@@ -441,7 +402,7 @@ class TargetExplorer:
             self._room_steps = 0
             self._room_rest_until = step + self.config.room_rest
             return None
-        middle = self._middle(state, room)
+        middle = self.floors.middle(state.spec, room)
         goal = self._stand_near(state, pose, middle, 0.0, room)
         decision = None if goal is None else self._new_view(
             self._move(state, pose, goal, middle, "to the " + room), pose)
@@ -465,8 +426,8 @@ class TargetExplorer:
         cells = np.argwhere(ok)
         centres = state.spec.cell_to_world(cells)
         off = np.abs(np.linalg.norm(centres - xy, axis=1) - distance_m)
-        if room is not None and room in self._rooms:
-            inside = self._rooms[room][cells[:, 0], cells[:, 1]]
+        if room is not None and room in self.floors.cells:
+            inside = self.floors.cells[room][cells[:, 0], cells[:, 1]]
             if inside.any():
                 off = np.where(inside, off, off + 2.0)
         cost = off + 0.1 * dist[cells[:, 0], cells[:, 1]]
