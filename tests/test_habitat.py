@@ -481,7 +481,7 @@ def test_habitat_scenes_need_the_habitat_env(tmp_path):
 
     with pytest.raises(EfficientEQAError, match="needs Habitat-Sim") as err:
         open_scene(f"hm3d:{SCENE}")
-    assert "--env habitat --hm3d-root" in err.value.fix
+    assert "--scene.env habitat --scene.hm3d-root" in err.value.fix
     with pytest.raises(EfficientEQAError, match="not a Habitat scene"):
         open_scene("synthetic:0", env="habitat", hm3d_root=tmp_path)
 

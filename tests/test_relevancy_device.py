@@ -139,8 +139,8 @@ def test_the_options_reach_the_stack(command, monkeypatch, tmp_path):
     class Stop(Exception):
         pass
 
-    def fake_ask(*args, stack, **kwargs):
-        seen.append(stack)
+    def fake_ask(*args, run, **kwargs):
+        seen.append(run.backends)
         raise Stop
 
     def fake_run_eval(spec, *args, **kwargs):

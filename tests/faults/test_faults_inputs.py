@@ -63,7 +63,7 @@ BAD_ASKS = [
     (["--answer.top-k", "-3"], "top_k must be at least 1, not -3"),
     (["--backends.relevancy", "bogus"], "unknown relevancy scorer 'bogus'"),
     # 2.9: -1 is a legal threshold but does nothing with the auto gate: said at once
-    (["--stop.z-th", "-1"], "--stop.z-th -1 does not act with the auto gate"),
+    (["--stop.z-th", "-1"], "--stop.z-th -1 does not act: the auto gate judges every frame"),
     # 2.10
     (["--stop.z-th", "nan"], "z_th must be a finite number, got nan"),
     (["--stop.z-th", "inf"], "z_th must be a finite number, got inf"),
@@ -83,7 +83,7 @@ BAD_ASKS = [
     # 2.15
     (["--explore.seed", "-1"], "seed must be 0 or more, not -1"),
     # 2.22: bad option values
-    (["--backends.vlm", "gpt-4o"], "cannot read --vlm 'gpt-4o'"),
+    (["--backends.vlm", "gpt-4o"], "cannot read --backends.vlm 'gpt-4o'"),
     (["--backends.vlm", "local:nonexistent-7b"], "unknown local model 'nonexistent-7b'"),
     (["--backends.temperature", "nan"], "temperature nan is outside 0-2"),
     (["--backends.temperature", "-1"], "temperature -1.0 is outside 0-2"),
@@ -93,7 +93,7 @@ BAD_ASKS = [
     (["--scene.assets", "bogus"], "unknown assets 'bogus'"),
     (["--preset", "bogus"], "unknown preset 'bogus'"),
     (["--backends.perception", "rgb", "--backends.relevancy", "minilm"],
-     "reads text, but --perception rgb gives images"),
+     "reads text, but --backends.perception rgb gives images"),
     (["--backends.perception", "bogus"], "unknown perception 'bogus'"),
     (["--episode", "nosuch"], "synthetic split is defined for assets 'sh3d'|no question 'nosuch'"),
     (["--backends.timeout-s", "0"], "timeout 0.0 s is not a positive number"),
@@ -143,7 +143,7 @@ BAD_EVALS = [
     (["--explore.max-steps", "0"], "max_steps must be at least 1"),
     (["--eval.method", "efficienteqa", "--explore.seed", "-1"], "seed must be 0 or more"),  # 2.15
     (["--eval.method", "efficienteqa", "--backends.perception", "rgb", "--backends.relevancy",
-      "minilm"], "reads text, but --perception rgb gives images"),
+      "minilm"], "reads text, but --backends.perception rgb gives images"),
     (["--eval.method", "efficienteqa", "--answer.top-k", "0"], "top_k must be at least 1"),  # 2.8
     (["--eval.method", "efficienteqa", "--backends.relevancy", "bogus"],
      "unknown relevancy scorer 'bogus'"),
@@ -160,11 +160,11 @@ BAD_EVALS = [
     (["--eval.dataset", "nosuch"], "unknown dataset 'nosuch'"),
     (["--eval.method", "bogus"], "unknown method 'bogus'"),
     (["--eval.method", "nosuchmod:fn"], "cannot load method 'nosuchmod:fn'"),
-    (["--eval.judge", "bogus"], "cannot read --judge 'bogus'"),
+    (["--eval.judge", "bogus"], "cannot read --eval.judge 'bogus'"),
     (["--eval.judge-mode", "bogus"], "unknown judge mode 'bogus'"),
     (["--eval.judge", "rule", "--eval.dataset", "hm-eqa", "--eval.hm-eqa-path", "{csv}"],
      "the rule judge grades synthetic questions only"),
-    (["--eval.closed-set"], "--closed-set is HM-EQA's multiple-choice mode"),
+    (["--eval.closed-set"], "--eval.closed-set is HM-EQA's multiple-choice mode"),
     (["--backends.temperature", "nan"], "temperature nan is outside 0-2"),
     (["--backends.temperature", "3"], "temperature 3.0 is outside 0-2"),
     (["--eval.method", "efficienteqa", "--eval.dataset", "hm-eqa", "--eval.hm-eqa-path", "{csv}"],
@@ -386,14 +386,14 @@ def test_a_huge_budget_is_explored_as_asked_until_interrupted(cli, vlm, tmp_path
     seen: list[int] = []
     real = asking.ask
 
-    def ask(*args, on_step, config, **kwargs):
+    def ask(*args, on_step, run, **kwargs):
         def step(record, *rest):
-            seen.append(config.budget(args[1].env))
+            seen.append(run.agent.budget(args[1].env))
             on_step(record, *rest)
             if record.step >= 2:
                 raise KeyboardInterrupt
 
-        return real(*args, on_step=step, config=config, **kwargs)
+        return real(*args, on_step=step, run=run, **kwargs)
 
     monkeypatch.setattr(asking, "ask", ask)
     url = f"openai:fake@{vlm(Options()).base_url}"

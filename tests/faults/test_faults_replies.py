@@ -327,7 +327,8 @@ def test_capabilities_claimed_beyond_the_servers_are_the_users_word(cli, vlm, tm
     run = tmp_path / "explore-eqa"
     said = ran(cli("eval", "--preset", "explore-eqa", "--eval.dataset", "synthetic:3",
                    "--eval.limit", "1", "--eval.judge", "none", "--scene.assets", "builtin",
-                   "--explore.max-steps", "1", *WORDS, *fake(server), "--backends.capabilities", str(claimed),
+                   "--explore.max-steps", "1", *WORDS[:2], *WORDS[4:], *fake(server),
+                   "--backends.capabilities", str(claimed),
                    "--out", str(run)))
     assert "1 episodes run, 0 already done, 0 failed" in said
     assert rows(run)[0]["status"] == "done"
@@ -383,7 +384,7 @@ def test_a_password_from_config_reaches_no_file_and_nothing_printed(cli, vlm, tm
                                    *FAST, "--out", str(tmp_path / "dead")))]
     finally:
         config.unlink()
-    assert "--judge openai:j@http://u:***@127.0.0.1:9/v1" in said[2]
+    assert "--eval.judge openai:j@http://u:***@127.0.0.1:9/v1" in said[2]
     record = json.loads((tmp_path / "run" / "run.json").read_text())
     assert record["stack"]["vlm"] == "openai:fake@" + server.base_url.replace("http://",
                                                                              "http://user:***@")

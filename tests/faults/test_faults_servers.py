@@ -61,14 +61,14 @@ def test_a_dead_server_or_a_refused_key_is_one_line_before_any_episode(cli, vlm,
     assert "unreachable" in asked and not (tmp_path / "a" / "episode.json").exists()
     judge = one_error_line(cli(*blind(tmp_path, *vlm_flag(vlm()), "--eval.judge", DEAD, *FAST,
                                       name="judged")))
-    assert f"the server of --judge {DEAD}" in judge  # named as the judge, not as --vlm
+    assert f"the server of --eval.judge {DEAD}" in judge  # named as the judge, not as the VLM
     assert no_episode(tmp_path / "judged")
     refusing = vlm(Options(misbehave="e401"))
     refused = one_error_line(cli(*blind(tmp_path, *vlm_flag(refusing), *KEYED, name="r401")))
     assert "rejected the request: HTTP 401" in refused
     assert "check the API key in $OPENAI_API_KEY" in refused
     keyless = one_error_line(cli(*blind(tmp_path, *vlm_flag(refusing), name="r401b")))
-    assert "no key was sent" in keyless and "--api-key-env NAME" in keyless
+    assert "no key was sent" in keyless and "--backends.api-key-env NAME" in keyless
     assert no_episode(tmp_path / "r401") and no_episode(tmp_path / "r401b")
 
 
@@ -141,7 +141,7 @@ def test_a_server_that_never_answers_costs_the_timeout_not_the_run(cli, vlm, tmp
     line = one_error_line(cli(*blind(tmp_path, *vlm_flag(hung), "--backends.timeout-s", "0.5",
                                      "--backends.retries", "0")))
     assert time.monotonic() - start < 6  # not the 8 s the server waits
-    assert "did not answer within 0.5 s (1 tries)" in line and "raise --timeout-s" in line
+    assert "did not answer within 0.5 s (1 tries)" in line and "raise --backends.timeout-s" in line
     assert no_episode(tmp_path / "run")
     later = vlm(Options(hang_s=8, hang_after=2))  # "hangafter": the probe is answered
     line = one_error_line(cli(*blind(tmp_path, *vlm_flag(later), "--backends.timeout-s", "0.5",
