@@ -249,7 +249,7 @@ def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(cli, t
     from dataclasses import asdict
 
     from efficienteqa.agent import PAPER_CONFIG
-    from efficienteqa.eval.summary import settings, settings_label
+    from efficienteqa.eval.run_labels import settings, settings_label
     from efficienteqa.stack import Stack
 
     result = cli("eval", "--preset", "paper-offline", "--method", "eval_stubs:echo", "--limit", "1",
