@@ -15,7 +15,7 @@ from efficienteqa import presets
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval import run_labels
-from efficienteqa.eval.judge import DEFAULT_JUDGE
+from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE
 from efficienteqa.eval.methods import RunSpec
 from efficienteqa.eval.records import RUN_FILE, RUN_FORMAT, open_run, read_run, upgrade
 from efficienteqa.eval.run_labels import label
