@@ -5,7 +5,7 @@ Reads a run of
 
     efficienteqa eval --method blind --dataset hm-eqa --closed-set --judge none --out RUN_DIR
 
-and prints n, the letter accuracy with its 95% bootstrap interval (``eval.summary.mean_interval``:
+and prints n, the letter accuracy with its 95% bootstrap interval (``eval.stats.mean_interval``:
 ``scipy.stats.bootstrap``, BCa, fixed seed), the majority-choice prior (always answering the
 most frequent correct letter of the same questions; ties to the earlier letter) and, per
 category, the accuracy against that category's own majority prior. A failed episode counts as
@@ -30,7 +30,8 @@ from typing import Any
 
 from efficienteqa.datasets.hm_eqa import FILLER
 from efficienteqa.eval.records import read_run
-from efficienteqa.eval.summary import match_value, mean, mean_interval
+from efficienteqa.eval.stats import mean, mean_interval
+from efficienteqa.eval.summary import match_value
 
 
 def majority(letters: Sequence[str]) -> tuple[str, float]:

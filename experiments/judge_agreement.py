@@ -39,7 +39,7 @@ from typing import Any
 
 from scipy.stats import spearmanr
 
-from efficienteqa.eval.judge import DEFAULT_JUDGE, JUDGE_MODES, judge_mode
+from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE, JUDGE_MODES, judge_mode
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DATA = REPO.parent / "shared" / "datasets" / "judge-agreement" / "dev.jsonl"
@@ -157,7 +157,7 @@ def record(items: Sequence[Item], grades: Sequence[int], judge: str, mode: str) 
                 "wrong_mean": _json_float(s.wrong_mean), "n_wrong": s.n_wrong,
                 "llm_match": _json_float(s.match, 2), "hand_llm_match": _json_float(s.hand_match, 2)}
 
-    from efficienteqa.eval.judge import prompt_version
+    from efficienteqa.eval.judge_prompts import prompt_version
 
     groups = {label: figures(scores([items[k].grade for k in idx], [grades[k] for k in idx]))
               for label, idx in _groups(items)}

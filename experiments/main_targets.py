@@ -16,13 +16,8 @@ import numpy as np
 from scipy.stats import bootstrap
 
 from efficienteqa.eval.records import read_run
-from efficienteqa.eval.summary import (
-    BOOTSTRAP_RESAMPLES,
-    BOOTSTRAP_SEED,
-    CONFIDENCE,
-    match_value,
-    mean_interval,
-)
+from efficienteqa.eval.stats import BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, CONFIDENCE, mean_interval
+from efficienteqa.eval.summary import match_value
 
 
 def _episodes(run: Path) -> dict[str, dict]:

@@ -249,7 +249,7 @@ def test_paper_offline_runs_the_papers_configuration_on_the_offline_stack(cli, t
     from dataclasses import asdict
 
     from efficienteqa.agent import PAPER_CONFIG
-    from efficienteqa.eval.summary import settings, settings_label
+    from efficienteqa.eval.run_labels import settings, settings_label
     from efficienteqa.stack import Stack
 
     result = cli("eval", "--preset", "paper-offline", "--method", "eval_stubs:echo", "--limit", "1",
@@ -355,17 +355,17 @@ def test_help_groups_the_options_in_panels(cli, command):
 
 def test_judge_grades_with_evals_default_judge_unless_told(tmp_path, monkeypatch):
     """`efficienteqa judge` had its own literal default judge; it is eval's and RunSpec's
-    (eval.judge.DEFAULT_JUDGE), in the mode eval gives it (DEFAULT_JUDGE_MODE, auto: yes-prob
+    (eval.judge_prompts.DEFAULT_JUDGE), in the mode eval gives it (DEFAULT_JUDGE_MODE, auto: yes-prob
     for a local model)."""
     from typer.testing import CliRunner
 
     from efficienteqa import cli
-    from efficienteqa.eval import judge, methods, runner
+    from efficienteqa.eval import judge_prompts, methods, runner
     from efficienteqa.eval.methods import RunSpec, default_judge
 
     calls = []
     monkeypatch.setattr(runner, "rejudge", lambda run, judge, mode: calls.append((judge, mode)) or (0, 0.0))
-    monkeypatch.setattr(judge, "DEFAULT_JUDGE", "local:smollm2-135m")  # whatever the default is
+    monkeypatch.setattr(judge_prompts, "DEFAULT_JUDGE", "local:smollm2-135m")  # whatever the default is
     monkeypatch.setattr(methods, "DEFAULT_JUDGE", "local:smollm2-135m")  # as imported there
     result = CliRunner().invoke(cli.app, ["judge", str(tmp_path)])
     assert result.exit_code == 0, result.output

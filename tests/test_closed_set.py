@@ -124,7 +124,7 @@ def test_a_library_caller_gets_the_evals_refusals_and_judge_from_plan_run():
     """The evaluation's policy is the library's (``eval.plan``), not the command line's: the
     same refusals, the same judge chosen."""
     from efficienteqa.errors import EfficientEQAError
-    from efficienteqa.eval.judge import DEFAULT_JUDGE
+    from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE
     from efficienteqa.eval.plan import plan_run
     from efficienteqa.presets import run_config
 

@@ -17,8 +17,9 @@ from typer.testing import CliRunner
 from efficienteqa import cli
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
+from efficienteqa.eval.compare import ablations, distinct_labels
 from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
-from efficienteqa.eval.summary import RunSummary, ablations, distinct_labels, summarise
+from efficienteqa.eval.summary import RunSummary, summarise
 from efficienteqa.eval.tables import (
     SEMANTIC_WARNING,
     read_summaries,

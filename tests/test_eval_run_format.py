@@ -14,12 +14,12 @@ import pytest
 from efficienteqa import presets
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval import summary
-from efficienteqa.eval.judge import DEFAULT_JUDGE
+from efficienteqa.eval import run_labels
+from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE
 from efficienteqa.eval.methods import RunSpec
 from efficienteqa.eval.records import RUN_FILE, RUN_FORMAT, open_run, read_run, upgrade
+from efficienteqa.eval.run_labels import label
 from efficienteqa.eval.runner import manifest
-from efficienteqa.eval.summary import label
 from efficienteqa.stack import Stack, parse_vlm
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -173,9 +173,9 @@ def test_a_changed_default_does_not_relabel_a_run_recorded_before(tmp_path, monk
     run = read_run(folder)[0]
     assert label(run) == "efficienteqa"
     # As if the default K had become 10 since: the run, at K = 5 then, is still "efficienteqa".
-    paper = summary._paper_settings()  # cached: computed against the defaults of today
-    monkeypatch.setattr(summary, "_paper_settings", lambda: paper)
-    monkeypatch.setattr(summary, "_default_settings",
+    paper = run_labels._paper_settings()  # cached: computed against the defaults of today
+    monkeypatch.setattr(run_labels, "_paper_settings", lambda: paper)
+    monkeypatch.setattr(run_labels, "_default_settings",
                         lambda: tuple({**dict(_settings(AgentConfig())), "top_k": 10}.items()))
     assert label(run) == "efficienteqa"
     format_1 = {k: v for k, v in run.items() if k not in ("format", "preset", "preset_config")}
@@ -183,7 +183,7 @@ def test_a_changed_default_does_not_relabel_a_run_recorded_before(tmp_path, monk
 
 
 def _settings(config: AgentConfig) -> dict:
-    return summary.settings({"config": asdict(config)})
+    return run_labels.settings({"config": asdict(config)})
 
 
 def test_a_stack_left_to_its_defaults_is_the_one_typed_out():

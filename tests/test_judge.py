@@ -13,11 +13,10 @@ from efficienteqa.eval.judge import (
     SCORE_SCHEMA,
     Judgement,
     LLMMatchJudge,
-    parse_score,
-    render_prompt,
     score_value,
-    trim_response,
 )
+from efficienteqa.eval.judge_parse import parse_score, trim_response
+from efficienteqa.eval.judge_prompts import render_prompt
 from efficienteqa.eval.llm_match_rules import rule_score
 from efficienteqa.models.base import Capabilities
 from efficienteqa.models.stub import StubChatModel
@@ -328,7 +327,7 @@ def test_yes_prob_reads_yes_and_no_tokens_in_any_spelling(tmp_path, yes, no):
 ])
 def test_p_yes_survives_logprobs_that_underflow(yes, no, expected):
     """exp() of both logprobs is 0.0 below about -745; P(yes) must not divide by it."""
-    from efficienteqa.eval.judge import p_yes
+    from efficienteqa.eval.judge_parse import p_yes
     from efficienteqa.models.base import TokenLogprob
 
     token = TokenLogprob("Yes", yes, (("Yes", yes), ("No", no)))
@@ -337,7 +336,7 @@ def test_p_yes_survives_logprobs_that_underflow(yes, no, expected):
 
 def test_p_yes_adds_spellings_in_log_space():
     """Two spellings of yes far below exp()'s range still add up: P(yes) = 2/3 here."""
-    from efficienteqa.eval.judge import p_yes
+    from efficienteqa.eval.judge_parse import p_yes
     from efficienteqa.models.base import TokenLogprob
 
     token = TokenLogprob("Yes", -900.0, (("Yes", -900.0), (" yes", -900.0), ("No", -900.0)))
@@ -346,7 +345,7 @@ def test_p_yes_adds_spellings_in_log_space():
 
 def test_p_yes_is_none_when_yes_and_no_are_both_masked():
     """-9999 (vLLM's mask) on both words is no answer, not a 50:50 one."""
-    from efficienteqa.eval.judge import p_yes
+    from efficienteqa.eval.judge_parse import p_yes
     from efficienteqa.models.base import TokenLogprob
 
     token = TokenLogprob("The", -0.01, (("The", -0.01), ("Yes", -9999.0), ("No", -9999.0)))
@@ -414,16 +413,16 @@ def test_yes_prob_grades_the_geometric_mean_of_both_questions(tmp_path):
 
 def test_the_yes_prob_version_holds_both_prompts_and_the_mapping(monkeypatch):
     """A changed prompt or mapping must not reuse grades cached under the old one."""
-    from efficienteqa.eval import judge
+    from efficienteqa.eval import judge_prompts
 
-    before = judge.prompt_version("yes-prob")
-    monkeypatch.setattr(judge, "YES_COMBINE", "arithmetic mean")
-    assert judge.prompt_version("yes-prob") != before
+    before = judge_prompts.prompt_version("yes-prob")
+    monkeypatch.setattr(judge_prompts, "YES_COMBINE", "arithmetic mean")
+    assert judge_prompts.prompt_version("yes-prob") != before
     monkeypatch.undo()
-    real = judge.load_prompt
-    monkeypatch.setattr(judge, "load_prompt", lambda name, package: real(name, package) + (
+    real = judge_prompts.load_prompt
+    monkeypatch.setattr(judge_prompts, "load_prompt", lambda name, package: real(name, package) + (
         " " if name == "judge_correct" else ""))
-    assert judge.prompt_version("yes-prob") != before
+    assert judge_prompts.prompt_version("yes-prob") != before
 
 
 # ------------------------------------------------------------------ OpenEQA's protocol
@@ -431,7 +430,7 @@ def test_the_yes_prob_version_holds_both_prompts_and_the_mapping(monkeypatch):
 def test_the_openeqa_mode_runs_the_protocol_as_openeqa_does(tmp_path):
     """No rule grading first (the same answer still goes to the model), the response cut after
     its last ".", temperature 0.2, seed 1234, 32 tokens, the mark after "Your mark:"."""
-    from efficienteqa.eval.judge import openeqa_cut, openeqa_mark
+    from efficienteqa.eval.judge_parse import openeqa_cut, openeqa_mark
 
     model = StubChatModel(["Your mark: 4", "5", "I think it is a good answer."])
     judge = LLMMatchJudge(model, cache_path=tmp_path / "j.sqlite", mode="openeqa")

@@ -123,7 +123,7 @@ def test_an_episode_is_repeatable_and_the_seed_changes_it(house):
 
 def test_a_run_under_noise_is_labelled_and_identified_so():
     from efficienteqa.eval.records import SCENE_IDENTITY
-    from efficienteqa.eval.summary import settings_label
+    from efficienteqa.eval.run_labels import settings_label
 
     assert "noise" in SCENE_IDENTITY
     assert settings_label("efficienteqa", {"noise": "robot"}, baseline={}) == (

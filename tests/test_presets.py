@@ -164,7 +164,7 @@ def test_paper_offline_is_the_papers_algorithm_on_the_offline_stack():
     paper configuration" as they name the committed run of results/main-heldout/paper-offline."""
     from efficienteqa.agent import PAPER_CONFIG
     from efficienteqa.eval.records import RUN_FORMAT
-    from efficienteqa.eval.summary import label
+    from efficienteqa.eval.run_labels import label
 
     run = resolve({}, "paper-offline").run
     assert run.agent == PAPER_CONFIG

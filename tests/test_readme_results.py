@@ -16,9 +16,11 @@ import pytest
 from typer.testing import CliRunner
 
 from efficienteqa import cli
+from efficienteqa.eval.compare import paired
 from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
 from efficienteqa.eval.runner import machine, scene_seeds
-from efficienteqa.eval.summary import mean_interval, paired, summarise
+from efficienteqa.eval.stats import mean_interval
+from efficienteqa.eval.summary import summarise
 from efficienteqa.eval.tables import (
     parse_report_command,
     readme_blocks,

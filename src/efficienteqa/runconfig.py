@@ -15,7 +15,7 @@ Every field is declared once with ``knobs.knob`` (default, help, beyond the pape
 everything else is made from the fields (``knobs.leaves``): the CLI's flags (``--stop.z-th``,
 with the flat ``--z-th`` kept as an alias), the TOML sections of ``--config`` and the presets,
 the record (``run.json``'s ``stack`` is ``backends``, its ``config`` the agent's three sections)
-and the run's table label (``eval.summary.settings`` flattens the sections, whose field names are
+and the run's table label (``eval.run_labels.settings`` flattens the sections, whose field names are
 unique).
 """
 

@@ -11,7 +11,8 @@ import random
 
 import pytest
 
-from efficienteqa.eval.judge import openeqa_mark, p_yes, parse_score, score_value, trim_response
+from efficienteqa.eval.judge import score_value
+from efficienteqa.eval.judge_parse import openeqa_mark, p_yes, parse_score, trim_response
 from efficienteqa.models.base import TokenLogprob
 from efficienteqa.vc.logprobs import letter_probs_from_logprobs, yes_prob_from_logprobs
 from efficienteqa.vc.parse import (

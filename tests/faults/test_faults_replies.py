@@ -233,7 +233,7 @@ def test_an_eval_whose_openeqa_judge_writes_a_superscript_is_done_and_graded_1(c
     [row] = rows(tmp_path / "run")
     assert row["status"] == "done" and row["judge"]["score"] == 1
     assert row["judge"]["problems"] == ["no mark from 1 to 5 in '²', scored 1"]
-    from efficienteqa.eval.judge import openeqa_mark, parse_score
+    from efficienteqa.eval.judge_parse import openeqa_mark, parse_score
 
     assert [openeqa_mark(r) for r in ("²", "5²", "٣", "Your mark: 4²", "Your mark: **4**")] == \
         [None, None, None, None, 4]

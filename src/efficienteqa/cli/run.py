@@ -246,7 +246,7 @@ def judge_command(
                                           "(default; see `eval --help`).", show_default=False),
 ) -> None:
     """Grade finished runs again with another judge (e.g. openai:gpt-4o); results are kept."""
-    from efficienteqa.eval.judge import DEFAULT_JUDGE
+    from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE
     from efficienteqa.eval.plan import mode_of
     from efficienteqa.eval.runner import rejudge
     from efficienteqa.stack import parse_vlm

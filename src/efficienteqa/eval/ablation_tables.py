@@ -5,7 +5,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from efficienteqa.eval.compare import ablations
 from efficienteqa.eval.plots import xy_svg
+from efficienteqa.eval.run_labels import settings_label
 from efficienteqa.eval.run_tables import (
     RULE_HEADER,
     Figure,
@@ -16,7 +18,7 @@ from efficienteqa.eval.run_tables import (
     provenance,
     slug,
 )
-from efficienteqa.eval.summary import RunSummary, ablations, settings_label
+from efficienteqa.eval.summary import RunSummary
 
 
 def ablation_blocks(summaries: Sequence[RunSummary], prefix: str) -> list[Table | Figure]:

@@ -41,7 +41,7 @@ from efficienteqa.agent import AgentConfig
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval.judge import DEFAULT_JUDGE, DEFAULT_JUDGE_MODE, judge_mode
+from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE, DEFAULT_JUDGE_MODE, judge_mode
 from efficienteqa.knobs import with_leaves
 from efficienteqa.stack import Stack
 

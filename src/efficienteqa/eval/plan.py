@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval.judge import DEFAULT_JUDGE_MODE, judge_mode
+from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE_MODE, judge_mode
 from efficienteqa.eval.methods import METHODS, RunSpec, default_judge, resolve
 from efficienteqa.runconfig import RunConfig
 
@@ -50,7 +50,7 @@ def judge_of(run: RunConfig) -> str | None:
 
 
 def mode_of(mode: str | None, judge: str) -> str:
-    """The judge's mode, left out: ``eval.judge.DEFAULT_JUDGE_MODE`` ("auto": token
+    """The judge's mode, left out: ``eval.judge_prompts.DEFAULT_JUDGE_MODE`` ("auto": token
     probabilities for the small local models, the 1-5 grade otherwise)."""
     return judge_mode(mode or DEFAULT_JUDGE_MODE, judge)
 

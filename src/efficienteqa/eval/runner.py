@@ -200,7 +200,7 @@ def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = (),
     """``run.json``: ``config`` holds the options as given (part of the run's identity);
     ``method_config``, what the method's episodes ran with (``methods.effective_config``);
     ``preset`` and ``preset_config``, the named configuration the options started from and
-    what it alone set (a table's label, ``summary.label``); ``question_ids``, the episode ids
+    what it alone set (a table's label, ``run_labels.label``); ``question_ids``, the episode ids
     of the questions (``ids``), so that a report counts no line of another question."""
     effective = effective_config(spec.method, spec.config)
     return plain({"format": RUN_FORMAT, "method": spec.method, "dataset": spec.dataset,

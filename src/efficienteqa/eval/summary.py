@@ -25,40 +25,40 @@ summary backs the console, the Markdown and the HTML report. Conventions, stated
   the rule-judge accuracy where the run has rule grades, else the letter accuracy where it has
   letter grades, else LLM-Match, each with a 95%
   bootstrap interval over the episodes (``scipy.stats.bootstrap``, fixed seed: the same run gives
-  the same interval). Paired differences (``paired``) compare two runs on the episode ids both
-  finished, with a bootstrap interval over the per-question differences.
+  the same interval; ``eval.stats``). Paired differences (``eval.compare.paired``) compare two
+  runs on the episode ids both finished, with a bootstrap interval over the per-question
+  differences.
 - Means skip missing values and are NaN when nothing is left, so an empty run never crashes.
+
+A run's settings and its label are ``eval.run_labels``; comparisons between runs (paired
+differences, ablation groups, unique labels) are ``eval.compare``.
 """
 
 from __future__ import annotations
 
 import math
-import statistics
 from collections import Counter
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
-from functools import cache
-from typing import Any, TypeGuard
+from typing import Any
 
 from efficienteqa.eval.judge import score_value
-from efficienteqa.eval.records import RUN_FORMAT, upgrade
-from efficienteqa.knobs import flatten
+from efficienteqa.eval.run_labels import label, preset_settings, settings
+from efficienteqa.eval.stats import (
+    BOOTSTRAP_RESAMPLES,
+    BOOTSTRAP_SEED,
+    CONFIDENCE,
+    PairedDifference,
+    is_number,
+    mean,
+    mean_interval,
+    median,
+)
 
 # The back-ends a table states, in the order it states them, from the rows' ``backends``.
 BACKEND_KEYS = ("environment", "perception", "sightings", "vlm", "relevancy", "grouping",
                 "explore_scorer", "answer")
-# Settings that change no result: left out when runs are compared for ablations.
-NEUTRAL_SETTINGS = frozenset({"cache"})
-# How a setting that differs from the default is written in a label (the paper's symbols).
-LABEL_NAMES = {"z_th": "Z_th", "top_k": "K", "max_steps": "budget", "min_step": "min step",
-               "sigma_eps": "sigma_eps", "seed": "seed"}
 UNCATEGORISED = "(none)"
-# Methods that run no agent (the Blind LLM answers the question alone): the agent's settings in
-# their run.json change nothing, so their labels leave them out.
-AGENTLESS_METHODS = frozenset({"blind"})
-CONFIDENCE = 0.95
-BOOTSTRAP_RESAMPLES = 9999
-BOOTSTRAP_SEED = 0
 
 
 @dataclass(frozen=True)
@@ -160,51 +160,8 @@ def _problem_totals(done: Sequence[Mapping[str, Any]]) -> dict[str, int]:
     for r in done:
         counts = (r.get("extra") or {}).get("problems")
         if isinstance(counts, Mapping):
-            totals.update({str(k): int(v) for k, v in counts.items() if _is_number(v)})
+            totals.update({str(k): int(v) for k, v in counts.items() if is_number(v)})
     return dict(totals)
-
-
-def mean(values: Iterable[Any]) -> float:
-    """The mean of the numbers among ``values`` (None and NaN skipped); NaN when none are left."""
-    numbers = [float(v) for v in values if _is_number(v)]
-    return math.fsum(numbers) / len(numbers) if numbers else math.nan
-
-
-def median(values: Iterable[Any]) -> float:
-    numbers = [float(v) for v in values if _is_number(v)]
-    return statistics.median(numbers) if numbers else math.nan
-
-
-def _is_number(v: Any) -> TypeGuard[float]:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def mean_interval(values: Sequence[float], confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """The ``confidence`` bootstrap interval of the mean of ``values`` (``scipy.stats.bootstrap``,
-    BCa, a fixed seed so the same values give the same interval; the percentile interval where
-    BCa is undefined). NaN under two values; a point where every value is the same. The values
-    are sorted first, so the interval does not depend on their order (a report's row order, a
-    benchmark's sorted ids)."""
-    numbers = sorted(float(v) for v in values if _is_number(v))
-    if len(numbers) < 2:
-        return math.nan, math.nan
-    if max(numbers) == min(numbers):
-        return numbers[0], numbers[0]
-    import warnings
-
-    import numpy as np
-    from scipy.stats import bootstrap
-
-    data = (np.asarray(numbers),)
-    for method in ("BCa", "percentile"):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            ci = bootstrap(data, np.mean, confidence_level=confidence, n_resamples=BOOTSTRAP_RESAMPLES,
-                           method=method, rng=np.random.default_rng(BOOTSTRAP_SEED)).confidence_interval
-        low, high = float(ci.low), float(ci.high)
-        if math.isfinite(low) and math.isfinite(high):
-            return low, high
-    return math.nan, math.nan
 
 
 def match_value(row: Mapping[str, Any], key: str = "judge") -> float:
@@ -214,150 +171,10 @@ def match_value(row: Mapping[str, Any], key: str = "judge") -> float:
     if not isinstance(judged, Mapping):
         return 0.0
     value = judged.get("value")
-    if _is_number(value):
+    if is_number(value):
         return float(value)
     score = judged.get("score")
     return score_value(score if isinstance(score, int) else None)
-
-
-# Settings a method sets itself whatever the options say (eval.methods.method_config): not
-# worth naming in its label. ExploreEQA never stops early, so its stop settings do nothing.
-_EXPLORE_EQA = {"steering", "gate", "min_step", "z_gated"}
-METHOD_SETS: dict[str, set[str]] = {"explore-eqa": _EXPLORE_EQA,
-                                    "explore-eqa-blackbox": _EXPLORE_EQA,
-                                    "frontier-only": {"steering"}, "random": {"steering"}}
-
-
-def settings(manifest: Mapping[str, Any]) -> dict[str, Any]:
-    """The run's configuration as one flat dict (the agent's sections' fields by their own
-    names, which are unique; the stack; the judge): what ablations compare and labels name.
-    ``stop.enabled`` becomes ``early_stop``, an override ``sfe.NAME``. An older
-    run's settings are read as what they meant (``records.upgrade``)."""
-    manifest = upgrade(dict(manifest))
-    flat: dict[str, Any] = {}
-    for section in (manifest.get("config") or {}).values():
-        for key, value in dict(section).items():
-            if isinstance(value, Mapping):  # overrides: "sfe.view_gain"
-                flat.update({f"{key}.{'.'.join(path)}": v for path, v in flatten(value).items()})
-            else:
-                flat[key] = value
-    if "enabled" in flat:
-        flat["early_stop"] = flat.pop("enabled")
-    flat.update(dict(manifest.get("stack") or {}))
-    for key in ("judge", "closed_set", "assets", "noise"):
-        if key in manifest:
-            flat[key] = manifest[key]
-    return flat
-
-
-@cache
-def _default_settings() -> tuple[tuple[str, Any], ...]:
-    from efficienteqa.agent import AgentConfig
-
-    return tuple(settings({"config": asdict(AgentConfig()), "format": RUN_FORMAT}).items())
-
-
-@cache
-def _paper_settings() -> tuple[tuple[str, Any], ...]:
-    """The settings in which ``agent.PAPER_CONFIG`` differs from the defaults."""
-    from efficienteqa.agent import PAPER_CONFIG
-
-    paper = settings({"config": asdict(PAPER_CONFIG), "format": RUN_FORMAT})
-    return tuple((k, paper[k]) for k, default in _default_settings() if paper[k] != default)
-
-
-def _is_paper_configuration(flat: Mapping[str, Any]) -> bool:
-    """Every setting of the paper's configuration, and the VLM's semantic values (DESIGN 3.3)."""
-    return (all(k in flat and flat[k] == v for k, v in _paper_settings())
-            and flat.get("explore_scorer") == "vlm")
-
-
-def _fmt_setting(value: Any) -> str:
-    return f"{value:g}" if isinstance(value, float) else str(value)
-
-
-def preset_settings(manifest: Mapping[str, Any]) -> dict[str, Any] | None:
-    """The settings (``settings``) of the named configuration the run started from, as the run
-    recorded them; None for a run that did not (format 1)."""
-    manifest = upgrade(dict(manifest))
-    config = manifest.get("preset_config")
-    return settings({"config": config, "format": RUN_FORMAT}) if isinstance(config, Mapping) else None
-
-
-def label(manifest: Mapping[str, Any]) -> str:
-    """A short name for tables: the method, the named configuration the run started from, and
-    the agent settings the run changed against it ("efficienteqa Z_th=2", "efficienteqa paper
-    configuration K=10", "explore-eqa closed-set"). A run that did not record its named
-    configuration (format 1) is named by the settings that differ from today's defaults."""
-    preset = manifest.get("preset")
-    # A setting the run did not record yet is what its time ran with: not a change to name.
-    unrecorded = list(upgrade(dict(manifest)).get("unrecorded") or ())
-    return settings_label(str(manifest.get("method", "?")), settings(manifest), unrecorded,
-                          preset=preset if isinstance(preset, str) else None,
-                          baseline=preset_settings(manifest))
-
-
-# Settings that act only where the steering or a gate reads the question's target.
-TARGET_SETTINGS = frozenset({"reading", "matching", "gate_final"})
-
-# How a label names a named configuration: the paper's by this phrase, one named after the
-# method or "default" by nothing, any other by its name less the method's ("per-token" for the
-# explore-eqa run of configs/explore-eqa-per-token.toml).
-PRESET_LABELS = {"paper": "paper configuration", "paper-offline": "paper configuration",
-                 "default": ""}
-
-
-def _preset_label(method: str, preset: str | None) -> str:
-    if preset is None or preset == method:
-        return ""
-    return PRESET_LABELS.get(preset, preset.removeprefix(f"{method}-"))
-
-
-# The order in which a label names settings: the order flat records gave them (settings added
-# late first, as ``records.ADDED_SETTINGS`` put them), so an old run's label reads as it did.
-LABEL_ORDER = ("reading", "matching", "gate_final", "step_weight", "explorer", "top_k",
-               "max_steps", "seed", "confidence", "answer_at", "refusal_retries",
-               "stop_clearance_m", "prompts", "distinct_views", "exploration", "answer",
-               "answer_every_step", "answer_probability", "token_answer", "gate", "steering",
-               "z_th", "min_step", "early_stop", "sigma_eps", "rule", "sigma_floor", "sim_abs",
-               "z_gated")
-
-
-def _label_rank(key: str) -> int:
-    return LABEL_ORDER.index(key) if key in LABEL_ORDER else len(LABEL_ORDER)
-
-
-def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (), *,
-                   preset: str | None = None, baseline: Mapping[str, Any] | None = None) -> str:
-    """``method`` plus the settings in ``flat`` (``settings``) that differ from ``baseline``,
-    the run's named configuration ``preset``'s, leaving out ``skip`` (an ablation table names
-    its own variable). ``baseline`` None (a format-1 run): against today's defaults, named
-    "paper configuration" where it is the paper's."""
-    parts = [method]
-    skipped = set(skip) | METHOD_SETS.get(method, set())
-    if flat.get("steering") == "none" and flat.get("gate") == "none":
-        skipped |= TARGET_SETTINGS  # nothing reads the target: these cannot act
-    if method in AGENTLESS_METHODS:
-        against: Iterable[tuple[str, Any]] = ()
-    elif baseline is not None:
-        parts += [p for p in [_preset_label(method, preset)] if p]
-        against = baseline.items()
-    else:
-        if _is_paper_configuration(flat):
-            parts.append("paper configuration")
-            skipped |= {k for k, _ in _paper_settings()}
-        against = _default_settings()
-    for key, default in sorted(against, key=lambda kv: _label_rank(kv[0])):
-        if key in flat and key not in skipped and flat[key] != default:
-            if key == "early_stop":
-                parts.append("no early stop" if not flat[key] else "early stop")
-            else:
-                parts.append(f"{LABEL_NAMES.get(key, key)}={_fmt_setting(flat[key])}")
-    if flat.get("closed_set"):
-        parts.append("closed-set")
-    if flat.get("noise") not in (None, "none"):  # a robot's imperfections in the houses
-        parts.append(f"noise={flat['noise']}")
-    return " ".join(parts)
 
 
 # Back-end labels as earlier runs recorded them, and as they read now.
@@ -391,7 +208,7 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
     # A run in which no episode took a step (the Blind LLM) has no average steps, not 0.
     explored = any((r.get("steps") or 0) > 0 or r.get("stop_reason") is not None for r in done)
     ratios = [r["steps"] / r["oracle_steps"] for r in done
-              if _is_number(r.get("steps")) and _is_number(r.get("oracle_steps")) and r["oracle_steps"] > 0]
+              if is_number(r.get("steps")) and is_number(r.get("oracle_steps")) and r["oracle_steps"] > 0]
     usage = [r.get("usage") or {} for r in done]
     calls = sum(u.get("calls") or 0 for u in usage)
     judges = [r["judge"].get("judge") for r in done if isinstance(r.get("judge"), Mapping)]
@@ -399,13 +216,13 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
     backends["judge"] = _distinct(judges) or _distinct([manifest.get("judge")])
     if n_rule:
         backends["judge"] = ["rule", *backends["judge"]]
-    finished = [float(r["finished"]) for r in rows if _is_number(r.get("finished"))]
+    finished = [float(r["finished"]) for r in rows if is_number(r.get("finished"))]
     planned = manifest.get("questions")
     known = [r for r in done if isinstance(r.get("evidence_in_top_k"), bool)]
-    seen = [r for r in known if _is_number(r.get("evidence_first_seen_step"))]
+    seen = [r for r in known if is_number(r.get("evidence_first_seen_step"))]
     seen_ratios = [r["evidence_first_seen_step"] / r["oracle_steps"] for r in seen
-                   if _is_number(r.get("oracle_steps")) and r["oracle_steps"] > 0]
-    refusing = [r for r in done if _is_number(r.get("refused_moves")) and _is_number(r.get("steps"))]
+                   if is_number(r.get("oracle_steps")) and r["oracle_steps"] > 0]
+    refusing = [r for r in done if is_number(r.get("refused_moves")) and is_number(r.get("steps"))]
     taken = sum(r["steps"] for r in refusing)
     kind, accuracy_values = (("rule", rule_values) if n_rule else ("choice", choice_values)
                              if n_choice else ("llm-match", values) if scored else ("", []))
@@ -452,37 +269,8 @@ def summarise(manifest: Mapping[str, Any], rows: Sequence[Mapping[str, Any]], *,
                          if explored else math.nan),
         episode_accuracy=dict(zip(ids, accuracy_values)),
         episode_steps={str(r.get("id")): float(r["steps"]) for r in done
-                       if explored and _is_number(r.get("steps"))},
+                       if explored and is_number(r.get("steps"))},
     )
-
-
-@dataclass(frozen=True)
-class PairedDifference:
-    """``run`` minus ``reference`` on the episodes both have: accuracy (points, over the ids both
-    runs recorded, graded by the judge both share) and steps (over the ids both finished with
-    steps), each with its paired bootstrap interval; NaN where the runs share nothing to compare."""
-
-    reference: str
-    judge: str
-    n: int
-    accuracy: float
-    accuracy_ci: tuple[float, float]
-    n_steps: int
-    steps: float
-    steps_ci: tuple[float, float]
-
-
-def paired(run: RunSummary, reference: RunSummary, reference_label: str = "") -> PairedDifference:
-    """Paired differences of ``run`` against ``reference`` over the questions both answered,
-    matched by episode id: the per-question differences, their mean and its bootstrap interval."""
-    judge = run.accuracy_judge if run.accuracy_judge == reference.accuracy_judge else ""
-    ids = [k for k in run.episode_accuracy if k in reference.episode_accuracy] if judge else []
-    accuracy = [run.episode_accuracy[k] - reference.episode_accuracy[k] for k in ids]
-    both = [k for k in run.episode_steps if k in reference.episode_steps]
-    steps = [run.episode_steps[k] - reference.episode_steps[k] for k in both]
-    return PairedDifference(reference=reference_label or reference.label, judge=judge, n=len(ids),
-                            accuracy=mean(accuracy), accuracy_ci=mean_interval(accuracy),
-                            n_steps=len(both), steps=mean(steps), steps_ci=mean_interval(steps))
 
 
 def _json_number(value: Any) -> Any:
@@ -506,50 +294,3 @@ def summary_record(s: RunSummary, difference: PairedDifference | None = None) ->
     if difference is not None:
         record["paired"] = asdict(difference)
     return _json_number(record)
-
-
-def ablations(summaries: Sequence[RunSummary], key: str) -> list[list[RunSummary]]:
-    """Groups of at least two runs of one method on one dataset whose settings differ only in
-    ``key`` (e.g. "z_th", "top_k"), each sorted by that value: the paper's Tables II and III."""
-    groups: dict[tuple[Any, ...], list[RunSummary]] = {}
-    for s in summaries:
-        if key not in s.settings:
-            continue
-        rest = tuple(sorted((k, repr(v)) for k, v in s.settings.items()
-                            if k != key and k not in NEUTRAL_SETTINGS))
-        groups.setdefault((s.dataset, s.method, rest), []).append(s)
-    return [sorted(g, key=lambda s: _order(s.settings[key])) for g in groups.values()
-            if len({repr(s.settings[key]) for s in g}) > 1]
-
-
-def _order(value: Any) -> tuple[int, float, str]:
-    """Numbers first, ascending; anything else (None: the default budget) after, by name."""
-    return (0, float(value), "") if _is_number(value) else (1, 0.0, str(value))
-
-
-def distinct_labels(summaries: Sequence[RunSummary]) -> list[str]:
-    """Each run's label, made unique where two runs share one: first by the back-ends that tell
-    them apart (VLM, perception, sightings, relevancy), then by the folder they came from."""
-    out = [s.label for s in summaries]
-    for keys in (("vlm", "perception", "sightings", "relevancy", "judge"), ("source",)):
-        counts = Counter(out)
-        for i, s in enumerate(summaries):
-            if counts[out[i]] > 1:
-                same = [t for t in summaries if t.label == s.label]
-                extra = [_shown(k, _lookup(s, k)) for k in keys
-                         if len({str(_lookup(t, k)) for t in same}) > 1]
-                if extra:
-                    out[i] = f"{out[i]} ({', '.join(extra)})"
-    return out
-
-
-def _shown(key: str, value: Any) -> str:
-    """A back-end that tells two runs apart, as their labels say it: the judge as "judge X", or
-    "rule judge only" where the run had no LLM judge; another missing one as "no KEY"."""
-    if key == "judge":
-        return f"judge {value}" if value else "rule judge only"
-    return f"no {key}" if value is None else str(value)
-
-
-def _lookup(s: RunSummary, key: str) -> Any:
-    return s.source if key == "source" else s.settings.get(key)

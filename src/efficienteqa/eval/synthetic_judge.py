@@ -28,7 +28,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from efficienteqa.eval.judge import MISSING_ANSWER, Judgement, score_value, trim_response
+from efficienteqa.eval.judge import MISSING_ANSWER, Judgement, score_value
+from efficienteqa.eval.judge_parse import trim_response
 from efficienteqa.eval.llm_match_rules import (
     MAX_SCORE,
     MIN_SCORE,

@@ -37,7 +37,9 @@ from pathlib import Path
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.ablation_tables import ablation_blocks
+from efficienteqa.eval.compare import distinct_labels, paired
 from efficienteqa.eval.records import read_run
+from efficienteqa.eval.run_labels import AGENTLESS_METHODS
 from efficienteqa.eval.run_tables import (
     SEMANTIC_SENSOR,
     Figure,
@@ -56,15 +58,8 @@ from efficienteqa.eval.run_tables import (
     table_one,
     utc_date,
 )
-from efficienteqa.eval.summary import (
-    AGENTLESS_METHODS,
-    PairedDifference,
-    RunSummary,
-    distinct_labels,
-    paired,
-    summarise,
-    summary_record,
-)
+from efficienteqa.eval.stats import PairedDifference
+from efficienteqa.eval.summary import RunSummary, summarise, summary_record
 from efficienteqa.redact import redact_urls, redacted
 from efficienteqa.report.episode import episode_lines
 
