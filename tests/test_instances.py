@@ -137,7 +137,7 @@ class _Perception:
 
     def __init__(self, with_instances: bool = True):
         from efficienteqa.envs.base import ObjectLabel
-        from efficienteqa.perception.semantic import FrameDescription, VisibleObject
+        from efficienteqa.perception.visible import FrameDescription, VisibleObject
 
         def told(category: str, iid: int) -> VisibleObject:
             return VisibleObject(iid, ObjectLabel(category, "brown", None, None), 5000,
