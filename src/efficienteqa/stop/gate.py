@@ -23,7 +23,7 @@ pixels, as on a view that shows the book. The gate asks whether the frame answer
     Such a frame answers outright (``Verdict.final``): with ``AgentConfig.gate_final`` it stops
     the robot without waiting for a relevancy outlier, which these frames never make (every
     view of the table and a chair scores the same Sim); the direct answer is told the map's
-    count (``answer.calls.count_note``);
+    count (``answer.views.count_note``);
   - state, colour, location and existence questions: the object; for a door question that
     names two rooms, a door the text places between them (or, closed, in a wall of one of
     them: no frame shows a closed door's far side), not any door. A question whose target the
