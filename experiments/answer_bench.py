@@ -18,8 +18,8 @@ Variants (``--variant``):
 - ``token``: ``RagAnswerer(confidence="token")``: one greedy answer to ``answer_token.txt``,
   confidence its token probability (the white-box baseline's answer);
 - ``direct``: the agent's default answer (``--answer direct``): the same with a one-line hint
-  for the question's form (``answer.calls.question_hint``), reading the views cut to what the
-  question names (``answer.calls.focus_views``).
+  for the question's form (``answer.prompting.question_hint``), reading the views cut to what the
+  question names (``answer.views.focus_views``).
 
 Graded by the rule judge. Per question a JSONL row is cached in ``--out`` (runs resume).
 

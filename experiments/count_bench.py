@@ -3,9 +3,9 @@ count the direct answer is told, without a language model.
 
 Each count question of the given houses is walked by the default agent with a stub answer
 model (no model call is made for the walk); the answer prompt it would send is read back: the
-count its note states ("... the answer is N.", ``answer.calls.count_note``: the one focused
+count its note states ("... the answer is N.", ``answer.views.count_note``: the one focused
 view's, or the instance map's where they differ) and the count of the question's object in its
-one focused view (``answer.calls.parse_entry``), each compared with the reference. First sight
+one focused view (``answer.views.parse_entry``), each compared with the reference. First sight
 is ``evidence_first_seen_step`` (every chair of the group in view, the oracle's rule).
 
     python -m experiments.count_bench --seeds training
@@ -26,7 +26,7 @@ import tempfile
 from pathlib import Path
 
 from efficienteqa.agent import AgentConfig
-from efficienteqa.answer.calls import parse_entry
+from efficienteqa.answer.views import parse_entry
 from efficienteqa.ask import ask
 from efficienteqa.eval.synthetic_judge import rule_judgement
 from efficienteqa.models.backends import build_chat_model

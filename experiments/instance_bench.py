@@ -53,13 +53,9 @@ from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping import instances as instance_map
 from efficienteqa.mapping.instances import Region
 from efficienteqa.perception.base import Sightings
-from efficienteqa.perception.semantic import (
-    GLIMPSE_PIXELS,
-    REFERENCE_AREA_PX,
-    FrameDescription,
-    SemanticPerception,
-    visible_objects,
-)
+from efficienteqa.perception.regions import GLIMPSE_PIXELS
+from efficienteqa.perception.semantic import SemanticPerception
+from efficienteqa.perception.visible import REFERENCE_AREA_PX, FrameDescription, visible_objects
 from efficienteqa.question import parse_question
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions

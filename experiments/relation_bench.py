@@ -6,7 +6,7 @@ item stands on (``PlacedObject.support_id``, never read by the perception); ever
 whose two objects the text lists but does not relate is counted as missed. Rows are by the
 item's pixel count (at 640x480), so the gate's item-size threshold can be chosen by measurement:
 the gate passes what the text says, and the text lists objects from
-``perception.semantic.REFERENCE_MIN_PIXELS``.
+``perception.visible.REFERENCE_MIN_PIXELS``.
 
     python -m experiments.relation_bench --seeds training --poses 12
 

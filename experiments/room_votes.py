@@ -107,8 +107,8 @@ def true_floor(obs: Any, truth: Any) -> tuple[np.ndarray, list[str]]:
     """World xy and true room type of the true floor pixels, every 4th pixel each way (as
     ``evaluate._score_floor`` reads them); floor of no room is left out."""
     from efficienteqa.geometry import backproject
+    from efficienteqa.perception.floor import FLOOR_TOLERANCE_M
     from efficienteqa.perception.pixels.dataset import room_type_of
-    from efficienteqa.perception.semantic import FLOOR_TOLERANCE_M
 
     k = 4
     points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[::k, ::k]

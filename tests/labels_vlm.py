@@ -25,14 +25,10 @@ from efficienteqa.geometry import backproject
 from efficienteqa.models.base import Capabilities, ChatResponse, Message, Usage
 from efficienteqa.observation import Observation
 from efficienteqa.perception.base import Perception, Sightings
-from efficienteqa.perception.semantic import (
-    GLIMPSE_PIXELS,
-    REFERENCE_AREA_PX,
-    floor_view,
-    scaled_min_pixels,
-    visible_objects,
-)
+from efficienteqa.perception.floor import floor_view
+from efficienteqa.perception.regions import GLIMPSE_PIXELS
 from efficienteqa.perception.sightings import BOX_SCALE, ModelSightings
+from efficienteqa.perception.visible import REFERENCE_AREA_PX, scaled_min_pixels, visible_objects
 from efficienteqa.question import ROOMS, Target, names
 
 

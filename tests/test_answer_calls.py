@@ -9,15 +9,9 @@ import numpy as np
 import pytest
 
 from efficienteqa.answer.blind import blind_answer
-from efficienteqa.answer.calls import (
-    absence_note,
-    answer_example,
-    answer_token_probability,
-    answer_with_confidence,
-    count_note,
-    focus_views,
-    question_hint,
-)
+from efficienteqa.answer.calls import answer_token_probability, answer_with_confidence
+from efficienteqa.answer.prompting import answer_example, question_hint
+from efficienteqa.answer.views import absence_note, count_note, focus_views
 from efficienteqa.models.base import TokenLogprob
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.vc.grouping import LLMGrouper, RuleGrouper
@@ -452,7 +446,7 @@ def test_the_answer_reads_the_agents_aliases():
 
 
 def test_images_are_counted_in_words_the_prompt_can_say():
-    from efficienteqa.answer.calls import evidence_text
+    from efficienteqa.answer.prompting import evidence_text
 
     one = np.zeros((4, 4, 3), np.uint8)
     assert evidence_text([one])[0] == "the attached image"

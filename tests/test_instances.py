@@ -137,7 +137,7 @@ class _Perception:
 
     def __init__(self, with_instances: bool = True):
         from efficienteqa.envs.base import ObjectLabel
-        from efficienteqa.perception.semantic import FrameDescription, VisibleObject
+        from efficienteqa.perception.visible import FrameDescription, VisibleObject
 
         def told(category: str, iid: int) -> VisibleObject:
             return VisibleObject(iid, ObjectLabel(category, "brown", None, None), 5000,
@@ -196,7 +196,7 @@ def test_the_count_gate_counts_the_instances_so_a_chair_cut_in_two_is_one_member
 
 
 def test_the_answer_is_told_the_instance_maps_count():
-    from efficienteqa.answer.calls import count_note
+    from efficienteqa.answer.views import count_note
 
     q = "How many chairs are around the table in the dining room?"
     view = "You are in the dining room. Visible: three brown chairs ahead, 1.2-1.6 m; a table."

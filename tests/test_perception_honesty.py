@@ -21,7 +21,8 @@ from conftest import needs_egl
 from efficienteqa.envs.synthetic.house import House
 from efficienteqa.geometry import CameraSpec, Pose2D
 from efficienteqa.observation import Observation, PromptPoint
-from efficienteqa.perception.semantic import NoiseConfig, SemanticPerception
+from efficienteqa.perception.semantic import SemanticPerception
+from efficienteqa.perception.visible import NoiseConfig
 
 HOUSES = (2, 4, 6, 7)  # each has closed doors as well as open ones
 POSES_PER_CAMERA = 12

@@ -159,7 +159,7 @@ def test_a_tagged_object_is_counted_in_its_slice(env_seed3):
     """score_frame puts a recoloured object in view into the "recoloured" slice too."""
     from efficienteqa.perception.pixels.backend import PixelPerception
     from efficienteqa.perception.pixels.evaluate import RECOLOURED, Scores, score_frame
-    from efficienteqa.perception.semantic import visible_objects
+    from efficienteqa.perception.visible import visible_objects
 
     obs = env_seed3.observe()
     truth = env_seed3.scene_labels()

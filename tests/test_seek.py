@@ -16,7 +16,7 @@ from efficienteqa.explore.sfe import FrontierExplorer
 from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.mapping.grid import GridSpec
 from efficienteqa.perception.base import Sighting, Sightings
-from efficienteqa.perception.semantic import FrameDescription, VisibleObject
+from efficienteqa.perception.visible import FrameDescription, VisibleObject
 from efficienteqa.question import Target, names, parse_question, singular
 from efficienteqa.stop.gate import RulesGate
 from efficienteqa.stop.rules import RelevancyStopper, StopConfig

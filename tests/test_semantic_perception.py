@@ -22,12 +22,8 @@ from efficienteqa.perception import (
     describe_directions,
     describe_frame,
 )
-from efficienteqa.perception.semantic import (
-    MAX_OBJECTS,
-    SemanticPerception,
-    bearing_words,
-    scaled_min_pixels,
-)
+from efficienteqa.perception.semantic import MAX_OBJECTS, SemanticPerception
+from efficienteqa.perception.visible import bearing_words, scaled_min_pixels
 
 CAMERA = CameraSpec(width=64, height=48, hfov_deg=90.0, height_m=1.0, pitch_deg=0.0)
 POSE = Pose2D(1.0, 1.0, 0.0)

@@ -8,7 +8,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from efficienteqa.answer.calls import PROMPTS, answer_example, vc_answer
+from efficienteqa.answer.calls import vc_answer
+from efficienteqa.answer.prompting import PROMPTS, answer_example
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.vc.grouping import Grouper

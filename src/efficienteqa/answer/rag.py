@@ -136,7 +136,7 @@ class RagAnswerer:
         problems say so: a capped server would refuse the whole request. ``target``: the
         agent's reading of the question (with its aliases), for the direct answer's notes;
         ``counted``: a count question's count from the episode's instance map, which the
-        direct answer is told (``answer.calls.count_note``)."""
+        direct answer is told (``answer.views.count_note``)."""
         evidence, cut = cut_to_cap(evidence, getattr(self.model.capabilities, "max_images", None))
         result = self._answer(question, evidence, target, counted)
         return replace(result, problems=[cut, *result.problems]) if cut else result

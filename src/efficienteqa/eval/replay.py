@@ -19,7 +19,7 @@ episode: the one that the rule would have stopped is its prefix up to the stop s
   stack's perception describes it as the agent did. Checked: on a run of the synthetic split
   (``efficienteqa eval --eval.method frontier-only --eval.dataset synthetic --eval.limit 3
   --stop.no-early-stop``)
-  the re-observed descriptions of the retrieved steps, numbered as ``answer.calls.evidence_text``
+  the re-observed descriptions of the retrieved steps, numbered as ``answer.prompting.evidence_text``
   numbers them, are exactly the evidence of the answer prompt stored in ``model.exchanges``
   (``answer_prompt_matches`` checks one episode; the benchmark checks every episode it replays).
 
@@ -32,8 +32,9 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Generic, TypeVar
 
-from efficienteqa.answer.calls import evidence_text, focus_views
+from efficienteqa.answer.prompting import evidence_text
 from efficienteqa.answer.rag import Ranked, TopK, View
+from efficienteqa.answer.views import focus_views
 from efficienteqa.geometry import Pose2D
 from efficienteqa.stop.rules import RelevancyStopper, StopCheck, StopConfig
 

@@ -10,7 +10,7 @@ pixels, as on a view that shows the book. The gate asks whether the frame answer
   frame names one:
   - "What is on the X?": something the description says stands on or in X
     (``VisibleObject.support_id``, the one relation the frame's text states, see
-    ``perception.semantic``), so the gate passes exactly what the model is told, at the text's
+    ``perception.supports``), so the gate passes exactly what the model is told, at the text's
     own size threshold (``REFERENCE_MIN_PIXELS``: relations are as right at 150-250 px as above,
     ``experiments/relation_bench.py`` on training houses 0-20);
   - count questions: the object and its support, seen from inside the named room, the support
@@ -23,7 +23,7 @@ pixels, as on a view that shows the book. The gate asks whether the frame answer
     Such a frame answers outright (``Verdict.final``): with ``AgentConfig.gate_final`` it stops
     the robot without waiting for a relevancy outlier, which these frames never make (every
     view of the table and a chair scores the same Sim); the direct answer is told the map's
-    count (``answer.calls.count_note``);
+    count (``answer.views.count_note``);
   - state, colour, location and existence questions: the object; for a door question that
     names two rooms, a door the text places between them (or, closed, in a wall of one of
     them: no frame shows a closed door's far side), not any door. A question whose target the
@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from efficienteqa.mapping.instances import FrameInstances, InstanceMap
     from efficienteqa.observation import Observation
     from efficienteqa.perception.base import Sightings
-    from efficienteqa.perception.semantic import FrameDescription, VisibleObject
+    from efficienteqa.perception.visible import FrameDescription, VisibleObject
     from efficienteqa.relevancy.vlm_match import VLMMatchScorer
 
 # "auto": rules where the perception describes objects (the semantic sensor), sightings where it

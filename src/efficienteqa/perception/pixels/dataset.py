@@ -54,9 +54,9 @@ from efficienteqa.envs.synthetic.layout import ROOM_PROGRAM, SECOND_NAMES
 from efficienteqa.envs.synthetic.vocabulary import SURFACE_CATEGORIES, VOCABULARY
 from efficienteqa.errors import EfficientEQAError, first_line
 from efficienteqa.geometry import Pose2D, backproject
+from efficienteqa.perception.floor import FLOOR_TOLERANCE_M
 from efficienteqa.perception.pixels.net import IGNORE, VOID, WALL, Vocabulary, half_size
 from efficienteqa.perception.pixels.segment import FLOOR_PREFIX
-from efficienteqa.perception.semantic import FLOOR_TOLERANCE_M
 
 PERCEPTION_SEEDS = range(3000, 4000)  # every house perception may train or tune on
 TRAIN_SEEDS = range(3000, 3900)

@@ -36,13 +36,10 @@ from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import backproject
 from efficienteqa.observation import Observation
+from efficienteqa.perception.floor import FLOOR_TOLERANCE_M
 from efficienteqa.perception.pixels.backend import PixelPerception
 from efficienteqa.perception.pixels.dataset import HELDOUT_CATALOGUE, TRAIN_SEEDS, room_type_of
-from efficienteqa.perception.semantic import (
-    FLOOR_TOLERANCE_M,
-    VisibleObject,
-    visible_objects,
-)
+from efficienteqa.perception.visible import VisibleObject, visible_objects
 
 ORACLE_PIXELS = 250  # at 640x480: the oracle's "in view" (an evidence object this large)
 COVER = 0.5  # a true object is found when its category's predicted pixels cover this share

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-from efficienteqa.perception.semantic import ROOM_CELL_M
+from efficienteqa.perception.floor import ROOM_CELL_M
 
 PRIOR = Path(__file__).resolve().parent / "weights" / "room_prior.json"
 # Chosen on the agent's walks in training houses 3000-3004 and validation houses 3900-3909 (2

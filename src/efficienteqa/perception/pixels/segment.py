@@ -32,6 +32,7 @@ from scipy.spatial import cKDTree
 
 from efficienteqa.envs.base import DoorSides, ObjectLabel
 from efficienteqa.geometry import backproject
+from efficienteqa.perception.floor import FLOOR_TOLERANCE_M, ROOM_CELL_M  # as the describer
 from efficienteqa.perception.pixels.fusion import FUSED_MIN, ObjectEvidence, cell_keys
 from efficienteqa.perception.pixels.rooms import (
     OBJECT_CONFIDENCE,
@@ -40,7 +41,6 @@ from efficienteqa.perception.pixels.rooms import (
     RoomVotes,
     Seen,
 )
-from efficienteqa.perception.semantic import FLOOR_TOLERANCE_M, ROOM_CELL_M  # as the describer
 
 FLOOR_PREFIX = "floor:"  # the network's floor categories: "floor:<room type>"
 ROOM_REACH_M = 1.0  # a point's room: the predicted floor within this distance

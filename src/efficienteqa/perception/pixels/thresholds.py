@@ -37,7 +37,7 @@ from efficienteqa.perception.pixels.segment import (
     regions_of,
     scaled_intrinsics,
 )
-from efficienteqa.perception.semantic import scaled_min_pixels, visible_objects
+from efficienteqa.perception.visible import scaled_min_pixels, visible_objects
 
 GRID = tuple(round(0.05 * k, 2) for k in range(4, 19))  # 0.2 ... 0.9, the thresholds tried
 MIN_OBJECTS = 8  # fewer objects of a category in view: its threshold stays MIN_CONFIDENCE
