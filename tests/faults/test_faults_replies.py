@@ -4,7 +4,7 @@ judge's cache, capabilities files, secrets (``efficienteqa config``, a password 
 ``--config``, the API key), question files, and the on-demand local model server.
 
 One rule for model replies: a reply of any size or shape is a recorded problem and "no
-sighting" or "no grade", in bounded time (``vc.parse.json_reply``: no number that is not
+sighting" or "no grade", in bounded time (``vc.json_reply.json_reply``: no number that is not
 finite, bounded depth, values and length; ``sightings.MAX_ENTRIES``; ASCII marks). One rule
 for question files: a line that cannot be run is one line naming the file and the line, before
 any episode. Most trials run ``efficienteqa`` in this process against the test server
@@ -111,7 +111,7 @@ def test_a_non_finite_box_over_images_is_a_problem_too(cli, vlm, tmp_path):
 def test_the_reply_parser_refuses_what_is_unbounded_or_not_finite_in_bounded_time():
     """``json_reply``, shared by the sighting call and ``--explore.reading model``: each reply
     is refused whole, with why, in well under a second; a reply within the bounds is read."""
-    from efficienteqa.vc.parse import MAX_JSON_DEPTH, MAX_JSON_VALUES, json_reply
+    from efficienteqa.vc.json_reply import MAX_JSON_DEPTH, MAX_JSON_VALUES, json_reply
 
     bad = {
         '{"item": NaN}': "not finite (NaN)",

@@ -27,6 +27,7 @@ from efficienteqa.models.base import ChatModel, ChatResponse, Message
 from efficienteqa.question import Target, parse_question, singular
 from efficienteqa.vc.grouping import Grouper, argmax, group_answers, normalise
 from efficienteqa.vc.logprobs import require_logprobs
+from efficienteqa.vc.numbers import to_float
 from efficienteqa.vc.parse import (
     AnswerClass,
     AnswerResult,
@@ -34,7 +35,6 @@ from efficienteqa.vc.parse import (
     M,
     clean_answer,
     parse_candidates,
-    to_float,
 )
 from efficienteqa.vc.prompts import load_prompt
 from efficienteqa.vc.usage import usage_of
