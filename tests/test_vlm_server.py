@@ -16,7 +16,8 @@ from PIL import Image
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.backends import ChatBackend, build_chat_model
 from efficienteqa.models.base import Message
-from efficienteqa.models.client import RequestRejected, encode_image
+from efficienteqa.models.client_errors import RequestRejected
+from efficienteqa.models.images import encode_image
 from efficienteqa.vc.parse import parse_candidates, parse_letters
 from efficienteqa.vc.prompts import load_prompt
 from efficienteqa.vc.yes_no import parse_worth_exploring

@@ -670,7 +670,8 @@ def test_a_model_call_that_waits_says_which_server_it_waits_on(vlm, monkeypatch,
     ``WAIT_NOTICE_S`` says so once on stderr, names the server, and goes on waiting."""
     from efficienteqa.models import client as client_module
     from efficienteqa.models.base import Message
-    from efficienteqa.models.client import ClientConfig, OpenAIChatClient
+    from efficienteqa.models.client import OpenAIChatClient
+    from efficienteqa.models.client_config import ClientConfig
 
     monkeypatch.setattr(client_module, "WAIT_NOTICE_S", 0.4)
     slow, quick = vlm(Options(hang_s=1.0)), vlm(Options())
