@@ -37,8 +37,9 @@ from efficienteqa.vc.logprobs import (
     yes_prob_from_logprobs,
     yes_prob_or_none,
 )
-from efficienteqa.vc.parse import DEFAULT_LETTERS, DEFAULT_P_YES, M
+from efficienteqa.vc.parse import DEFAULT_LETTERS, M
 from efficienteqa.vc.prompts import load_prompt
+from efficienteqa.vc.yes_no import DEFAULT_P_YES
 
 
 class RandomDirections:

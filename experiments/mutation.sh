@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Mutation benchmark, not a CI step: mutmut mutates the stop module (stop/), the VC
-# parser (vc/parse.py), the RAG answer (answer/rag.py) and the judge (eval/judge.py), runs each
-# mutant against the fast tests that reach it ([tool.mutmut] in pyproject.toml) and prints, per
-# file, the share of mutants killed: a test failed (or timed out) with the mutation in place.
+# parsers (vc/parse.py, numbers.py, yes_no.py, json_reply.py), the RAG answer (answer/rag.py)
+# and the judge (eval/judge.py), runs each mutant against the fast tests that reach it
+# ([tool.mutmut] in pyproject.toml) and prints, per file, the share of mutants killed: a test
+# failed (or timed out) with the mutation in place.
 #
-#   experiments/mutation.sh                          # all four files
+#   experiments/mutation.sh                          # all these files
 #   experiments/mutation.sh "efficienteqa.stop.*"    # only mutants whose names match (mutmut run's patterns)
 #
 # JOBS (default 2) mutants run at once. Working files go to mutants/ (git-ignored), made afresh

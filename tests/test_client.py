@@ -29,7 +29,9 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.backends import ChatBackend, build_chat_model
 from efficienteqa.models.base import Capabilities, Message
 from efficienteqa.models.cache import ResponseCache, request_key
-from efficienteqa.models.client import ClientConfig, OpenAIChatClient, RequestRejected
+from efficienteqa.models.client import OpenAIChatClient
+from efficienteqa.models.client_config import ClientConfig
+from efficienteqa.models.client_errors import RequestRejected
 
 SECRET = "sk-test-0123456789abcdef-SECRET"
 # A short server-directed wait, so that retry tests do not sleep the SDK's 0.5-8 s backoff.

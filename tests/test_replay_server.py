@@ -14,7 +14,9 @@ import pytest
 
 from efficienteqa.models.base import Capabilities, ChatResponse, Message, TokenLogprob
 from efficienteqa.models.cache import ResponseCache, request_key
-from efficienteqa.models.client import ClientConfig, OpenAIChatClient, RequestRejected
+from efficienteqa.models.client import OpenAIChatClient
+from efficienteqa.models.client_config import ClientConfig
+from efficienteqa.models.client_errors import RequestRejected
 
 MODEL = "replay-test-model"
 SCHEMA = {"type": "object", "required": ["answer", "confidence"],

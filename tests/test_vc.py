@@ -23,15 +23,9 @@ from efficienteqa.vc.grouping import (
     normalise,
 )
 from efficienteqa.vc.logprobs import letter_probs_from_logprobs, yes_prob_from_logprobs
-from efficienteqa.vc.parse import (
-    DEFAULT_P_YES,
-    AnswerClass,
-    Candidate,
-    parse_candidates,
-    parse_letters,
-    parse_worth_exploring,
-)
+from efficienteqa.vc.parse import AnswerClass, Candidate, parse_candidates, parse_letters
 from efficienteqa.vc.prompts import load_prompt
+from efficienteqa.vc.yes_no import DEFAULT_P_YES, parse_worth_exploring
 
 # ---------------------------------------------------------------------------- fuzz
 

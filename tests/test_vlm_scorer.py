@@ -10,7 +10,7 @@ import pytest
 from efficienteqa.explore.vlm_scorer import explore_scores, explore_token_scores
 from efficienteqa.models.base import Message, TokenLogprob
 from efficienteqa.models.stub import StubChatModel
-from efficienteqa.vc.parse import DEFAULT_P_YES
+from efficienteqa.vc.yes_no import DEFAULT_P_YES
 
 VIEW = "a grey sofa ahead, 2.1 m; a wooden coffee table at 1.5 m; an open door on the right"
 DIRECTIONS = {"A": "through the open door, 4 m", "B": "past the sofa, 3 m", "C": "back left, 5 m"}

@@ -16,9 +16,11 @@ from PIL import Image
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.backends import ChatBackend, build_chat_model
 from efficienteqa.models.base import Message
-from efficienteqa.models.client import RequestRejected, encode_image
-from efficienteqa.vc.parse import parse_candidates, parse_letters, parse_worth_exploring
+from efficienteqa.models.client_errors import RequestRejected
+from efficienteqa.models.images import encode_image
+from efficienteqa.vc.parse import parse_candidates, parse_letters
 from efficienteqa.vc.prompts import load_prompt
+from efficienteqa.vc.yes_no import parse_worth_exploring
 from vlm_server import BROKEN, STYLES, check_image, classify, servers, tokens_of
 
 SECRET = "sk-test-vlm-server-SECRET-0123"

@@ -15,7 +15,7 @@ from efficienteqa.explore.module import ExploreStep
 from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping.visualize import map_image
 from efficienteqa.models.base import ChatModel
-from efficienteqa.models.client import encode_image
+from efficienteqa.models.images import encode_image
 from efficienteqa.observation import Observation
 from efficienteqa.records import write_json
 from efficienteqa.relevancy.base import RelevancyScorer

@@ -33,7 +33,7 @@ from efficienteqa.models.backends import (
     read_capabilities,
 )
 from efficienteqa.models.base import ChatModel
-from efficienteqa.models.client import IMAGE_DETAILS, IMAGE_FORMATS
+from efficienteqa.models.images import IMAGE_DETAILS, IMAGE_FORMATS
 from efficienteqa.models.recording import RecordingChatModel
 from efficienteqa.perception.base import Perception
 from efficienteqa.perception.sightings import ModelSightings

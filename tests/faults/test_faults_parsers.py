@@ -14,14 +14,10 @@ import pytest
 from efficienteqa.eval.judge import score_value
 from efficienteqa.eval.judge_parse import openeqa_mark, p_yes, parse_score, trim_response
 from efficienteqa.models.base import TokenLogprob
+from efficienteqa.vc.json_reply import json_reply
 from efficienteqa.vc.logprobs import letter_probs_from_logprobs, yes_prob_from_logprobs
-from efficienteqa.vc.parse import (
-    json_reply,
-    parse_candidates,
-    parse_letters,
-    parse_worth_exploring,
-    yes_no_confidence,
-)
+from efficienteqa.vc.parse import parse_candidates, parse_letters
+from efficienteqa.vc.yes_no import parse_worth_exploring, yes_no_confidence
 from faults.harness import trial
 
 PIECES = [

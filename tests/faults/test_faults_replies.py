@@ -4,7 +4,7 @@ judge's cache, capabilities files, secrets (``efficienteqa config``, a password 
 ``--config``, the API key), question files, and the on-demand local model server.
 
 One rule for model replies: a reply of any size or shape is a recorded problem and "no
-sighting" or "no grade", in bounded time (``vc.parse.json_reply``: no number that is not
+sighting" or "no grade", in bounded time (``vc.json_reply.json_reply``: no number that is not
 finite, bounded depth, values and length; ``sightings.MAX_ENTRIES``; ASCII marks). One rule
 for question files: a line that cannot be run is one line naming the file and the line, before
 any episode. Most trials run ``efficienteqa`` in this process against the test server
@@ -111,7 +111,7 @@ def test_a_non_finite_box_over_images_is_a_problem_too(cli, vlm, tmp_path):
 def test_the_reply_parser_refuses_what_is_unbounded_or_not_finite_in_bounded_time():
     """``json_reply``, shared by the sighting call and ``--explore.reading model``: each reply
     is refused whole, with why, in well under a second; a reply within the bounds is read."""
-    from efficienteqa.vc.parse import MAX_JSON_DEPTH, MAX_JSON_VALUES, json_reply
+    from efficienteqa.vc.json_reply import MAX_JSON_DEPTH, MAX_JSON_VALUES, json_reply
 
     bad = {
         '{"item": NaN}': "not finite (NaN)",
@@ -671,7 +671,8 @@ def test_a_model_call_that_waits_says_which_server_it_waits_on(vlm, monkeypatch,
     ``WAIT_NOTICE_S`` says so once on stderr, names the server, and goes on waiting."""
     from efficienteqa.models import client as client_module
     from efficienteqa.models.base import Message
-    from efficienteqa.models.client import ClientConfig, OpenAIChatClient
+    from efficienteqa.models.client import OpenAIChatClient
+    from efficienteqa.models.client_config import ClientConfig
 
     monkeypatch.setattr(client_module, "WAIT_NOTICE_S", 0.4)
     slow, quick = vlm(Options(hang_s=1.0)), vlm(Options())

@@ -24,6 +24,7 @@ from efficienteqa.models.base import ChatModel, ChatResponse, Message
 from efficienteqa.question import Target
 from efficienteqa.vc.grouping import Grouper, argmax, group_answers, normalise
 from efficienteqa.vc.logprobs import require_logprobs
+from efficienteqa.vc.numbers import to_float
 from efficienteqa.vc.parse import (
     AnswerClass,
     AnswerResult,
@@ -31,7 +32,6 @@ from efficienteqa.vc.parse import (
     M,
     clean_answer,
     parse_candidates,
-    to_float,
 )
 from efficienteqa.vc.prompts import load_prompt
 from efficienteqa.vc.usage import usage_of

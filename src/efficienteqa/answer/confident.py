@@ -17,8 +17,8 @@ import numpy as np
 
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.vc.logprobs import yes_prob_or_none
-from efficienteqa.vc.parse import yes_no_confidence
 from efficienteqa.vc.prompts import load_prompt
+from efficienteqa.vc.yes_no import yes_no_confidence
 
 PROMPTS = "efficienteqa.answer"  # answer/prompts/confident.txt, confident_token.txt
 STEP_WEIGHTS = ("relevancy", "confident")

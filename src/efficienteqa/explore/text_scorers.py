@@ -21,7 +21,7 @@ from efficienteqa.explore.module import SemanticScore
 from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception.base import Perception
 from efficienteqa.relevancy.text import MiniLMScorer, content_words
-from efficienteqa.vc.parse import DEFAULT_P_YES
+from efficienteqa.vc.yes_no import DEFAULT_P_YES
 
 
 @dataclass(frozen=True)

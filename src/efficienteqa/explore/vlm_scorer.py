@@ -38,15 +38,10 @@ from efficienteqa.vc.logprobs import (
     yes_prob_from_logprobs,
     yes_prob_or_none,
 )
-from efficienteqa.vc.parse import (
-    DEFAULT_LETTERS,
-    DEFAULT_P_YES,
-    M,
-    parse_letters,
-    parse_worth_exploring,
-)
+from efficienteqa.vc.parse import DEFAULT_LETTERS, M, parse_letters
 from efficienteqa.vc.prompts import load_prompt
 from efficienteqa.vc.usage import usage_of
+from efficienteqa.vc.yes_no import DEFAULT_P_YES, parse_worth_exploring
 
 PROMPTS = "efficienteqa.explore"  # explore/prompts/*.txt
 

@@ -9,7 +9,8 @@ from urllib.parse import urlsplit
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import Capabilities, ChatModel
-from efficienteqa.models.client import ClientConfig, OpenAIChatClient
+from efficienteqa.models.client import OpenAIChatClient
+from efficienteqa.models.client_config import ClientConfig
 from efficienteqa.models.local.weights import DEFAULT_MODEL
 from efficienteqa.records import read_json
 from efficienteqa.redact import redact_urls

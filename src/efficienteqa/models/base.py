@@ -34,7 +34,7 @@ class Capabilities:
     ``max_images``: the most images one request may carry (None: no known cap).
     ``source``: how the flags were obtained: "declared" (configured, e.g. the local llama.cpp
     server's known ones), "probed" (asked the server this run) or "probe cache" (an earlier run's
-    probe of the same base URL and model, ``models/client.py``). ``probed``: what each probe
+    probe of the same base URL and model, ``models/probe.py``). ``probed``: what each probe
     found, e.g. ``{"logprobs": "returned" | "ignored" | "rejected", "images": "5 accepted"}``;
     empty when declared. ``to_dict()`` is the form for a run's record of its back-ends.
     """

@@ -26,7 +26,7 @@ measures what reading by a model costs against the rules, with everything else e
 Nothing of the reply is trusted: a room must be one of ``question.ROOMS``, a thing's name one of
 the target's words (or an alias of them), a box four numbers inside the frame, an item a number
 listed, a number finite. A reply with no JSON object (a refusal, chatter, a reply cut at
-``MAX_TOKENS``), or one beyond the bounds of ``vc.parse.json_reply`` (nested too deep, too many
+``MAX_TOKENS``), or one beyond the bounds of ``vc.json_reply.json_reply`` (nested too deep, too many
 values, a number that is not finite), is a problem and means "no sighting" for that step, never
 an error; of a reply's doorways and things the first ``MAX_ENTRIES`` each are read.
 """
@@ -45,7 +45,7 @@ from efficienteqa.mapping.instances import Region as MapRegion
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.perception.base import Perception, Sighting, Sightings
 from efficienteqa.question import ROOMS, Target, canonical_room, singular
-from efficienteqa.vc.parse import json_reply
+from efficienteqa.vc.json_reply import json_reply
 from efficienteqa.vc.prompts import load_prompt
 
 if TYPE_CHECKING:
@@ -196,7 +196,7 @@ def _entries(value: Any, key: str, problems: list[str]) -> list[dict[str, Any]]:
 
 def _number(value: Any) -> float | None:
     """``value`` as a float; None for anything that is no number (text, a bool). A reply's
-    numbers are finite and within a float already (``vc.parse.json_reply`` refuses others)."""
+    numbers are finite and within a float already (``vc.json_reply.json_reply`` refuses others)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return None
     return float(value)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.question import ROOMS, canonical_room
-from efficienteqa.vc.parse import json_reply
+from efficienteqa.vc.json_reply import json_reply
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.reading"  # reading/prompts/near.txt

@@ -30,7 +30,7 @@ from efficienteqa.question import (
     singular,
     thing_name,
 )
-from efficienteqa.vc.parse import json_reply
+from efficienteqa.vc.json_reply import json_reply
 from efficienteqa.vc.prompts import load_prompt
 
 PROMPTS = "efficienteqa.reading"  # reading/prompts/read.txt

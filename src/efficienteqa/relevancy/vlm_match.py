@@ -20,8 +20,8 @@ import numpy as np
 
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.relevancy.base import Modality, check_question, observation_of
-from efficienteqa.vc.parse import yes_no_confidence
 from efficienteqa.vc.prompts import load_prompt
+from efficienteqa.vc.yes_no import yes_no_confidence
 
 PROMPTS = "efficienteqa.relevancy"  # relevancy/prompts/match.txt
 # Room for "yes 80" after a short preamble ("Sure! The answer: yes 80"); a reply cut here is

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from efficienteqa.explore.module import ExploreStep
-from efficienteqa.models.client import encode_image
+from efficienteqa.models.images import encode_image
 from efficienteqa.models.recording import image_digest
 from efficienteqa.observation import Observation
 from efficienteqa.perception.image import draw_prompts

@@ -138,7 +138,7 @@ def _target_value(value: object) -> str:
 def render_report(record: Mapping[str, Any], map_url: str, frames: Mapping[int, str],
                   descriptions: Mapping[int, str] | None = None) -> str:
     """The page for ``record`` (an ``episode.json`` dict). ``map_url`` and ``frames`` (step ->
-    frame as captured) are ``data:`` URLs (``models.client.encode_image``), so the page needs no
+    frame as captured) are ``data:`` URLs (``models.images.encode_image``), so the page needs no
     files. ``frames`` from ``report.frames.FrameCollector`` (a ``StepFrames``) also holds the
     lettered frames (``marked``) and the thumbnails of the images model calls were sent, by
     reference (``sent``); a plain mapping shows neither."""

@@ -8,7 +8,8 @@ from collections.abc import Mapping, Sequence
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.base import ChatModel, TokenLogprob
-from efficienteqa.vc.parse import DEFAULT_P_YES, to_float
+from efficienteqa.vc.numbers import to_float
+from efficienteqa.vc.yes_no import DEFAULT_P_YES
 
 TOP_LOGPROBS = 10  # alternatives asked for per generated token
 

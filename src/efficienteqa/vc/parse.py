@@ -1,4 +1,9 @@
-"""Parsing verbalized confidence: replies in, candidates and repairs out; never raises."""
+"""Parsing verbalized confidence: replies in, candidates and repairs out; never raises.
+
+Lists of answers (``parse_candidates``) and of direction letters (``parse_letters``) with their
+confidences. A yes/no with its confidence is read by ``yes_no``, a bounded JSON object by
+``json_reply``; the number reading they share is in ``numbers``.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +14,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from efficienteqa.vc.numbers import ANY_NUM, KEYWORD, NUM, PCT, find_confidence, prepare, to_float
+
 M = 3  # answers asked for per reply (the paper's M)
 DEFAULT_LETTERS = ("A", "B", "C")
 # The letters of a closed-set question's choices (HM-EQA has four; up to eight are read).
@@ -17,38 +24,13 @@ CHOICE_LETTERS = "ABCDEFGH"
 # MISSING_CONFIDENCE: with one answer asked for (M = 1, ExploreEQA's per-step answer, where the
 # value is used as it is) a reply without a number is a coin flip, not certainty.
 MISSING_CONFIDENCE = 50.0
-# "worth exploring" with no yes/no at all: P(yes) = 0.5; a bare "yes"/"no" without a number
-# is read as 75 % sure.
-DEFAULT_P_YES = 0.5
-BARE_YES_NO_CONFIDENCE = 0.75
-MAX_REPLY_CHARS = 20_000  # longer replies are cut
-MAX_LINE_CHARS = 400  # and so are longer lines (no answer line is that long)
 
-_NUM = (r"(?P<num>[-+]?(?:[0-9]+(?:\.[0-9]+)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
-        r"|[-+]?(?<![A-Za-z])(?:nan|inf(?:inity)?)(?![A-Za-z]))")
-_PCT = r"[ \t]*(?P<pct>%|percent\b|/[ \t]*100\b)?"
-_KEYWORD = re.compile(r"(?:confidence|conf|probability|prob|certainty|likelihood|score)[ \t]*"
-                      r"(?:[:=]|is|of)?[ \t]*" + _NUM + _PCT, re.I)
-_PAREN = re.compile(r"[(\[][ \t]*" + _NUM + _PCT + r"[ \t]*[)\]][\s.*]*$", re.I)
-_SEPARATED = re.compile(r"(?:[:;,|=]|\s[-–—]|[-–—](?=\s))[ \t]*" + _NUM + _PCT + r"[\s.)*]*$", re.I)
-_BARE_PCT = re.compile(r"\s" + _NUM + r"[ \t]*(?P<pct>%|percent\b)[\s.)*]*$", re.I)
-_ANY_NUM = re.compile(_NUM + _PCT, re.I)
+_PAREN = re.compile(r"[(\[][ \t]*" + NUM + PCT + r"[ \t]*[)\]][\s.*]*$", re.I)
+_SEPARATED = re.compile(r"(?:[:;,|=]|\s[-–—]|[-–—](?=\s))[ \t]*" + NUM + PCT + r"[\s.)*]*$", re.I)
+_BARE_PCT = re.compile(r"\s" + NUM + r"[ \t]*(?P<pct>%|percent\b)[\s.)*]*$", re.I)
 _ENUMERATOR = re.compile(r"^\s*(?:[-*•·>]+|\(?[0-9]{1,2}[.)]|\(?[a-z][.)]|#[0-9]+:?)(?=\s)\s*")
 _LABEL = re.compile(r"^(?:answer|option|candidate|guess|response)\s*[0-9]*\s*[:.)\-]\s*", re.I)
 _BARE_LETTER = re.compile(r"(?<![A-Za-z0-9'’])(?P<letter>[A-Z])(?![A-Za-z0-9'’])")
-# Where the confidence of a letter or of "worth exploring" is, in order of preference: after a
-# keyword ("confidence: 80"), a percentage anywhere, a number ending the part ("B - 40",
-# "yes (0.8)"), else the first number that is not a distance or a count ("3 m", "2 rooms",
-# "2nd").
-_PERCENT = re.compile(_NUM + r"[ \t]*(?P<pct>%|percent\b|/[ \t]*100\b)", re.I)
-_TRAILING = re.compile(r"(?:^|(?<=[\s:;,|=(\[\-–—]))" + _NUM + _PCT + r"[\s.,;)\]}*]*$", re.I)
-_UNIT = (r"(?:m|cm|km|ft|feet|foot|metres?|meters?|steps?|rooms?|doors?|s|secs?|seconds?|mins?"
-         r"|minutes?|degrees?|deg|°|x)(?![A-Za-z])")
-_FREE_NUM = re.compile(r"(?<![0-9.])" + _NUM + _PCT + r"(?![ \t]*" + _UNIT + r")(?!\.?[0-9])(?![A-Za-z])",
-                       re.I)
-_CONF_LINE = re.compile(r"^[ \t]*(?:(?:" + "|".join(("confidence", "conf", "probability", "prob", "certainty",
-                                                     "likelihood", "score")) + r")\b|" + _NUM + _PCT
-                        + r"[ \t.]*$)", re.I)
 # A capital letter followed by a lower-case word is the article "A" or the pronoun "I" unless
 # the word is one that follows a direction's letter ("B is best", "A and B: 50").
 _LETTER_AT = re.compile(r"(?<![A-Za-z0-9'’])(?P<letter>[A-Z])(?![A-Za-z0-9'’])(?=[ \t]+(?P<word>[a-z]+))?")
@@ -58,7 +40,6 @@ _AFTER_LETTER = frozenset((
     "probably", "likely", "maybe", "each", "both", "would", "could", "might"))
 _LEAD_SEP = re.compile(r"^[ \t]*[-–—:=]")
 _SHARED = re.compile(r"[)\]]?[ \t]*(?:[,&/+]|and|or)?[ \t]*", re.I)  # "A, B: 50 each"
-_YES_NO = re.compile(r"(?<![A-Za-z])(yes|no|true|false)(?![A-Za-z])", re.I)
 _TEXT_KEYS = ("answer", "text", "direction", "letter", "option", "choice", "name", "label")
 _CONF_KEYS = ("confidence", "conf", "probability", "prob", "score", "certainty", "likelihood", "p")
 
@@ -106,31 +87,10 @@ class _Raw:
     pct: bool = False
 
 
-def _prepare(reply: object, problems: list[str]) -> str:
-    text = reply if isinstance(reply, str) else ("" if reply is None else str(reply))
-    if len(text) > MAX_REPLY_CHARS:
-        problems.append(f"reply cut to {MAX_REPLY_CHARS} characters")
-        text = text[:MAX_REPLY_CHARS]
-    # One space per run and short lines keep every regex below linear-time.
-    lines = [re.sub(r"[^\S\n]+", " ", ln)[:MAX_LINE_CHARS] for ln in text.splitlines()]
-    return "\n".join(ln for ln in lines if not ln.lstrip().startswith("```"))
-
-
-def to_float(s: object) -> float | None:
-    if isinstance(s, bool):
-        return None
-    if isinstance(s, (int, float)):
-        return float(s)
-    try:
-        return float(str(s).strip())
-    except (ValueError, OverflowError):
-        return None
-
-
 def _split_confidence(line: str) -> _Raw:
     """The text before the confidence and the confidence of one line (``num`` None when the
     line has none, and then the text is the whole line)."""
-    hits = list(_KEYWORD.finditer(line))
+    hits = list(KEYWORD.finditer(line))
     match = hits[-1] if hits else None
     for rx in (_PAREN, _SEPARATED, _BARE_PCT):
         if match is None:
@@ -208,7 +168,7 @@ def _walk_json(obj: object, out: list[_Raw], depth: int) -> None:
             if isinstance(v, (dict, list)):
                 _walk_json(v, out, depth + 1)
             elif (isinstance(v, (int, float)) and not isinstance(v, bool)
-                  or isinstance(v, str) and _ANY_NUM.fullmatch(v.strip())) and len(str(k)) <= 60:
+                  or isinstance(v, str) and ANY_NUM.fullmatch(v.strip())) and len(str(k)) <= 60:
                 out.append(_json_raw(str(k), v))  # {"A": 60} or {"red": "60%"}
     elif isinstance(obj, list):
         for item in obj:
@@ -222,7 +182,7 @@ def _walk_json(obj: object, out: list[_Raw], depth: int) -> None:
 
 def _json_raw(text: str, conf: object) -> _Raw:
     if isinstance(conf, str):
-        m = _ANY_NUM.search(conf)
+        m = ANY_NUM.search(conf)
         return _Raw(text, to_float(m["num"]) if m else None, bool(m and m["pct"]))
     return _Raw(text, to_float(conf))
 
@@ -313,7 +273,7 @@ def parse_candidates(reply: str, m: int = M) -> ParseResult:
     """Free-form answers with confidences (0-100): ``answer; 45``, ``1. red sofa — 70%``,
     ``red (0.7)``, JSON, prose around the list. At most ``m``; never raises."""
     problems: list[str] = []
-    text = _prepare(reply, problems)
+    text = prepare(reply, problems)
     raws = _from_json(text, problems)
     if raws is None:
         raws = _from_lines(text, problems)
@@ -330,13 +290,6 @@ def _letter_of(text: str, allowed: Mapping[str, str]) -> str | None:
     return found[0] if len(set(found)) == 1 else None
 
 
-def _find_confidence(part: str) -> re.Match[str] | None:
-    """The confidence in one letter's part of a line or in the "worth exploring" answer."""
-    hits = list(_KEYWORD.finditer(part))
-    return (hits[-1] if hits else None) or _PERCENT.search(part) or _TRAILING.search(part) \
-        or _FREE_NUM.search(part)
-
-
 def _letter_parts(line: str) -> list[tuple[str, _Raw | None, str]]:
     """(letter, its confidence, the text after it) for each direction letter of ``line``; a
     letter's part runs to the next letter."""
@@ -344,7 +297,7 @@ def _letter_parts(line: str) -> list[tuple[str, _Raw | None, str]]:
     parts: list[tuple[str, _Raw | None, str]] = []
     for m, nxt in zip(found, [*found[1:], None]):
         part = line[m.end():nxt.start() if nxt else len(line)]
-        hit = _find_confidence(_LEAD_SEP.sub("", part, count=1))  # "B-60" is B: 60, not -60
+        hit = find_confidence(_LEAD_SEP.sub("", part, count=1))  # "B-60" is B: 60, not -60
         parts.append((m["letter"], _Raw(m["letter"], to_float(hit["num"]), bool(hit["pct"])) if hit else None,
                       part))
     for i in range(len(parts) - 2, -1, -1):  # "A, B: 50 each": A shares B's confidence
@@ -362,7 +315,7 @@ def parse_letters(reply: str, letters: Sequence[str] = DEFAULT_LETTERS, m: int =
     have one. Never raises."""
     problems: list[str] = []
     allowed = {str(x).strip().upper(): str(x).strip() for x in letters if str(x).strip()}
-    text = _prepare(reply, problems)
+    text = prepare(reply, problems)
     raws = _from_json(text, problems)
     if raws is None:
         parts: list[tuple[str, _Raw | None, str]] = []
@@ -379,155 +332,3 @@ def parse_letters(reply: str, letters: Sequence[str] = DEFAULT_LETTERS, m: int =
     if not raws:
         problems.append("no letters found")
     return _finish(raws, m, problems, allowed)
-
-
-# The problem that says a reply held neither a yes/no nor a confidence: nothing was read.
-NO_YES_NO = "no worth-exploring answer"
-NO_WORTH_LINE = "no 'worth exploring' line"  # a yes/no was read, from another line
-
-
-def parse_worth_exploring(reply: str) -> tuple[float, list[str]]:
-    """P(yes) in [0, 1] from ``worth exploring: yes 80`` / ``Yes (0.8)`` / ``no, 90`` (-> 0.1).
-
-    A bare yes/no reads as ``BARE_YES_NO_CONFIDENCE``; a number alone as P(yes); nothing readable
-    gives ``DEFAULT_P_YES``. Never raises."""
-    problems: list[str] = []
-    text = _prepare(reply, problems)
-    idx = text.lower().rfind("worth")
-    negated = False
-    if idx >= 0:
-        negated = bool(re.search(r"not\s*$", text[max(0, idx - 8):idx], re.I))
-        lines = text[idx + 5:].split("\n")
-        seg = lines[0]
-        for extra in lines[1:3]:
-            # look further while nothing is found, or for the confidence of a bare yes/no
-            # given on the next line ("yes" then "confidence: 80")
-            if _find_confidence(seg) or (_YES_NO.search(seg) and not _CONF_LINE.match(extra)):
-                break
-            seg += "\n" + extra
-    else:
-        seg = next((ln for ln in reversed(text.splitlines()) if _YES_NO.search(ln)), "")
-        if seg:
-            problems.append(f"{NO_WORTH_LINE}; used the last yes/no")
-    words = list(_YES_NO.finditer(seg))
-    hit = _find_confidence(seg)
-    word = None
-    if words:
-        before = [w for w in words if hit is None or w.start() < hit.start()]
-        word = (before[-1] if before else words[0])[1].lower()
-    conf = None
-    if hit:
-        value = to_float(hit["num"])
-        if value is not None and not math.isnan(value):
-            conf = value / 100.0 if hit["pct"] or value > 1.0 else value
-            if not 0.0 <= conf <= 1.0:
-                problems.append(f"worth-exploring confidence {value:g} clipped")
-                conf = min(max(conf, 0.0), 1.0)
-    if word is None and negated:
-        word = "no"
-    if word is None and conf is None:
-        problems.append(f"{NO_YES_NO}: default P(yes) = {DEFAULT_P_YES}")
-        return DEFAULT_P_YES, problems
-    if word is None:
-        problems.append("worth-exploring number without yes/no: read as P(yes)")
-        return float(conf), problems  # type: ignore[arg-type]
-    if conf is None:
-        problems.append(f"worth-exploring {word!r} without a confidence: {BARE_YES_NO_CONFIDENCE}")
-        conf = BARE_YES_NO_CONFIDENCE
-    return (conf if word in ("yes", "true") else 1.0 - conf), problems
-
-
-
-
-# A JSON reply is read in bounded time whatever its size or shape (``json_reply``): at most
-# MAX_JSON_CHARS characters (a reply that asks for one JSON object of a few fields is some
-# hundred), MAX_JSON_TRIES places where an object may start, values nested at most
-# MAX_JSON_DEPTH deep and MAX_JSON_VALUES values in all; numbers must be finite.
-MAX_JSON_CHARS = 100_000
-MAX_JSON_TRIES = 64
-MAX_JSON_DEPTH = 16
-MAX_JSON_VALUES = 2_000
-NO_JSON = "no JSON object"
-
-
-class _Refused(Exception):
-    """A JSON reply read no further: why (``json_reply``)."""
-
-
-def _constant(name: str) -> Any:
-    raise _Refused(f"a JSON number that is not finite ({name})")
-
-
-def _float(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise _Refused(f"a JSON number that is not finite ({text[:20]})")
-    return value
-
-
-def _int(text: str) -> int:
-    if len(text) > 300:  # beyond any float, and Python's int() of over 4300 digits raises
-        raise _Refused(f"a JSON number of {len(text)} digits")
-    return int(text)
-
-
-_DECODER = json.JSONDecoder(parse_float=_float, parse_int=_int, parse_constant=_constant)
-
-
-def _bounded(value: Any) -> str | None:
-    """Why ``value`` (a parsed reply) is refused: nested too deep or too many values; None when
-    it is within the bounds."""
-    stack, seen = [(value, 1)], 0
-    while stack:
-        item, depth = stack.pop()
-        seen += 1
-        if seen > MAX_JSON_VALUES:
-            return f"a JSON object of over {MAX_JSON_VALUES} values"
-        if depth > MAX_JSON_DEPTH:
-            return f"a JSON object nested over {MAX_JSON_DEPTH} deep"
-        if isinstance(item, dict):
-            stack += [(v, depth + 1) for v in item.values()]
-        elif isinstance(item, list):
-            stack += [(v, depth + 1) for v in item]
-    return None
-
-
-def json_reply(reply: str) -> tuple[dict[str, Any] | None, str]:
-    """The first JSON object in ``reply`` (a model may wrap it in prose or a code fence) and "",
-    or None and why not (``NO_JSON`` when there is none, or the first JSON value found is not
-    an object). Never raises, in time bounded whatever the reply: one longer than
-    ``MAX_JSON_CHARS``, an object nested deeper than ``MAX_JSON_DEPTH`` or of more than
-    ``MAX_JSON_VALUES`` values, or one holding a number that is not finite (``NaN``,
-    ``Infinity``, ``1e999``) is refused whole, and said so."""
-    if not isinstance(reply, str):
-        return None, NO_JSON
-    if len(reply) > MAX_JSON_CHARS:
-        return None, f"a reply of {len(reply)} characters (over {MAX_JSON_CHARS})"
-    start = reply.find("{")
-    for _ in range(MAX_JSON_TRIES):
-        if start < 0:
-            break
-        try:
-            value, _end = _DECODER.raw_decode(reply, start)
-        except _Refused as refused:
-            return None, str(refused)
-        except RecursionError:
-            return None, f"a JSON object nested over {MAX_JSON_DEPTH} deep"
-        except ValueError:
-            start = reply.find("{", start + 1)
-            continue
-        if not isinstance(value, dict):
-            return None, NO_JSON
-        beyond = _bounded(value)
-        return (None, beyond) if beyond else (value, "")
-    return None, NO_JSON
-
-
-def yes_no_confidence(reply: str) -> tuple[float, list[str]]:
-    """P(yes) of a "<yes or no> <confidence>" reply (``parse_worth_exploring`` without its
-    "worth exploring" line), and what could not be read; NaN when the reply says neither yes
-    nor no nor a number (a refusal, "N/A", prose cut short)."""
-    p_yes, problems = parse_worth_exploring(reply)
-    if any(p.startswith(NO_YES_NO) for p in problems):
-        return math.nan, problems
-    return float(p_yes), [p for p in problems if not p.startswith(NO_WORTH_LINE)]
