@@ -262,3 +262,25 @@ def test_config_marks_what_the_paper_preset_leaves_unused():
     ignored = {line.split(" = ")[0] for line in shown if "# does not act" in line}
     assert {"z_gated", "gate_final", "sigma_floor", "sim_abs", "sightings"} <= ignored
     assert not any(line.startswith("z_th = ") and "# does not act" in line for line in shown)
+
+
+def test_each_constant_says_whether_it_is_the_papers_or_the_projects():
+    """``--help-all``: the frontier explorer's constants from ExploreEQA's SFE (DESIGN 3.2) say
+    so; the project's own (the options PAPER_SFE turns off, the steering's) are beyond it."""
+    from efficienteqa.cli.options import _parameter
+    from efficienteqa.explore.settings import PAPER_SFE, PAPER_SFE_CONSTANTS
+    from efficienteqa.knobs import leaves
+    from efficienteqa.runconfig import RunConfig
+
+    def help_of(path: str) -> str:
+        leaf = next(x for x in leaves(RunConfig) if ".".join(x.path) == path)
+        parameter = _parameter(leaf)
+        assert parameter is not None
+        return str(parameter.default.help)
+
+    assert "The paper's" in help_of("explore.sfe.frontier.temp_free")
+    assert "The paper's" in help_of("explore.sfe.backoff_m")
+    for name in PAPER_SFE:  # what the paper preset turns off is the project's
+        assert name not in PAPER_SFE_CONSTANTS
+        assert "Beyond the paper" in help_of(f"explore.sfe.{name}")
+    assert "Beyond the paper" in help_of("explore.target.room_tries")

@@ -55,8 +55,7 @@ def _parameter(leaf: Leaf, alias: bool = False) -> inspect.Parameter | None:
         return None
     dotted = ".".join(part.replace("_", "-") for part in leaf.path)
     deep = len(leaf.path) > 2  # a constant an ``of=`` dict overrides
-    help_text = (leaf.help or f"The {'.'.join(leaf.path[1:])} constant.") + (
-        " Beyond the paper." if leaf.beyond or deep else "")
+    help_text = (leaf.help or f"The {'.'.join(leaf.path[1:])} constant.") + _whose(leaf, deep)
     if leaf.default is not None and not alias:
         help_text += f" (default: {_shown(leaf.default)})"
     if leaf.kind is bool:
@@ -85,6 +84,18 @@ def _help_all(ctx: click.Context, _: click.Parameter, value: bool) -> None:
             p.hidden = False  # type: ignore[attr-defined]
     typer.echo(ctx.get_help(), color=ctx.color)
     ctx.exit()
+
+
+def _whose(leaf: Leaf, deep: bool) -> str:
+    """Whose a setting is, as its help ends: the paper's where it is (the frontier explorer's
+    constants from ExploreEQA's SFE, ``PAPER_SFE_CONSTANTS``), else beyond the paper."""
+    from efficienteqa.explore.settings import PAPER_SFE_CONSTANTS
+
+    if deep and leaf.path[:2] == ("explore", "sfe"):
+        name = ".".join(leaf.path[2:])
+        return (" The paper's (ExploreEQA's SFE, DESIGN 3.2)." if name in PAPER_SFE_CONSTANTS
+                else " Beyond the paper.")
+    return " Beyond the paper." if leaf.beyond or deep else ""
 
 
 def tree_leaves(sections: Iterable[str] | None = None,

@@ -130,6 +130,18 @@ class SFEConfig:
 PAPER_SFE: dict[str, Any] = {"skip_idle": False, "approach_unreachable": False,
                              "view_gain": False, "stand_in_sight": False}
 
+# The frontier explorer's constants that are ExploreEQA's SFE, as the paper uses it (DESIGN 3.2:
+# frontier detection, the weight's rays and temperatures, the close-and-facing penalty, the
+# 1.5 m back-off and the 3 m move); every other one is the project's (``--help-all`` says which).
+PAPER_SFE_CONSTANTS = frozenset({
+    "frontier.min_unexplored_neighbours", "frontier.max_unexplored_neighbours",
+    "frontier.cluster_above_cells", "frontier.normal_window_cells", "frontier.unexplored_ray_m",
+    "frontier.free_ray_m", "frontier.value_ray_m", "frontier.temp_unexplored",
+    "frontier.temp_free", "frontier.temp_value", "frontier.temp_dir_value",
+    "frontier.distance_scale_m", "frontier.value_off_steps", "frontier.close_m",
+    "frontier.facing_deg", "frontier.close_facing_factor", "use_values", "backoff_m",
+    "max_step_m"})
+
 # The frontier explorer's named option sets: the defaults, or the paper's (every option beyond
 # DESIGN 3.2 off).
 EXPLORATIONS: dict[str, dict[str, Any]] = {"default": {}, "paper": PAPER_SFE}
