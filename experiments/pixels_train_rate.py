@@ -9,7 +9,7 @@ import time
 import numpy as np
 import torch
 
-from efficienteqa.perception.pixels.dataset import build_vocabulary
+from efficienteqa.perception.pixels.frames import build_vocabulary
 from efficienteqa.perception.pixels.net import PixelNet
 from efficienteqa.perception.pixels.train import CROP, WIDE_WIDTHS, CropSampler, losses
 

@@ -9,13 +9,9 @@ import torch
 
 from conftest import needs_egl
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.perception.pixels.dataset import (
-    build_vocabulary,
-    load_shards,
-    parse_seeds,
-    render_dataset,
-    render_house,
-)
+from efficienteqa.perception.pixels.dataset import load_shards, render_dataset
+from efficienteqa.perception.pixels.frames import build_vocabulary, render_house
+from efficienteqa.perception.pixels.houses import parse_seeds
 from efficienteqa.perception.pixels.net import (
     IGNORE,
     PixelNet,

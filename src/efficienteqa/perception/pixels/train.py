@@ -31,7 +31,8 @@ import torch.nn.functional as F
 
 from efficienteqa.envs.synthetic.vocabulary import SMALL_CATEGORIES
 from efficienteqa.errors import EfficientEQAError, first_line
-from efficienteqa.perception.pixels.dataset import VALIDATION_SEEDS, code_version, load_shards
+from efficienteqa.perception.pixels.dataset import code_version, load_shards
+from efficienteqa.perception.pixels.houses import VALIDATION_SEEDS
 from efficienteqa.perception.pixels.net import (
     IGNORE,
     VOID,
