@@ -131,8 +131,8 @@ def _frames_with_one_rare_patch(n=20):
 
 
 def test_crops_by_rarity_find_the_rare_category():
+    from efficienteqa.perception.pixels.batches import CropSampler
     from efficienteqa.perception.pixels.frames import build_vocabulary
-    from efficienteqa.perception.pixels.train import CropSampler
 
     frames, vocab = _frames_with_one_rare_patch(), build_vocabulary()
 
@@ -146,8 +146,8 @@ def test_crops_by_rarity_find_the_rare_category():
 
 
 def test_class_weights_follow_the_crops_drawn():
+    from efficienteqa.perception.pixels.batches import CropSampler, weights_of_counts
     from efficienteqa.perception.pixels.frames import build_vocabulary
-    from efficienteqa.perception.pixels.train import CropSampler, weights_of_counts
 
     frames, vocab = _frames_with_one_rare_patch(), build_vocabulary()
     sampler = CropSampler(frames, vocab, (160, 224), np.random.default_rng(0), 1.0)
