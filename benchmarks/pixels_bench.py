@@ -26,7 +26,7 @@ from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.mapping.instances import InstanceMap, Region
 from efficienteqa.perception.pixels.backend import CLOSE_READS, PixelPerception
 from efficienteqa.perception.pixels.close import CloseReads, close_read
-from efficienteqa.perception.pixels.dataset import house_poses
+from efficienteqa.perception.pixels.frames import house_poses
 from efficienteqa.perception.pixels.segment import read_frame
 from efficienteqa.perception.semantic import describe_frame
 

@@ -22,7 +22,7 @@ from PIL import Image, ImageDraw
 
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.perception.pixels.backend import PixelPerception
-from efficienteqa.perception.pixels.dataset import build_vocabulary, frame_labels, house_poses
+from efficienteqa.perception.pixels.frames import build_vocabulary, frame_labels, house_poses
 from efficienteqa.perception.pixels.net import IGNORE
 from efficienteqa.perception.semantic import SemanticPerception
 

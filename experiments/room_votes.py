@@ -34,7 +34,7 @@ TRAIN = range(3000, 3900)
 def make_prior(out: Path) -> None:
     from efficienteqa.envs.synthetic.env import catalog_for
     from efficienteqa.envs.synthetic.generate import generate_house
-    from efficienteqa.perception.pixels.dataset import room_type_of, room_types
+    from efficienteqa.perception.pixels.frames import room_type_of, room_types
 
     catalog = catalog_for("sh3d")
     pairs: list[tuple[str, str]] = []
@@ -108,7 +108,7 @@ def true_floor(obs: Any, truth: Any) -> tuple[np.ndarray, list[str]]:
     ``evaluate._score_floor`` reads them); floor of no room is left out."""
     from efficienteqa.geometry import backproject
     from efficienteqa.perception.floor import FLOOR_TOLERANCE_M
-    from efficienteqa.perception.pixels.dataset import room_type_of
+    from efficienteqa.perception.pixels.frames import room_type_of
 
     k = 4
     points = backproject(obs.depth_m, obs.intrinsics, obs.cam_to_world)[::k, ::k]
@@ -149,7 +149,7 @@ def walk_episode(env: Any, question: str, votes: bool) -> tuple[int, list[dict[s
     """One episode of the agent (see the docstring); per valid step, what ``score`` reads."""
     from efficienteqa.agent import AgentConfig
     from efficienteqa.models.stub import StubChatModel
-    from efficienteqa.perception.pixels.dataset import room_type_of
+    from efficienteqa.perception.pixels.frames import room_type_of
     from efficienteqa.stack import Stack, build_agent
     from efficienteqa.trace import StepRecord
 

@@ -13,8 +13,8 @@ from typer.testing import CliRunner
 
 from efficienteqa import cli
 from efficienteqa.datasets.synthetic import parse_seeds
-from efficienteqa.perception.pixels.dataset import TRAIN_SEEDS
 from efficienteqa.perception.pixels.evaluate import markdown_table
+from efficienteqa.perception.pixels.houses import TRAIN_SEEDS
 
 ROOT = Path(__file__).resolve().parents[1]
 PUBLISHED = [ROOT / "results" / "perception" / name for name in ("heldout.json", "walks.json")]

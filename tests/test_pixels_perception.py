@@ -10,7 +10,7 @@ from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.geometry import Pose2D
 from efficienteqa.observation import Observation, PromptPoint
 from efficienteqa.perception.pixels.backend import PixelPerception
-from efficienteqa.perception.pixels.dataset import build_vocabulary, frame_labels
+from efficienteqa.perception.pixels.frames import build_vocabulary, frame_labels
 from efficienteqa.perception.pixels.net import IGNORE, PixelNet, Vocabulary, save_weights
 from efficienteqa.perception.pixels.segment import PixelClasses, read_frame
 from efficienteqa.question import parse_question

@@ -12,7 +12,7 @@ from conftest import needs_egl
 from efficienteqa.envs.synthetic.catalog import Catalog, CatalogEntry
 from efficienteqa.envs.synthetic.generate import COLOURABLE, generate_house, recolour_share_of
 from efficienteqa.envs.synthetic.primitives import builtin_catalog
-from efficienteqa.perception.pixels.dataset import (
+from efficienteqa.perception.pixels.houses import (
     heldout_model_keys,
     training_env,
     uses_heldout_mesh,
@@ -72,7 +72,7 @@ def test_heldout_keys_are_a_stable_share_of_each_category_with_several_models():
 def test_heldout_keys_hold_out_a_whole_catalogue_and_a_fifth_of_each_other_one():
     """Every model of the held-out catalogue is kept out; the fifth is counted per catalogue, so
     one catalogue's held-out meshes stay the same when another catalogue is loaded beside it."""
-    from efficienteqa.perception.pixels.dataset import HELDOUT_CATALOGUE
+    from efficienteqa.perception.pixels.houses import HELDOUT_CATALOGUE
 
     first = [_entry(f"a/chair{i}", "chair", "A") for i in range(4)]
     second = [_entry(f"b/chair{i}", "chair", "B") for i in range(4)] + [_entry("b/bed", "bed", "B")]
@@ -131,8 +131,8 @@ def _frames_with_one_rare_patch(n=20):
 
 
 def test_crops_by_rarity_find_the_rare_category():
-    from efficienteqa.perception.pixels.dataset import build_vocabulary
-    from efficienteqa.perception.pixels.train import CropSampler
+    from efficienteqa.perception.pixels.batches import CropSampler
+    from efficienteqa.perception.pixels.frames import build_vocabulary
 
     frames, vocab = _frames_with_one_rare_patch(), build_vocabulary()
 
@@ -146,8 +146,8 @@ def test_crops_by_rarity_find_the_rare_category():
 
 
 def test_class_weights_follow_the_crops_drawn():
-    from efficienteqa.perception.pixels.dataset import build_vocabulary
-    from efficienteqa.perception.pixels.train import CropSampler, weights_of_counts
+    from efficienteqa.perception.pixels.batches import CropSampler, weights_of_counts
+    from efficienteqa.perception.pixels.frames import build_vocabulary
 
     frames, vocab = _frames_with_one_rare_patch(), build_vocabulary()
     sampler = CropSampler(frames, vocab, (160, 224), np.random.default_rng(0), 1.0)
@@ -267,7 +267,7 @@ def test_loss_history_means_each_window_over_its_own_steps(data, tmp_path, monke
                                   ["--device", "tpu"]])
 def test_train_refuses_bad_widths_and_devices(args, monkeypatch, capsys, tmp_path):
     from efficienteqa import cli
-    from efficienteqa.perception.pixels.dataset import build_vocabulary
+    from efficienteqa.perception.pixels.frames import build_vocabulary
 
     data = tmp_path / "data"
     data.mkdir()

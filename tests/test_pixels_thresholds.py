@@ -133,13 +133,13 @@ def test_object_tags_mark_the_catalogue_in_houses_of_every_catalogue():
     every catalogue never saw the held-out one only. Doors carry no catalogue slice."""
     from types import SimpleNamespace
 
-    from efficienteqa.perception.pixels.dataset import HELDOUT_CATALOGUE
     from efficienteqa.perception.pixels.evaluate import (
         TRAINED_CATALOGUE,
         UNSEEN_CATALOGUE,
         object_tags,
         unseen_catalogue,
     )
+    from efficienteqa.perception.pixels.houses import HELDOUT_CATALOGUE
 
     entries = {"cc0/sofa": ("CC0-1.0", "BlendSwap-CC-0"),
                "ccby/sofa": ("CC-BY-3.0", "BlendSwap-CC-BY"),

@@ -9,13 +9,10 @@ import torch
 
 from conftest import needs_egl
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.perception.pixels.dataset import (
-    build_vocabulary,
-    load_shards,
-    parse_seeds,
-    render_dataset,
-    render_house,
-)
+from efficienteqa.perception.pixels.batches import CropSampler, class_weights, losses
+from efficienteqa.perception.pixels.dataset import load_shards, render_dataset
+from efficienteqa.perception.pixels.frames import build_vocabulary, render_house
+from efficienteqa.perception.pixels.houses import parse_seeds
 from efficienteqa.perception.pixels.net import (
     IGNORE,
     PixelNet,
@@ -24,7 +21,7 @@ from efficienteqa.perception.pixels.net import (
     predict,
     save_weights,
 )
-from efficienteqa.perception.pixels.train import CropSampler, TrainConfig, class_weights, losses, train
+from efficienteqa.perception.pixels.train import TrainConfig, train
 
 TINY = (4, 8, 8, 8, 8)
 

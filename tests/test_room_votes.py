@@ -185,7 +185,7 @@ def test_with_perfect_classes_the_votes_name_the_rooms_the_sensor_does(env_seed3
     room and the rooms in view as the label-reading sensor does (walls and doors split the
     rooms where the house does)."""
     from efficienteqa.geometry import Pose2D
-    from efficienteqa.perception.pixels.dataset import build_vocabulary, frame_labels
+    from efficienteqa.perception.pixels.frames import build_vocabulary, frame_labels
     from efficienteqa.perception.pixels.net import IGNORE
     from efficienteqa.perception.semantic import SemanticPerception
 

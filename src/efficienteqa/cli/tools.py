@@ -130,7 +130,8 @@ def perception_dataset(
                                "training houses then never show the KatorLegaz catalogue)."),
 ) -> None:
     """Render RGB-D frames with per-pixel category, colour and state labels at half size."""
-    from efficienteqa.perception.pixels.dataset import parse_seeds, render_dataset
+    from efficienteqa.perception.pixels.dataset import render_dataset
+    from efficienteqa.perception.pixels.houses import parse_seeds
 
     houses = parse_seeds(seeds)
     start = time.perf_counter()
@@ -287,8 +288,8 @@ def perception_thresholds(
     from rich.progress import Progress
 
     from efficienteqa.perception.pixels.backend import WEIGHTS, PixelPerception
-    from efficienteqa.perception.pixels.dataset import VALIDATION_SEEDS, parse_seeds
     from efficienteqa.perception.pixels.evaluate import heldout_frames
+    from efficienteqa.perception.pixels.houses import VALIDATION_SEEDS, parse_seeds
     from efficienteqa.perception.pixels.thresholds import (
         GRID,
         MIN_OBJECTS,

@@ -38,7 +38,8 @@ from efficienteqa.geometry import backproject
 from efficienteqa.observation import Observation
 from efficienteqa.perception.floor import FLOOR_TOLERANCE_M
 from efficienteqa.perception.pixels.backend import PixelPerception
-from efficienteqa.perception.pixels.dataset import HELDOUT_CATALOGUE, TRAIN_SEEDS, room_type_of
+from efficienteqa.perception.pixels.frames import room_type_of
+from efficienteqa.perception.pixels.houses import HELDOUT_CATALOGUE, TRAIN_SEEDS
 from efficienteqa.perception.visible import VisibleObject, visible_objects
 
 ORACLE_PIXELS = 250  # at 640x480: the oracle's "in view" (an evidence object this large)
@@ -211,7 +212,7 @@ def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
     on or not by the weights' ``trained_on`` assets)."""
     from efficienteqa.envs.synthetic.env import SyntheticEnv
     from efficienteqa.geometry import Pose2D
-    from efficienteqa.perception.pixels.dataset import house_poses
+    from efficienteqa.perception.pixels.frames import house_poses
 
     check_heldout(seeds)
     if poses is not None:
@@ -240,7 +241,7 @@ def heldout_frames(seeds: Sequence[int], frames_per_house: int, seed: int = 0,
 def unseen_catalogue(catalog: Any, trained_on: str) -> Callable[[str], bool]:
     """Whether a model key's catalogue was kept out of the training houses of weights trained
     on ``trained_on`` furniture: every catalogue but the CC0 one for "sh3d", the held-out
-    catalogue (``dataset.HELDOUT_CATALOGUE``) for "sh3d-all"."""
+    catalogue (``houses.HELDOUT_CATALOGUE``) for "sh3d-all"."""
     if trained_on == ALL_CATALOGUES:
         return lambda key: catalog.entry(key).catalogue == HELDOUT_CATALOGUE
     return lambda key: catalog.entry(key).licence != "CC0-1.0"
