@@ -224,7 +224,8 @@ def test_the_cli_makes_its_options_without_loading_the_agent():
 
     code = ("import sys, efficienteqa.cli, typer.main; typer.main.get_command(efficienteqa.cli.app); "
             "print(sorted(m for m in ('numba', 'scipy', 'torch', 'rerun', 'efficienteqa.agent', "
-            "'efficienteqa.stack', 'efficienteqa.report.rerun_log') if m in sys.modules))")
+            "'efficienteqa.stack', 'efficienteqa.report.rerun_log', 'efficienteqa.report.rerun_target') "
+            "if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 

@@ -23,6 +23,7 @@ from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec
 from efficienteqa.mapping.visualize import map_image
 from efficienteqa.report import rerun_log as rl
+from efficienteqa.report import rerun_target
 from efficienteqa.scenes import Scene, synthetic_questions
 from efficienteqa.stack import Stack
 from efficienteqa.vc.parse import clean_answer
@@ -287,7 +288,7 @@ def test_ask_command_refuses_in_one_line_before_the_scene_opens(target, said, mo
         pytest.skip("the rerun extra is not installed")
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    monkeypatch.setattr(rl, "viewer_executable", lambda: "/usr/bin/rerun")  # found, no screen
+    monkeypatch.setattr(rerun_target, "viewer_executable", lambda: "/usr/bin/rerun")  # found, no screen
     monkeypatch.setattr(sys, "argv", ["efficienteqa", "ask", "What colour is the sofa?",
                                       "--scene", "hm3d:nowhere", "--out", str(tmp_path / "out"),
                                       "--rerun", str(tmp_path / target) if target != "live" else target])

@@ -147,9 +147,9 @@ def test_record_and_rerun_into_unwritable_folders_are_refused_before_the_scene(
 @trial("R6.26")
 def test_rerun_live_without_a_screen_is_one_line(cli, env, tmp_path, no_scene, monkeypatch):
     pytest.importorskip("rerun")
-    from efficienteqa.report import rerun_log
+    from efficienteqa.report import rerun_target
 
-    monkeypatch.setattr(rerun_log, "viewer_executable", lambda: "/usr/bin/rerun")
+    monkeypatch.setattr(rerun_target, "viewer_executable", lambda: "/usr/bin/rerun")
     for name in ("DISPLAY", "WAYLAND_DISPLAY"):
         env.pop(name, None)
     line = refused(cli, tmp_path / "out", "--rerun", "live")

@@ -138,7 +138,7 @@ def ask_command(
         raise EfficientEQAError("no question", fix='give one, e.g. efficienteqa ask "What colour is '
                                 'the sofa?", or --episode ID with --eval.dataset')
     if rerun is not None:  # rerun missing, no viewer, an unwritable file: before the scene opens
-        from efficienteqa.report.rerun_log import check_target
+        from efficienteqa.report.rerun_target import check_target
 
         check_target(rerun, overwrite=replace_rerun)
     try:

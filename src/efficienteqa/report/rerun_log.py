@@ -3,24 +3,9 @@
 ``RerunLog`` is a step hook (``agent.StepHook``): each call logs one step on the ``step``
 timeline (rerun adds its own wall clock, ``log_time``); ``finish`` logs the outcome and closes
 the recording. The recording goes to a ``.rrd`` file (open it with ``rerun FILE.rrd``), or,
-with the target ``live``, to a viewer spawned on this machine. Entity paths:
-
-- ``world`` (right-handed, z up, metres: the canonical frame): ``world/camera`` the frame's
-  pose (``cam_to_world``) and pinhole (OpenCV axes: RDF), with ``world/camera/rgb`` (JPEG) and
-  ``world/camera/depth`` (metres, ``meter`` 1); ``world/robot`` the robot's pose (x, y, yaw),
-  its heading an arrow; ``world/trajectory`` the poses so far on the floor; from the explore
-  module's steps: ``world/frontiers`` (labels: member cells), ``world/prompts`` (labels:
-  letter and local value), ``world/target`` and ``world/plan`` (the path to the next pose);
-- ``map``: the top-down picture (``mapping.visualize.map_image``) per explore step, and the
-  final map at the last step;
-- ``relevancy/sim`` (Sim per valid frame), ``relevancy/threshold`` (the threshold that acted:
-  ``mu + z_applied * sigma``, the dashed line of report.html), ``relevancy/tested`` (the Sim it
-  was compared with: the frame tested, the best so far under ``lookback``),
-  ``relevancy/sim_abs`` (a rule with ``absolute``), ``relevancy/retrieved`` (the top-K's Sims,
-  at their steps); ``zscore/z`` and ``zscore/z_applied``;
-- ``episode/question``, ``episode/steps`` (one line per step), ``episode/answer`` (answer,
-  confidence, stop reason, retrieved steps) and ``episode/retrieved/<rank>`` (the top-K frames
-  as captured, with their ``frame_step`` and ``sim``).
+with the target ``live``, to a viewer spawned on this machine (``rerun_target`` checks it
+first). The entity paths and the viewer's layout are ``rerun_layout``'s; the text of the
+answer and of each step is ``rerun_text``'s.
 
 rerun is imported when a log is made, never with this module: ``efficienteqa --help`` and the
 agent do not load it.
@@ -29,13 +14,9 @@ agent do not load it.
 from __future__ import annotations
 
 import math
-import os
-import shutil
-import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -47,97 +28,45 @@ from efficienteqa.geometry import Pose2D
 from efficienteqa.mapping import visualize
 from efficienteqa.mapping.visualize import map_image
 from efficienteqa.observation import Observation
-from efficienteqa.records import probe_write
+from efficienteqa.report.rerun_layout import (
+    ANSWER,
+    CAMERA,
+    DEPTH,
+    FRONTIERS,
+    GREY,
+    MAP,
+    PLAN,
+    PROMPTS,
+    QUESTION,
+    RETRIEVED,
+    RETRIEVED_SIM,
+    RGB,
+    ROBOT,
+    SIM,
+    SIM_ABS,
+    SIM_BLUE,
+    STEPS,
+    TARGET,
+    TESTED,
+    THRESHOLD,
+    THRESHOLD_RED,
+    TRAJECTORY,
+    WORLD,
+    Z_APPLIED,
+    Z,
+    blueprint,
+)
+from efficienteqa.report.rerun_target import LIVE, check_target, viewer_executable
+from efficienteqa.report.rerun_text import answer_markdown, step_line
 from efficienteqa.stop.rules import StopCheck, rule_parts
 from efficienteqa.trace import EpisodeResult, StepRecord
-from efficienteqa.vc.parse import clean_answer
 
-LIVE = "live"  # the target that spawns a viewer instead of writing a file
 APP_ID = "efficienteqa"
 TIMELINE = "step"
-INSTALL = "pip install 'efficienteqa[rerun]'"
 JPEG_QUALITY = 90
 FLUSH_S = 30.0
 WATCH_S = 10.0  # a call into rerun that should take a moment, given up after this (a full disk)
 FLOOR_Z = 0.02  # floor marks a little above z = 0, so the floor grid does not hide them
-
-WORLD = "world"
-CAMERA = "world/camera"
-RGB = "world/camera/rgb"
-DEPTH = "world/camera/depth"
-ROBOT = "world/robot"
-TRAJECTORY = "world/trajectory"
-FRONTIERS = "world/frontiers"
-PROMPTS = "world/prompts"
-TARGET = "world/target"
-PLAN = "world/plan"
-MAP = "map"
-SIM = "relevancy/sim"
-THRESHOLD = "relevancy/threshold"
-TESTED = "relevancy/tested"
-SIM_ABS = "relevancy/sim_abs"
-RETRIEVED_SIM = "relevancy/retrieved"
-Z = "zscore/z"
-Z_APPLIED = "zscore/z_applied"
-QUESTION = "episode/question"
-STEPS = "episode/steps"
-ANSWER = "episode/answer"
-RETRIEVED = "episode/retrieved"
-
-SIM_BLUE, THRESHOLD_RED, GREY = (0x33, 0x66, 0x99), (0xDD, 0x33, 0x33), (0x99, 0x99, 0x99)
-
-
-def import_rerun() -> ModuleType:
-    """The rerun SDK, or the one-line error that says how to install it."""
-    try:
-        import rerun
-    except ImportError as error:
-        missing = isinstance(error, ModuleNotFoundError) and (error.name or "rerun").startswith("rerun")
-        said = "is not installed" if missing else f"does not import ({str(error).splitlines()[0]})"
-        raise EfficientEQAError(f"the rerun SDK {said}", fix=INSTALL) from None
-    return rerun
-
-
-def viewer_executable() -> str | None:
-    """The rerun viewer that the SDK installs beside this Python, or one on PATH."""
-    here = Path(sys.executable).parent / "rerun"
-    return str(here) if here.is_file() and os.access(here, os.X_OK) else shutil.which("rerun")
-
-
-def check_target(target: str | Path, *, overwrite: bool = False) -> None:
-    """Fail in one line, before any slow work, where ``target`` cannot be logged to: rerun is
-    not installed, ``live`` where no viewer can start (no executable, no screen), a file that
-    is not ``.rrd``, that exists (unless ``overwrite``; a folder, never) or whose folder cannot
-    be written (a file is made and removed there to know)."""
-    import_rerun()
-    if str(target) == LIVE:
-        if viewer_executable() is None:
-            raise EfficientEQAError("no rerun viewer to start: the rerun executable is not "
-                                    "installed here", fix=f"{INSTALL}, or write a file: "
-                                    "--rerun episode.rrd")
-        if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
-                                                     or os.environ.get("WAYLAND_DISPLAY")):
-            raise EfficientEQAError("no rerun viewer can start here: no screen (DISPLAY and "
-                                    "WAYLAND_DISPLAY are unset)",
-                                    fix="write a file, --rerun episode.rrd, and open it with "
-                                        "rerun episode.rrd where there is a screen")
-        return
-    path = Path(target)
-    if path.suffix != ".rrd":
-        raise EfficientEQAError(f"--rerun takes a .rrd file or {LIVE}, not {str(target)!r}",
-                                fix="e.g. --rerun out/ask/episode.rrd, or --rerun live")
-    if path.is_dir():
-        raise EfficientEQAError(f"--rerun {path} is a folder, and a rerun recording is a file",
-                                fix="choose another --rerun file")
-    if (path.exists() or path.is_symlink()) and not overwrite:
-        raise EfficientEQAError(f"{path} exists; a rerun recording is not written over",
-                                fix="remove it, choose another --rerun file, or give --overwrite "
-                                    "to replace it")
-    try:
-        probe_write(path.parent)
-    except OSError as error:
-        raise EfficientEQAError(f"cannot write the rerun recording {path}: "
-                                f"{error.strerror or error}", fix="choose another --rerun file") from None
 
 
 class RerunLog:
@@ -155,10 +84,10 @@ class RerunLog:
         self.target = target
         self.sim_abs = sim_abs
         self.rec = rr.RecordingStream(APP_ID, recording_id=recording_id)
-        blueprint = _blueprint(top_k)
+        layout = blueprint(top_k)
         if str(target) == LIVE:
             rr.spawn(executable_path=viewer_executable(), recording=self.rec,
-                     default_blueprint=blueprint, hide_welcome_screen=True)
+                     default_blueprint=layout, hide_welcome_screen=True)
         # else: saved below, once the log's fields are set
         self.poses: list[Pose2D] = []
         self.sims: dict[int, float] = {}
@@ -168,7 +97,7 @@ class RerunLog:
         self.error: str | None = None  # why the recording is incomplete (a full disk)
         if str(target) != LIVE:
             try:
-                started = _within(WATCH_S, self.rec.save, target, default_blueprint=blueprint)
+                started = _within(WATCH_S, self.rec.save, target, default_blueprint=layout)
             except (OSError, RuntimeError) as error:
                 raise EfficientEQAError(f"cannot write the rerun recording {target}: "
                                         f"{str(error).splitlines()[0]}",
@@ -227,7 +156,7 @@ class RerunLog:
             self._explore(out)
         import rerun as rr
 
-        self.rec.log(STEPS, rr.TextLog(_step_line(record), level="INFO"))
+        self.rec.log(STEPS, rr.TextLog(step_line(record), level="INFO"))
 
     def _camera(self, step: int, obs: Observation) -> None:
         import rerun as rr
@@ -369,68 +298,4 @@ def _within(seconds: float, call: Callable[..., object], *args: Any, **kwargs: A
     if raised:
         raise raised[0]
     return True
-
-
-def answer_markdown(result: EpisodeResult) -> str:
-    """The outcome as a markdown document: question, answer with its confidence, why and
-    where exploration stopped, and the retrieved frames by step."""
-    answer = clean_answer(result.answer) if result.answer else "(none)"
-    last = result.records[-1] if result.records else None
-    stop = f"{result.stop_reason} at step {result.steps} of {result.budget}"
-    if (result.stop_reason == "relevancy" and last is not None and last.check is not None
-            and last.check.tested_step not in (None, last.step)):
-        stop += f" (the frame of step {last.check.tested_step})"
-    lines = [f"**Question:** {result.question}", "",
-             f"**Answer:** {answer} (confidence {result.confidence:.2f})", "",
-             f"**Stop:** {stop}", "", "| rank | step | Sim |", "|---|---|---|"]
-    lines += [f"| {rank} | {step} | {sim:.3f} |" for rank, (step, sim) in enumerate(result.retrieved, 1)]
-    return "\n".join(lines)
-
-
-def _step_line(record: StepRecord) -> str:
-    """One line of what happened at a step, as the step log shows it."""
-    parts = [f"step {record.step}"]
-    c = record.check
-    if not record.valid:
-        parts.append("frame not used (too little depth)")
-    elif c is None:
-        parts.append("no Sim (the relevancy reply was unreadable)")
-    else:
-        parts.append(f"Sim {c.sim:.3f}")
-        if c.z is not None:
-            parts.append(f"z {c.z:+.2f}" + (f" vs {c.z_applied:g}" if c.z_applied is not None else ""))
-        if c.tested_step not in (None, record.step):
-            parts.append(f"(tested: step {c.tested_step})")
-        if c.stop:
-            parts.append("STOP")
-    if record.gate is not None:
-        parts.append(f"gate {'passed' if record.gate.get('ok') else 'refused'}: {record.gate.get('why', '')}")
-    if record.decision:
-        parts.append(f"-> {record.decision} ({record.n_frontiers} frontiers)")
-    return "  ".join(parts)
-
-
-def _blueprint(top_k: int) -> Any:
-    """The viewer's layout: the world in 3D with the camera below it, the map, the relevancy
-    and z curves and the text, and the top-K frames in a column."""
-    import rerun.blueprint as rrb
-
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Vertical(
-                rrb.Spatial3DView(origin=WORLD, name="world"),
-                rrb.Horizontal(rrb.Spatial2DView(origin=CAMERA, contents=f"{RGB}/**", name="camera"),
-                               rrb.Spatial2DView(origin=CAMERA, contents=f"{DEPTH}/**", name="depth")),
-                row_shares=[2, 1]),
-            rrb.Vertical(
-                rrb.Spatial2DView(origin=MAP, name="map"),
-                rrb.TimeSeriesView(origin="relevancy", name="relevancy"),
-                rrb.TimeSeriesView(origin="zscore", name="z"),
-                rrb.Tabs(rrb.TextDocumentView(origin=ANSWER, name="answer"),
-                         rrb.TextLogView(origin=STEPS, name="steps"),
-                         rrb.TextDocumentView(origin=QUESTION, name="question")),
-                row_shares=[3, 2, 1, 2]),
-            rrb.Vertical(*(rrb.Spatial2DView(origin=f"{RETRIEVED}/{rank}", name=f"top {rank}")
-                           for rank in range(1, max(top_k, 1) + 1))),
-            column_shares=[3, 2, 1]))
 

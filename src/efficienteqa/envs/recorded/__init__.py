@@ -24,7 +24,7 @@ _ALIASES = {"color": "colour"}
 
 def parse_spec(spec: str) -> tuple[Path, dict[str, Any]]:
     """``PATH[?key=value&...]`` -> the path and the options (checked by name and type)."""
-    from efficienteqa.envs.recorded.rosbag import McapOptions
+    from efficienteqa.envs.recorded.mcapwalk import McapOptions
 
     text, _, query = spec.partition("?")
     if not text:
@@ -69,6 +69,7 @@ def open_recording(spec: str) -> RecordedWalk:
     if path.suffix.lower() != ".mcap":
         raise EfficientEQAError(f"{path} is neither an .mcap file nor a walk folder",
                                 fix="give an .mcap file (ROS 2) or a folder with poses.jsonl")
-    from efficienteqa.envs.recorded.rosbag import McapOptions, McapSource
+    from efficienteqa.envs.recorded.mcapwalk import McapOptions
+    from efficienteqa.envs.recorded.rosbag import McapSource
 
     return RecordedWalk(McapSource(path, McapOptions(**options)))

@@ -36,7 +36,7 @@ from efficienteqa.envs.base import SceneLabels
 from efficienteqa.envs.recorded import rosmsg
 from efficienteqa.envs.recorded.folder import LABELS_FILE, POSES_FILE
 from efficienteqa.envs.recorded.labels import labels_json
-from efficienteqa.envs.recorded.rosbag import INSTANCE_TOPIC, LABELS_TOPIC, require_mcap
+from efficienteqa.envs.recorded.mcapwalk import INSTANCE_TOPIC, LABELS_TOPIC, require_mcap
 from efficienteqa.envs.recorded.tf import quaternion_of
 from efficienteqa.envs.recorded.walk import opencv_intrinsics
 from efficienteqa.errors import EfficientEQAError
