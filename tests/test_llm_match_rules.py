@@ -1,10 +1,12 @@
-"""The clear cases an LLM-Match judge decides without its model (eval.llm_match_rules)."""
+"""The clear cases an LLM-Match judge decides without its model (eval.llm_match_rules), and the
+bounds on the grade it gives (eval.llm_match_bounds)."""
 
 from __future__ import annotations
 
 import pytest
 
-from efficienteqa.eval.llm_match_rules import question_state, rule_score, stance, stem, words
+from efficienteqa.eval.answer_words import question_state, stance, stem, words
+from efficienteqa.eval.llm_match_rules import rule_score
 
 
 def grade(question: str, reference: str, response: str) -> int | None:
@@ -86,7 +88,7 @@ def test_every_ruled_grade_says_which_rule_decided():
 
 
 def bounds(question: str, reference: str, response: str) -> tuple[int, int] | None:
-    from efficienteqa.eval.llm_match_rules import rule_bounds
+    from efficienteqa.eval.llm_match_bounds import rule_bounds
 
     held = rule_bounds(question, reference, response)
     return None if held is None else (held.low, held.high)
@@ -131,7 +133,7 @@ def test_rule_bounds_hold_the_model_to_what_the_words_make_certain(question, ref
 
 
 def test_an_opposite_yes_no_is_not_wrong_when_an_accepted_answer_says_it():
-    from efficienteqa.eval.llm_match_rules import rule_bounds
+    from efficienteqa.eval.llm_match_bounds import rule_bounds
 
     held = rule_bounds("Is the door open?", "no", "Yes, a little, by the hinge")
     assert held is not None and (held.low, held.high) == (1, 1) and "yes against no" in held.rule

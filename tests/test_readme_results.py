@@ -17,16 +17,16 @@ from typer.testing import CliRunner
 
 from efficienteqa import cli
 from efficienteqa.eval.compare import paired
-from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
-from efficienteqa.eval.runner import machine, scene_seeds
-from efficienteqa.eval.stats import mean_interval
-from efficienteqa.eval.summary import summarise
-from efficienteqa.eval.tables import (
+from efficienteqa.eval.readme_tables import (
     parse_report_command,
     readme_blocks,
     regenerate_readme,
     report_markdown,
 )
+from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
+from efficienteqa.eval.runner import machine, scene_seeds
+from efficienteqa.eval.stats import mean_interval
+from efficienteqa.eval.summary import summarise
 from efficienteqa.records import write_json
 from test_eval_report import episode, manifest
 

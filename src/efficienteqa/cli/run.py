@@ -329,8 +329,8 @@ def report_command(
     Every run folder also gets its summary.json and report.html (a published run, results/)."""
     from rich.table import Table
 
+    from efficienteqa.eval.readme_tables import markdown_table
     from efficienteqa.eval.tables import (
-        markdown_table,
         overview_rows,
         paired_differences,
         publish_run,

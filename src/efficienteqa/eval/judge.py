@@ -16,7 +16,7 @@ neither: prompts/judge_same.txt asks whether the response says the same thing as
 answer (strict: a right answer in other words or with more detail often gets P(yes) < 0.5);
 prompts/judge_correct.txt asks whether it gives the correct answer, with the rubric's yes and
 no cases and six worked examples (lenient: wrong answers get 0.5-0.75). On the shared
-hand-graded set the mean agreed better than either question alone. ``llm_match_rules.rule_bounds``
+hand-graded set the mean agreed better than either question alone. ``llm_match_bounds.rule_bounds``
 then holds the grade to what the words alone make certain (an opposite yes/no, another colour,
 the reference's words).
 ``mode="grade"`` (the OpenEQA form) is the default for capable judges such as GPT-4o.
@@ -58,7 +58,8 @@ from efficienteqa.eval.judge_prompts import (
     prompt_version,
     render_prompt,
 )
-from efficienteqa.eval.llm_match_rules import MAX_SCORE, MIN_SCORE, rule_bounds, rule_score
+from efficienteqa.eval.llm_match_bounds import rule_bounds
+from efficienteqa.eval.llm_match_rules import MAX_SCORE, MIN_SCORE, rule_score
 from efficienteqa.models.base import ChatModel, Message
 from efficienteqa.vc.prompts import load_prompt
 

@@ -9,7 +9,7 @@ not also state a contradicting one; otherwise it is wrong (1). In detail:
 - **hedges** ("I can't tell", "maybe", "not sure") state nothing: 1;
 - **counts**: the numbers stated (digits, words, "none"/"zero") must be exactly the answer's:
   "two or three" states a contradicting number;
-- **yes/no** (existence and state questions): the response's stance (``llm_match_rules.stance``:
+- **yes/no** (existence and state questions): the response's stance (``answer_words.stance``:
   yes/no words, negations, "on"/"off" and "open"/"closed" read against the question,
   "there is" for existence) must be the answer's and not both: "yes and no" is wrong;
 - **colours, objects, rooms**: mentions are found by longest match over the accepted forms and
@@ -28,18 +28,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from efficienteqa.eval.answer_words import NEGATORS, hedges, number_value, stance, stem, words
 from efficienteqa.eval.judge import MISSING_ANSWER, Judgement, score_value
 from efficienteqa.eval.judge_parse import trim_response
-from efficienteqa.eval.llm_match_rules import (
-    MAX_SCORE,
-    MIN_SCORE,
-    NEGATORS,
-    hedges,
-    number_value,
-    stance,
-    stem,
-    words,
-)
+from efficienteqa.eval.llm_match_rules import MAX_SCORE, MIN_SCORE
 
 RULE_JUDGE = "rule"
 RULE_CATEGORIES = frozenset({"count", "existence", "state", "colour", "identification", "location"})
