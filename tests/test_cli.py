@@ -328,9 +328,11 @@ def test_help_groups_the_options_in_panels(cli, command):
         if option and current:
             panels[current].append(option.group(1))
     names = [p for p in panels if p not in ("Arguments", "Options")]
-    sections = ["Configuration", "Back-ends", "Scene", "Explore (DESIGN 3.2-3.3)",
+    sections = ["Configuration", "Back-ends", "Back-ends: more", "Scene",
+                "Explore (DESIGN 3.2-3.3)", "Explore (DESIGN 3.2-3.3): more",
                 "Explore (DESIGN 3.2-3.3): constants", "Stop (DESIGN 3.4) and its gate",
-                "Answer (DESIGN 3.5)", "Evaluation"]
+                "Stop (DESIGN 3.4) and its gate: more", "Answer (DESIGN 3.5)",
+                "Answer (DESIGN 3.5): more", "Evaluation"]
     own = ["Question", "Output"] if command == "ask" else ["Output"]
     assert sorted(names) == sorted(own + sections)
     where = {option: panel for panel, options in panels.items() for option in options}
@@ -342,7 +344,7 @@ def test_help_groups_the_options_in_panels(cli, command):
                 "--backends.explore-scorer": "Back-ends", "--backends.vlm": "Back-ends",
                 "--backends.relevancy": "Back-ends", "--scene.env": "Scene",
                 "--explore.steering": "Explore (DESIGN 3.2-3.3)",
-                "--explore.refusal-retries": "Explore (DESIGN 3.2-3.3)",
+                "--explore.refusal-retries": "Explore (DESIGN 3.2-3.3): more",
                 "--explore.sfe.view-gain": "Explore (DESIGN 3.2-3.3): constants",
                 "--explore.target.room-tries": "Explore (DESIGN 3.2-3.3): constants",
                 "--out": "Output"}

@@ -36,6 +36,21 @@ CONFIG_HELP = ("A TOML file with a table per group below, named as the options' 
                "from a preset. Fills options not given on the command line, before --preset.")
 _SEP = "__"  # a path as a Python parameter name: stop__z_th
 CONSTANTS_PANEL = ": constants"  # the panel of the constants only --help-all shows
+MORE_PANEL = ": more"  # a section's rarer options, also only in --help-all
+HELP_ALL_PANELS = (CONSTANTS_PANEL, MORE_PANEL)
+# The options --help leaves to --help-all: a server's fine print, the stop rule's and the
+# baselines' internals, the map's extent; what a first run needs stays in --help.
+MORE = frozenset({
+    "backends.image_format", "backends.image_max_side", "backends.image_detail",
+    "backends.capabilities", "backends.device", "backends.relevancy_weights",
+    "backends.allow_download", "backends.api_key_env", "backends.timeout_s", "backends.retries",
+    "backends.cache", "backends.sightings",
+    "stop.sigma_eps", "stop.sigma_floor", "stop.sim_abs", "stop.gate_final", "stop.count_from",
+    "stop.question_words",
+    "answer.answer_probability", "answer.token_answer", "answer.step_weight",
+    "answer.answer_every_step", "answer.confidence", "answer.answer_at",
+    "explore.map_extent", "explore.map_size_m", "explore.refusal_retries",
+    "explore.stop_clearance_m", "explore.exploration", "explore.prompts"})
 
 
 def _flag(name: str) -> str:
@@ -65,9 +80,11 @@ def _parameter(leaf: Leaf, alias: bool = False) -> inspect.Parameter | None:
     else:
         decls = [_flag(flat)] if alias and flat else [f"--{dotted}"]
     kind: Any = str if leaf.kind is dict else leaf.kind
-    option = typer.Option(None, *decls, help=help_text, show_default=False, hidden=alias or deep,
+    more = ".".join(leaf.path) in MORE
+    option = typer.Option(None, *decls, help=help_text, show_default=False,
+                          hidden=alias or deep or more,
                           rich_help_panel=SECTION_TITLES[leaf.path[0]] + (
-                              CONSTANTS_PANEL if deep else ""),
+                              CONSTANTS_PANEL if deep else MORE_PANEL if more else ""),
                           metavar="JSON" if leaf.kind is dict else None)
     return inspect.Parameter(("alias" + _SEP if alias else "") + _SEP.join(leaf.path),
                              inspect.Parameter.KEYWORD_ONLY, default=option,
@@ -75,12 +92,12 @@ def _parameter(leaf: Leaf, alias: bool = False) -> inspect.Parameter | None:
 
 
 def _help_all(ctx: click.Context, _: click.Parameter, value: bool) -> None:
-    """``--help-all``: the help with the constants ``--help`` leaves out (their panels end in
-    CONSTANTS_PANEL), then exit."""
+    """``--help-all``: the help with the options ``--help`` leaves out (the constants and the
+    rarer options, whose panels end in HELP_ALL_PANELS), then exit."""
     if not value or ctx.resilient_parsing:
         return
     for p in ctx.command.params:
-        if str(getattr(p, "rich_help_panel", "") or "").endswith(CONSTANTS_PANEL):
+        if str(getattr(p, "rich_help_panel", "") or "").endswith(HELP_ALL_PANELS):
             p.hidden = False  # type: ignore[attr-defined]
     typer.echo(ctx.get_help(), color=ctx.color)
     ctx.exit()
@@ -143,8 +160,8 @@ def run_options(sections: Iterable[str] | None = None,
             "help_all", inspect.Parameter.KEYWORD_ONLY, annotation=bool,
             default=typer.Option(False, "--help-all", is_eager=True, expose_value=False,
                                  callback=_help_all, rich_help_panel="Configuration",
-                                 help="Show every option, the explorer's and the steering's "
-                                      "constants included, and exit.")))
+                                 help="Show every option (the rarer ones, and the explorer's "
+                                      "and the steering's constants), and exit.")))
         params = [*own, *named, *generated]
         wrapper.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
         wrapper.__annotations__ = {p.name: p.annotation for p in params}
