@@ -295,3 +295,22 @@ def test_a_published_row_runs_again_from_its_own_run_json(tmp_path, row):
     folder.mkdir()
     shutil.copy(published, folder / RUN_FILE)
     open_run(folder, manifest(spec, recorded["questions"]))  # raises where it is another run
+
+
+def test_a_format_5_run_records_the_tree_it_was_made_from_and_reads_back_as_it(tmp_path):
+    """run.json holds the whole tree (``run``, format 5); ``--config run.json`` gives that tree
+    back, every section (the scene's, the evaluation's) included."""
+    from efficienteqa.eval.plan import plan_run
+    from efficienteqa.records import write_json
+
+    run = presets.run_config("paper-offline", {"stop.z_th": 2.0, "eval.limit": 3,
+                                               "scene.hm3d_root": Path("/data/hm3d"),
+                                               "backends.vlm": "openai:m@http://u:secret@h/v1"})
+    spec = plan_run(run, "paper-offline", run.agent)
+    record = manifest(spec, 3)
+    assert record["format"] == RUN_FORMAT == 5 and record["run"]["stop"]["z_th"] == 2.0
+    write_json(tmp_path / RUN_FILE, record)
+    assert "secret" not in (tmp_path / RUN_FILE).read_text()  # the URL's password is ***
+    back = presets.resolve({}, config_file=tmp_path / RUN_FILE).run
+    assert back.agent == run.agent and back.eval == run.eval and back.scene == run.scene
+    assert back.backends.vlm == "openai:m@http://u:***@h/v1"  # as recorded, redacted

@@ -191,10 +191,10 @@ _RECORD_KEYS = {"eval.method": "method", "eval.dataset": "dataset",
 
 
 def run_values(text: str, where: str) -> dict[str, Any]:
-    """The tree's values a run's ``run.json`` recorded, by dotted path: its options as given
-    (``config``, read in today's format by ``eval.records.upgrade``), its back-ends (``stack``)
-    and its method, dataset, judge, question count and scene settings; a value the record left
-    as None keeps the tree's default."""
+    """The tree's values a run's ``run.json`` recorded, by dotted path: from format 5 the tree
+    itself (``run``); before, its options as given (``config``, read in today's format by
+    ``eval.records.upgrade``), its back-ends (``stack``) and its method, dataset, judge,
+    question count and scene settings. A value the record left as None keeps the default."""
     import json
 
     from efficienteqa.eval.records import upgrade
@@ -207,6 +207,7 @@ def run_values(text: str, where: str) -> dict[str, Any]:
     if not isinstance(record, dict) or not isinstance(record.get("config"), dict):
         raise EfficientEQAError(f"{where} is no run record (no config in it)",
                                 fix="give the run.json of a run folder, or a TOML file")
+    tree = record.get("run") if isinstance(record.get("run"), dict) else None
     record = upgrade(record)
     index = leaf_index()
     values: dict[str, Any] = {}
@@ -216,6 +217,12 @@ def run_values(text: str, where: str) -> dict[str, Any]:
             return  # left to the default; a setting of an older release that is gone
         values[path] = check_value(path, value, where)
 
+    if tree is not None:  # format 5: the tree itself
+        for section, fields in tree.items():
+            for name, value in (fields.items() if isinstance(fields, dict) else ()):
+                if f"{section}.{name}" not in METHOD_SET:  # the method's own, set by it again
+                    take(f"{section}.{name}", value)
+        return values
     for section, fields in record["config"].items():
         for name, value in (fields.items() if isinstance(fields, dict) else ()):
             if f"{section}.{name}" not in METHOD_SET:  # the method's own, set by it again

@@ -43,6 +43,7 @@ from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE, DEFAULT_JUDGE_MODE, judge_mode
 from efficienteqa.knobs import with_leaves
+from efficienteqa.runconfig import RunConfig
 from efficienteqa.stack import Stack
 
 
@@ -74,6 +75,9 @@ class RunSpec:
     # what it changed against that (DESIGN 6).
     preset: str | None = None
     preset_config: AgentConfig = field(default_factory=AgentConfig)
+    # The whole configuration tree the run was made from (``eval.plan.plan_run``), recorded in
+    # run.json as ``efficienteqa config`` prints it; None for a spec built by hand.
+    tree: RunConfig | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "judge_mode", judge_mode(self.judge_mode, self.judge))

@@ -79,4 +79,5 @@ def plan_run(run: RunConfig, preset: str | None = None,
                                                                             judge or ""),
                    preset=preset, preset_config=preset_agent or run.agent, reports=e.reports,
                    assets=scene.assets, env=scene.env, noise=scene.noise,
-                   hm3d_root=str(scene.hm3d_root) if scene.hm3d_root is not None else None)
+                   hm3d_root=str(scene.hm3d_root) if scene.hm3d_root is not None else None,
+                   tree=run)

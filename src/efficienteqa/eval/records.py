@@ -45,7 +45,9 @@ TRANSPORT = ("timeout_s", "retries")  # stack settings that are not part of a ru
 # sections ("explore", "stop" with its gate, "answer"), where 1 and 2 held them flat beside a
 # nested "stop" (``nest_config``). 4: the agent's map lies around the start
 # (``explore.map_extent`` "start"); earlier runs mapped the simulated scene's box ("scene").
-RUN_FORMAT = 4
+# 5: the whole configuration tree the run was made from ("run", as ``efficienteqa config``
+# prints it), beside the keys above, which stay the run's identity and labels.
+RUN_FORMAT = 5
 # Settings added with a format, by section, and what a run of an earlier format ran with (the
 # size of a map around the start does not act on a map of the scene's box).
 ADDED_IN_FORMAT_4 = {("explore", "map_extent"): "scene", ("explore", "map_size_m"): MAP_SIZE_M}

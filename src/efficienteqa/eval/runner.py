@@ -17,6 +17,7 @@ driver starts it first) and its response cache.
 from __future__ import annotations
 
 import functools
+import json
 import logging
 import os
 import platform
@@ -201,7 +202,9 @@ def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = (),
     ``method_config``, what the method's episodes ran with (``methods.effective_config``);
     ``preset`` and ``preset_config``, the named configuration the options started from and
     what it alone set (a table's label, ``run_labels.label``); ``question_ids``, the episode ids
-    of the questions (``ids``), so that a report counts no line of another question."""
+    of the questions (``ids``), so that a report counts no line of another question; ``run``,
+    the whole configuration tree the run was made from (format 5), which ``--config run.json``
+    reads back."""
     effective = effective_config(spec.method, spec.config)
     return plain({"format": RUN_FORMAT, "method": spec.method, "dataset": spec.dataset,
                   "closed_set": spec.closed_set, "config": asdict(spec.config),
@@ -213,6 +216,8 @@ def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = (),
                   "questions": n_questions,
                   **({"question_ids": list(ids)} if ids is not None else {}),
                   **scene_seeds(scenes),
+                  **({"run": json.loads(json.dumps(asdict(spec.tree), default=str))}
+                     if spec.tree is not None else {}),
                   "code_version": code_version(), "created": time.time(), "machine": machine()})
 
 
