@@ -21,6 +21,12 @@ if TYPE_CHECKING:
 FRONTIER_EXPLORERS = ("sfe", "frontier-only")
 
 
+def reads_target(steering: str | None, gate: str | None) -> bool:
+    """Whether anything reads the question's target: the steering, or a gate (so the reading,
+    the matching and the sightings act); the tables' labels ask it too."""
+    return steering != "none" or gate != "none"
+
+
 def inert(run: RunConfig, agent: AgentConfig) -> dict[str, str]:
     """{dotted setting: why it does not act} for ``run`` whose episodes run ``agent``."""
     out: dict[str, str] = {}
@@ -40,8 +46,8 @@ def inert(run: RunConfig, agent: AgentConfig) -> dict[str, str]:
         for name in ("z_th", "z_gated", "min_step", "rule", "sigma_floor", "sim_abs",
                      "gate_final"):
             out[f"stop.{name}"] = "the early stop is off (stop.enabled false)"
-    steers, gates = explore.steering != "none", stop.gate != "none"
-    if not steers and not gates:
+    steers = explore.steering != "none"
+    if not reads_target(explore.steering, stop.gate):
         why = "nothing reads the question's target: no steering (explore.steering none) and no gate"
         for path in ("explore.reading", "explore.matching", "backends.sightings"):
             out[path] = why

@@ -14,6 +14,7 @@ from functools import cache
 from typing import Any
 
 from efficienteqa.eval.records import RUN_FORMAT, upgrade
+from efficienteqa.inert import reads_target
 from efficienteqa.knobs import flatten
 
 # How a setting that differs from the default is written in a label (the paper's symbols).
@@ -138,8 +139,8 @@ def settings_label(method: str, flat: Mapping[str, Any], skip: Iterable[str] = (
     "paper configuration" where it is the paper's."""
     parts = [method]
     skipped = set(skip) | METHOD_SETS.get(method, set())
-    if flat.get("steering") == "none" and flat.get("gate") == "none":
-        skipped |= TARGET_SETTINGS  # nothing reads the target: these cannot act
+    if not reads_target(flat.get("steering"), flat.get("gate")):
+        skipped |= TARGET_SETTINGS  # nothing reads the target: these cannot act (inert.py)
     if method in AGENTLESS_METHODS:
         against: Iterable[tuple[str, Any]] = ()
     elif baseline is not None:
