@@ -36,14 +36,6 @@ def _words(text: str) -> set[str]:
     return {singular(w) for w in re.findall(r"[a-z]+", text.lower())}
 
 
-def _stands_on(entry: str, surface: str) -> bool:
-    """Whether a view entry is something standing on or in ``surface`` ("a lamp on the brown
-    desk, ahead, 1.2 m", "a vase in the white bookshelf, ..."), not the surface's own entry
-    ("a brown desk, ..., with a lamp on it")."""
-    support = parse_entry(entry).support
-    return support is not None and bool(_words(surface) & _words(support))
-
-
 _BEARING = r"(?:ahead|slightly left|slightly right|on the left|on the right)"
 _NUMBERS = {w: n for n, w in enumerate(("zero", "one", "two", "three", "four", "five", "six",
                                         "seven", "eight", "nine"))} | {"a": 1, "an": 1}
