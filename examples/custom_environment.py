@@ -22,13 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from efficienteqa.agent import AgentConfig
 from efficienteqa.ask import ask
 from efficienteqa.envs.base import move_info
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.observation import Observation
+from efficienteqa.presets import run_config
 from efficienteqa.scenes import Scene
-from efficienteqa.stack import Stack
 
 ROOM = (6.0, 4.0, 2.5)  # x, y, height in metres
 BOX = ((4.2, 1.2, 0.0), (5.0, 2.0, 0.6))  # min and max corners
@@ -110,10 +109,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/box-room"))
     args = parser.parse_args(argv)
 
-    stack = Stack(vlm=args.vlm, perception="rgb", relevancy="vlm-match")
+    run = run_config(None, {"backends.vlm": args.vlm, "backends.perception": "rgb",
+                            "backends.relevancy": "vlm-match",
+                            "explore.max_steps": args.max_steps})
     scene = Scene(BoxRoom(), "box-room")
-    done = ask(args.question, scene, args.out, stack=stack,
-               config=AgentConfig.of(max_steps=args.max_steps))
+    done = ask(args.question, scene, args.out, run=run)
     print(f"answer: {done.result.answer} after {done.result.steps} steps "
           f"({done.result.stop_reason}); report: {done.report_html}")
 
