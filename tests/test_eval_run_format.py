@@ -283,12 +283,11 @@ def test_a_published_row_runs_again_from_its_own_run_json(tmp_path, row):
     reads back makes a RunSpec whose record the published run accepts as its own (a resume),
     whatever format the row was written in."""
     published = PUBLISHED / row / RUN_FILE
+    from efficienteqa.eval.plan import plan_run
+
     resolved = presets.resolve({}, config_file=published)
     run = resolved.run
-    spec = RunSpec(method=run.eval.method, dataset=run.eval.dataset, stack=run.backends,
-                   config=run.agent, judge=run.eval.judge, judge_mode=run.eval.judge_mode,
-                   closed_set=run.eval.closed_set, assets=run.scene.assets,
-                   preset=resolved.preset, preset_config=resolved.preset_run.agent)
+    spec = plan_run(run, resolved.preset, resolved.preset_run.agent)  # as eval makes it
     recorded = json.loads(published.read_text())
     assert run.eval.limit == recorded["questions"]
     folder = tmp_path / row
