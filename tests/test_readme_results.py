@@ -239,3 +239,16 @@ def test_the_readme_demo_block_is_what_ask_printed_of_its_committed_episode(tmp_
     assert "answer: a lamp  (confidence" in fresh and f"steps: 7 of {record['budget']}" in fresh
     assert "time: 9 s" in fresh and "old" not in fresh
     assert regenerate_readme(fresh, tmp_path) == fresh
+
+
+def test_no_published_file_names_a_machine_path():
+    """A run's pages and records name their folder as published (``results/...``), never where
+    the run happened to be made (a report written before the copy keeps that path)."""
+    import re
+
+    machine = re.compile(r"(?<![\w.])/(?:home|root|work|tmp|Users|mnt|scratch)/")
+    found = [f"{p.relative_to(ROOT)}:{n}" for p in sorted((ROOT / "results").rglob("*"))
+             if p.is_file() and p.suffix in (".html", ".json", ".jsonl", ".md", ".txt", ".log")
+             for n, line in enumerate(p.read_text(errors="replace").splitlines(), start=1)
+             if machine.search(line)]
+    assert found == []
