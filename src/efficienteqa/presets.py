@@ -217,16 +217,12 @@ def run_values(text: str, where: str) -> dict[str, Any]:
             return  # left to the default; a setting of an older release that is gone
         values[path] = check_value(path, value, where)
 
-    if tree is not None:  # format 5: the tree itself
-        for section, fields in tree.items():
-            for name, value in (fields.items() if isinstance(fields, dict) else ()):
-                if f"{section}.{name}" not in METHOD_SET:  # the method's own, set by it again
-                    take(f"{section}.{name}", value)
-        return values
-    for section, fields in record["config"].items():
+    for section, fields in (tree or record["config"]).items():  # format 5: the tree itself
         for name, value in (fields.items() if isinstance(fields, dict) else ()):
             if f"{section}.{name}" not in METHOD_SET:  # the method's own, set by it again
                 take(f"{section}.{name}", value)
+    if tree is not None:
+        return values
     for name, value in (record.get("stack") or {}).items():
         take(f"backends.{name}", value)
     for path, key in _RECORD_KEYS.items():
@@ -361,9 +357,8 @@ def _check_acts(run: RunConfig, values: Mapping[str, Any], asked: Mapping[str, A
         if why is None:
             continue
         if group is not None:
-            why = why + (f" (explore.steering none; {method} never steers)"
-                    if group == "explore.target" and agent.explore.steering
-                    != run.explore.steering else "")
+            if group == "explore.target" and agent.explore.steering != run.explore.steering:
+                why += f" (explore.steering none; {method} never steers)"
             raise EfficientEQAError(f"--{group}.* sets constants that do not act: {why}",
                                     fix=_ACTS_WITH[group])
         shown = f"{value:g}" if isinstance(value, float) else value

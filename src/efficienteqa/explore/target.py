@@ -166,6 +166,9 @@ class TargetExplorer:
         if room is None:
             return out
         named = self.target.room is not None
+        # rooms next to the named one lead there while it is unseen (TargetConfig.near_rooms)
+        leads = (set(self.target.near_rooms) if cfg.near_rooms
+                 and self.floors.size(room) < cfg.min_room_cells else set())
         for k, f in enumerate(frontiers):
             here = self.room_at(f.xy, cfg.frontier_room_m)
             ahead = here
@@ -176,8 +179,7 @@ class TargetExplorer:
                 out[k] = cfg.in_target
             elif (named and here is not None and ahead is not None
                   and here not in CONNECTORS and here not in self.target.rooms
-                  and not (cfg.near_rooms and here in self.target.near_rooms
-                           and self.floors.size(room) < cfg.min_room_cells)):
+                  and here not in leads):
                 out[k] = cfg.elsewhere
         return out
 
