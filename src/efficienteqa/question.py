@@ -241,9 +241,14 @@ _FUNCTION = frozenset(_words(
 def mend(text: str) -> str:
     """``text`` in lower case with its known typos and contractions mended (``_TYPOS``), and
     a slip of the keyboard in a question or room word read as that word (``_SLIPS``)."""
-    text = re.sub(r"(?<![\w'-])[a-z]+(?![\w'-])", lambda m: _SLIPS.get(m.group(0), m.group(0)),
+    return _TYPO_RE.sub(lambda m: _TYPOS[m.group(1)], _mend_slips(text))
+
+
+def _mend_slips(text: str) -> str:
+    """``text`` in lower case, its words one keyboard slip from a question or room word read as
+    that word (``_SLIPS``)."""
+    return re.sub(r"(?<![\w'-])[a-z]+(?![\w'-])", lambda m: _SLIPS.get(m.group(0), m.group(0)),
                   " ".join(text.lower().split()))
-    return _TYPO_RE.sub(lambda m: _TYPOS[m.group(1)], text)
 
 
 def slips(word: str) -> set[str]:
@@ -408,8 +413,7 @@ def perceived_words(question: str, target: Target) -> str:
     (``Target.aliases``: "couch" -> "sofa", "tabel" -> "table") replaced by it. ``question``
     itself where that changes nothing but case: the generator's own words score as they
     always did."""
-    text = re.sub(r"(?<![\w'-])[a-z]+(?![\w'-])", lambda m: _SLIPS.get(m.group(0), m.group(0)),
-                  " ".join(question.replace("\u2019", "'").lower().split()))
+    text = _mend_slips(question.replace("\u2019", "'"))
     text = re.sub(r"\b(" + "|".join(re.escape(w) for w, room in _ROOM_WORDS if w != room)
                   + r")\b", lambda m: canonical_room(m.group(1)) or m.group(1), text)
     for words, category in sorted(target.aliases, key=lambda a: -len(a[0])):
