@@ -60,7 +60,7 @@ def spec_for(name: str) -> Any:
             SIGHTINGS.register(f"labels:{name}", lambda perception, env, **_: LabelsSightings(
                 perception, env.scene_labels(), errors))
         options["sightings"] = f"labels:{name}"
-    return RunSpec(method=options.get("method") or "efficienteqa", dataset="synthetic",
+    return RunSpec.of(method=options.get("method") or "efficienteqa", dataset="synthetic",
                    stack=build_stack(options), config=build_config(options), judge=None)
 
 

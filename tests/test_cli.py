@@ -376,7 +376,7 @@ def test_judge_grades_with_evals_default_judge_unless_told(tmp_path, monkeypatch
     assert result.exit_code == 0, result.output
     assert calls == [("local:smollm2-135m", "yes-prob"), ("openai:gpt-4o", "grade")]
     # RunSpec, made without the CLI, resolves the same default mode for the same judges.
-    assert [RunSpec("blind", "hm-eqa", judge=j).judge_mode for j in ("local:m", "openai:gpt-4o")] == [
+    assert [RunSpec.of("blind", "hm-eqa", judge=j).judge_mode for j in ("local:m", "openai:gpt-4o")] == [
         "yes-prob", "grade"]
 
 

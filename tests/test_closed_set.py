@@ -67,7 +67,7 @@ def test_a_closed_set_episode_is_graded_by_its_letter(tmp_path, monkeypatch):
     pick = right if right != wrong else next(x for x in "ABCD" if x != right)
     model = letter_model({pick: -0.2, **{x: -2.0 for x in "ABCD" if x != pick}}, reply=pick)
     monkeypatch.setattr("efficienteqa.models.backends.build_chat_model", lambda backend: model)
-    spec = RunSpec(method="blind", dataset="hm-eqa", judge=None, closed_set=True)
+    spec = RunSpec.of(method="blind", dataset="hm-eqa", judge=None, closed_set=True)
     rows = [run_episode(spec, q, tmp_path) for q in questions]
     assert [r["status"] for r in rows] == ["done", "done"], rows
     for q, row in zip(questions, rows):
@@ -88,7 +88,7 @@ def test_open_ended_rows_have_no_letter_grade(tmp_path):
 
     q = EvalQuestion(id="x/0", dataset="x", scene="synthetic:0", question="Is it on?", answer="yes",
                      category="state")
-    row = run_episode(RunSpec(method="eval_stubs:echo", dataset="x", judge=None), q, tmp_path)
+    row = run_episode(RunSpec.of(method="eval_stubs:echo", dataset="x", judge=None), q, tmp_path)
     assert row["status"] == "done" and row["choice"] is None
 
 

@@ -49,9 +49,8 @@ def main_table_spec(row: str, **config: object) -> RunSpec:
     (experiments/main_table.sh), with ``config`` typed on top."""
     resolved = presets.resolve(config, row)
     run = resolved.run
-    return RunSpec(method=run.eval.method, dataset="synthetic", stack=run.backends,
-                   config=run.agent, judge=DEFAULT_JUDGE, preset=resolved.preset,
-                   preset_config=resolved.preset_run.agent)
+    return RunSpec(replace(run, eval=replace(run.eval, dataset="synthetic")), judge=DEFAULT_JUDGE,
+                   preset=resolved.preset, preset_agent=resolved.preset_run.agent)
 
 
 def published_spec(**config: object) -> RunSpec:
@@ -169,7 +168,7 @@ def test_a_changed_preset_file_does_not_relabel_a_run_recorded_before(tmp_path, 
 def test_a_changed_default_does_not_relabel_a_run_recorded_before(tmp_path, monkeypatch):
     """Today's defaults are not what a format-2 run is compared with: its recorded ones are."""
     folder = tmp_path / "run"
-    resume(folder, RunSpec(method="efficienteqa", dataset="synthetic", judge=None))
+    resume(folder, RunSpec.of(method="efficienteqa", dataset="synthetic", judge=None))
     run = read_run(folder)[0]
     assert label(run) == "efficienteqa"
     # As if the default K had become 10 since: the run, at K = 5 then, is still "efficienteqa".

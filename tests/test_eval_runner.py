@@ -31,7 +31,7 @@ def questions(n: int) -> list[EvalQuestion]:
 
 
 def spec(method: str = "eval_stubs:echo", **kwargs) -> RunSpec:
-    return RunSpec(method=method, dataset="toy", judge=None, **kwargs)
+    return RunSpec.of(method=method, dataset="toy", judge=None, **kwargs)
 
 
 def lines(out: Path) -> list[dict]:

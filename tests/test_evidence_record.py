@@ -137,7 +137,7 @@ def test_eval_rows_carry_the_evidence_record_refused_moves_and_oracle_steps(tmp_
         room = env.house.room(desk.room_id).name
     monkeypatch.setattr(stack_module, "build_chat_model",
                         lambda backend: seeking_model(desk.category, room))
-    spec = RunSpec(method="frontier-only", dataset="synthetic-test", judge=None, assets="builtin",
+    spec = RunSpec.of(method="frontier-only", dataset="synthetic-test", judge=None, assets="builtin",
                    stack=Stack(relevancy="overlap", grouping="rules"),
                    config=AgentConfig.of(max_steps=4))
     question = to_eval_question(q, "synthetic-test", "builtin")

@@ -43,7 +43,7 @@ def run(vlm, tmp_path, question, method: str, server: str | Options,
     s = vlm(SERVERS[server] if isinstance(server, str) else server)
     options = {"vlm": f"openai:test-vlm@{s.base_url}", "perception": "rgb",
                "relevancy": "vlm-match", "max_steps": 4, "cache": False, **(flags or {})}
-    spec = RunSpec(method=method, dataset="synthetic:0", stack=build_stack(options),
+    spec = RunSpec.of(method=method, dataset="synthetic:0", stack=build_stack(options),
                    config=build_config(options), judge=None, assets="builtin")
     out = tmp_path / "run"
     result = run_eval(spec, question, out)
@@ -127,7 +127,7 @@ def test_the_vlms_sightings_steer_an_image_user_as_labels_do(vlm, tmp_path, perc
     s = vlm(Options())
     options = {"vlm": f"openai:test-vlm@{s.base_url}", "perception": perception,
                "relevancy": relevancy, "max_steps": 8, "cache": False, "sightings": "model"}
-    spec = RunSpec(method="efficienteqa", dataset="synthetic:0", stack=build_stack(options),
+    spec = RunSpec.of(method="efficienteqa", dataset="synthetic:0", stack=build_stack(options),
                    config=build_config(options), judge=None, assets="builtin")
     out = tmp_path / "run"
     run_eval(spec, questions, out)

@@ -499,7 +499,7 @@ def test_a_question_without_a_reference_is_run_and_not_graded(tmp_path):
     assert (first.id, first.scene, first.answer) == ("q/000", f"recorded:{tmp_path / 'w.mcap'}", "")
     assert (second.id, second.scene, second.answer) == ("cat", "recorded:/abs/w.mcap", "on the sofa")
     # A judge that cannot be built: grading the row without a reference would fail.
-    spec = RunSpec("efficienteqa", str(questions), judge="openai:no-such-model@http://127.0.0.1:9/v1")
+    spec = RunSpec.of("efficienteqa", str(questions), judge="openai:no-such-model@http://127.0.0.1:9/v1")
     assert _judge(spec, first, "yes") is None
     for text, message in (("{}", "needs a question and a scene"), ("nope", "is not JSON"),
                           ('{"question": "a?", "scene": "recorded:w.mcap", "id": "x"}\n' * 2,

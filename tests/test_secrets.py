@@ -100,7 +100,7 @@ def test_the_variable_named_as_the_key_reaches_no_runtime_env_whatever_its_name(
     monkeypatch.setenv("EFFICIENTEQA_AUTH", FAKE_KEY)
     ray = FakeRay()
     monkeypatch.setitem(sys.modules, "ray", ray)
-    keyed = RunSpec(method="eval_stubs:echo", dataset="toy", judge="openai:j@http://127.0.0.1:9/v1",
+    keyed = RunSpec.of(method="eval_stubs:echo", dataset="toy", judge="openai:j@http://127.0.0.1:9/v1",
                     stack=Stack(vlm="openai:m@http://127.0.0.1:9/v1", api_key_env="EFFICIENTEQA_AUTH"))
     run_eval(keyed, questions(2), tmp_path / "run", workers=2, address=address, prepare=False)
     [options] = ray.inits

@@ -163,7 +163,7 @@ def test_an_episode_line_carries_the_rule_grade_beside_llm_match(tmp_path, monke
 
     q = EvalQuestion(id="toy/0", dataset="synthetic-v1", scene="synthetic:0",
                      question="Is the lamp on?", answer="yes", category="state", accepted=("yes", "on"))
-    spec = RunSpec(method="eval_stubs:echo", dataset="synthetic-v1", judge=None)
+    spec = RunSpec.of(method="eval_stubs:echo", dataset="synthetic-v1", judge=None)
     monkeypatch.setenv("EQA_STUB_ANSWER", "It is switched off.")
     row = run_episode(spec, q, tmp_path)
     assert row["status"] == "done" and row["rule"]["score"] == 1 and row["judge"] is None

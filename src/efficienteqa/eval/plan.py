@@ -73,11 +73,5 @@ def plan_run(run: RunConfig, preset: str | None = None,
                                 "is answered by blind (or a module:function method that sets "
                                 "extra['letter'])", fix="use --eval.method blind")
     judge = judge_of(run)
-    scene = run.scene
-    return RunSpec(method=e.method, dataset=e.dataset, stack=run.backends, config=run.agent,
-                   closed_set=e.closed_set, judge=judge, judge_mode=mode_of(e.judge_mode,
-                                                                            judge or ""),
-                   preset=preset, preset_config=preset_agent or run.agent, reports=e.reports,
-                   assets=scene.assets, env=scene.env, noise=scene.noise,
-                   hm3d_root=str(scene.hm3d_root) if scene.hm3d_root is not None else None,
-                   tree=run)
+    return RunSpec(run, judge=judge, judge_mode=mode_of(e.judge_mode, judge or ""),
+                   preset=preset, preset_agent=preset_agent)

@@ -216,8 +216,7 @@ def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = (),
                   "questions": n_questions,
                   **({"question_ids": list(ids)} if ids is not None else {}),
                   **scene_seeds(scenes),
-                  **({"run": json.loads(json.dumps(asdict(spec.tree), default=str))}
-                     if spec.tree is not None else {}),
+                  "run": json.loads(json.dumps(asdict(spec.run), default=str)),
                   "code_version": code_version(), "created": time.time(), "machine": machine()})
 
 
