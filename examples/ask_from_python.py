@@ -17,8 +17,8 @@ import argparse
 from pathlib import Path
 
 from efficienteqa.ask import ask
-from efficienteqa.backends import Stack
-from efficienteqa.presets import run_config
+from efficienteqa.config.backends import Stack
+from efficienteqa.config.presets import run_config
 from efficienteqa.stack import default_relevancy
 
 

@@ -23,10 +23,10 @@ from typing import Any
 import numpy as np
 
 from efficienteqa.ask import ask
+from efficienteqa.config.presets import run_config
 from efficienteqa.envs.base import move_info
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.observation import Observation
-from efficienteqa.presets import run_config
 from efficienteqa.scenes import Scene
 
 ROOM = (6.0, 4.0, 2.5)  # x, y, height in metres

@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config.knobs import build, with_leaves
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.eval.records import append_episode, nest_config, read_episodes, read_run
 from efficienteqa.eval.replay import (
@@ -59,7 +60,6 @@ from efficienteqa.eval.replay import (
 )
 from efficienteqa.eval.runner import episode_folder
 from efficienteqa.eval.synthetic_judge import RULE_CATEGORIES, rule_judgement
-from efficienteqa.knobs import build, with_leaves
 from efficienteqa.records import code_version, plain, write_json
 from efficienteqa.scenes import open_scene
 from efficienteqa.stack import Stack, build_agent, parse_vlm

@@ -20,6 +20,7 @@ from scipy.stats import rankdata
 
 from efficienteqa.agent import Agent, AgentConfig
 from efficienteqa.answer.rag import RagAnswerer
+from efficienteqa.config.knobs import with_leaves
 from efficienteqa.datasets.synthetic import parse_seeds
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.generate import ROBOT_RADIUS_M
@@ -27,7 +28,6 @@ from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.explore.module import ExploreStep, SemanticScorer
 from efficienteqa.explore.oracle import EvidenceDistance, evidence_distance_field
 from efficienteqa.geometry import Pose2D
-from efficienteqa.knobs import with_leaves
 from efficienteqa.mapping.maps2d import Mapper
 from efficienteqa.mapping.state import MapState
 from efficienteqa.models.stub import StubChatModel

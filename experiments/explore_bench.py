@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config.knobs import with_leaves
 from efficienteqa.envs.synthetic.env import SyntheticEnv, catalog_for
 from efficienteqa.envs.synthetic.generate import generate_house
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
@@ -40,7 +41,6 @@ from efficienteqa.explore.module import SemanticScorer
 from efficienteqa.explore.oracle import EvidenceDistance, OracleScorer
 from efficienteqa.explore.prompting import PROMPT_CONFIGS
 from efficienteqa.explore.settings import EXPLORATIONS, REFUSAL_RETRIES
-from efficienteqa.knobs import with_leaves
 from efficienteqa.reading.target import TargetReading
 from efficienteqa.records import code_version
 from efficienteqa.scenes import synthetic_questions

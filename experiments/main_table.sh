@@ -23,7 +23,7 @@ run() {
   echo "==> $name $(date +%T)"
   "$EQA" eval --dataset "$DATASET" --limit "$LIMIT" --out "$OUT/$name" --judge "$JUDGE" "$@" "${ARGS[@]}" || { echo "failed: $name"; status=1; }
 }
-# Each row is a named configuration shipped with the package (src/efficienteqa/configs/NAME.toml,
+# Each row is a named configuration shipped with the package (src/efficienteqa/config/toml/NAME.toml,
 # which says what it holds); ARGS, given after it, win. The paper row is the paper's algorithm on
 # the offline stack (paper-offline: DESIGN 3.2-3.5 with every option beyond the paper off).
 run default --preset default

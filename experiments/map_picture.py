@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from efficienteqa.agent import PAPER_CONFIG, AgentConfig
+from efficienteqa.config.knobs import with_leaves
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question, evidence_visible
 from efficienteqa.explore.oracle import OracleScorer
 from efficienteqa.geometry import Pose2D
-from efficienteqa.knobs import with_leaves
 from efficienteqa.mapping.visualize import map_image, world_to_image
 from efficienteqa.scenes import synthetic_questions
 from efficienteqa.stop.rules import env_step_budget

@@ -28,10 +28,10 @@ from typing import Any
 import numpy as np
 
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config.knobs import with_leaves
 from efficienteqa.datasets import load_dataset
 from efficienteqa.envs.synthetic.questions import evidence_visible
 from efficienteqa.geometry import Pose2D
-from efficienteqa.knobs import with_leaves
 from efficienteqa.models.stub import StubChatModel
 from efficienteqa.records import code_version
 from efficienteqa.scenes import open_scene, synthetic_questions

@@ -45,8 +45,8 @@ def _errors(name: str) -> Any:
 
 
 def spec_for(name: str) -> Any:
+    from efficienteqa.config.presets import build_config, build_stack, load_preset
     from efficienteqa.eval.methods import RunSpec
-    from efficienteqa.presets import build_config, build_stack, load_preset
     from efficienteqa.stack import SIGHTINGS
 
     options = dict(load_preset("frontier-only" if name == "frontier-only" else "default"))

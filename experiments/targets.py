@@ -39,9 +39,9 @@ from typing import Any
 import numpy as np
 
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config.knobs import with_leaves
 from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question
-from efficienteqa.knobs import with_leaves
 from efficienteqa.models.backends import build_chat_model
 from efficienteqa.reading.adjacency import RoomAdjacency
 from efficienteqa.reading.target import TargetReading

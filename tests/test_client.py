@@ -999,7 +999,7 @@ def test_ask_through_openai_matches_local_on_the_projects_own_server(llama_serve
     local:smollm2-135m@URL` on the llama-cpp-python server `models serve` runs: the same answer,
     steps, stop and replies (an eval's episode is this ask, run by the runner)."""
     from efficienteqa.ask import ask
-    from efficienteqa.presets import build_config, build_stack
+    from efficienteqa.config.presets import build_config, build_stack
 
     said = {}
     for kind in ("openai", "local"):

@@ -123,10 +123,10 @@ def test_the_benchmark_reports_accuracy_against_the_majority_letter():
 def test_a_library_caller_gets_the_evals_refusals_and_judge_from_plan_run():
     """The evaluation's policy is the library's (``eval.plan``), not the command line's: the
     same refusals, the same judge chosen."""
+    from efficienteqa.config.presets import run_config
     from efficienteqa.errors import EfficientEQAError
     from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE
     from efficienteqa.eval.plan import plan_run
-    from efficienteqa.presets import run_config
 
     with pytest.raises(EfficientEQAError, match="HM-EQA's multiple-choice mode"):
         plan_run(run_config(None, {"eval.closed_set": True, "eval.dataset": "synthetic"}))

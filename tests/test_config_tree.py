@@ -17,9 +17,9 @@ import typer
 from efficienteqa.agent import AgentConfig
 from efficienteqa.cli import app
 from efficienteqa.cli.options import given_values, tree_leaves
-from efficienteqa.knobs import Leaf, build, flat_names, leaves
-from efficienteqa.presets import load_config
-from efficienteqa.runconfig import RunConfig
+from efficienteqa.config.knobs import Leaf, build, flat_names, leaves
+from efficienteqa.config.presets import load_config
+from efficienteqa.config.run import RunConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -163,8 +163,8 @@ def test_ask_help_shows_the_openai_server_form_and_every_section(cli):
 
 
 def test_constants_that_cannot_act_are_refused_in_one_line():
+    from efficienteqa.config.presets import resolve
     from efficienteqa.errors import EfficientEQAError
-    from efficienteqa.presets import resolve
 
     assert resolve({"explore.sfe.view_gain": False}).run.explore.sfe == {"view_gain": False}
     assert resolve({"explore.target.room_tries": 3}).run.explore.target == {"room_tries": 3}
@@ -192,7 +192,7 @@ def test_constants_that_cannot_act_are_refused_in_one_line():
 def test_config_prints_a_file_that_reads_back_to_the_same_run(tmp_path, preset):
     """`efficienteqa config` shows what a run would use, as a --config file: read back, the same
     run (the method's own settings are comments, as eval refuses them given otherwise)."""
-    from efficienteqa.presets import resolve, to_toml
+    from efficienteqa.config.presets import resolve, to_toml
 
     given = {"stop.z_gated": 2.0} if preset == "default" else {"answer.top_k": 3} if (
         preset == "explore-eqa-per-token") else {
@@ -205,7 +205,7 @@ def test_config_prints_a_file_that_reads_back_to_the_same_run(tmp_path, preset):
 
 
 def test_the_config_command_prints_the_run_it_would_make(cli, tmp_path):
-    from efficienteqa.presets import resolve
+    from efficienteqa.config.presets import resolve
 
     result = cli("config", "--preset", "explore-eqa", "--answer.top-k", "3")
     assert result.returncode == 0, result.said
@@ -243,8 +243,8 @@ def test_the_cli_makes_its_options_without_loading_the_agent():
 def test_a_setting_the_run_would_ignore_is_refused_and_shown_as_ignored(given, preset, words):
     """One list says when a setting acts (``inert.inert``): given on the command line where it
     cannot act, it is refused in one line; where a preset sets it, ``config`` says so."""
+    from efficienteqa.config.presets import resolve, to_toml
     from efficienteqa.errors import EfficientEQAError
-    from efficienteqa.presets import resolve, to_toml
 
     with pytest.raises(EfficientEQAError, match=words) as raised:
         resolve(given, preset)
@@ -257,7 +257,7 @@ def test_a_setting_the_run_would_ignore_is_refused_and_shown_as_ignored(given, p
 
 
 def test_config_marks_what_the_paper_preset_leaves_unused():
-    from efficienteqa.presets import resolve, to_toml
+    from efficienteqa.config.presets import resolve, to_toml
 
     shown = to_toml(resolve({}, "paper-offline").run).splitlines()
     ignored = {line.split(" = ")[0] for line in shown if "# does not act" in line}
@@ -269,9 +269,9 @@ def test_each_constant_says_whether_it_is_the_papers_or_the_projects():
     """``--help-all``: the frontier explorer's constants from ExploreEQA's SFE (DESIGN 3.2) say
     so; the project's own (the options PAPER_SFE turns off, the steering's) are beyond it."""
     from efficienteqa.cli.options import _parameter
+    from efficienteqa.config.knobs import leaves
+    from efficienteqa.config.run import RunConfig
     from efficienteqa.explore.settings import PAPER_SFE, PAPER_SFE_CONSTANTS
-    from efficienteqa.knobs import leaves
-    from efficienteqa.runconfig import RunConfig
 
     def help_of(path: str) -> str:
         leaf = next(x for x in leaves(RunConfig) if ".".join(x.path) == path)

@@ -193,7 +193,7 @@ def test_the_offline_stack_takes_the_direction_logit_and_vlms_keep_their_confide
 
 
 def test_the_paper_preset_keeps_the_vlm():
-    from efficienteqa.presets import PRESETS
+    from efficienteqa.config.presets import PRESETS
 
     assert PRESETS["paper"]["backends.explore_scorer"] == "vlm"
 

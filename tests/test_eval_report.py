@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 
 from efficienteqa import cli
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config.knobs import with_leaves
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.compare import ablations, distinct_labels
 from efficienteqa.eval.records import EPISODES_FILE, RUN_FILE, append_episode
@@ -26,7 +27,6 @@ from efficienteqa.eval.tables import (
     write_folders_report,
     write_run_report,
 )
-from efficienteqa.knobs import with_leaves
 from efficienteqa.records import write_json
 from efficienteqa.stop.rules import StopConfig
 

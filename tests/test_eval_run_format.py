@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from efficienteqa import presets
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config import presets
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval import run_labels
 from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE

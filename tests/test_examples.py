@@ -78,8 +78,8 @@ def test_a_run_built_in_python_is_the_run_the_episode_records(vlm, tmp_path):
     """``ask(..., run=)`` takes the whole tree (``presets.run_config``: checked as the command
     line checks it); the episode records that tree's agent and back-ends."""
     from efficienteqa.ask import ask
+    from efficienteqa.config.presets import run_config
     from efficienteqa.errors import EfficientEQAError
-    from efficienteqa.presets import run_config
     from efficienteqa.records import plain
     from efficienteqa.stack import Stack
 

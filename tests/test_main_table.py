@@ -67,12 +67,12 @@ def test_the_main_table_runs_every_method_on_one_question(tmp_path, capfd, monke
 
 
 def test_every_row_is_a_shipped_configuration():
-    """The rows name presets (configs/NAME.toml) instead of spelling out flag lists;
+    """The rows name presets (config/toml/NAME.toml) instead of spelling out flag lists;
     the paper row is the paper's algorithm on the offline stack, and each of the two has a row
     seeing through the pixel network."""
     import re
 
-    from efficienteqa.presets import preset_names
+    from efficienteqa.config.presets import preset_names
 
     script = (ROOT / "experiments" / "main_table.sh").read_text()
     rows = dict(re.findall(r"^run (\S+) --preset (\S+)$", script, flags=re.M))
@@ -87,7 +87,7 @@ def test_the_published_main_table_folders_are_named_as_their_presets():
     the paraphrase split and the combined report apart)."""
     import re
 
-    from efficienteqa.presets import preset_names
+    from efficienteqa.config.presets import preset_names
 
     published = ROOT / "results" / "main-heldout"
     names = {re.sub(r"-v\d+$", "", f.name) for f in published.iterdir()

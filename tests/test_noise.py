@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import needs_egl
+from efficienteqa.config.run import NOISE_PROFILES, SceneConfig
 from efficienteqa.envs.synthetic.noise import (
     PROFILES,
     ROBOT,
@@ -22,7 +23,6 @@ from efficienteqa.envs.synthetic.noise import (
 )
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
-from efficienteqa.runconfig import NOISE_PROFILES, SceneConfig
 
 
 def test_the_profiles_the_configuration_names_are_the_ones_that_exist():

@@ -13,11 +13,11 @@ from collections import Counter
 import pytest
 
 from conftest import needs_egl
+from efficienteqa.config.presets import build_config, build_stack
 from efficienteqa.datasets import load_dataset
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.methods import RunSpec
 from efficienteqa.eval.runner import run_eval
-from efficienteqa.presets import build_config, build_stack
 from vlm_server import Options
 
 pytestmark = needs_egl

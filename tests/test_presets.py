@@ -9,10 +9,8 @@ from dataclasses import asdict
 import pytest
 
 from efficienteqa.agent import AgentConfig
-from efficienteqa.errors import EfficientEQAError
-from efficienteqa.explore.settings import REFUSAL_RETRIES
-from efficienteqa.knobs import with_leaves
-from efficienteqa.presets import (
+from efficienteqa.config.knobs import with_leaves
+from efficienteqa.config.presets import (
     PRESETS,
     build_config,
     build_run,
@@ -20,6 +18,8 @@ from efficienteqa.presets import (
     load_preset,
     resolve,
 )
+from efficienteqa.errors import EfficientEQAError
+from efficienteqa.explore.settings import REFUSAL_RETRIES
 from efficienteqa.stack import Stack
 from efficienteqa.stop import StopConfig
 from efficienteqa.stop.rules import GATED_MIN_STEP
@@ -149,7 +149,7 @@ PAPER_BACKENDS = {"eval.dataset": "hm-eqa", "eval.limit": 100, "scene.env": "hab
 
 
 def test_the_presets_are_the_shipped_configuration_files():
-    from efficienteqa.presets import preset_names
+    from efficienteqa.config.presets import preset_names
 
     assert set(preset_names()) == {"paper", *MAIN_TABLE_ROWS}
     for name, options in MAIN_TABLE_ROWS.items():
@@ -180,7 +180,7 @@ def test_paper_offline_is_the_papers_algorithm_on_the_offline_stack():
 
 
 def test_a_configuration_file_is_read_and_checked(tmp_path):
-    from efficienteqa.presets import load_config
+    from efficienteqa.config.presets import load_config
 
     good = tmp_path / "mine.toml"
     good.write_text('base = "explore-eqa"\n# a comment\ntop_k = 3\n[stop]\nz_th = 2\n'
@@ -247,7 +247,7 @@ def test_a_z_th_that_cannot_act_is_refused_in_one_line(gate):
 @pytest.mark.parametrize("method", ["explore-eqa", "explore-eqa-blackbox"])
 def test_the_baselines_in_the_papers_setting_explore_with_the_vlm(method):
     """ExploreEQA's baselines as the paper ran them (--preset paper --method M): the VLM scores
-    the directions (the main table's rows use the model-free scorer, configs/explore-eqa.toml)."""
+    the directions (the main table's rows use the model-free scorer, config/toml/explore-eqa.toml)."""
     from efficienteqa.eval.methods import method_config
     from efficienteqa.perception.image import ImagePerception
     from efficienteqa.stack import explore_scorer_name

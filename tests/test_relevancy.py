@@ -364,7 +364,7 @@ def test_relevancy_weights_that_are_no_folder_fail_before_any_model_loads(tmp_pa
     """Fault trial N.15: ``--backends.relevancy-weights /nonexistent`` with MiniLM ended, 16 s
     later, in a Hugging Face traceback (the path read as a repo id). ``check_stack`` refuses it
     in one line before torch loads; an image scorer still takes a Hub model id."""
-    from efficienteqa.backends import Stack
+    from efficienteqa.config.backends import Stack
     from efficienteqa.stack import check_relevancy_weights, check_stack
 
     for kind in ("minilm", "minilm-match", "blip2-itm"):

@@ -254,7 +254,7 @@ def test_a_sightings_source_that_cannot_act_is_refused_in_one_line():
 
 
 def test_the_cli_takes_sightings_from_the_command_line_and_a_config_file(tmp_path):
-    from efficienteqa.presets import build_stack, load_config
+    from efficienteqa.config.presets import build_stack, load_config
 
     config = tmp_path / "c.toml"
     config.write_text('sightings = "model"\n')

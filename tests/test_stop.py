@@ -185,8 +185,8 @@ def test_combined_rule_and_unknown_names():
 
 
 def test_paper_preset_keeps_the_paper_rule_and_the_option_reaches_the_config():
+    from efficienteqa.config.presets import build_config, resolve
     from efficienteqa.errors import EfficientEQAError
-    from efficienteqa.presets import build_config, resolve
 
     assert resolve({}, "paper").run.stop.rule == "paper"
     assert build_config({"stop_rule": "lookback+floor"}).stop.rule == "lookback+floor"

@@ -30,6 +30,7 @@ from efficienteqa.answer.best_step import StepAnswer, StepFrame, best_step_answe
 from efficienteqa.answer.confident import confident_probability
 from efficienteqa.answer.config import AnswerConfig
 from efficienteqa.answer.rag import RagAnswerer, TopK, View
+from efficienteqa.config.knobs import with_leaves
 from efficienteqa.envs.base import Environment, Observation, SimulatedScene, is_recording
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.base import Decision
@@ -46,7 +47,6 @@ from efficienteqa.explore.registry import make_explorer
 from efficienteqa.explore.sfe import FrontierExplorer
 from efficienteqa.explore.target import TargetExplorer
 from efficienteqa.geometry import Pose2D
-from efficienteqa.knobs import with_leaves
 from efficienteqa.mapping.extent import volume_around
 from efficienteqa.mapping.instances import asked_count
 from efficienteqa.mapping.maps2d import MAX_INVALID_FRACTION, Mapper
@@ -114,7 +114,7 @@ def recording_budget(steps: int | None, env: Environment) -> int:
 
 # The paper's algorithm (DESIGN 3.2-3.5) with every option beyond it off: what `--preset paper`
 # sets besides the back-ends (with the VLM as explore scorer), `--preset paper-offline`
-# (configs/paper-offline.toml, tests/test_presets.py holds them equal), and what a table calls
+# (config/toml/paper-offline.toml, tests/test_presets.py holds them equal), and what a table calls
 # "paper configuration".
 PAPER_CONFIG = AgentConfig.of(rule="paper", min_step=PAPER_MIN_STEP, gate="none",
                               refusal_retries=0, stop_clearance_m=0.0, prompts="paper",

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config.run import RunConfig, SceneConfig
 from efficienteqa.envs.base import Environment, SceneLabels, is_recording
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.questions import Question
@@ -24,7 +25,6 @@ from efficienteqa.report.evidence import EvidenceWatch
 from efficienteqa.report.frames import FrameCollector
 from efficienteqa.report.html import write_report
 from efficienteqa.report.rerun_log import RerunLog
-from efficienteqa.runconfig import RunConfig, SceneConfig
 from efficienteqa.scenes import Scene, open_scene
 from efficienteqa.stack import Stack, build_agent
 from efficienteqa.trace import EpisodeResult, StepHook, StepRecord

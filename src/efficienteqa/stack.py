@@ -16,7 +16,7 @@ from typing import Any
 
 from efficienteqa.agent import Agent, AgentConfig
 from efficienteqa.answer.rag import RagAnswerer
-from efficienteqa.backends import IMAGE_FORMAT_AUTO, Stack
+from efficienteqa.config.backends import IMAGE_FORMAT_AUTO, Stack
 from efficienteqa.envs.base import Environment
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.module import SemanticScorer

@@ -1,5 +1,5 @@
 """The answer module's knobs (DESIGN 3.5), a section of the run's configuration tree
-(``runconfig.RunConfig.answer``; fields declared with ``knobs.knob``)."""
+(``config.run.RunConfig.answer``; fields declared with ``knobs.knob``)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from efficienteqa.answer.calls import (
 )
 from efficienteqa.answer.confident import STEP_WEIGHTS
 from efficienteqa.answer.rag import TOP_K, Confidence
-from efficienteqa.knobs import knob
+from efficienteqa.config.knobs import knob
 
 # Where the answer comes from: the top-K frames at the end (EfficientEQA's RAG), or the best
 # per-step answer by weight x confidence (ExploreEQA).

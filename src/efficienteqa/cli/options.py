@@ -1,6 +1,6 @@
 """The options of an agent run, made from the configuration tree's fields (``knobs.leaves``).
 
-``@run_options(...)`` gives a command one typer option per value of ``runconfig.RunConfig``:
+``@run_options(...)`` gives a command one typer option per value of ``config.run.RunConfig``:
 ``--stop.z-th`` (the flat ``--z-th`` of before the sections stays, hidden, for one release), grouped in
 ``--help`` by section, each with its field's help and default, options beyond the paper marked;
 the explorer's and the steering's constants (``--explore.sfe.*``, ``--explore.target.*``) only
@@ -22,10 +22,10 @@ from typing import Any
 import click
 import typer
 
-from efficienteqa.knobs import Leaf, leaves
-from efficienteqa.runconfig import SECTION_TITLES, RunConfig
+from efficienteqa.config.knobs import Leaf, leaves
+from efficienteqa.config.run import SECTION_TITLES, RunConfig
 
-PRESET_HELP = ("A named configuration shipped with the package (efficienteqa/configs/NAME.toml): "
+PRESET_HELP = ("A named configuration shipped with the package (efficienteqa/config/toml/NAME.toml): "
                "paper (the paper's set-up: HM-EQA's first 100 in Habitat-Sim, GPT-4o at T=1 on "
                "RGB, BLIP-2 ITM, Z_th 3, K 5) | paper-offline (the paper's algorithm on the "
                "offline stack) | a main-table row: default, pixels, paper-offline-pixels, "
@@ -148,7 +148,7 @@ def run_options(sections: Iterable[str] | None = None,
 
         @functools.wraps(command)
         def wrapper(**kwargs: Any) -> Any:
-            from efficienteqa.presets import resolve
+            from efficienteqa.config.presets import resolve
 
             kwargs.pop("help_all", None)  # acted already, eagerly (_help_all)
             given = given_values(chosen, kwargs)
@@ -173,7 +173,7 @@ def run_options(sections: Iterable[str] | None = None,
 def given_values(chosen: list[Leaf], kwargs: dict[str, Any]) -> dict[str, Any]:
     """The values of ``chosen`` given on the command line, by dotted path, taken out of a
     command's ``kwargs`` (a dotted option wins over its flat alias) and checked."""
-    from efficienteqa.presets import check_value
+    from efficienteqa.config.presets import check_value
 
     given: dict[str, Any] = {}
     for leaf in chosen:

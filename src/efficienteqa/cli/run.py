@@ -12,11 +12,11 @@ from rich.markup import escape
 
 from efficienteqa.cli.app import app, console
 from efficienteqa.cli.options import run_options
+from efficienteqa.config.presets import Resolved
+from efficienteqa.config.run import ASK_EVAL_FIELDS
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import Pose2D
-from efficienteqa.presets import Resolved
 from efficienteqa.redact import redact_urls
-from efficienteqa.runconfig import ASK_EVAL_FIELDS
 
 if TYPE_CHECKING:
     from efficienteqa.ask import AskResult
@@ -369,7 +369,7 @@ def config_command(run: Resolved) -> None:
     """Print the run's whole configuration as a --config file (TOML, every value, the preset and
     options given applied): what `eval` with the same options would run. A password in a
     server's URL is printed as *** (docs/servers.md), said in a comment first."""
-    from efficienteqa.presets import to_toml
+    from efficienteqa.config.presets import to_toml
 
     text = to_toml(run.run)
     shown = redact_urls(text)

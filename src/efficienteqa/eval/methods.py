@@ -38,12 +38,12 @@ from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config.knobs import with_leaves
+from efficienteqa.config.run import EvalConfig, RunConfig, SceneConfig
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE, DEFAULT_JUDGE_MODE, judge_mode
-from efficienteqa.knobs import with_leaves
-from efficienteqa.runconfig import EvalConfig, RunConfig, SceneConfig
 from efficienteqa.stack import Stack
 
 

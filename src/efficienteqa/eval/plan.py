@@ -9,10 +9,10 @@ misspelt local model), each one line and before a house is built.
 from __future__ import annotations
 
 from efficienteqa.agent import AgentConfig
+from efficienteqa.config.run import RunConfig
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE_MODE, judge_mode
 from efficienteqa.eval.methods import METHODS, RunSpec, default_judge, resolve
-from efficienteqa.runconfig import RunConfig
 
 
 def check_backends(run: RunConfig) -> None:

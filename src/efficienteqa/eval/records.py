@@ -289,7 +289,7 @@ def nest_config(config: Mapping[str, Any]) -> dict[str, Any]:
     nested ``stop``) as the tree's sections, each flat name in the section that holds it today
     (``knobs.flat_names``); a configuration already in sections is returned as it is."""
     from efficienteqa.agent import AgentConfig
-    from efficienteqa.knobs import flat_names
+    from efficienteqa.config.knobs import flat_names
 
     if _nested(config):
         return dict(config)
@@ -371,7 +371,7 @@ def _changes(keys: list[str], earlier: dict[str, Any], now: dict[str, Any],
     """The settings that differ, as "name: was -> now" (a nested setting by its path within the
     key, e.g. the stack's vlm when the server's URL changed, or the config's stop.gate);
     passwords in URLs are left out."""
-    from efficienteqa.knobs import flatten
+    from efficienteqa.config.knobs import flatten
 
     said: list[str] = []
     for key in keys:

@@ -13,9 +13,9 @@ from dataclasses import asdict
 from functools import cache
 from typing import Any
 
+from efficienteqa.config.inert import reads_target
+from efficienteqa.config.knobs import flatten
 from efficienteqa.eval.records import RUN_FORMAT, upgrade
-from efficienteqa.inert import reads_target
-from efficienteqa.knobs import flatten
 
 # How a setting that differs from the default is written in a label (the paper's symbols).
 LABEL_NAMES = {"z_th": "Z_th", "top_k": "K", "max_steps": "budget", "min_step": "min step",
@@ -106,7 +106,7 @@ TARGET_SETTINGS = frozenset({"reading", "matching", "gate_final"})
 
 # How a label names a named configuration: the paper's by this phrase, one named after the
 # method or "default" by nothing, any other by its name less the method's ("per-token" for the
-# explore-eqa run of configs/explore-eqa-per-token.toml).
+# explore-eqa run of config/toml/explore-eqa-per-token.toml).
 PRESET_LABELS = {"paper": "paper configuration", "paper-offline": "paper configuration",
                  "default": ""}
 

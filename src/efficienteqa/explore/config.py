@@ -1,5 +1,5 @@
 """The explore module's knobs (DESIGN 3.2-3.3, and the steering beyond the paper), a section of
-the run's configuration tree (``runconfig.RunConfig.explore``; fields declared with
+the run's configuration tree (``config.run.RunConfig.explore``; fields declared with
 ``knobs.knob``). ``sfe`` and ``target`` hold overrides of the frontier explorer's and the
 steering's constants (``SFEConfig``, ``TargetConfig``), so each is reachable by name
 (``--explore.sfe.view-gain``) while those dataclasses keep their defaults in one place."""
@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from efficienteqa.config.knobs import knob, make
 from efficienteqa.explore.settings import (
     EXPLORATIONS,
     PROMPT_SETS,
@@ -17,7 +18,6 @@ from efficienteqa.explore.settings import (
     SFEConfig,
     TargetConfig,
 )
-from efficienteqa.knobs import knob, make
 from efficienteqa.mapping.extent import MAP_SIZE_M, check_map_size
 from efficienteqa.reading.aliases import MATCHINGS
 from efficienteqa.reading.reader import READINGS

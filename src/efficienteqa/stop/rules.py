@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from efficienteqa.knobs import knob
+from efficienteqa.config.knobs import knob
 from efficienteqa.stop.gate import GATES
 
 Z_TH = 3.0

@@ -1,5 +1,5 @@
 """Which back-ends an episode uses: ``Stack``, the ``backends`` section of a run's configuration
-(``runconfig.RunConfig``). Names only, no objects: ``stack.py`` builds them. Light to import, so
+(``config.run.RunConfig``). Names only, no objects: ``stack.py`` builds them. Light to import, so
 the CLI can make its options from the fields without loading a model back-end.
 """
 
@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from efficienteqa.knobs import knob
+from efficienteqa.config.knobs import knob
 from efficienteqa.models.local.weights import DEFAULT_MODEL
 
 # The image format that follows the server: ChatBackend's own per-kind choice (jpeg for openai:

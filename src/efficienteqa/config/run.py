@@ -26,10 +26,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from efficienteqa.answer.config import AnswerConfig
-from efficienteqa.backends import Stack
+from efficienteqa.config.backends import Stack
+from efficienteqa.config.knobs import knob
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.explore.config import ExploreConfig
-from efficienteqa.knobs import knob
 from efficienteqa.stop.rules import StopConfig, gated_stop
 
 if TYPE_CHECKING:

@@ -16,7 +16,7 @@ from efficienteqa.stop.rules import rule_parts, z_th_acts
 
 if TYPE_CHECKING:
     from efficienteqa.agent import AgentConfig
-    from efficienteqa.runconfig import RunConfig
+    from efficienteqa.config.run import RunConfig
 
 FRONTIER_EXPLORERS = ("sfe", "frontier-only")
 

@@ -1,6 +1,6 @@
 """Knobs: the fields of the configuration dataclasses, walked as one tree.
 
-A run's configuration is a tree of frozen dataclasses (``runconfig.RunConfig``: ``backends``,
+A run's configuration is a tree of frozen dataclasses (``config.run.RunConfig``: ``backends``,
 ``scene``, ``explore``, ``stop``, ``answer``, ``eval``). Each field declares itself with
 ``knob(default, help=...)``: its help text, whether it goes beyond the paper, and the flat name
 it had before the tree (one release of aliases). Everything else derives from the fields:

@@ -1,6 +1,6 @@
 """From what the user gave to the run's configuration tree: the one configuration path of the CLI.
 
-Values are keyed by their dotted path in ``runconfig.RunConfig`` (``"stop.z_th"``). A run's
+Values are keyed by their dotted path in ``config.run.RunConfig`` (``"stop.z_th"``). A run's
 values come from three sources, each filling only what the ones before it left out: the command
 line, ``--config FILE``, ``--preset NAME``; whatever is still left out keeps the default of its
 dataclass, so no default is written twice (``resolve``).
@@ -15,7 +15,7 @@ A configuration is a TOML file with one table per section::
 
 A top-level key may also be a field's flat name from before the sections (``top_k = 3``,
 ``min_stop_step = 10``): it is read as the field it names. The presets are the files
-``configs/NAME.toml`` shipped in the package, each saying what it holds: ``paper`` (the paper's
+``config/toml/NAME.toml`` shipped in the package, each saying what it holds: ``paper`` (the paper's
 experiments: HM-EQA in Habitat-Sim, GPT-4o, BLIP-2 ITM), ``paper-offline`` (the paper's
 algorithm, ``agent.PAPER_CONFIG``, on the offline default stack) and one per row of
 experiments/main_table.sh.
@@ -32,9 +32,9 @@ from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from efficienteqa.config.knobs import Leaf, build, flat_names, leaves, nest
+from efficienteqa.config.run import RunConfig
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.knobs import Leaf, build, flat_names, leaves, nest
-from efficienteqa.runconfig import RunConfig
 
 if TYPE_CHECKING:
     from efficienteqa.agent import AgentConfig
@@ -61,11 +61,11 @@ def dotted(name: str) -> str:
 
 
 def _configs() -> Any:
-    return resources.files("efficienteqa") / "configs"
+    return resources.files("efficienteqa") / "config" / "toml"
 
 
 def preset_names() -> list[str]:
-    """The presets shipped with the package: ``configs/*.toml``."""
+    """The presets shipped with the package: ``config/toml/*.toml``."""
     return sorted(f.name[:-5] for f in _configs().iterdir() if f.name.endswith(".toml"))
 
 
@@ -83,7 +83,7 @@ def _read_toml(text: str, where: str) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as exc:
         raise EfficientEQAError(f"{where} is not valid TOML: {exc}",
                                 fix="write [section] tables of name = value lines, as "
-                                "configs/paper.toml does") from None
+                                "config/toml/paper.toml does") from None
 
 
 def _unknown(key: str, where: str) -> EfficientEQAError:
@@ -154,11 +154,11 @@ def _resolve(text: str, where: str, folder: Path | None, seen: tuple[str, ...]) 
 
 
 def load_preset(name: str, *, seen: tuple[str, ...] = ()) -> dict[str, Any]:
-    """The values the preset ``configs/NAME.toml`` sets, its base's included, by dotted path."""
+    """The values the preset ``config/toml/NAME.toml`` sets, its base's included, by dotted path."""
     names = preset_names()
     if name not in names:
         raise EfficientEQAError(f"unknown preset {name!r}", fix=f"use one of {', '.join(names)}")
-    where = f"configs/{name}.toml"
+    where = f"config/toml/{name}.toml"
     if where in seen:
         raise EfficientEQAError(f"the presets' bases go round in a circle: {' -> '.join(seen)}",
                                 fix="give the file a base that does not lead back to it")
@@ -176,7 +176,7 @@ def load_config(path: Path) -> dict[str, Any]:
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise EfficientEQAError(f"cannot read the configuration {path}: {reason}",
                                 fix="give a TOML file of [section] tables, e.g. a copy of a "
-                                "preset (efficienteqa/configs/*.toml)") from None
+                                "preset (efficienteqa/config/toml/*.toml)") from None
     if Path(path).suffix == ".json":
         return run_values(text, str(path))
     return _resolve(text, str(path), Path(path).resolve().parent, ())
@@ -309,7 +309,7 @@ def resolve(given: Mapping[str, Any], preset: str | None = None,
 def run_config(preset: str | None = None, values: Mapping[str, Any] | None = None, *,
                config_file: Path | None = None) -> RunConfig:
     """The whole configuration of a run, for a library call (``ask(..., run=)``): ``preset``'s
-    (``configs/NAME.toml``) and ``config_file``'s, with ``values`` by dotted path on top
+    (``config/toml/NAME.toml``) and ``config_file``'s, with ``values`` by dotted path on top
     (``{"stop.z_th": 2.0, "backends.vlm": "openai:gpt-4o"}``), checked as the command line
     checks its options: a bad value, or one that would not act, raises ``EfficientEQAError``
     in one line. It runs the agent as configured (``ask``'s sense)."""
@@ -336,8 +336,8 @@ def _check_acts(run: RunConfig, values: Mapping[str, Any], asked: Mapping[str, A
     """What the method sets (its explorer, confidence reading and answer source) is refused
     when given otherwise, and a setting ``asked`` for on the command line that the run would not
     use (``inert.inert``) is refused in one line rather than ignored."""
+    from efficienteqa.config.inert import inert
     from efficienteqa.eval.methods import effective_config
-    from efficienteqa.inert import inert
 
     method = run.eval.method
     agent = (effective_config(method, run.agent) if by_method else None) or run.agent
@@ -384,8 +384,8 @@ def to_toml(run: RunConfig) -> str:
     import json
     from dataclasses import asdict
 
+    from efficienteqa.config.inert import inert
     from efficienteqa.eval.methods import effective_config
-    from efficienteqa.inert import inert
 
     idle = inert(run, effective_config(run.eval.method, run.agent) or run.agent)
 
