@@ -31,109 +31,17 @@ answers, no oracle step count, and none of the source fields that give the answe
 from __future__ import annotations
 
 import functools
-import importlib
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.config.knobs import with_leaves
-from efficienteqa.config.run import EvalConfig, RunConfig, SceneConfig
 from efficienteqa.datasets.base import EvalQuestion
-from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE, DEFAULT_JUDGE_MODE, judge_mode
-from efficienteqa.stack import Stack
-
-
-@dataclass(frozen=True)
-class RunSpec:
-    """A run as every episode shares it: the configuration tree it was made from (``run``,
-    recorded in run.json as ``efficienteqa config`` prints it) and what planning decided from
-    it (``eval.plan.plan_run``): ``judge``, a VLM spec for LLM-Match ("local:MODEL",
-    "openai:MODEL") or None for no judging; ``judge_mode`` (see ``eval.judge``; "auto" is
-    resolved here and recorded as the mode it names); ``preset`` and ``preset_config``, the
-    named configuration the options started from (``--preset NAME`` or ``--config FILE``'s
-    path; None: the defaults) and what it alone sets, since a table labels the run by what it
-    changed against that (DESIGN 6). Everything else is read from the tree: the properties
-    below are views of it, never copies. Questions that carry their accepted answers
-    (synthetic datasets) are also graded by the ``rule`` judge, whatever ``judge`` is."""
-
-    run: RunConfig = field(default_factory=RunConfig)
-    judge: str | None = DEFAULT_JUDGE
-    judge_mode: str = DEFAULT_JUDGE_MODE  # "grade" (1-5 asked for; capable judges) | "yes-prob"
-    preset: str | None = None
-    preset_agent: AgentConfig | None = None  # None: the run's own agent (no preset)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "judge_mode", judge_mode(self.judge_mode, self.judge))
-
-    @classmethod
-    def of(cls, method: str, dataset: str, *, stack: Stack | None = None,
-           config: AgentConfig | None = None, closed_set: bool = False, reports: bool = False,
-           assets: str = DEFAULT_ASSETS, env: str = "synthetic", hm3d_root: str | None = None,
-           noise: str = "none", judge: str | None = DEFAULT_JUDGE,
-           judge_mode: str = DEFAULT_JUDGE_MODE, preset: str | None = None,
-           preset_agent: AgentConfig | None = None) -> RunSpec:
-        """A spec from its parts, for a caller without a tree (tests, experiments): the tree
-        is built from them, with every other setting at its default."""
-        agent = config or AgentConfig()
-        tree = RunConfig(backends=stack or Stack(),
-                         scene=SceneConfig(env=env, assets=assets, noise=noise,
-                                           hm3d_root=Path(hm3d_root) if hm3d_root else None),
-                         explore=agent.explore, stop=agent.stop, answer=agent.answer,
-                         eval=EvalConfig(method=method, dataset=dataset, closed_set=closed_set,
-                                         reports=reports))
-        return cls(tree, judge=judge, judge_mode=judge_mode, preset=preset,
-                   preset_agent=preset_agent)
-
-    @property
-    def method(self) -> str:
-        return self.run.eval.method
-
-    @property
-    def dataset(self) -> str:
-        return self.run.eval.dataset
-
-    @property
-    def closed_set(self) -> bool:
-        return self.run.eval.closed_set
-
-    @property
-    def reports(self) -> bool:
-        return self.run.eval.reports
-
-    @property
-    def stack(self) -> Stack:
-        return self.run.backends
-
-    @property
-    def config(self) -> AgentConfig:
-        """The agent's three sections; the method's own settings go on top (``method_config``)."""
-        return self.run.agent
-
-    @property
-    def preset_config(self) -> AgentConfig:
-        return self.preset_agent or self.config
-
-    @property
-    def assets(self) -> str:
-        return self.run.scene.assets
-
-    @property
-    def env(self) -> str:
-        """The simulator of the dataset's scenes: "synthetic" or "habitat" (``hm3d_root``)."""
-        return self.run.scene.env
-
-    @property
-    def noise(self) -> str:
-        return self.run.scene.noise  # the synthetic houses' noise profile (envs/synthetic/noise)
-
-    @property
-    def hm3d_root(self) -> str | None:
-        root = self.run.scene.hm3d_root
-        return str(root) if root is not None else None
+from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE
+from efficienteqa.eval.outcome import MethodFn, Outcome
+from efficienteqa.eval.spec import RunSpec
 
 
 def default_judge(dataset: str) -> str | None:
@@ -142,27 +50,6 @@ def default_judge(dataset: str) -> str | None:
     return None if dataset.startswith("synthetic") else DEFAULT_JUDGE
 
 
-@dataclass
-class Outcome:
-    """What a method returns for one episode; the runner adds identity, timing and the judge."""
-
-    answer: str
-    confidence: float
-    steps: int
-    budget: int | None = None
-    stop_reason: str | None = None
-    usage: dict[str, Any] = field(default_factory=dict)  # calls, cached_calls, tokens, latency_s
-    backends: dict[str, Any] = field(default_factory=dict)
-    extra: dict[str, Any] = field(default_factory=dict)
-    # From the ground truth after the episode (report.evidence); None where unknown.
-    evidence_first_seen_step: int | None = None
-    evidence_in_top_k: bool | None = None
-    # a relevancy stop's tested frame: its fewest evidence pixels at 640 x 480 (report.evidence)
-    evidence_stop_pixels: float | None = None
-    refused_moves: int | None = None  # moves the environment refused (agent methods)
-
-
-MethodFn = Callable[[EvalQuestion, RunSpec, Path], Outcome]
 
 # Each agent method: (explorer, confidence, early stop, answer_at).
 _AGENT_METHODS: dict[str, tuple[str, str, bool, str]] = {
@@ -294,17 +181,20 @@ def _blindfolded(fn: MethodFn) -> MethodFn:
 
 
 def resolve(method: str) -> MethodFn:
-    """The function that runs one episode of ``method`` (a name, or ``module:function``)."""
+    """The function that runs one episode of ``method``: a built-in name, ``module:function``
+    (called like ``run_agent_method``), or a user's agent, ``module:Class`` or an installed
+    entry point (``eval.agents``). A user's method gets each question without its answer."""
+    from efficienteqa.eval.agents import agent_method, is_agent_class, load_method
+
     if method == "blind":
         return run_blind
     if method in _AGENT_METHODS:
         return run_agent_method
-    if ":" in method:
-        module, _, name = method.partition(":")
-        try:
-            return _blindfolded(getattr(importlib.import_module(module), name))
-        except (ImportError, AttributeError) as exc:
-            raise EfficientEQAError(f"cannot load method {method!r}: {exc}",
-                                    fix="give module:function importable on every worker") from None
-    raise EfficientEQAError(f"unknown method {method!r}",
-                            fix=f"use one of {', '.join(METHODS)}, or module:function")
+    obj = load_method(method)
+    if is_agent_class(obj):
+        return _blindfolded(agent_method(obj))
+    if callable(obj) and not isinstance(obj, type):
+        return _blindfolded(obj)
+    raise EfficientEQAError(f"method {method!r} is neither a function nor an agent class (with "
+                            "reset and act)", fix=f"use one of {', '.join(METHODS)}, "
+                            "module:function or module:Class")

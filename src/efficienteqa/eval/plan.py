@@ -55,6 +55,19 @@ def mode_of(mode: str | None, judge: str) -> str:
     return judge_mode(mode or DEFAULT_JUDGE_MODE, judge)
 
 
+def _check_user_agent(run: RunConfig) -> None:
+    """A user's agent class (``eval.agents``) is configured by its own code: the sections that
+    configure the built-in agent (explore, stop, answer) would change nothing, so a run that
+    sets them is refused."""
+    from efficienteqa.eval.agents import is_agent_class, load_method
+
+    if is_agent_class(load_method(run.eval.method)) and run.agent != AgentConfig():
+        raise EfficientEQAError(f"{run.eval.method} is your own agent: the explore, stop and "
+                                "answer settings configure the built-in one and would not act",
+                                fix="leave them out (your agent reads only --backends.vlm, as "
+                                    "info['vlm'])")
+
+
 def plan_run(run: RunConfig, preset: str | None = None,
              preset_agent: AgentConfig | None = None) -> RunSpec:
     """The ``RunSpec`` of ``run`` (its method, dataset, back-ends, agent, judge and scenes),
@@ -63,6 +76,8 @@ def plan_run(run: RunConfig, preset: str | None = None,
     configuration the options started from, for the run's table label."""
     e = run.eval
     resolve(e.method)  # an unknown method fails here
+    if e.method not in METHODS:
+        _check_user_agent(run)
     check_backends(run)
     if e.closed_set and e.dataset != "hm-eqa":
         raise EfficientEQAError(f"--eval.closed-set is HM-EQA's multiple-choice mode; "

@@ -31,7 +31,8 @@ from typing import Any
 
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.errors import EfficientEQAError
-from efficienteqa.eval.methods import RunSpec, effective_config, resolve, usage_of
+from efficienteqa.eval.agents import agent_identity
+from efficienteqa.eval.methods import METHODS, RunSpec, effective_config, resolve, usage_of
 from efficienteqa.eval.records import (
     EPISODES_FILE,
     RUN_FORMAT,
@@ -204,7 +205,7 @@ def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = (),
     what it alone set (a table's label, ``run_labels.label``); ``question_ids``, the episode ids
     of the questions (``ids``), so that a report counts no line of another question; ``run``,
     the whole configuration tree the run was made from (format 5), which ``--config run.json``
-    reads back."""
+    reads back; ``agent``, a user's method's name, module and source digest (``eval.agents``)."""
     effective = effective_config(spec.method, spec.config)
     return plain({"format": RUN_FORMAT, "method": spec.method, "dataset": spec.dataset,
                   "closed_set": spec.closed_set, "config": asdict(spec.config),
@@ -217,6 +218,7 @@ def manifest(spec: RunSpec, n_questions: int, scenes: Sequence[str] = (),
                   **({"question_ids": list(ids)} if ids is not None else {}),
                   **scene_seeds(scenes),
                   "run": json.loads(json.dumps(asdict(spec.run), default=str)),
+                  **({"agent": agent_identity(spec.method)} if spec.method not in METHODS else {}),
                   "code_version": code_version(), "created": time.time(), "machine": machine()})
 
 

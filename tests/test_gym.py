@@ -1,0 +1,79 @@
+"""The synthetic houses as a Gymnasium environment (efficienteqa.gym): the docs' three lines make
+and step it, Gymnasium's own checker passes, and nothing of the simulator's truth reaches the
+agent before the episode's end."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import needs_egl
+
+gym = pytest.importorskip("gymnasium")
+
+ROBOT_KEYS = {"blocked", "short", "reached", "steps", "budget"}
+
+
+@pytest.fixture(scope="module")
+def env():
+    import efficienteqa.gym  # noqa: F401  (registers the id)
+
+    made = gym.make("EfficientEQA/SyntheticHouse-v1", limit=1)  # one question: one house
+    yield made
+    made.close()
+
+
+@needs_egl
+def test_the_checker_passes(env):
+    from gymnasium.utils.env_checker import check_env
+
+    check_env(env.unwrapped, skip_render_check=True)
+
+
+@needs_egl
+def test_an_episode_gives_what_a_robot_has_and_grades_at_the_end(env):
+    from efficienteqa.envs.episode import answer, move
+
+    obs, info = env.reset(seed=0)
+    assert set(obs) == {"rgb", "depth", "intrinsics", "pose", "question"}
+    assert obs["rgb"].shape == (480, 640, 3) and obs["rgb"].dtype == np.uint8
+    assert obs["question"] == "What is on the bookshelf in the living room?"
+    assert set(info) == {"budget", "question_id"} and info["budget"] > 1
+    x, y = float(obs["pose"][0, 3]), float(obs["pose"][1, 3])
+    obs2, reward, terminated, truncated, info = env.step(move(x + 0.3, y, 0.0))
+    assert set(info) == ROBOT_KEYS and not (terminated or truncated) and reward == 0.0
+    assert info["steps"] == 1 and not info["blocked"]
+    assert np.allclose(obs2["pose"][:2, 3], [x + 0.3, y], atol=0.02)
+    _, _, _, _, info = env.step(move(1e3, 1e3, 0.0))  # far outside the house
+    assert info["blocked"] and set(info) == ROBOT_KEYS
+    _, reward, terminated, truncated, info = env.step(answer("a coffee maker"))
+    assert terminated and not truncated and reward == 1.0
+    grade = info["grade"]
+    assert grade["correct"] and grade["reference"] == "a coffee maker" and grade["steps"] == 2
+    assert grade["oracle_steps"] >= 1
+    env.reset(seed=0)
+    _, reward, terminated, _, info = env.step(answer("a teddy bear"))
+    assert terminated and reward == 0.0 and not info["grade"]["correct"]
+
+
+@needs_egl
+def test_the_budget_truncates_an_episode_that_never_answers(env):
+    from efficienteqa.envs.episode import move
+
+    obs, info = env.reset(seed=0)
+    pose = obs["pose"]
+    for _ in range(info["budget"]):
+        _, reward, terminated, truncated, step_info = env.step(
+            move(float(pose[0, 3]), float(pose[1, 3]), 0.0))
+    assert truncated and not terminated and reward == 0.0
+    assert step_info["grade"]["answer"] == "" and not step_info["grade"]["correct"]
+
+
+def test_a_bad_action_fails_in_one_line():
+    from efficienteqa.envs.episode import parse_action
+    from efficienteqa.errors import EfficientEQAError
+
+    with pytest.raises(EfficientEQAError, match="dict with 'kind'"):
+        parse_action((1.0, 2.0, 0.0))
+    with pytest.raises(EfficientEQAError, match="three finite numbers"):
+        parse_action({"kind": 0, "goal": [1.0, float("nan"), 0.0]})

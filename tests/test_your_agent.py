@@ -1,0 +1,72 @@
+"""A user's agent (examples/your_agent.py) scored through `efficienteqa eval`, as the docs say:
+the runner, the rule judge, the record of the agent's name and code, a paired report."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from clirun import run_cli
+from conftest import needs_egl
+from efficienteqa.eval.runner import episode_folder
+from vlm_server import Options, servers
+
+ROOT = Path(__file__).resolve().parents[1]
+METHOD = "your_agent:OpenSpaceWalker"
+
+
+@pytest.fixture
+def vlm(tmp_path, monkeypatch):
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(tmp_path / "cache"))
+    monkeypatch.syspath_prepend(str(ROOT / "examples"))
+    with servers() as start:
+        yield start(Options())
+
+
+def _env(tmp_path: Path) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "OPENAI_API_KEY"}
+    return {**env, "EFFICIENTEQA_CACHE": str(tmp_path / "cache"), "COLUMNS": "200"}
+
+
+@needs_egl
+def test_the_example_agent_is_scored_by_eval_and_paired_with_the_default(vlm, tmp_path, capfd,
+                                                                         monkeypatch):
+    out = tmp_path / "walker"
+    done = run_cli(["eval", "--eval.method", METHOD, "--eval.limit", "1",
+                    "--backends.vlm", f"openai:test-vlm@{vlm.base_url}", "--out", str(out)],
+                   _env(tmp_path), capfd, monkeypatch)
+    assert done.returncode == 0, done.said
+    run = json.loads((out / "run.json").read_text())
+    assert run["method"] == METHOD and run["agent"]["name"] == "open-space-walker"
+    assert run["agent"]["module"] == "your_agent" and len(run["agent"]["code_version"]) == 12
+    (row,) = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    assert row["status"] == "done" and 1 <= row["steps"] <= 6 and row["answer"]
+    assert row["rule"]["score"] in (1, 5)  # graded by the rule judge
+    prompts = [json.dumps(r.body) for r in vlm.requests if "What you saw" in json.dumps(r.body)]
+    assert len(prompts) == 1 and row["question"] in prompts[0]
+    episode = json.loads((episode_folder(out, row["id"]) / "episode.json").read_text())
+    assert episode["answer"] == row["answer"] and len(episode["poses"]) == row["steps"] + 1
+    paired = run_cli(["report", str(out), "--paired-against",
+                      str(ROOT / "results" / "main-heldout" / "default")],
+                     _env(tmp_path), capfd, monkeypatch)
+    assert paired.returncode == 0, paired.said
+    difference = json.loads((out / "summary.json").read_text())["paired"]
+    assert difference["n"] == 1 and difference["reference"] == "efficienteqa"  # the default row
+
+
+def test_an_agent_class_refuses_the_built_in_agents_settings(tmp_path, capfd, monkeypatch):
+    monkeypatch.syspath_prepend(str(ROOT / "examples"))
+    done = run_cli(["eval", "--eval.method", METHOD, "--explore.max-steps", "3", "--out",
+                    str(tmp_path / "x")], _env(tmp_path), capfd, monkeypatch)
+    assert done.returncode != 0 and "Traceback" not in done.said
+    assert "your own agent" in done.said and not (tmp_path / "x" / "run.json").exists()
+
+
+def test_an_unknown_agent_name_fails_in_one_line(tmp_path, capfd, monkeypatch):
+    done = run_cli(["eval", "--eval.method", "no-such-agent", "--out", str(tmp_path / "x")],
+                   _env(tmp_path), capfd, monkeypatch)
+    assert done.returncode != 0 and "unknown method 'no-such-agent'" in done.said
+    assert "Traceback" not in done.said
