@@ -26,7 +26,7 @@ message's pixels ``rosimage``'s, and the pairing of the messages into frames ``p
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -86,7 +86,7 @@ class McapSource:
         """A message named in an error: the file, its topic, its place on the topic."""
         return f"{self.name}: {topic} message {ordinal + 1}"
 
-    def _messages(self, topics: list[str]) -> Iterator[tuple[Any, Any, Any]]:
+    def _messages(self, topics: list[str]) -> Generator[tuple[Any, Any, Any], None, None]:
         """(schema, channel, message) of ``topics`` in log-time order, file after file."""
         for file in self.files:
             self._file = file

@@ -41,7 +41,13 @@ from PIL import Image
 
 from efficienteqa.envs.base import SceneLabels
 from efficienteqa.envs.recorded import rosmsg
-from efficienteqa.envs.recorded.bagfolder import METADATA_FILE, BagFile, bag_file_name, metadata_yaml
+from efficienteqa.envs.recorded.bagfolder import (
+    METADATA_FILE,
+    OFFERED_QOS,
+    BagFile,
+    bag_file_name,
+    metadata_yaml,
+)
 from efficienteqa.envs.recorded.folder import LABELS_FILE, POSES_FILE
 from efficienteqa.envs.recorded.labels import labels_json
 from efficienteqa.envs.recorded.mcapwalk import INSTANCE_TOPIC, LABELS_TOPIC, require_mcap
@@ -207,8 +213,21 @@ class WalkRecorder:
                 with contextlib.suppress(OSError):  # closed, though its last bytes are lost
                     file.close()
 
+    def _channel(self, topic: str, kind: str) -> None:
+        """Registers ``topic`` with its offered QoS, as rosbag2 does: ``ros2 bag play`` reads a
+        topic's QoS from its channel, and Humble's fails on a channel without one. mcap_ros2's
+        writer registers a channel, without metadata, at a topic's first message; so it is
+        registered here first, through that writer's mcap writer and channel table (checked by
+        tests/test_rosbag2.py, where rosbags matches the channel's QoS to metadata.yaml's)."""
+        channel = self._writer._writer.register_channel(
+            topic=topic, message_encoding="cdr", schema_id=self._schemas[kind].id,
+            metadata={"offered_qos_profiles": OFFERED_QOS})
+        self._writer._channel_ids[topic] = channel
+
     def _write(self, topic: str, kind: str, message: dict[str, Any], stamp: int) -> None:
         """One message of ROS 2 type ``kind``, counted for a bag's metadata."""
+        if topic not in self._types:
+            self._channel(topic, kind)
         self._writer.write_message(topic, self._schemas[kind], message, log_time=stamp,
                                    publish_time=stamp)
         bag = self._bag
