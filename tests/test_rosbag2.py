@@ -323,3 +323,17 @@ def test_pixels_on_a_robots_recording_say_once_to_use_an_image_vlm(tmp_path, cap
     assert err.count("trained on synthetic renders only") == 1
     assert "--backends.perception rgb --backends.vlm openai:gpt-4o" in err
     robot.close(), sim.close()
+
+
+def test_the_cli_asks_for_a_bag_folder_by_record_format(cli, tmp_path):
+    help_text = " ".join(cli("ask", "--help").stdout.split())
+    assert "--record-format" in help_text and "rosbag2" in help_text
+    for args, says in ((("--record", str(tmp_path / "w.mcap"), "--record-format", "rosbag2"),
+                        "a rosbag2 recording is a folder"),
+                       (("--record-format", "rosbag2"), "there is no --record"),
+                       (("--record", str(tmp_path / "w"), "--record-format", "bag"),
+                        "unknown recording layout 'bag'")):
+        result = cli("ask", QUESTION, *args, "--out", str(tmp_path / "out"))
+        assert result.returncode == 1 and says in " ".join(result.stdout.split()), result.stdout
+        assert len([line for line in result.stdout.splitlines() if line.strip()]) == 1
+    assert not (tmp_path / "w").exists() and not (tmp_path / "out" / "episode.json").exists()
