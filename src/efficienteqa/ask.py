@@ -8,7 +8,7 @@ from typing import Any
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.config.run import RunConfig, SceneConfig
-from efficienteqa.envs.base import Environment, SceneLabels, is_recording
+from efficienteqa.envs.base import is_recording, scene_labels
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.errors import EfficientEQAError
@@ -60,7 +60,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, run: RunConfig | None =
         relevancy: RelevancyScorer | None = None, assets: str = DEFAULT_ASSETS,
         report: bool = True, known_as: str | None = None,
         rerun: str | Path | RerunLog | None = None, record: Path | None = None,
-        record_depth: str = "32FC1", replace_rerun: bool = False) -> AskResult:
+        record_depth: str = "32FC1", record_format: str | None = None,
+        replace_rerun: bool = False) -> AskResult:
     """Run one episode and write ``out/episode.json`` and (``report``) ``out/report.html``.
     ``scene``: a name such as "synthetic:3" (opened and closed here) or an opened ``Scene``
     (left open for the caller). ``run``: the whole configuration (``presets.run_config``, as
@@ -73,9 +74,11 @@ def ask(question: str, scene: str | Scene, out: Path, *, run: RunConfig | None =
     (a viewer spawned here), or a ``RerunLog`` made beforehand; finished and closed here, also
     when the episode fails (the recording then holds the steps done). An existing file is
     refused unless ``replace_rerun``.
-    ``record``: write the episode's frames there as a recorded walk (``envs.recorded.write``:
-    an .mcap file, else a folder; depth as ``record_depth``, 32FC1 or 16UC1), with the scene's
-    labels where it has them, for ``recorded:PATH`` to replay.
+    ``record``: write the episode's frames there as a recorded walk (``envs.recorded.write``),
+    in ``record_format``: "mcap" (a file), "rosbag2" (a bag folder: metadata.yaml and the .mcap)
+    or "frames" (a folder with poses.jsonl); by default mcap for a path ending in .mcap, else
+    frames; depth as ``record_depth``, 32FC1 or 16UC1; with the scene's labels where it has
+    them, for ``recorded:PATH`` to replay.
     A recording (``record``, ``rerun``) that cannot be written to the end (a full disk) costs
     only itself: the episode goes on, and the result's ``warnings`` say what was lost.
     Interrupted (Ctrl-C), or failed part-way, the episode's steps and model calls so far are
@@ -84,7 +87,7 @@ def ask(question: str, scene: str | Scene, out: Path, *, run: RunConfig | None =
     from efficienteqa.envs.recorded.write import check_record_path
 
     if record is not None:
-        check_record_path(record, record_depth)  # before the scene is built
+        check_record_path(record, record_depth, record_format)  # before the scene is built
     if run is not None and (stack is not None or config is not None or assets != DEFAULT_ASSETS):
         raise ValueError("give ask() the whole run (run=) or its parts (stack=, config=, "
                          "assets=), not both")
@@ -96,7 +99,8 @@ def ask(question: str, scene: str | Scene, out: Path, *, run: RunConfig | None =
     warnings: list[str] = []
     try:
         return _ask(question, scene, out, stack, config, start, on_step, model, relevancy,
-                    scene_config, report, known_as, shown, record, record_depth, warnings)
+                    scene_config, report, known_as, shown, record, record_depth, record_format,
+                    warnings)
     finally:
         if shown is not None:
             shown.close()  # a no-op after finish
@@ -109,7 +113,7 @@ def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: Age
          relevancy: RelevancyScorer | None, where: SceneConfig, report: bool,
          known_as: str | None,
          shown: RerunLog | None, record: Path | None, record_depth: str,
-         warnings: list[str]) -> AskResult:
+         record_format: str | None, warnings: list[str]) -> AskResult:
     from efficienteqa.envs.recorded.write import WalkRecorder
 
     opened = (open_scene(scene, where.assets, env=where.env, hm3d_root=where.hm3d_root,
@@ -137,7 +141,7 @@ def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: Age
         steps: list[StepRecord] = []
         if record is not None:
             recorder = WalkRecorder(record, labels=scene_labels(opened.env),
-                                    depth_encoding=record_depth)
+                                    depth_encoding=record_depth, layout=record_format)
 
         def hook(step: StepRecord, obs: Observation, out_step: ExploreStep | None) -> None:
             if recorder is not None:
@@ -191,14 +195,3 @@ def _ask(question: str, scene: str | Scene, out: Path, stack: Stack, config: Age
                 warnings.append(recorder.error)
         if isinstance(scene, str):
             opened.env.close()
-
-
-def scene_labels(env: Environment) -> SceneLabels | None:
-    """The environment's semantic sensor, where it has one."""
-    labels = getattr(env, "scene_labels", None)
-    if labels is None:
-        return None
-    try:
-        return labels()
-    except EfficientEQAError:  # a recording without labels
-        return None

@@ -109,8 +109,7 @@ def open_scene(spec: str, assets: str = DEFAULT_ASSETS, *, env: str = "synthetic
         from efficienteqa.envs.recorded import open_recording
 
         walk = open_recording(arg)
-        fmt = "mcap" if walk.source.name.lower().endswith(".mcap") else "folder"
-        return Scene(walk, f"recorded:{arg} ({fmt})", note=walk.note)
+        return Scene(walk, f"recorded:{arg} ({walk.source.layout})", note=walk.note)
     if kind == "hm3d":
         if env != "habitat" or hm3d_root is None:
             raise EfficientEQAError(f"scene {spec!r} needs Habitat-Sim and the HM3D scenes",

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import math
 import re
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,7 +18,7 @@ from typing import Any
 from efficienteqa.agent import Agent, AgentConfig
 from efficienteqa.answer.rag import RagAnswerer
 from efficienteqa.config.backends import IMAGE_FORMAT_AUTO, Stack
-from efficienteqa.envs.base import Environment
+from efficienteqa.envs.base import Environment, is_rendered
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.module import SemanticScorer
 from efficienteqa.explore.text_scorers import (
@@ -408,12 +409,22 @@ class BuiltAgent:
     backends: dict[str, Any]
 
 
+@functools.cache
+def say_once(note: str) -> None:
+    """``note`` on stderr, once a process (an evaluation builds an agent per episode)."""
+    print(note, file=sys.stderr, flush=True)
+
+
 def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment: str,
                 model: ChatModel | None = None, relevancy: RelevancyScorer | None = None
                 ) -> BuiltAgent:
     """``environment`` names the scene back-end for the record; ``model``/``relevancy`` replace
     the configured ones (tests pass stubs)."""
     perception = build_perception(stack.perception, env)
+    if perception.name == "pixels" and not is_rendered(env):
+        from efficienteqa.perception.pixels.backend import REAL_FRAMES_NOTE
+
+        say_once(REAL_FRAMES_NOTE)
     vlm_backend = stack.vlm if model is None else "injected"
     if model is None:
         model = build_chat_model(parse_vlm(stack.vlm, images=perception.modality == "image",

@@ -99,9 +99,16 @@ def ask_command(
                                      "needs a screen). Needs the rerun extra.",
                                      rich_help_panel="Output"),
     record: Path | None = typer.Option(None, help="Also write the episode's frames as a recorded "
-                                       "walk: FILE.mcap (ROS 2 topics and TF) or a FOLDER; "
-                                       "replay it with --scene recorded:FILE.mcap.",
-                                       rich_help_panel="Output"),
+                                       "walk, in --record-format; replay it with --scene "
+                                       "recorded:PATH.", rich_help_panel="Output"),
+    record_format: str | None = typer.Option(None, help="How --record writes: mcap (one "
+                                             "FILE.mcap: ROS 2 topics and TF), rosbag2 (a "
+                                             "FOLDER as ros2 bag record writes it: "
+                                             "metadata.yaml and FOLDER_0.mcap, for ros2 bag "
+                                             "info and play) or frames (a FOLDER of images and "
+                                             "poses.jsonl). Default: mcap for a path ending in "
+                                             ".mcap, else frames.", show_default=False,
+                                             rich_help_panel="Output"),
 ) -> None:
     """Explore a scene until the relevancy rule stops, answer, and write the episode report."""
     from efficienteqa.envs.habitat.scenes import HabitatStart
@@ -122,7 +129,10 @@ def ask_command(
     if record is not None:
         from efficienteqa.envs.recorded.write import check_record_path
 
-        check_record_path(record)
+        check_record_path(record, layout=record_format)
+    elif record_format is not None:
+        raise EfficientEQAError("--record-format says how --record writes, and there is no "
+                                "--record", fix="add --record PATH, or leave out --record-format")
     if episode is not None:
         from efficienteqa.datasets import find_question, load_dataset
 
@@ -143,7 +153,7 @@ def ask_command(
         check_target(rerun, overwrite=replace_rerun)
     try:
         done = _asked(run, question, scene, out, overwrite, start_pose, habitat_start, known_as,
-                      rerun, replace_rerun, record)
+                      rerun, replace_rerun, record, record_format)
     except KeyboardInterrupt as stop:  # Ctrl-C (on a robot, the documented stop)
         console.print(f"[yellow]interrupted[/yellow]{_interrupted(stop, out, rerun, record)}",
                       highlight=False, soft_wrap=True)
@@ -196,7 +206,8 @@ def _interrupted(stop: KeyboardInterrupt, out: Path, rerun: str | None,
 
 def _asked(run: Resolved, question: str, scene: str, out: Path, overwrite: bool,
            start_pose: Pose2D | None, habitat_start: HabitatStart | None, known_as: str | None,
-           rerun: str | None, replace_rerun: bool, record: Path | None) -> AskResult:
+           rerun: str | None, replace_rerun: bool, record: Path | None,
+           record_format: str | None) -> AskResult:
     """The ask command's episode, under the folder's lock: open the scene, explore with a
     progress bar, answer, write."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -231,7 +242,7 @@ def _asked(run: Resolved, question: str, scene: str, out: Path, overwrite: bool,
 
                 return ask(question, opened, out, run=r, start=start_pose, on_step=on_step,
                            known_as=known_as, rerun=rerun, record=record,
-                           replace_rerun=replace_rerun)
+                           record_format=record_format, replace_rerun=replace_rerun)
         finally:
             opened.env.close()
 

@@ -124,3 +124,22 @@ class SimulatedScene(Environment, Protocol):
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(min_xyz, max_xyz) of the scene in metres."""
         ...
+
+
+def scene_labels(env: object) -> SceneLabels | None:
+    """The environment's semantic sensor, where it has one (a recording without labels: None)."""
+    from efficienteqa.errors import EfficientEQAError
+
+    labels = getattr(env, "scene_labels", None)
+    if labels is None:
+        return None
+    try:
+        return labels()
+    except EfficientEQAError:  # a recording without labels
+        return None
+
+
+def is_rendered(env: object) -> bool:
+    """Whether ``env``'s frames are a simulator's renders: a simulated scene, or a recording
+    that carries a simulator's labels. Not: a robot, a robot's recording."""
+    return isinstance(env, SimulatedScene) or scene_labels(env) is not None

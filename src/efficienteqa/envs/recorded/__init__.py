@@ -1,6 +1,7 @@
 """Recorded walks: RGB-D frames with their intrinsics and camera poses, replayed in order as an
-``envs.base.Recording`` (``walk.RecordedWalk``), from an MCAP file as ROS 2 records one
-(``rosbag``) or a plain folder (``folder``); and any episode written as either (``write``).
+``envs.base.Recording`` (``walk.RecordedWalk``), from MCAP as ROS 2 records it (``rosbag``: one
+.mcap file, or the files of a rosbag2 folder, ``bagfolder``) or a plain folder (``folder``); and
+any episode written as any of them (``write``).
 
 ``open_recording("walk.mcap?world=odom")``: the options after "?" are ``McapOptions``' fields
 (``colour``, ``depth``, ``info``, ``world``, ``depth_tolerance_ms``, ``tf_tolerance_ms``).
@@ -53,23 +54,37 @@ def parse_spec(spec: str) -> tuple[Path, dict[str, Any]]:
 
 
 def open_recording(spec: str) -> RecordedWalk:
-    """The walk of ``spec``: an .mcap file (ROS 2) or a folder with ``poses.jsonl``, each
-    checked whole before any frame is read."""
+    """The walk of ``spec``: an .mcap file (ROS 2), a rosbag2 folder (``metadata.yaml`` and its
+    .mcap files, read in order as one walk) or a folder with ``poses.jsonl``, each checked whole
+    before any frame is read."""
     path, options = parse_spec(spec)
     if not path.exists():
         raise EfficientEQAError(f"recording {path} does not exist",
-                                fix="give an .mcap file or a walk folder with poses.jsonl")
-    if path.is_dir():
-        from efficienteqa.envs.recorded.folder import FolderSource
+                                fix="give an .mcap file, a rosbag2 folder or a walk folder with "
+                                    "poses.jsonl")
+    from efficienteqa.envs.recorded.mcapwalk import McapOptions
 
-        if options:
-            raise EfficientEQAError(f"options {', '.join(options)} are for MCAP files; "
-                                    f"{path} is a folder", fix="leave them out")
-        return RecordedWalk(FolderSource(path))
+    if path.is_dir():
+        from efficienteqa.envs.recorded.bagfolder import bag_files
+        from efficienteqa.envs.recorded.folder import POSES_FILE, FolderSource
+
+        bag = None if (path / POSES_FILE).is_file() else bag_files(path)
+        if bag is None:
+            if options:
+                raise EfficientEQAError(f"options {', '.join(options)} are for MCAP recordings; "
+                                        f"{path} is a walk folder", fix="leave them out")
+            return RecordedWalk(FolderSource(path))
+        from efficienteqa.envs.recorded.rosbag import McapSource
+
+        files, note = bag
+        source = McapSource(path, McapOptions(**options), files=files)
+        if note:
+            source.note += f"; {note}"
+        return RecordedWalk(source)
     if path.suffix.lower() != ".mcap":
         raise EfficientEQAError(f"{path} is neither an .mcap file nor a walk folder",
-                                fix="give an .mcap file (ROS 2) or a folder with poses.jsonl")
-    from efficienteqa.envs.recorded.mcapwalk import McapOptions
+                                fix="give an .mcap file, a rosbag2 folder (metadata.yaml and "
+                                    ".mcap files) or a walk folder with poses.jsonl")
     from efficienteqa.envs.recorded.rosbag import McapSource
 
     return RecordedWalk(McapSource(path, McapOptions(**options)))

@@ -94,11 +94,13 @@ class FolderSource:
 
     def __init__(self, path: Path) -> None:
         self.path, self.name = path, path.name
+        self.layout = "folder"
         self._root = path.resolve()
         poses = path / POSES_FILE
         if not poses.is_file():
-            raise EfficientEQAError(f"{path} has no {POSES_FILE}",
-                                    fix=f"give an .mcap file or a folder with {POSES_FILE}")
+            raise EfficientEQAError(f"{path} has no {POSES_FILE}, metadata.yaml or .mcap file",
+                                    fix=f"give a walk folder with {POSES_FILE}, a rosbag2 folder "
+                                        "or an .mcap file")
         try:
             data = poses.read_bytes()
         except OSError as error:

@@ -1,4 +1,5 @@
-"""A walk recorded by ROS 2 as an MCAP file, read with the pure-Python ``mcap`` and
+"""A walk recorded by ROS 2 as MCAP, one file or the files of a rosbag2 folder (``bagfolder``)
+read in order as one walk, read with the pure-Python ``mcap`` and
 ``mcap_ros2`` packages (no ROS install; the ``robot`` extra).
 
 What is read:
@@ -25,7 +26,7 @@ message's pixels ``rosimage``'s, and the pairing of the messages into frames ``p
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -46,12 +47,17 @@ from efficienteqa.records import read_json
 class McapSource:
     """The frames of an MCAP walk (``walk.FrameSource``)."""
 
-    def __init__(self, path: Path, options: McapOptions | None = None) -> None:
+    def __init__(self, path: Path, options: McapOptions | None = None,
+                 files: Sequence[Path] | None = None) -> None:
+        """``path``: an .mcap file, or a rosbag2 folder whose ``files`` are read in order."""
         require_mcap()
         from mcap_ros2.decoder import DecoderFactory
 
         self.path, self.options = path, options or McapOptions()
+        self.files = list(files) if files is not None else [path]
+        self.layout = "mcap" if files is None else "rosbag2"
         self.name = path.name
+        self._file = self.files[0]  # the file being read, for the messages
         self._decoders = DecoderFactory()
         try:
             self._index()
@@ -59,7 +65,7 @@ class McapSource:
             raise
         except Exception as error:  # noqa: BLE001 - anything the mcap reader says of a bad file
             raise EfficientEQAError(
-                f"cannot read {path} as MCAP: {type(error).__name__}: {error}".split("\n")[0],
+                f"cannot read {self._file} as MCAP: {type(error).__name__}: {error}".split("\n")[0],
                 fix="check the file (one cut short may be repaired with `mcap recover`)") from None
 
     # -- opening --------------------------------------------------------------------------
@@ -80,18 +86,39 @@ class McapSource:
         """A message named in an error: the file, its topic, its place on the topic."""
         return f"{self.name}: {topic} message {ordinal + 1}"
 
-    def _topics(self, reader: Any) -> dict[str, str]:
-        """topic -> ROS 2 message type, from the summary (or one scan of an unindexed file)."""
-        summary = reader.get_summary()
-        if summary is not None:
-            return {c.topic: rosmsg.type_name(summary.schemas[c.schema_id].name)
-                    for c in summary.channels.values() if c.schema_id in summary.schemas}
-        return {channel.topic: rosmsg.type_name(schema.name)
-                for schema, channel, _ in reader.iter_messages() if schema is not None}
+    def _messages(self, topics: list[str]) -> Generator[tuple[Any, Any, Any], None, None]:
+        """(schema, channel, message) of ``topics`` in log-time order, file after file."""
+        for file in self.files:
+            self._file = file
+            with open(file, "rb") as stream:
+                yield from self._reader(stream).iter_messages(topics=topics, log_time_order=True)
 
-    def _first(self, reader: Any, topic: str) -> Any:
-        for schema, channel, message in reader.iter_messages(topics=[topic]):
-            return self._decode(schema, channel, message)
+    def _topics(self) -> dict[str, str]:
+        """topic -> ROS 2 message type, from each file's summary (or one scan of an unindexed
+        file)."""
+        topics: dict[str, str] = {}
+        for file in self.files:
+            self._file = file
+            with open(file, "rb") as stream:
+                reader = self._reader(stream)
+                summary = reader.get_summary()
+                if summary is not None:
+                    topics.update({c.topic: rosmsg.type_name(summary.schemas[c.schema_id].name)
+                                   for c in summary.channels.values()
+                                   if c.schema_id in summary.schemas})
+                else:
+                    topics.update({channel.topic: rosmsg.type_name(schema.name)
+                                   for schema, channel, _ in reader.iter_messages()
+                                   if schema is not None})
+        return topics
+
+    def _first(self, topic: str) -> Any:
+        messages = self._messages([topic])
+        try:
+            for schema, channel, message in messages:
+                return self._decode(schema, channel, message)
+        finally:
+            messages.close()
         return None
 
     def _pick(self, what: str, given: str | None, candidates: list[str], topics: dict[str, str],
@@ -116,43 +143,41 @@ class McapSource:
 
     def _index(self) -> None:
         o = self.options
-        with open(self.path, "rb") as stream:
-            reader = self._reader(stream)
-            topics = self._topics(reader)
-            images = [t for t, kind in topics.items() if kind == rosmsg.IMAGE
-                      and not t.startswith("/efficienteqa/")]
-            first = {t: self._first(reader, t) for t in images}
-            encodings = {t: str(m.encoding) for t, m in first.items() if m is not None}
-            colours = [t for t in images if encodings.get(t) in rosmsg.COLOUR_ENCODINGS]
-            compressed = [t for t, k in topics.items() if k == "sensor_msgs/msg/CompressedImage"]
-            colour = self._pick("colour", o.colour, colours, topics, rosmsg.IMAGE, [], "colour",
-                                "/camera/color/image_raw, rgb8 or bgr8"
-                                + (f"; {', '.join(compressed)}: compressed images are not read"
-                                   if compressed else ""))
-            if first.get(colour) is None:
-                raise EfficientEQAError(f"{self.name}: the colour topic {colour} has no message",
-                                        fix="record a walk with colour frames")
-            camera_frame = frame_name(str(first[colour].header.frame_id))
-            depths = [t for t in images if encodings.get(t) in rosmsg.DEPTH_ENCODINGS]
-            registered = [t for t in depths
-                          if frame_name(str(first[t].header.frame_id)) == camera_frame]
-            depth = self._pick("depth", o.depth, depths, topics, rosmsg.IMAGE, registered,
-                               "depth", "/camera/aligned_depth_to_color/image_raw, 16UC1 or 32FC1")
-            infos = [t for t, kind in topics.items() if kind == rosmsg.CAMERA_INFO]
-            near = [t for t in infos if t.rpartition("/")[0] == colour.rpartition("/")[0]]
-            info = self._pick("camera_info", o.info, infos, topics, rosmsg.CAMERA_INFO, near,
-                              "info", "/camera/color/camera_info")
-            tfs = [t for t, kind in topics.items() if kind == rosmsg.TF_MESSAGE]
-            instance = INSTANCE_TOPIC if topics.get(INSTANCE_TOPIC) == rosmsg.IMAGE else None
-            labels = LABELS_TOPIC if topics.get(LABELS_TOPIC) == rosmsg.STRING else None
-            self._topics_read = [t for t in (colour, depth, instance, info, labels, *tfs) if t]
-            self._colour, self._depth, self._instance = colour, depth, instance
-            metas = self._first_pass(reader, colour, depth, instance, info, labels, set(tfs))
+        topics = self._topics()
+        images = [t for t, kind in topics.items() if kind == rosmsg.IMAGE
+                  and not t.startswith("/efficienteqa/")]
+        first = {t: self._first(t) for t in images}
+        encodings = {t: str(m.encoding) for t, m in first.items() if m is not None}
+        colours = [t for t in images if encodings.get(t) in rosmsg.COLOUR_ENCODINGS]
+        compressed = [t for t, k in topics.items() if k == "sensor_msgs/msg/CompressedImage"]
+        colour = self._pick("colour", o.colour, colours, topics, rosmsg.IMAGE, [], "colour",
+                            "/camera/color/image_raw, rgb8 or bgr8"
+                            + (f"; {', '.join(compressed)}: compressed images are not read"
+                               if compressed else ""))
+        if first.get(colour) is None:
+            raise EfficientEQAError(f"{self.name}: the colour topic {colour} has no message",
+                                    fix="record a walk with colour frames")
+        camera_frame = frame_name(str(first[colour].header.frame_id))
+        depths = [t for t in images if encodings.get(t) in rosmsg.DEPTH_ENCODINGS]
+        registered = [t for t in depths
+                      if frame_name(str(first[t].header.frame_id)) == camera_frame]
+        depth = self._pick("depth", o.depth, depths, topics, rosmsg.IMAGE, registered,
+                           "depth", "/camera/aligned_depth_to_color/image_raw, 16UC1 or 32FC1")
+        infos = [t for t, kind in topics.items() if kind == rosmsg.CAMERA_INFO]
+        near = [t for t in infos if t.rpartition("/")[0] == colour.rpartition("/")[0]]
+        info = self._pick("camera_info", o.info, infos, topics, rosmsg.CAMERA_INFO, near,
+                          "info", "/camera/color/camera_info")
+        tfs = [t for t, kind in topics.items() if kind == rosmsg.TF_MESSAGE]
+        instance = INSTANCE_TOPIC if topics.get(INSTANCE_TOPIC) == rosmsg.IMAGE else None
+        labels = LABELS_TOPIC if topics.get(LABELS_TOPIC) == rosmsg.STRING else None
+        self._topics_read = [t for t in (colour, depth, instance, info, labels, *tfs) if t]
+        self._colour, self._depth, self._instance = colour, depth, instance
+        metas = self._first_pass(colour, depth, instance, info, labels, set(tfs))
         self._frames, self.camera, self.note = plan(self.name, o, colour, depth, camera_frame,
                                                     *metas, self.labels is not None)
         self.length = len(self._frames)
 
-    def _first_pass(self, reader: Any, colour: str, depth: str, instance: str | None, info: str,
+    def _first_pass(self, colour: str, depth: str, instance: str | None, info: str,
                     labels: str | None, tfs: set[str]
                     ) -> tuple[list[Image], list[Image], list[Image], list[Info], TFTree]:
         """Every message of the topics read, in log-time order, without keeping pixels."""
@@ -161,8 +186,7 @@ class McapSource:
         infos: list[Info] = []
         tree = TFTree()
         self.labels: RecordedLabels | None = None
-        for schema, channel, message in reader.iter_messages(topics=self._topics_read,
-                                                             log_time_order=True):
+        for schema, channel, message in self._messages(self._topics_read):
             topic = channel.topic
             ordinal = seen[topic]
             seen[topic] += 1
@@ -224,19 +248,16 @@ class McapSource:
         kept: dict[tuple[str, int], Any] = {}
         seen = {t: 0 for t in self._topics_read}
         at = 0
-        with open(self.path, "rb") as stream:
-            reader = self._reader(stream)
-            for schema, channel, message in reader.iter_messages(topics=self._topics_read,
-                                                                 log_time_order=True):
-                key = (channel.topic, seen[channel.topic])
-                seen[channel.topic] += 1
-                if key in wanted:
-                    kept[key] = self._decode(schema, channel, message)
-                while at < len(self._frames) and self._ready(self._frames[at], kept):
-                    yield self._observation(self._frames[at], kept)
-                    for k in [k for k in kept if wanted[k] <= at]:
-                        del kept[k]
-                    at += 1
+        for schema, channel, message in self._messages(self._topics_read):
+            key = (channel.topic, seen[channel.topic])
+            seen[channel.topic] += 1
+            if key in wanted:
+                kept[key] = self._decode(schema, channel, message)
+            while at < len(self._frames) and self._ready(self._frames[at], kept):
+                yield self._observation(self._frames[at], kept)
+                for k in [k for k in kept if wanted[k] <= at]:
+                    del kept[k]
+                at += 1
 
     def _parts(self, f: Frame) -> list[tuple[str, int]]:
         parts = [(self._colour, f.colour), (self._depth, f.depth)]

@@ -83,9 +83,11 @@ class RecordedCamera(CameraSpec):
 class FrameSource(Protocol):
     """Where a walk's frames come from: ``length`` usable frames, read in order by each pass of
     ``frames()``; ``labels``, the simulator's labels where the recording carries them; ``note``,
-    one line on what was read and what was dropped."""
+    one line on what was read and what was dropped; ``layout``: "mcap" (one file), "rosbag2"
+    (a bag folder) or "folder" (``poses.jsonl``)."""
 
     name: str
+    layout: str
     camera: RecordedCamera
     length: int
     labels: RecordedLabels | None
