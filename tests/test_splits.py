@@ -1,4 +1,4 @@
-"""The frozen splits: their manifests and ``scenes verify``."""
+"""The frozen splits: their manifests, ``scenes verify`` and ``scenes export-walks``."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import copy
 import json
 from collections import Counter
 
+import numpy as np
 import pytest
 
 from efficienteqa.datasets import _FROZEN, load_dataset, splits, synthetic
@@ -115,3 +116,32 @@ def test_verify_fails_a_tampered_manifest(cli, tmp_path):
     assert any(f"{entry['id']}: oracle_steps is" in line for line in lines), lines
     assert any("question" in line and "differ from the manifest" in line for line in lines)
     assert "synthetic-test-v1: 1 houses, 3 questions" in result.stdout
+
+
+def test_export_walks_reads_back_as_a_recorded_walk(tmp_path, cli):
+    from efficienteqa.datasets.walks import export_walks
+    from efficienteqa.envs.synthetic.questions import evidence_visible
+    from efficienteqa.scenes import open_scene
+
+    out = tmp_path / "em"
+    done = export_walks("synthetic", out, limit=1)
+    first = load_dataset("synthetic")[0]
+    seed = first.source["house_seed"]
+    assert (done.questions, done.houses) == (1, 1) and done.frames >= 5
+    (q,) = load_dataset(str(out / "questions.jsonl"))
+    assert (q.id, q.question, q.answer) == (first.id, first.question, first.answer)
+    assert q.scene == f"recorded:{out / 'walks' / str(seed)}"
+    scene = open_scene(q.scene)
+    try:
+        frames = list(scene.env.source.frames())
+    finally:
+        scene.env.close()
+    assert len(frames) == done.frames
+    # the walk starts with four views at the start pose, and sees the question's evidence
+    assert np.allclose([f.pose.x for f in frames[:4]], frames[0].pose.x, atol=1e-6)
+    assert any(evidence_visible(f.instance, first.source["evidence"]) for f in frames)
+    end = first.source["oracle_pose"]
+    assert any(np.allclose([f.pose.x, f.pose.y], end[:2], atol=1e-3) for f in frames)
+    again = cli("scenes", "export-walks", "synthetic", str(out), "--limit", "1")
+    assert again.returncode == 1 and "never written over" in again.stdout
+    assert len(again.stdout.strip().splitlines()) == 1

@@ -1,4 +1,4 @@
-"""``scenes verify``: the frozen splits on this machine."""
+"""``scenes verify`` and ``scenes export-walks``: the frozen splits on this machine."""
 
 from __future__ import annotations
 
@@ -30,6 +30,15 @@ VERIFY_HELP = "\n\n".join((
     "pixels per instance id, within 1 % of the frame's pixels, and its median depth, within 1 cm. "
     "Rendered colours are not compared.",
     "One line per mismatch and exit code 1 where any is found. About 5 s a house.",
+))
+EXPORT_HELP = "\n\n".join((
+    "Write each house's walk (frames with poses, in the recorded-walk folder format) and the "
+    "questions, so answer-only methods are evaluated without the simulator: efficienteqa eval "
+    "--eval.dataset OUT/questions.jsonl.",
+    "A house's walk: four views at the start pose (turning 90 degrees), then the shortest paths "
+    "through the oracle poses of the split's questions on the house, nearest first, a view at "
+    "most every 3 m, each leg ending facing a question's evidence. The walk sees every "
+    "question's evidence and is the same for every question of its house.",
 ))
 SPLIT_NAMES = "synthetic-v1 (alias synthetic) or synthetic-test-v1 (alias synthetic-test)"
 
@@ -82,3 +91,25 @@ def scenes_verify(
                       f"({time.perf_counter() - start:.0f} s)", highlight=False)
     if failed:
         raise typer.Exit(1)
+
+
+@scenes.command("export-walks", help=EXPORT_HELP)
+def scenes_export_walks(
+    split: str = typer.Argument(..., help=f"The split: {SPLIT_NAMES}."),
+    out: Path = typer.Argument(..., help="A new (or empty) folder."),
+    limit: int | None = typer.Option(None, help="Only the split's first N questions (and the "
+                                      "walks of their houses)."),
+) -> None:
+    """Write each house's walk and the questions (``EXPORT_HELP``; ``datasets.walks``)."""
+    from rich.progress import Progress
+
+    from efficienteqa.datasets.walks import export_walks
+
+    start = time.perf_counter()
+    with Progress(console=console, transient=True) as bar:
+        task = bar.add_task("houses", total=None)
+        done = export_walks(split, out, limit,
+                            progress=lambda n, total: bar.update(task, completed=n, total=total))
+    console.print(f"{done.questions} questions, {done.houses} walks, {done.frames} frames in "
+                  f"{time.perf_counter() - start:.0f} s -> {done.path}", highlight=False,
+                  soft_wrap=True)
