@@ -1,13 +1,18 @@
-"""Build the fixed synthetic split (package data ``src/efficienteqa/datasets/synthetic_v1.jsonl``).
+"""Build a frozen synthetic split (package data under ``src/efficienteqa/datasets/``) and its manifest.
 
 Opens every house of ``--seeds`` (about 5 s each), takes its generated questions with oracle step
 counts, and selects ``--per-category`` questions of each category, spread over the houses
-(``datasets.synthetic.select_split``). Deterministic: the same code gives the same file.
+(``datasets.synthetic.select_split``), then writes the split's checksummed manifest
+(``datasets/manifests/SPLIT.json``, ``datasets.manifest``). Deterministic: the same code gives
+the same files.
 
-    .venv/bin/python scripts/make_synthetic_split.py            # seeds 100-129
+    .venv/bin/python scripts/make_synthetic_split.py                              # synthetic-v1
+    .venv/bin/python scripts/make_synthetic_split.py --split synthetic-test-v1    # held out
     .venv/bin/python scripts/make_synthetic_split.py --check    # rebuild in memory, compare
+    .venv/bin/python scripts/make_synthetic_split.py --manifest-only  # the manifest of the file
 
-A changed generator means a new split version (bump ``SPLIT_VERSION``), never a silent rewrite.
+A changed generator means a new split version (``synthetic-v2``, ``synthetic-test-v2``: a new
+file, a new manifest and its digest in ``datasets.splits``), never a rewrite of a frozen one.
 """
 
 from __future__ import annotations
@@ -25,7 +30,14 @@ from efficienteqa.envs.synthetic.env import SyntheticEnv
 from efficienteqa.envs.synthetic.questions import Question
 from efficienteqa.scenes import synthetic_questions
 
-OUT = Path(__file__).resolve().parents[1] / "src" / "efficienteqa" / "datasets" / synthetic.SPLIT_FILE
+PACKAGE = Path(__file__).resolve().parents[1] / "src" / "efficienteqa" / "datasets"
+# Each split's file, seeds (the range they must lie in) and selection.
+SPLITS = {
+    synthetic.SPLIT_DATASET: dict(file=synthetic.SPLIT_FILE, seeds="100-129",
+                                  allowed=synthetic.SPLIT_SEEDS, per_category=17, existence_no=4),
+    synthetic.TEST_DATASET: dict(file=synthetic.TEST_FILE, seeds="5000-5039",
+                                 allowed=synthetic.TEST_SEEDS, per_category=20, existence_no=5),
+}
 
 
 def scan(seeds: list[int]) -> tuple[list[Question], dict[int, dict[str, float]]]:
@@ -46,18 +58,28 @@ def scan(seeds: list[int]) -> tuple[list[Question], dict[int, dict[str, float]]]
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", default="100-129", help="house seeds, e.g. 100-129 (>= 100)")
-    parser.add_argument("--per-category", type=int, default=17)
-    parser.add_argument("--existence-no", type=int, default=4,
-                        help="existence questions answered 'no' (no evidence, no oracle steps)")
+    parser.add_argument("--split", choices=sorted(SPLITS), default=synthetic.SPLIT_DATASET)
+    parser.add_argument("--seeds", help="house seeds, e.g. 100-129 (default: the split's)")
+    parser.add_argument("--per-category", type=int, help="default: the split's (17; test 20)")
+    parser.add_argument("--existence-no", type=int, help="existence questions answered 'no' "
+                        "(no evidence, no oracle steps; default: the split's, 4; test 5)")
     parser.add_argument("--max-per-house", type=int, default=5)
-    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--out", type=Path, help="default: the split's package file")
     parser.add_argument("--check", action="store_true", help="compare with --out, write nothing")
+    parser.add_argument("--manifest-only", action="store_true",
+                        help="write the manifest of the split file as it stands (opens its houses)")
     args = parser.parse_args()
+    split = SPLITS[args.split]
+    args.seeds = args.seeds or split["seeds"]
+    args.per_category = args.per_category or split["per_category"]
+    args.existence_no = split["existence_no"] if args.existence_no is None else args.existence_no
+    args.out = args.out or PACKAGE / split["file"]
+    if args.manifest_only:
+        return write_manifest(args.split, args.out)
 
     seeds = synthetic.parse_seeds(args.seeds)
-    if not all(s in synthetic.SPLIT_SEEDS for s in seeds):
-        parser.error(f"split seeds must lie in {synthetic.SPLIT_SEEDS}")
+    if not all(s in split["allowed"] for s in seeds):
+        parser.error(f"{args.split} seeds must lie in {split['allowed']}")
     questions, sizes = scan(seeds)
     picks = synthetic.select_split(questions, args.per_category, args.existence_no,
                                    args.max_per_house)
@@ -70,7 +92,7 @@ def main() -> int:
                             "max_per_house": args.max_per_house,
                             "rule": "categories in turn; each pick from the least-used house"}}
     target = args.out.with_suffix(".check") if args.check else args.out
-    synthetic.write_split(picks, header, target)
+    synthetic.write_split(picks, header, target, args.split)
     steps = [q.oracle_steps for q in picks if q.oracle_steps is not None]
     print(json.dumps(json.loads(target.read_text().splitlines()[0])["category_counts"]))
     print(f"{len(picks)} questions, {len({q.house_seed for q in picks})} houses, "
@@ -81,6 +103,23 @@ def main() -> int:
         print("split unchanged" if same else "split differs: the generator changed")
         return 0 if same else 1
     print(f"wrote {target}")
+    return write_manifest(args.split, target)
+
+
+def write_manifest(split: str, path: Path) -> int:
+    """The manifest of the split file ``path`` (its houses opened again for their digests)."""
+    from efficienteqa.datasets import manifest
+    from efficienteqa.datasets.base import EvalQuestion
+
+    questions = [EvalQuestion.from_dict(json.loads(line))
+                 for line in path.read_text().splitlines()[1:] if line.strip()]
+    seeds = sorted({synthetic.house_of(q) for q in questions})
+    with Progress() as bar:
+        task = bar.add_task("manifest", total=len(seeds))
+        body = manifest.build_manifest(split, path.name, questions,
+                                       progress=lambda n: bar.update(task, completed=n))
+    out = manifest.write_manifest(body, PACKAGE / manifest.MANIFEST_DIR)
+    print(f"wrote {out}: sha256 {body['sha256']}")
     return 0
 
 

@@ -217,8 +217,8 @@ def test_bad_names_name_the_valid_forms(name):
 
 
 def test_names_and_flags():
-    assert set(DATASETS) == {"synthetic", "synthetic-paraphrase", "synthetic:SEEDS", "hm-eqa",
-                             "FILE.jsonl"}
+    assert set(DATASETS) == {"synthetic", "synthetic-test", "synthetic-paraphrase",
+                             "synthetic:SEEDS", "hm-eqa", "FILE.jsonl"}
     assert synthetic.parse_seeds("3") == [3]
     assert synthetic.parse_seeds("0-9") == list(range(10))
     assert synthetic.parse_seeds("1,4,7") == [1, 4, 7]

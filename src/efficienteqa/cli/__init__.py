@@ -1,7 +1,8 @@
 """The ``efficienteqa`` command: parse, build, call a library function, print.
 
 ``run`` holds the agent's commands (ask, eval, judge, report), whose options are made from the
-configuration tree (``options``); ``tools`` the others (scenes, models, perception).
+configuration tree (``options``); ``tools`` the others (scenes, models, perception);
+``splits`` the frozen splits' (``scenes verify``, ``scenes export-walks``).
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import sys
 
 from rich.markup import escape
 
-from efficienteqa.cli import run, tools  # noqa: F401 - registers the commands
+from efficienteqa.cli import run, splits, tools  # noqa: F401 - registers the commands
 from efficienteqa.cli.app import app, console
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.redact import redact_urls

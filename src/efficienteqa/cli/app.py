@@ -24,7 +24,8 @@ class Commands(TyperGroup):
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, cls=Commands,
                   help="EfficientEQA: explore a house, stop early, answer a question.")
-scenes = typer.Typer(no_args_is_help=True, help="Synthetic houses: generate one.")
+scenes = typer.Typer(no_args_is_help=True, help="Synthetic houses: generate one, verify the frozen "
+                     "splits, export their walks.")
 app.add_typer(scenes, name="scenes")
 models = typer.Typer(no_args_is_help=True,
                      help="Local language models (gguf from PyPI) and the llama.cpp server.")

@@ -75,8 +75,9 @@ class EvalConfig:
     method: str = knob("efficienteqa", help="efficienteqa | explore-eqa | explore-eqa-blackbox "
                        "| blind | frontier-only | random | module:function.")
     dataset: str = knob(DEFAULT_DATASET, help="synthetic (the fixed split) | "
-                        "synthetic-paraphrase (its first 48 re-phrased) | synthetic:SEEDS (e.g. "
-                        "synthetic:0-9) | hm-eqa | FILE.jsonl (your own questions, each with its "
+                        "synthetic-test (the held-out test split) | synthetic-paraphrase (its "
+                        "first 48 re-phrased) | synthetic:SEEDS (e.g. synthetic:0-9) | hm-eqa | "
+                        "FILE.jsonl (your own questions, each with its "
                         "scene, e.g. recorded:walk.mcap).")
     hm_eqa_path: Path | None = knob(None, help="Folder with HM-EQA's questions.csv and "
                                     "scene_init_poses.csv (default: downloaded).")

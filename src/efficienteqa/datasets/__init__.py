@@ -1,6 +1,9 @@
 """Evaluation datasets by name: every one is read into a list of ``EvalQuestion``.
 
-- ``synthetic``: the fixed, versioned split of synthetic houses (package data, instant).
+- ``synthetic`` (``synthetic-v1``): the fixed, versioned split of synthetic houses (package
+  data, instant), checked against its manifest (``splits``).
+- ``synthetic-test`` (``synthetic-test-v1``): the held-out test split (houses 5000-5039), never
+  used for tuning; checked the same way.
 - ``synthetic-paraphrase``: the split's first 48 questions (the main table) re-phrased by hand
   the way people speak; same episodes and references, pairs with ``synthetic`` by id.
 - ``synthetic:SEEDS``: the questions of any houses ("synthetic:3", "synthetic:0-9",
@@ -19,15 +22,22 @@ from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 
 DATASETS = {
-    "synthetic": "the fixed, versioned synthetic split (package data; seeds 100 and up)",
+    "synthetic": "the fixed, versioned synthetic split (package data; seeds 100 and up); "
+                 "also synthetic-v1",
+    "synthetic-test": "the held-out test split (seeds 5000-5039; never tune on it); also "
+                      "synthetic-test-v1",
     "synthetic-paraphrase": "the main table's 48 questions re-phrased by hand (same episodes)",
     "synthetic:SEEDS": "live questions of any houses: synthetic:3, synthetic:0-9, synthetic:1,4,7",
     "hm-eqa": "HM-EQA (500 questions on HM3D; needs the Habitat back-end to run)",
     "FILE.jsonl": "your own questions, one JSON line each: question, scene (recorded:WALK.mcap), "
                   "answer (optional)",
 }
-_FIX = ("use one of: synthetic, synthetic-paraphrase, synthetic:3, synthetic:0-9, synthetic:1,4,7, "
-        "hm-eqa, or a FILE.jsonl of questions")
+_FIX = ("use one of: synthetic, synthetic-test, synthetic-paraphrase, synthetic:3, synthetic:0-9, "
+        "synthetic:1,4,7, hm-eqa, or a FILE.jsonl of questions")
+
+# The frozen splits' names and aliases (``splits.SPLITS``, ``splits.ALIASES``; a test keeps
+# them equal without importing the splits here).
+_FROZEN = ("synthetic", "synthetic-v1", "synthetic-test", "synthetic-test-v1")
 
 __all__ = ["DATASETS", "EvalQuestion", "find_question", "load_dataset"]
 
@@ -57,14 +67,14 @@ def load_dataset(name: str, *, path: Path | None = None, limit: int | None = Non
         from efficienteqa.datasets.hm_eqa import load_hm_eqa
 
         questions = load_hm_eqa(path, closed_set=closed_set)
-    elif kind == "synthetic" and not colon:
-        from efficienteqa.datasets import synthetic
+    elif kind in _FROZEN and not colon:
+        from efficienteqa.datasets import splits, synthetic
 
         if assets != synthetic.SPLIT_ASSETS:
             raise EfficientEQAError(f"the synthetic split is defined for assets "
                                     f"{synthetic.SPLIT_ASSETS!r}, not {assets!r}",
                                     fix="use synthetic:SEEDS with these assets")
-        questions = synthetic.load_split()
+        questions = splits.load_frozen(kind)
     elif kind == "synthetic-paraphrase" and not colon:
         from efficienteqa.datasets import synthetic
 

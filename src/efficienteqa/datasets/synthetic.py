@@ -16,8 +16,14 @@ house, start, references and evidence (checked against the split on loading), so
 with the original's by id; ``source["original"]`` holds the original's id and wording (which
 ``check_question`` looks up), ``source["paraphrase_style"]`` the kind of re-phrasing.
 
+The split ``synthetic-test`` v1 (``synthetic_test_v1.jsonl``) is the held-out test split, built
+the same way on houses of seeds 5000-5039 (``TEST_SEEDS`` reserves 5000-5999): never used for
+tuning or for choosing anything, only for reporting. Both frozen splits are fixed by a
+checksummed manifest (``datasets.splits``).
+
 Seed ranges: 0-20 belong to development benchmarks and >= 1000 to calibration, so the split
-draws from 100-999. ``synthetic:SEEDS`` generates any houses live (about 5 s each) and caches
+draws from 100-999; 2000-2999 are held out for studies, 3000-3999 are perception's own.
+``synthetic:SEEDS`` generates any houses live (about 5 s each) and caches
 their questions per seed, keyed by a digest of the generator's source.
 """
 
@@ -50,6 +56,12 @@ SPLIT_DATASET = f"synthetic-{SPLIT_VERSION}"
 SPLIT_FILE = f"synthetic_{SPLIT_VERSION}.jsonl"
 SPLIT_ASSETS = DEFAULT_ASSETS
 SPLIT_SEEDS = range(100, 1000)  # 0-20: development benchmarks; >= 1000: calibration
+# The held-out test split: houses no experiment, benchmark or calibration has looked at. Never
+# tune on them: a number measured here is reported, not acted on.
+TEST_VERSION = "v1"
+TEST_DATASET = f"synthetic-test-{TEST_VERSION}"
+TEST_FILE = f"synthetic_test_{TEST_VERSION}.jsonl"
+TEST_SEEDS = range(5000, 6000)
 LIVE_DATASET = "synthetic"
 HEADER_FORMAT = "efficienteqa-synthetic-split"
 PARAPHRASE_DATASET = f"synthetic-paraphrase-{SPLIT_VERSION}"
@@ -165,17 +177,18 @@ def _split_lines(name: str = SPLIT_FILE) -> list[str]:
     return [line for line in text.splitlines() if line.strip()]
 
 
-def split_header() -> dict[str, Any]:
-    """The split's first line: version, generator version, seeds, category counts, selection."""
-    header = json.loads(_split_lines()[0])
+def split_header(file: str = SPLIT_FILE) -> dict[str, Any]:
+    """A split's first line: version, generator version, seeds, category counts, selection."""
+    header = json.loads(_split_lines(file)[0])
     if header.get("format") != HEADER_FORMAT:
-        raise EfficientEQAError(f"{SPLIT_FILE} has no split header", fix=REBUILD)
+        raise EfficientEQAError(f"{file} has no split header", fix=REBUILD)
     return header
 
 
-def load_split() -> list[EvalQuestion]:
-    """The fixed split in its interleaved order (a prefix of any length stays balanced)."""
-    lines = _split_lines()
+def load_split(file: str = SPLIT_FILE) -> list[EvalQuestion]:
+    """A fixed split in its interleaved order (a prefix of any length stays balanced); the
+    manifest's checks are ``splits.load_frozen``'s."""
+    lines = _split_lines(file)
     return [EvalQuestion.from_dict(json.loads(line)) for line in lines[1:]]
 
 
@@ -204,10 +217,12 @@ def load_paraphrase_split() -> list[EvalQuestion]:
     return questions
 
 
-def write_split(questions: Sequence[Question], header: dict[str, Any], path: Path) -> None:
-    """Header line plus one EvalQuestion per line (the package file the loader reads)."""
-    rows = [to_eval_question(q, SPLIT_DATASET, SPLIT_ASSETS).to_dict() for q in questions]
-    header = {"format": HEADER_FORMAT, "version": SPLIT_VERSION, "dataset": SPLIT_DATASET,
+def write_split(questions: Sequence[Question], header: dict[str, Any], path: Path,
+                dataset: str = SPLIT_DATASET) -> None:
+    """Header line plus one EvalQuestion per line (the package file the loader reads);
+    ``dataset`` names the split and its version ("synthetic-test-v1")."""
+    rows = [to_eval_question(q, dataset, SPLIT_ASSETS).to_dict() for q in questions]
+    header = {"format": HEADER_FORMAT, "version": dataset.rpartition("-")[2], "dataset": dataset,
               "assets": SPLIT_ASSETS, **header, "questions": len(rows),
               "houses": len({q.house_seed for q in questions}),
               "category_counts": dict(Counter(q.category for q in questions))}
