@@ -130,6 +130,7 @@ def test_export_walks_reads_back_as_a_recorded_walk(tmp_path, cli):
     assert (done.questions, done.houses) == (1, 1) and done.frames >= 5
     (q,) = load_dataset(str(out / "questions.jsonl"))
     assert (q.id, q.question, q.answer) == (first.id, first.question, first.answer)
+    assert q.accepted == first.accepted and q.category == first.category  # the rule judge's key
     assert q.scene == f"recorded:{out / 'walks' / str(seed)}"
     scene = open_scene(q.scene)
     try:
@@ -145,3 +146,18 @@ def test_export_walks_reads_back_as_a_recorded_walk(tmp_path, cli):
     again = cli("scenes", "export-walks", "synthetic", str(out), "--limit", "1")
     assert again.returncode == 1 and "never written over" in again.stdout
     assert len(again.stdout.strip().splitlines()) == 1
+
+
+def test_a_questions_files_accepted_answers_are_read_or_refused_in_one_line(tmp_path):
+    from efficienteqa.datasets.questions_file import load_questions_file
+    from efficienteqa.errors import EfficientEQAError
+
+    good = tmp_path / "q.jsonl"
+    good.write_text('{"question": "How many chairs?", "scene": "synthetic:0", "answer": "4", '
+                    '"category": "count", "accepted": ["4", "four"]}\n')
+    (q,) = load_questions_file(good)
+    assert q.accepted == ("4", "four") and q.category == "count"
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text('{"question": "How many chairs?", "scene": "synthetic:0", "accepted": {}}\n')
+    with pytest.raises(EfficientEQAError, match="line 1: accepted is an object"):
+        load_questions_file(bad)

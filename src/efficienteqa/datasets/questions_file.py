@@ -9,8 +9,10 @@
 synthetic house); ``answer`` (the reference, graded by the judge; without it the episode is run
 and not graded), ``alternatives`` (other right answers), ``id`` (default: the file's name and
 the row, "questions/000"; it names the episode's folder, so it is refused when it cannot: ``.``,
-``..``, a control character, over ``MAX_ID_BYTES``) and ``category`` (default "open") are
-optional. A recording's path is read relative to the questions file's folder unless it is
+``..``, a control character, over ``MAX_ID_BYTES``), ``category`` (default "open") and
+``accepted`` (the answers the rule judge accepts, as the synthetic questions and ``scenes
+export-walks`` carry them; with them, and a category of the synthetic questions, the exact rule
+judge grades too, beside LLM-Match or alone with ``--eval.judge none``) are optional. A recording's path is read relative to the questions file's folder unless it is
 absolute. A line that cannot be read is one error naming the file and the line, before any
 episode.
 """
@@ -137,10 +139,15 @@ def load_questions_file(path: Path) -> list[EvalQuestion]:
                     else f"is {_kind(given)}, not a list of answers")
             raise EfficientEQAError(f"{where}: alternatives {said}",
                                     fix='write e.g. "alternatives": ["navy", "dark blue"]')
+        accepted = _alternatives(row.get("accepted"))
+        if accepted is None:
+            raise EfficientEQAError(f"{where}: accepted is {_kind(row['accepted'])}, not a list "
+                                    "of answers", fix='write e.g. "accepted": ["blue", "navy"]')
         questions.append(EvalQuestion(
             id=qid, dataset=str(path), scene=_scene(row["scene"], path.parent),
             question=row["question"].strip(), answer=str(row.get("answer") or ""),
-            category=str(row.get("category") or "open"), alternatives=alternatives))
+            category=str(row.get("category") or "open"), alternatives=alternatives,
+            accepted=accepted))
     if not questions:
         raise EfficientEQAError(f"{path} holds no question", fix=FIX)
     return questions
