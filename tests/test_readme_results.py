@@ -115,11 +115,13 @@ def test_a_stale_readme_block_is_regenerated_and_other_text_kept(tmp_path):
     lines = body.splitlines()
     header = [c.strip() for c in lines[0].strip("|").split("|")]
     rows = {r.split("|")[1].strip(): [c.strip() for c in r.strip("|").split("|")] for r in lines[2:4]}
-    assert header[:12] == ["Method", "Accuracy, rule judge (%) [95% CI]", "LLM-Match", "Steps",
-                           "Steps / oracle", "Evidence seen (%)", "Relevancy stops (%)",
+    assert header[:13] == ["Method", "Preset", "Accuracy, rule judge (%) [95% CI]", "LLM-Match",
+                           "Steps", "Steps / oracle", "Evidence seen (%)", "Relevancy stops (%)",
                            "Median wall s", "Calls / ep", "Tokens / ep", "$ / ep", "n"]
-    assert header[12].startswith("Δ accuracy vs efficienteqa Z_th=2")
+    assert header[13].startswith("Δ accuracy vs efficienteqa Z_th=2")
     new_row, ref_row = rows["efficienteqa"], rows["efficienteqa Z_th=2"]
+    assert new_row[1] == ref_row[1] == "-"  # made without a preset
+    new_row, ref_row = new_row[:1] + new_row[2:], ref_row[:1] + ref_row[2:]
     assert new_row[1].startswith("87.5 [") and ref_row[1].startswith("50.0 [")
     assert new_row[3:12] == ["10.0", "1.67", "100", "100", "4.5", "10.0", "1000", "0.0000", "8"]
     assert ref_row[3:8] == ["20.0", "3.33", "75", "0", "4.0"]

@@ -76,7 +76,8 @@ def markdown_backends(summaries: Sequence[RunSummary]) -> str:
 
 def markdown_table(summaries: Sequence[RunSummary],
                    differences: Sequence[PairedDifference | None] = ()) -> str:
-    """The README's table: one row per run, then the back-ends and code versions. Accuracy is
+    """The README's table: one row per run (its label, and the preset it started from: ``--preset
+    NAME``, or ``--config FILE``), then the back-ends and code versions. Accuracy is
     the rule judge's where a run has it, else LLM-Match, with its 95% bootstrap interval; shares
     are %, costs per episode. With ``differences`` (``paired_differences``): accuracy and steps
     against the reference run, paired over the same questions. No dates, no absolute paths."""
@@ -85,7 +86,7 @@ def markdown_table(summaries: Sequence[RunSummary],
     mixed = len(kinds) > 1
     names = {"rule": "rule judge", "choice": "chosen letter", "llm-match": "LLM-Match"}
     judge = " or ".join(names[k] for k in names if k in kinds) or "rule judge"
-    header = ["Method", f"Accuracy, {judge} (%) [95% CI]", "LLM-Match", "Steps", "Steps / oracle",
+    header = ["Method", "Preset", f"Accuracy, {judge} (%) [95% CI]", "LLM-Match", "Steps", "Steps / oracle",
               "Evidence seen (%)", "Relevancy stops (%)", "Median wall s", "Calls / ep",
               "Tokens / ep", "$ / ep", "n"]
     paired_columns = any(d is not None for d in differences)
@@ -94,7 +95,7 @@ def markdown_table(summaries: Sequence[RunSummary],
         header += [f"Δ accuracy vs {reference} [95% CI]", "Δ steps [95% CI]", "Paired n"]
     rows = []
     for i, (s, lab) in enumerate(zip(summaries, labels)):
-        row = [lab, _accuracy_cell(s, mixed), num(s.llm_match, 1), num(s.mean_steps, 1),
+        row = [lab, s.preset or "-", _accuracy_cell(s, mixed), num(s.llm_match, 1), num(s.mean_steps, 1),
                num(s.steps_over_oracle, 2), _pct(s.evidence_seen), _pct(s.relevancy_stops),
                num(s.wall_s_median, 1), num(s.calls, 1), num(s.tokens, 0),
                "unknown" if s.cost_per_episode is None else f"{s.cost_per_episode:.4f}", str(s.n)]
