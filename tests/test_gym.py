@@ -51,7 +51,9 @@ def test_an_episode_gives_what_a_robot_has_and_grades_at_the_end(env):
     grade = info["grade"]
     assert grade["correct"] and grade["reference"] == "a coffee maker" and grade["steps"] == 2
     assert grade["oracle_steps"] >= 1
+    house = env.unwrapped._scene
     env.reset(seed=0)
+    assert env.unwrapped._scene is house  # a question in the same house keeps it open
     _, reward, terminated, _, info = env.step(answer("a teddy bear"))
     assert terminated and reward == 0.0 and not info["grade"]["correct"]
 

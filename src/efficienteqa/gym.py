@@ -68,6 +68,7 @@ class SyntheticHouseEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         })
         self.render_mode = render_mode
         self._scene: Any = None  # the open house, kept while questions stay in it
+        self._spec: str | None = None  # its scene spec ("synthetic:SEED")
         self._episode: QuestionEpisode | None = None
         self._question: EvalQuestion | None = None
         self._last: dict[str, Any] | None = None
@@ -112,14 +113,14 @@ class SyntheticHouseEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
     def close(self) -> None:
         if self._scene is not None:
             self._scene.env.close()
-            self._scene = None
+            self._scene = self._spec = None
 
     def _open(self, name: str) -> Any:
-        if self._scene is None or self._scene.name != name:
+        if self._scene is None or self._spec != name:
             from efficienteqa.scenes import open_scene
 
             self.close()
-            self._scene = open_scene(name, oracle=False)
+            self._scene, self._spec = open_scene(name, oracle=False), name
         return self._scene.env
 
     def _grade(self) -> dict[str, Any]:
