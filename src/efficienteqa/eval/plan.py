@@ -9,27 +9,11 @@ misspelt local model), each one line and before a house is built.
 from __future__ import annotations
 
 from efficienteqa.agent import AgentConfig
+from efficienteqa.ask_plan import check_backends
 from efficienteqa.config.run import RunConfig
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE_MODE, judge_mode
 from efficienteqa.eval.methods import METHODS, RunSpec, default_judge, resolve
-
-
-def check_backends(run: RunConfig) -> None:
-    """Bad back-ends fail before anything slow: unknown furniture, an unknown back-end name, a
-    VLM spec that cannot be read, a local model that is not in the registry."""
-    from efficienteqa.envs.synthetic.house import check_assets
-    from efficienteqa.stack import check_stack, parse_vlm
-
-    stack = run.backends
-    check_assets(run.scene.assets)  # before a house is built
-    check_stack(stack)
-    backend = parse_vlm(stack.vlm, images=stack.perception == "rgb",
-                        temperature=stack.temperature, **stack.server_options())
-    if backend.kind == "local":  # a misspelt local model: now, not once the scene is open
-        from efficienteqa.models.local.weights import registry_entry
-
-        registry_entry(backend.model)
 
 
 def judge_of(run: RunConfig) -> str | None:
