@@ -147,34 +147,22 @@ def eval_command(
 ) -> None:
     """Run a method on a dataset, resumably: one JSON line per episode, graded by the rule judge
     (synthetic) and by LLM-Match (with a judge model)."""
-    from efficienteqa.datasets import load_dataset
-    from efficienteqa.eval.plan import plan_run
-    from efficienteqa.eval.records import check_resumable
-    from efficienteqa.eval.runner import manifest, run_eval
-    from efficienteqa.records import check_writable
+    from efficienteqa.cli.progress import eval_progress, say_failures
+    from efficienteqa.eval.plan import episodes_done, plan_run, prepare_run
+    from efficienteqa.eval.runner import run_eval
 
-    r, e = run.run, run.run.eval
-    spec = plan_run(r, run.preset, run.preset_run.agent)  # the checks that need no scene
-    check_writable(out)
-    # a folder of another run is refused before the dataset's houses are built (minutes with
-    # the furniture of --scene.assets sh3d); run_eval checks again under the folder's lock
-    check_resumable(out, manifest(spec, 0))
-    questions = load_dataset(e.dataset, path=e.hm_eqa_path, limit=e.limit,
-                             closed_set=e.closed_set, assets=r.scene.assets)
-    from efficienteqa.cli.progress import eval_progress
-
+    e = run.run.eval
+    spec = plan_run(run.run, run.preset, run.preset_run.agent)  # the checks that need no scene
+    questions = prepare_run(spec, out)
     ids = [q.id for q in questions]
     try:
         with eval_progress(console, e.method, ids, out) as on_episode:
             result = run_eval(spec, questions, out, workers=e.workers, address=e.address,
                               on_episode=on_episode)
     except KeyboardInterrupt:  # each episode done is a whole line already: say how to go on
-        from efficienteqa.eval.records import read_episodes
-
-        done = len(read_episodes(out / "episodes.jsonl").done & set(ids))
-        console.print(f"[yellow]interrupted[/yellow]: {done} of {len(ids)} episodes are done in "
-                      f"{out / 'episodes.jsonl'}; the same command resumes the others",
-                      highlight=False, soft_wrap=True)
+        console.print(f"[yellow]interrupted[/yellow]: {episodes_done(out, ids)} of {len(ids)} "
+                      f"episodes are done in {out / 'episodes.jsonl'}; the same command resumes "
+                      "the others", highlight=False, soft_wrap=True)
         raise typer.Exit(130) from None
     console.print(f"{result.ran} episodes run, {result.skipped} already done, {result.failed} "
                   f"failed, {result.wall_s:.0f} s ({result.episodes_per_hour:.0f} episodes/hour)",
@@ -182,8 +170,6 @@ def eval_command(
     console.print(f"results: {out / 'episodes.jsonl'}\nsummary: efficienteqa report {out}",
                   highlight=False, soft_wrap=True)
     if result.failed:  # a run with failed episodes is not a success (they resume on a re-run)
-        from efficienteqa.cli.progress import say_failures
-
         say_failures(console, out, result.failed, ids)
         raise typer.Exit(1)
 
@@ -207,29 +193,14 @@ def report_command(
     from rich.table import Table
 
     from efficienteqa.eval.readme_tables import markdown_table
-    from efficienteqa.eval.tables import (
-        overview_rows,
-        paired_differences,
-        publish_run,
-        read_summaries,
-        run_folders,
-        write_run_report,
-    )
-    from efficienteqa.records import check_writable
+    from efficienteqa.eval.tables import overview_rows, publish_runs, write_run_report
 
-    summaries = read_summaries(folders)
-    reference = None if paired_against is None else read_summaries([paired_against])[0]
-    differences = paired_differences(summaries, reference)
-    single = out is None and len(folders) == 1
-    target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
-    if not markdown:
-        check_writable(target)  # before any file is written
-    for folder, summary, difference in zip(run_folders(folders), summaries, differences):
-        publish_run(folder, summary, difference)
+    summaries, differences, target, stamp = publish_runs(folders, out, paired_against,
+                                                         markdown=markdown)
     if markdown:
         sys.stdout.write(redact_urls(markdown_table(summaries, differences)))
         return
-    md, page = write_run_report(summaries, target, stamp=not single)
+    md, page = write_run_report(summaries, target, stamp=stamp)
     header, rows = overview_rows(summaries)
     table = Table()
     for i, name in enumerate(header):  # names whole, numbers right-aligned
