@@ -206,7 +206,7 @@ def test_an_ask_folder_whose_files_cannot_be_written_is_refused_before_the_work(
     """Fault trial 2.16 for ask: episode.json or report.html a folder was found only when the
     explored episode was written; an episode.json that cannot be read is nobody's known
     question, so it is not replaced without --overwrite."""
-    from efficienteqa.cli.run import check_ask_folder
+    from efficienteqa.ask_plan import check_ask_folder
 
     for name in ("episode.json", "report.html"):
         (tmp_path / name).mkdir()

@@ -1,4 +1,5 @@
-"""Records on disk: JSON-safe values, atomic JSON files and the code version that wrote them.
+"""Records on disk: JSON-safe values, atomic JSON files, the code version that wrote them and a
+run folder's lock.
 
 Low level on purpose: the episode report, the evaluation runner and the benchmarks all write
 results through these, and none of them should import another to do so.
@@ -11,6 +12,8 @@ import math
 import os
 import subprocess
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, is_dataclass
 from pathlib import Path
 from typing import Any
@@ -20,6 +23,8 @@ import numpy as np
 import efficienteqa
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.redact import redacted
+
+LOCK_FILE = ".lock"  # a run folder's lock (run_lock)
 
 
 def read_json(data: str | bytes) -> Any:
@@ -88,3 +93,28 @@ def write_json(path: Path, data: dict[str, Any]) -> Path:
         json.dump(redacted(data), f, indent=1, allow_nan=False)
     os.replace(tmp, path)
     return path
+
+
+@contextmanager
+def run_lock(out: Path) -> Iterator[None]:
+    """Hold ``out``'s lock while a run (an evaluation, an ask) writes there: a second run into
+    the same folder fails at once instead of running every episode again beside the first."""
+    import fcntl
+
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as error:  # a folder of that name, a file this user may not write
+        raise EfficientEQAError(f"cannot open the run's lock {out / LOCK_FILE}: "
+                                f"{error.strerror or error}",
+                                fix="remove it if no run is writing there, or use another --out "
+                                    "folder") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise EfficientEQAError(f"another run is writing to {out}",
+                                    fix="wait for it to end, or use another --out folder") from None
+        yield
+    finally:
+        os.close(fd)  # releases the lock

@@ -1,15 +1,26 @@
-"""What ``eval`` shows while it runs: a bar with the running scores, and the failures after."""
+"""What the commands show while they run: a bar with ``eval``'s running scores, and its failures
+after; a plain bar for the others."""
 
 from __future__ import annotations
 
-from collections import Counter
 from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from rich.console import Console
 
+from efficienteqa.cli.app import console as app_console
 from efficienteqa.redact import redact_urls
+
+
+@contextmanager
+def bar(what: str, total: int | None = None) -> Iterator[Callable[..., None]]:
+    """A bar that goes when done; yields ``progress(done, total=None)`` to move it."""
+    from rich.progress import Progress
+
+    with Progress(console=app_console, transient=True) as shown:
+        task = shown.add_task(what, total=total)
+        yield lambda n, total=None: shown.update(task, completed=n, total=total)
 
 
 @contextmanager
@@ -27,9 +38,9 @@ def eval_progress(console: Console, method: str, ids: Collection[str],
         TimeRemainingColumn,
     )
 
-    from efficienteqa.eval.records import read_episodes
+    from efficienteqa.eval.plan import episodes_done
 
-    done_before = len(read_episodes(out / "episodes.jsonl").done & set(ids))
+    done_before = episodes_done(out, ids)
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
                TextColumn("{task.fields[info]}"))
@@ -55,12 +66,9 @@ def eval_progress(console: Console, method: str, ids: Collection[str],
 def say_failures(console: Console, out: Path, failed: int, ids: Collection[str]) -> None:
     """The commonest errors of the failed episodes among ``ids`` (the questions of this
     command), and how to resume them."""
-    from efficienteqa.eval.records import read_episodes
+    from efficienteqa.eval.plan import commonest_errors
 
-    asked = set(ids)
-    why = Counter(str(r.get("error")) for r in read_episodes(out / "episodes.jsonl").rows()
-                  if r.get("status") != "done" and r["id"] in asked)
-    for error, count in why.most_common(3):
+    for error, count in commonest_errors(out, ids):
         console.print(f"  {count} x {redact_urls(error)}", highlight=False, soft_wrap=True)
     console.print(f"[red]error:[/red] {failed} episode(s) failed (the commonest errors are "
                   "above, all in episodes.jsonl); the same command resumes them",

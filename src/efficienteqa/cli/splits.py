@@ -2,19 +2,12 @@
 
 from __future__ import annotations
 
-import json
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import typer
 
 from efficienteqa.cli.app import console, scenes
-from efficienteqa.errors import EfficientEQAError
-
-if TYPE_CHECKING:
-    from rich.progress import Progress
 
 # What verify compares, in its --help (``datasets.manifest.COMPARED`` in the manifest).
 VERIFY_HELP = "\n\n".join((
@@ -43,12 +36,6 @@ EXPORT_HELP = "\n\n".join((
 SPLIT_NAMES = "synthetic-v1 (alias synthetic) or synthetic-test-v1 (alias synthetic-test)"
 
 
-def _bar(bar: Progress, what: str, total: int | None) -> Callable[[int], None]:
-    """A callback that moves a new task of ``bar`` to the count it is given."""
-    task = bar.add_task(what, total=total)
-    return lambda n: bar.update(task, completed=n)
-
-
 @scenes.command("verify", help=VERIFY_HELP)
 def scenes_verify(
     split: list[str] = typer.Argument(None, help=f"The splits to check: {SPLIT_NAMES}; "
@@ -60,35 +47,18 @@ def scenes_verify(
 ) -> None:
     """Regenerate a frozen split's houses and questions here and compare them with its
     manifest (``VERIFY_HELP`` says what is compared)."""
-    from rich.progress import Progress
+    from efficienteqa.cli.progress import bar
+    from efficienteqa.datasets.manifest import to_verify, verify
 
-    from efficienteqa.datasets.manifest import verify
-    from efficienteqa.datasets.splits import SPLITS, frozen_split
-
-    chosen = [frozen_split(name) for name in split] if split else list(SPLITS.values())
-    if manifest is not None and len(chosen) != 1:
-        raise EfficientEQAError("--manifest checks one split", fix="name the split it belongs to")
-    if limit is not None and limit < 1:
-        raise EfficientEQAError(f"--limit must be at least 1, got {limit}")
-    given = None
-    if manifest is not None:
-        try:
-            given = json.loads(manifest.read_text())
-        except (OSError, ValueError) as error:
-            raise EfficientEQAError(f"cannot read the manifest {manifest}: {error}",
-                                    fix="give a manifest written by "
-                                        "scripts/make_synthetic_split.py") from None
+    chosen, given = to_verify(split or (), manifest, limit)
     failed = 0
     for s in chosen:
-        start = time.perf_counter()
-        with Progress(console=console, transient=True) as bar:
-            done = verify(s, given, limit, progress=_bar(bar, f"{s.name}: houses", limit))
+        with bar(f"{s.name}: houses", limit) as progress:
+            done = verify(s, given, limit, progress=progress)
         for line in done.mismatches:
             console.print(f"[red]mismatch:[/red] {line}", highlight=False, soft_wrap=True)
         failed += len(done.mismatches)
-        state = f"{len(done.mismatches)} mismatches" if done.mismatches else "reproduced"
-        console.print(f"{s.name}: {done.houses} houses, {done.questions} questions {state} "
-                      f"({time.perf_counter() - start:.0f} s)", highlight=False)
+        console.print(done.line(), highlight=False)
     if failed:
         raise typer.Exit(1)
 
@@ -101,15 +71,12 @@ def scenes_export_walks(
                                       "walks of their houses)."),
 ) -> None:
     """Write each house's walk and the questions (``EXPORT_HELP``; ``datasets.walks``)."""
-    from rich.progress import Progress
-
+    from efficienteqa.cli.progress import bar
     from efficienteqa.datasets.walks import export_walks
 
     start = time.perf_counter()
-    with Progress(console=console, transient=True) as bar:
-        task = bar.add_task("houses", total=None)
-        done = export_walks(split, out, limit,
-                            progress=lambda n, total: bar.update(task, completed=n, total=total))
+    with bar("houses") as progress:
+        done = export_walks(split, out, limit, progress=progress)
     console.print(f"{done.questions} questions, {done.houses} walks, {done.frames} frames in "
                   f"{time.perf_counter() - start:.0f} s -> {done.path}", highlight=False,
                   soft_wrap=True)

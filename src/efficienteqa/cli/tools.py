@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from efficienteqa.cli.app import console, models, perception, scenes
-from efficienteqa.envs.synthetic.house import ALL_CATALOGUES, DEFAULT_ASSETS
+from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.local.weights import DEFAULT_MODEL
 
@@ -43,20 +43,11 @@ def models_install(
 ) -> None:
     """Download, assemble and verify model files into the cache, and make the llama.cpp
     runtime that serves them importable (built once, 4-5 min, when no wheel is cached); idempotent."""
-    from efficienteqa.models.local import DEFAULT_MODEL, LOCAL_MODELS, ensure_llama_cpp, install_model
+    from efficienteqa.models.local import install_models
 
-    chosen = list(LOCAL_MODELS) if all_models else (names or [DEFAULT_MODEL])
-    unknown = [name for name in chosen if name not in LOCAL_MODELS]
-    if unknown:  # before anything slow
-        raise EfficientEQAError(f"unknown local model {unknown[0]!r}",
-                                fix=f"choose one of: {', '.join(LOCAL_MODELS)}")
-    # The runtime first: a missing compiler is one line before a gigabyte is downloaded.
-    ensure_llama_cpp(progress=True)
-    for name in chosen:
-        start = time.perf_counter()
-        path = install_model(name, progress=True)
-        console.print(f"{name}: {path} ({path.stat().st_size / 1e6:.0f} MB, "
-                      f"{time.perf_counter() - start:.1f} s)", highlight=False, soft_wrap=True)
+    for name, path, seconds in install_models(names or (), every=all_models):
+        console.print(f"{name}: {path} ({path.stat().st_size / 1e6:.0f} MB, {seconds:.1f} s)",
+                      highlight=False, soft_wrap=True)
 
 
 @models.command("runtime")
@@ -104,16 +95,13 @@ def models_status() -> None:
     """Installed models and running servers."""
     from rich.table import Table
 
-    from efficienteqa.models.local import LOCAL_MODELS, is_installed, running
+    from efficienteqa.models.local import status_rows
 
-    servers = {info.name: info for info in running()}
     table = Table("model", "installed", "server")
-    for name, entry in LOCAL_MODELS.items():
-        info = servers.get(name)
-        server = "-" if info is None else (f"{info.base_url} (pid {info.pid})"
-                                           + ("" if info.healthy() else " not answering"))
-        table.add_row(name, f"yes, {entry.size_mb} MB" if is_installed(name) else "no", server)
+    for row in status_rows():
+        table.add_row(*row)
     console.print(table)
+
 
 @perception.command("dataset")
 def perception_dataset(
@@ -160,37 +148,12 @@ def perception_train(
                                          "checkpoints (0: none)."),
 ) -> None:
     """Train the pixel network on rendered frames; validate on houses 3900-3909."""
-    from efficienteqa.perception.pixels.train import TrainConfig, check_data, check_writable, train
+    from efficienteqa.perception.pixels.train import train_as_asked, trained_line
 
-    if steps < 1 or batch < 1 or threads < 1 or checkpoint_every < 0:
-        raise EfficientEQAError("--steps, --batch and --threads must be at least 1, "
-                                "--checkpoint-every at least 0")
-    try:
-        width_list = tuple(int(w) for w in widths.split(","))
-    except ValueError:
-        raise EfficientEQAError(f"cannot read --widths {widths!r}", fix="give 5 numbers such as "
-                                "16,32,64,96,160") from None
-    if len(width_list) != 5 or min(width_list) < 1:
-        raise EfficientEQAError(f"--widths needs 5 positive numbers, got {widths!r}")
-    check_data(data)
-    check_writable(out)
-    # DATA: the folder 'perception dataset' wrote (its houses are in the record's "data"); a
-    # path on this machine would mean nothing on another. --resume and --device do not change
-    # the result's recipe (the record says where it ran and whether it resumed).
-    command = " ".join(["efficienteqa", "perception", "train", "--data", "DATA", "--out",
-                        str(out), "--steps", str(steps), "--seed", str(seed), "--batch",
-                        str(batch), "--minutes", f"{minutes:g}", "--threads", str(threads),
-                        "--widths", ",".join(map(str, width_list)), "--device", device])
-    record = train(data, out, TrainConfig(steps=steps, seed=seed, batch=batch, minutes=minutes,
-                                          threads=threads, widths=width_list, device=device,
-                                          checkpoint_every=checkpoint_every, resume=resume),
-                   command=command)
-    val = record["validation"] or {}
-    figures = ", ".join(f"{k} {val[k]}" for k in ("pixel_accuracy", "mean_iou", "colour_accuracy",
-                                                  "state_accuracy") if val.get(k) is not None)
-    console.print(f"{record['steps_done']} steps in {record['minutes']:.1f} min -> {out}"
-                  + (f"; validation: {figures}" if figures else ""), highlight=False,
-                  soft_wrap=True)
+    record = train_as_asked(data, out, steps=steps, seed=seed, batch=batch, minutes=minutes,
+                            threads=threads, widths=widths, device=device, resume=resume,
+                            checkpoint_every=checkpoint_every)
+    console.print(trained_line(record, out), highlight=False, soft_wrap=True)
 
 
 @perception.command("evaluate")
@@ -216,58 +179,21 @@ def perception_evaluate(
     found and right per category, size and distance, recoloured objects, objects of meshes
     held out of training and (with --assets sh3d-all) of unseen catalogues apart; colour,
     state and the floor's room type."""
-    from rich.progress import Progress
-
+    from efficienteqa.cli.progress import bar
     from efficienteqa.datasets.synthetic import parse_seeds
-    from efficienteqa.perception.pixels.backend import CLOSE_READS, PixelPerception
-    from efficienteqa.perception.pixels.evaluate import (
-        check_heldout,
-        evaluate,
-        heldout_frames,
-        markdown_table,
-        read_poses,
-        write_scores,
-    )
-    from efficienteqa.records import check_writable, code_version
+    from efficienteqa.perception.pixels.evaluate import measure, measured_lines
 
     try:
         houses = parse_seeds(seeds)
     except ValueError as exc:
         raise EfficientEQAError(f"cannot read the house seeds {seeds!r} ({exc})",
                                 fix="give a range such as 100-129") from None
-    check_heldout(houses)
-    if assets not in (DEFAULT_ASSETS, ALL_CATALOGUES):
-        raise EfficientEQAError(f"--assets {assets!r} is not furniture the network reads",
-                                fix=f"use {DEFAULT_ASSETS} or {ALL_CATALOGUES}")
-    if frames_per_house < 1:
-        raise EfficientEQAError("--frames-per-house must be at least 1")
-    if out is not None:
-        check_writable(out.parent)
-    if close_reads is not None and close_reads < 0:
-        raise EfficientEQAError("--close-reads must be 0 or more")
-    walks = read_poses(poses) if poses is not None else None
-    perception = PixelPerception.load(
-        weights, close_reads=CLOSE_READS if close_reads is None else close_reads)
-    held_out = frozenset(perception.record.get("data", {}).get("heldout_model_keys", []))
-    trained_on = perception.record.get("data", {}).get("assets", DEFAULT_ASSETS)
-    frames = heldout_frames(houses, frames_per_house, seed, walks, held_out, assets, trained_on)
-    total = len(houses) * frames_per_house
-    with Progress(console=console, transient=True) as bar:
-        task = bar.add_task("frames", total=total)
-        scores = evaluate(frames, perception, progress=lambda n: bar.update(task, completed=n))
-    figures = scores.to_json()
-    if out is not None:
-        write_scores(scores, out, {"houses": seeds,
-                                   "frames_per_house": frames_per_house, "seed": seed,
-                                   "poses": "walks " + poses.name if poses else "training-style",
-                                   "weights": str(weights or "committed"), "assets": assets,
-                                   "close_reads": perception.close_reads.crops,
-                                   "code_version": code_version()})
-    console.print(markdown_table(figures), highlight=False, soft_wrap=True)
-    console.print(f"{figures['frames']} frames of houses {seeds}; "
-                  f"floor room type {figures['floor_room_type']}; median "
-                  f"{figures['median_ms']} ms a frame" + (f" -> {out}" if out else ""),
-                  highlight=False, soft_wrap=True)
+    with bar("frames") as progress:
+        figures = measure(houses, seeds=seeds, frames_per_house=frames_per_house, seed=seed,
+                          weights=weights, out=out, poses=poses, assets=assets,
+                          close_reads=close_reads, progress=progress)
+    for line in measured_lines(figures, seeds, out):
+        console.print(line, highlight=False, soft_wrap=True)
 
 
 @perception.command("thresholds")
@@ -283,54 +209,16 @@ def perception_thresholds(
 ) -> None:
     """Choose each category's region threshold on validation houses (best F1 of objects found
     and regions right) and, with --write, record them with the weights."""
-    from dataclasses import replace
+    from efficienteqa.cli.progress import bar
+    from efficienteqa.perception.pixels.thresholds import choose_on
 
-    from rich.progress import Progress
-
-    from efficienteqa.perception.pixels.backend import WEIGHTS, PixelPerception
-    from efficienteqa.perception.pixels.evaluate import heldout_frames
-    from efficienteqa.perception.pixels.houses import VALIDATION_SEEDS, parse_seeds
-    from efficienteqa.perception.pixels.thresholds import (
-        GRID,
-        MIN_OBJECTS,
-        choose,
-        collect,
-        overall,
-        write_thresholds,
-    )
-
-    houses = parse_seeds(seeds)
-    if houses.start not in VALIDATION_SEEDS or houses.stop - 1 not in VALIDATION_SEEDS:
-        raise EfficientEQAError(f"houses {seeds} are not validation houses",
-                                fix=f"choose on houses within {VALIDATION_SEEDS.start}-"
-                                    f"{VALIDATION_SEEDS.stop - 1}")
-    if frames_per_house < 1:
-        raise EfficientEQAError("--frames-per-house must be at least 1")
-    path = weights or WEIGHTS
-    unthresholded = PixelPerception.load(path).classify
-    with Progress(console=console, transient=True) as bar:
-        task = bar.add_task("frames", total=len(houses) * frames_per_house)
-        candidates = collect(heldout_frames(houses, frames_per_house, seed),
-                             lambda rgb, depth: replace(unthresholded(rgb, depth),
-                                                        min_confidence={}),
-                             progress=lambda n: bar.update(task, completed=n))
-    chosen = choose(candidates)
-    for category, c in chosen.items():
-        console.print(f"{category}: {c['threshold']:.2f} ({c['objects']} objects; found "
-                      f"{c['recall_at_default']:.0%} -> {c['recall']:.0%}, right "
-                      f"{c['precision_at_default']:.0%} -> {c['precision']:.0%})",
-                      highlight=False, soft_wrap=True)
-    before = overall(candidates, {})
-    after = overall(candidates, {c: v["threshold"] for c, v in chosen.items()})
-    console.print(f"all: found {before[0]:.1%} -> {after[0]:.1%}, right {before[1]:.1%} -> "
-                  f"{after[1]:.1%} (houses {seeds}, {frames_per_house} frames each)",
-                  highlight=False, soft_wrap=True)
+    with bar("frames") as progress:
+        done = choose_on(seeds, frames_per_house=frames_per_house, seed=seed, weights=weights,
+                         progress=progress)
+    for line in done.lines():
+        console.print(line, highlight=False, soft_wrap=True)
     if write:
-        about = {"houses": seeds, "frames_per_house": frames_per_house, "seed": seed,
-                 "grid": list(GRID), "min_objects": MIN_OBJECTS, "criterion": "best F1",
-                 "found_right_before": [round(v, 4) for v in before],
-                 "found_right_after": [round(v, 4) for v in after]}
-        console.print(f"recorded in {write_thresholds(path, chosen, about)}", highlight=False)
+        console.print(f"recorded in {done.write()}", highlight=False)
 
 
 @perception.command("table")
@@ -340,12 +228,6 @@ def perception_table(
 ) -> None:
     """Print the figures of a pixel-perception evaluation as the markdown table docs/perception.md
     holds (a test checks the two agree)."""
-    import json
+    from efficienteqa.perception.pixels.evaluate import read_table
 
-    from efficienteqa.perception.pixels.evaluate import markdown_table
-
-    try:
-        data = json.loads(figures.read_text())
-    except (OSError, ValueError) as exc:
-        raise EfficientEQAError(f"cannot read {figures}: {exc}") from None
-    print(markdown_table(data))
+    print(read_table(figures))

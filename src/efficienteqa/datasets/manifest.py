@@ -19,7 +19,8 @@ spaces, UTF-8). ``efficienteqa scenes verify`` (``verify``) regenerates and comp
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -29,7 +30,9 @@ import numpy as np
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.datasets.splits import (
     MANIFEST_DIR,
+    SPLITS,
     FrozenSplit,
+    frozen_split,
     integrity_problems,
     manifest_sha256,
     packaged_manifest,
@@ -38,6 +41,7 @@ from efficienteqa.datasets.splits import (
     sha256_of,
 )
 from efficienteqa.datasets.synthetic import SPLIT_ASSETS, generator_version, house_of, load_split
+from efficienteqa.errors import EfficientEQAError
 
 if TYPE_CHECKING:
     from efficienteqa.envs.synthetic.env import SyntheticEnv
@@ -173,6 +177,32 @@ class Verified:
     houses: int = 0
     questions: int = 0
     mismatches: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def line(self) -> str:
+        """``scenes verify``'s line for the split: reproduced, or how many mismatches."""
+        state = f"{len(self.mismatches)} mismatches" if self.mismatches else "reproduced"
+        return (f"{self.split}: {self.houses} houses, {self.questions} questions {state} "
+                f"({self.seconds:.0f} s)")
+
+
+def to_verify(names: Sequence[str] = (), manifest: Path | None = None,
+              limit: int | None = None) -> tuple[list[FrozenSplit], dict[str, Any] | None]:
+    """``scenes verify``'s splits (``names``, default every frozen split) and the manifest read
+    from ``manifest`` (None: each split's packaged one), checked before any house is built."""
+    chosen = [frozen_split(name) for name in names] if names else list(SPLITS.values())
+    if manifest is not None and len(chosen) != 1:
+        raise EfficientEQAError("--manifest checks one split", fix="name the split it belongs to")
+    if limit is not None and limit < 1:
+        raise EfficientEQAError(f"--limit must be at least 1, got {limit}")
+    if manifest is None:
+        return chosen, None
+    try:
+        return chosen, json.loads(manifest.read_text())
+    except (OSError, ValueError) as error:
+        raise EfficientEQAError(f"cannot read the manifest {manifest}: {error}",
+                                fix="give a manifest written by "
+                                    "scripts/make_synthetic_split.py") from None
 
 
 def verify(split: FrozenSplit, manifest: dict[str, Any] | None = None, limit: int | None = None,
@@ -186,6 +216,7 @@ def verify(split: FrozenSplit, manifest: dict[str, Any] | None = None, limit: in
     from efficienteqa.envs.synthetic.oracle import annotate
     from efficienteqa.scenes import synthetic_questions
 
+    start = time.perf_counter()
     manifest = packaged_manifest(split) if manifest is None else manifest
     done = Verified(split.name)
     done.mismatches += integrity_problems(split, manifest)
@@ -219,6 +250,7 @@ def verify(split: FrozenSplit, manifest: dict[str, Any] | None = None, limit: in
         done.houses, done.questions = n, done.questions + len(entries)
         if progress:
             progress(n)
+    done.seconds = time.perf_counter() - start
     return done
 
 

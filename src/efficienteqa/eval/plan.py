@@ -8,28 +8,20 @@ misspelt local model), each one line and before a house is built.
 
 from __future__ import annotations
 
+from collections import Counter
+from collections.abc import Collection
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 from efficienteqa.agent import AgentConfig
+from efficienteqa.ask_plan import check_backends
 from efficienteqa.config.run import RunConfig
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE_MODE, judge_mode
 from efficienteqa.eval.methods import METHODS, RunSpec, default_judge, resolve
 
-
-def check_backends(run: RunConfig) -> None:
-    """Bad back-ends fail before anything slow: unknown furniture, an unknown back-end name, a
-    VLM spec that cannot be read, a local model that is not in the registry."""
-    from efficienteqa.envs.synthetic.house import check_assets
-    from efficienteqa.stack import check_stack, parse_vlm
-
-    stack = run.backends
-    check_assets(run.scene.assets)  # before a house is built
-    check_stack(stack)
-    backend = parse_vlm(stack.vlm, images=stack.perception == "rgb",
-                        temperature=stack.temperature, **stack.server_options())
-    if backend.kind == "local":  # a misspelt local model: now, not once the scene is open
-        from efficienteqa.models.local.weights import registry_entry
-
-        registry_entry(backend.model)
+if TYPE_CHECKING:
+    from efficienteqa.datasets.base import EvalQuestion
 
 
 def judge_of(run: RunConfig) -> str | None:
@@ -90,3 +82,35 @@ def plan_run(run: RunConfig, preset: str | None = None,
     judge = judge_of(run)
     return RunSpec(run, judge=judge, judge_mode=mode_of(e.judge_mode, judge or ""),
                    preset=preset, preset_agent=preset_agent)
+
+
+def prepare_run(spec: RunSpec, out: Path) -> list[EvalQuestion]:
+    """The run's questions, once ``out`` is known to take the run: writable, and not a folder
+    of another run (refused before the dataset's houses are built: minutes with the furniture
+    of --scene.assets sh3d; ``run_eval`` checks again under the folder's lock)."""
+    from efficienteqa.datasets import load_dataset
+    from efficienteqa.eval.records import check_resumable
+    from efficienteqa.eval.runner import manifest
+    from efficienteqa.records import check_writable
+
+    e = spec.run.eval
+    check_writable(out)
+    check_resumable(out, manifest(spec, 0))
+    return load_dataset(e.dataset, path=e.hm_eqa_path, limit=e.limit, closed_set=e.closed_set,
+                        assets=spec.run.scene.assets)
+
+
+def episodes_done(out: Path, ids: Collection[str]) -> int:
+    """How many of the questions ``ids`` are done in ``out`` (a line of another id is none)."""
+    from efficienteqa.eval.records import read_episodes
+
+    return len(read_episodes(out / "episodes.jsonl").done & set(ids))
+
+
+def commonest_errors(out: Path, ids: Collection[str], n: int = 3) -> list[tuple[str, int]]:
+    """The ``n`` commonest errors of the failed episodes among ``ids`` in ``out``."""
+    from efficienteqa.eval.records import read_episodes
+
+    asked = set(ids)
+    return Counter(str(r.get("error")) for r in read_episodes(out / "episodes.jsonl").rows()
+                   if r.get("status") != "done" and r["id"] in asked).most_common(n)

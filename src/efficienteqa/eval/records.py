@@ -17,15 +17,14 @@ from __future__ import annotations
 import json
 import os
 import re
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.mapping.extent import MAP_SIZE_M
-from efficienteqa.records import write_json
+from efficienteqa.records import run_lock, write_json  # noqa: F401 - run_lock: imported from here too
 from efficienteqa.redact import redacted
 from efficienteqa.stop.rules import StopConfig, z_th_acts
 
@@ -36,7 +35,6 @@ RUN_IDENTITY = ("method", "dataset", "closed_set", "config", "stack", "judge", "
 # Also compared where the earlier run recorded them: which houses and simulator the scenes are
 # (runs recorded before these keys existed resume as before).
 SCENE_IDENTITY = ("assets", "env", "hm3d_root", "noise")
-LOCK_FILE = ".lock"
 TRANSPORT = ("timeout_s", "retries")  # stack settings that are not part of a run's identity
 # run.json's format. 1 (no "format" key): settings whose default was decided elsewhere were
 # recorded as None, and settings added later were missing. 2: every setting is recorded as the
@@ -235,31 +233,6 @@ def _add_questions(run_file: Path, recorded: dict[str, Any], ids: Any) -> None:
     union = list(dict.fromkeys([*listed, *ids]))
     if len(union) != len(listed):
         write_json(run_file, {**recorded, "question_ids": union, "questions": len(union)})
-
-
-@contextmanager
-def run_lock(out: Path) -> Iterator[None]:
-    """Hold ``out``'s lock while a run writes there: a second run into the same folder fails
-    at once instead of running every episode again beside the first."""
-    import fcntl
-
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        fd = os.open(out / LOCK_FILE, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as error:  # a folder of that name, a file this user may not write
-        raise EfficientEQAError(f"cannot open the run's lock {out / LOCK_FILE}: "
-                                f"{error.strerror or error}",
-                                fix="remove it if no run is writing there, or use another --out "
-                                    "folder") from None
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise EfficientEQAError(f"another run is writing to {out}",
-                                    fix="wait for it to end, or use another --out folder") from None
-        yield
-    finally:
-        os.close(fd)  # releases the lock
 
 
 def _read_manifest(run_file: Path) -> dict[str, Any]:

@@ -282,3 +282,25 @@ def publish_run(folder: Path, summary: RunSummary, difference: PairedDifference 
     _write(Path(folder) / REPORT_HTML, redact_urls(to_html(build_sections([summary]),
                                                            _intro([summary], False))), fix)
     return path
+
+
+def publish_runs(folders: Sequence[Path], out: Path | None = None,
+                 paired_against: Path | None = None, *, markdown: bool = False
+                 ) -> tuple[list[RunSummary], list[PairedDifference | None], Path, bool]:
+    """``efficienteqa report``'s reading and publishing: each run summarised (and paired
+    against the run ``paired_against``), its summary.json and report.html written in its
+    folder. Returns the summaries, their differences, the report's folder (``out``, else the
+    run folder itself for one run, else FIRST_FOLDER/../report; checked writable first unless
+    only ``markdown`` is wanted) and whether its pages are stamped (not for one run's own)."""
+    from efficienteqa.records import check_writable
+
+    summaries = read_summaries(folders)
+    reference = None if paired_against is None else read_summaries([paired_against])[0]
+    differences = paired_differences(summaries, reference)
+    single = out is None and len(folders) == 1
+    target = out or (folders[0] if len(folders) == 1 else folders[0].resolve().parent / "report")
+    if not markdown:
+        check_writable(target)  # before any file is written
+    for folder, summary, difference in zip(run_folders(folders), summaries, differences):
+        publish_run(folder, summary, difference)
+    return summaries, differences, target, not single

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.models.recording import Exchange
 from efficienteqa.records import code_version, plain
+from efficienteqa.redact import redact_urls
 from efficienteqa.report.evidence import FIELDS
 from efficienteqa.trace import EpisodeResult, StepRecord
 from efficienteqa.vc.parse import clean_answer
@@ -119,3 +121,47 @@ def episode_lines(record: dict[str, Any]) -> list[str]:
     if reference:
         lines.append(f"reference answer: {reference}")
     return lines
+
+
+def ask_lines(record: dict[str, Any], episode_json: Path, report_html: Path | None, *,
+              reference: str | None = None, rerun: str | None = None,
+              recorded: Path | None = None, warnings: Sequence[str] = ()) -> list[str]:
+    """What ``efficienteqa ask`` prints when an episode is done: ``episode_lines`` (as the
+    README's demo block shows them; ``reference``, an --episode's answer, where the record has
+    none), the back-ends (passwords in URLs as ***), the model calls and their cost, and where
+    the episode, the report, the rerun log and the recorded walk are (one that ``warnings``
+    says failed is not listed)."""
+    lines = episode_lines(record)
+    if not record.get("reference") and reference:
+        lines.append(f"reference answer: {reference}")
+    shown = {k: v for k, v in record["backends"].items() if v and k != "capabilities"}
+    lines.append(redact_urls(f"back-ends: {', '.join(f'{k}={v}' for k, v in shown.items())}"))
+    model = record["model"]
+    lines.append(f"model calls: {model['calls']}" + (f"   cost: ${model['cost_usd']:.4f}"
+                                                     if model.get("cost_usd") else ""))
+    lines += [f"episode: {episode_json}", f"report:  {report_html}"]
+    failed = " ".join(warnings)
+    if rerun is not None and rerun != "live" and str(rerun) not in failed:
+        lines.append(f"rerun:   {rerun}   (open it: rerun {rerun})")
+    if recorded is not None and str(recorded) not in failed:
+        lines.append(f"recorded: {recorded} (replay: --scene recorded:{recorded})")
+    return lines
+
+
+def interrupted_note(stop: BaseException, out: Path, rerun: str | None,
+                     recorded: Path | None) -> str:
+    """The rest of the line that says an ask was interrupted: what was kept (the partial
+    episode ``ask`` wrote to ``out``, the recordings), and how to ask again (an ask is not
+    resumed; its recordings are not written over)."""
+    partial = getattr(stop, "partial_episode", None)
+    kept = (f" at step {partial['steps']}: the episode so far (its steps and model calls) is in "
+            f"{out / 'episode.json'}" if isinstance(partial, dict) else " before exploring began")
+    again = []
+    if recorded is not None and recorded.exists():
+        kept += f", its frames in {recorded}"
+        again.append("another --record path")
+    if rerun is not None and rerun != "live" and Path(rerun).exists():
+        kept += f", its rerun log in {rerun}"
+        again.append("--overwrite (or another --rerun file)")
+    return (f"{kept}; the same command asks again" + (f", with {' and '.join(again)}"
+                                                      if again else ""))

@@ -24,6 +24,7 @@ from efficienteqa.models.local.server import (
     running,
     serve,
     status,
+    status_rows,
     stop,
 )
 from efficienteqa.models.local.weights import (
@@ -31,6 +32,7 @@ from efficienteqa.models.local.weights import (
     LOCAL_MODELS,
     LocalModel,
     install_model,
+    install_models,
     is_installed,
     model_path,
 )
@@ -38,6 +40,6 @@ from efficienteqa.models.local.weights import (
 __all__ = [
     "DEFAULT_MODEL", "DEFAULT_PORT", "HOST", "LLAMA_CPP_VERSION", "LOCAL_MODELS",
     "PORTABLE_CMAKE_ARGS", "LocalModel", "ServerInfo", "build_wheel", "cached_wheel",
-    "ensure_llama_cpp", "ensure_server", "free_port", "install_model", "is_installed",
-    "model_path", "running", "serve", "status", "stop",
+    "ensure_llama_cpp", "ensure_server", "free_port", "install_model", "install_models",
+    "is_installed", "model_path", "running", "serve", "status", "status_rows", "stop",
 ]

@@ -24,7 +24,7 @@ from efficienteqa.cache import cache_dir
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.local import keeper
 from efficienteqa.models.local.runtime import ensure_llama_cpp
-from efficienteqa.models.local.weights import DEFAULT_MODEL, model_path
+from efficienteqa.models.local.weights import DEFAULT_MODEL, LOCAL_MODELS, is_installed, model_path
 
 DEFAULT_PORT = 8765
 HOST = "127.0.0.1"
@@ -183,6 +183,19 @@ def status(name: str | None = None) -> ServerInfo | None:
         servers = [s for s in servers if s.name == name]
     servers.sort(key=lambda s: s.name != DEFAULT_MODEL)
     return servers[0] if servers else None
+
+
+def status_rows() -> list[tuple[str, str, str]]:
+    """``efficienteqa models status``: per registered model, whether it is installed (its
+    size) and its running server (answering or not)."""
+    servers = {info.name: info for info in running()}
+    rows = []
+    for name, entry in LOCAL_MODELS.items():
+        info = servers.get(name)
+        server = "-" if info is None else (f"{info.base_url} (pid {info.pid})"
+                                           + ("" if info.healthy() else " not answering"))
+        rows.append((name, f"yes, {entry.size_mb} MB" if is_installed(name) else "no", server))
+    return rows
 
 
 def stop(name: str | None = None, grace_s: float = 5.0) -> list[ServerInfo]:

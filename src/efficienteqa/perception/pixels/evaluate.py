@@ -25,6 +25,7 @@ import time
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -314,3 +315,64 @@ def markdown_table(figures: dict[str, Any], min_objects: int = 10) -> str:
     categories = sorted(((k, f) for k, f in slices.items() if k.startswith("category:")
                          and f["objects"] >= min_objects), key=lambda kf: -kf[1]["objects"])
     return "\n".join(head + general + [row(k[len("category:"):], f) for k, f in categories])
+
+
+def measure(houses: Sequence[int], *, seeds: str, frames_per_house: int = 8, seed: int = 0,
+            weights: Path | None = None, out: Path | None = None, poses: Path | None = None,
+            assets: str = DEFAULT_ASSETS, close_reads: int | None = None,
+            progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """``efficienteqa perception evaluate``: the figures of ``weights`` (default: the committed
+    ones) on ``frames_per_house`` views of each of ``houses`` (``seeds``, as the user wrote
+    them), posed as training frames or at the walks of ``poses``; written with how they were
+    made to ``out`` where given. The options are checked first, each in one line;
+    ``progress(done, total)`` follows the frames."""
+    from efficienteqa.perception.pixels.backend import CLOSE_READS
+    from efficienteqa.records import check_writable, code_version
+
+    check_heldout(houses)
+    if assets not in (DEFAULT_ASSETS, ALL_CATALOGUES):
+        raise EfficientEQAError(f"--assets {assets!r} is not furniture the network reads",
+                                fix=f"use {DEFAULT_ASSETS} or {ALL_CATALOGUES}")
+    if frames_per_house < 1:
+        raise EfficientEQAError("--frames-per-house must be at least 1")
+    if out is not None:
+        check_writable(out.parent)
+    if close_reads is not None and close_reads < 0:
+        raise EfficientEQAError("--close-reads must be 0 or more")
+    walks = read_poses(poses) if poses is not None else None
+    perception = PixelPerception.load(
+        weights, close_reads=CLOSE_READS if close_reads is None else close_reads)
+    held_out = frozenset(perception.record.get("data", {}).get("heldout_model_keys", []))
+    trained_on = perception.record.get("data", {}).get("assets", DEFAULT_ASSETS)
+    frames = heldout_frames(houses, frames_per_house, seed, walks, held_out, assets, trained_on)
+    total = len(houses) * frames_per_house
+    if progress is not None:
+        progress(0, total)
+    scores = evaluate(frames, perception,
+                      progress=None if progress is None else lambda n: progress(n, total))
+    if out is not None:
+        write_scores(scores, out, {"houses": seeds,
+                                   "frames_per_house": frames_per_house, "seed": seed,
+                                   "poses": "walks " + poses.name if poses else "training-style",
+                                   "weights": str(weights or "committed"), "assets": assets,
+                                   "close_reads": perception.close_reads.crops,
+                                   "code_version": code_version()})
+    return scores.to_json()
+
+
+def measured_lines(figures: dict[str, Any], seeds: str, out: Path | None = None) -> list[str]:
+    """What ``perception evaluate`` prints: the table, then the frames, the floor's room type
+    and the time a frame."""
+    return [markdown_table(figures),
+            f"{figures['frames']} frames of houses {seeds}; floor room type "
+            f"{figures['floor_room_type']}; median {figures['median_ms']} ms a frame"
+            + (f" -> {out}" if out else "")]
+
+
+def read_table(figures: Path) -> str:
+    """The markdown table of a JSON file ``perception evaluate --out`` wrote."""
+    try:
+        data = json.loads(figures.read_text())
+    except (OSError, ValueError) as exc:
+        raise EfficientEQAError(f"cannot read {figures}: {exc}") from None
+    return markdown_table(data)

@@ -177,3 +177,67 @@ def write_thresholds(weights: Path, chosen: dict[str, dict[str, Any]],
     meta["region_thresholds_record"] = {**about, "per_category": chosen}
     path.write_text(json.dumps(meta, indent=2) + "\n")
     return path
+
+
+@dataclass
+class Choice:
+    """Thresholds chosen for the weights ``path`` on validation houses (``choose``), with the
+    recall and precision over every category before and after, and how they were chosen."""
+
+    path: Path
+    chosen: dict[str, dict[str, Any]]
+    before: tuple[float, float]
+    after: tuple[float, float]
+    about: dict[str, Any]
+
+    def lines(self) -> list[str]:
+        """A line per category, and one for them all."""
+        lines = [f"{category}: {c['threshold']:.2f} ({c['objects']} objects; found "
+                 f"{c['recall_at_default']:.0%} -> {c['recall']:.0%}, right "
+                 f"{c['precision_at_default']:.0%} -> {c['precision']:.0%})"
+                 for category, c in self.chosen.items()]
+        b, a = self.before, self.after
+        return lines + [f"all: found {b[0]:.1%} -> {a[0]:.1%}, right {b[1]:.1%} -> {a[1]:.1%} "
+                        f"(houses {self.about['houses']}, {self.about['frames_per_house']} "
+                        "frames each)"]
+
+    def write(self) -> Path:
+        """Record the thresholds in the weights' .json (``write_thresholds``)."""
+        return write_thresholds(self.path, self.chosen, self.about)
+
+
+def choose_on(seeds: str, *, frames_per_house: int = 10, seed: int = 0,
+              weights: Path | None = None,
+              progress: Callable[[int, int], None] | None = None) -> Choice:
+    """``efficienteqa perception thresholds``: each category's threshold chosen on the
+    validation houses ``seeds`` for ``weights`` (default: the committed ones); ``Choice.write``
+    records them. ``progress(done, total)`` follows the frames."""
+    from dataclasses import replace
+
+    from efficienteqa.perception.pixels.backend import WEIGHTS, PixelPerception
+    from efficienteqa.perception.pixels.evaluate import heldout_frames
+    from efficienteqa.perception.pixels.houses import VALIDATION_SEEDS, parse_seeds
+
+    houses = parse_seeds(seeds)
+    if houses.start not in VALIDATION_SEEDS or houses.stop - 1 not in VALIDATION_SEEDS:
+        raise EfficientEQAError(f"houses {seeds} are not validation houses",
+                                fix=f"choose on houses within {VALIDATION_SEEDS.start}-"
+                                    f"{VALIDATION_SEEDS.stop - 1}")
+    if frames_per_house < 1:
+        raise EfficientEQAError("--frames-per-house must be at least 1")
+    path = weights or WEIGHTS
+    unthresholded = PixelPerception.load(path).classify
+    total = len(houses) * frames_per_house
+    if progress is not None:
+        progress(0, total)
+    candidates = collect(heldout_frames(houses, frames_per_house, seed),
+                         lambda rgb, depth: replace(unthresholded(rgb, depth), min_confidence={}),
+                         progress=None if progress is None else lambda n: progress(n, total))
+    chosen = choose(candidates)
+    before = overall(candidates, {})
+    after = overall(candidates, {c: v["threshold"] for c, v in chosen.items()})
+    about = {"houses": seeds, "frames_per_house": frames_per_house, "seed": seed,
+             "grid": list(GRID), "min_objects": MIN_OBJECTS, "criterion": "best F1",
+             "found_right_before": [round(v, 4) for v in before],
+             "found_right_after": [round(v, 4) for v in after]}
+    return Choice(path, chosen, before, after, about)

@@ -259,3 +259,43 @@ def _device_name(device: torch.device) -> str:
     if device.type == "cuda":
         return f"cuda ({torch.cuda.get_device_name(device)})"
     return f"cpu ({torch.get_num_threads()} threads)"
+
+
+def train_as_asked(data: Path, out: Path, *, steps: int = 4000, seed: int = 0, batch: int = 8,
+                   minutes: float = 90.0, threads: int = THREADS, widths: str = "16,32,64,96,160",
+                   device: str = "auto", resume: bool = False,
+                   checkpoint_every: int = CHECKPOINT_EVERY) -> dict[str, Any]:
+    """``efficienteqa perception train``: the options checked first, each in one line (then
+    the data and the output), and ``train`` run with the command that makes its result. That
+    command names the data DATA (its houses are in the record's "data"; a path on this machine
+    would mean nothing on another); --resume and --device do not change the recipe (the record
+    says where it ran and whether it resumed)."""
+    if steps < 1 or batch < 1 or threads < 1 or checkpoint_every < 0:
+        raise EfficientEQAError("--steps, --batch and --threads must be at least 1, "
+                                "--checkpoint-every at least 0")
+    try:
+        width_list = tuple(int(w) for w in widths.split(","))
+    except ValueError:
+        raise EfficientEQAError(f"cannot read --widths {widths!r}", fix="give 5 numbers such as "
+                                "16,32,64,96,160") from None
+    if len(width_list) != 5 or min(width_list) < 1:
+        raise EfficientEQAError(f"--widths needs 5 positive numbers, got {widths!r}")
+    check_data(data)
+    check_writable(out)
+    command = " ".join(["efficienteqa", "perception", "train", "--data", "DATA", "--out",
+                        str(out), "--steps", str(steps), "--seed", str(seed), "--batch",
+                        str(batch), "--minutes", f"{minutes:g}", "--threads", str(threads),
+                        "--widths", ",".join(map(str, width_list)), "--device", device])
+    return train(data, out, TrainConfig(steps=steps, seed=seed, batch=batch, minutes=minutes,
+                                        threads=threads, widths=width_list, device=device,
+                                        checkpoint_every=checkpoint_every, resume=resume),
+                 command=command)
+
+
+def trained_line(record: dict[str, Any], out: Path) -> str:
+    """What ``perception train`` prints at the end: the steps, the time and the validation."""
+    val = record["validation"] or {}
+    figures = ", ".join(f"{k} {val[k]}" for k in ("pixel_accuracy", "mean_iou", "colour_accuracy",
+                                                  "state_accuracy") if val.get(k) is not None)
+    return (f"{record['steps_done']} steps in {record['minutes']:.1f} min -> {out}"
+            + (f"; validation: {figures}" if figures else ""))
