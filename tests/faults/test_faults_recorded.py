@@ -417,7 +417,7 @@ def test_an_option_on_a_folder_is_refused_and_zero_tolerances_read_exact_stamps(
                                                                                tmp_path):
     from efficienteqa.envs.recorded import open_recording
 
-    assert "options world are for MCAP files" in refused(cli, walks, f"{walks.folder}?world=x",
+    assert "options world are for MCAP recordings" in refused(cli, walks, f"{walks.folder}?world=x",
                                                          tmp_path)
     walk = open_recording(f"{walks.mcap}?tf_tolerance_ms=0&depth_tolerance_ms=0")
     assert walk.length == FRAMES  # the recorder stamps every topic of a frame alike

@@ -12,9 +12,9 @@ the row, "questions/000"; it names the episode's folder, so it is refused when i
 ``..``, a control character, over ``MAX_ID_BYTES``), ``category`` (default "open") and
 ``accepted`` (the answers the rule judge accepts, as the synthetic questions and ``scenes
 export-walks`` carry them; with them, and a category of the synthetic questions, the exact rule
-judge grades too, beside LLM-Match or alone with ``--eval.judge none``) are optional. A recording's path is read relative to the questions file's folder unless it is
-absolute. A line that cannot be read is one error naming the file and the line, before any
-episode.
+judge grades too, beside LLM-Match or alone with ``--eval.judge none``) are optional. A
+recording's path is read relative to the questions file's folder unless it is absolute. A line
+that cannot be read is one error naming the file and the line, before any episode.
 """
 
 from __future__ import annotations
