@@ -74,3 +74,20 @@ def test_an_unknown_agent_name_fails_in_one_line(tmp_path, capfd, monkeypatch):
                    _env(tmp_path), capfd, monkeypatch)
     assert done.returncode != 0 and "unknown method 'no-such-agent'" in done.said
     assert "Traceback" not in done.said
+
+
+def test_an_installed_agent_is_found_by_its_entry_point_name(monkeypatch):
+    """A package that names its agent in the entry points `efficienteqa.agents` runs as
+    `--eval.method NAME`."""
+    from importlib.metadata import EntryPoint
+
+    from efficienteqa.eval import agents
+    from efficienteqa.eval.methods import resolve
+
+    monkeypatch.syspath_prepend(str(ROOT / "examples"))
+    point = EntryPoint("walker", "your_agent:OpenSpaceWalker", agents.ENTRY_POINTS)
+    monkeypatch.setattr(agents, "entry_points", lambda group: [point] if group == point.group
+                        else [])
+    assert agents.load_method("walker").__name__ == "OpenSpaceWalker"
+    assert resolve("walker").__name__ == "OpenSpaceWalker"
+    assert agents.agent_identity("walker")["name"] == "open-space-walker"
