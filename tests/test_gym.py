@@ -42,14 +42,14 @@ def test_an_episode_gives_what_a_robot_has_and_grades_at_the_end(env):
     x, y = float(obs["pose"][0, 3]), float(obs["pose"][1, 3])
     obs2, reward, terminated, truncated, info = env.step(move(x + 0.3, y, 0.0))
     assert set(info) == ROBOT_KEYS and not (terminated or truncated) and reward == 0.0
-    assert info["steps"] == 1 and not info["blocked"]
+    assert info["steps"] == 2 and not info["blocked"]  # the start view is step 1
     assert np.allclose(obs2["pose"][:2, 3], [x + 0.3, y], atol=0.02)
     _, _, _, _, info = env.step(move(1e3, 1e3, 0.0))  # far outside the house
     assert info["blocked"] and set(info) == ROBOT_KEYS
     _, reward, terminated, truncated, info = env.step(answer("a coffee maker"))
     assert terminated and not truncated and reward == 1.0
     grade = info["grade"]
-    assert grade["correct"] and grade["reference"] == "a coffee maker" and grade["steps"] == 2
+    assert grade["correct"] and grade["reference"] == "a coffee maker" and grade["steps"] == 3
     assert grade["oracle_steps"] >= 1
     house = env.unwrapped._scene
     env.reset(seed=0)
@@ -64,11 +64,29 @@ def test_the_budget_truncates_an_episode_that_never_answers(env):
 
     obs, info = env.reset(seed=0)
     pose = obs["pose"]
-    for _ in range(info["budget"]):
+    for _ in range(info["budget"] - 1):  # the start view is the first of the budget's steps
         _, reward, terminated, truncated, step_info = env.step(
             move(float(pose[0, 3]), float(pose[1, 3]), 0.0))
     assert truncated and not terminated and reward == 0.0
     assert step_info["grade"]["answer"] == "" and not step_info["grade"]["correct"]
+
+
+@needs_egl
+def test_a_move_goes_3_m_along_a_free_path_at_most(env):
+    """No teleporting: a far goal ends short after 3 m of the shortest free path, the step the
+    oracle's counts assume."""
+    from efficienteqa.envs.episode import move
+
+    obs, _ = env.reset(seed=0)
+    house = env.unwrapped._scene.env
+    x, y = float(obs["pose"][0, 3]), float(obs["pose"][1, 3])
+    free = np.argwhere(house.grid.free)
+    far = max((house.grid.spec.cell_to_world(c) for c in free[::50]),
+              key=lambda p: np.hypot(p[0] - x, p[1] - y))
+    assert np.hypot(far[0] - x, far[1] - y) > 4.0
+    obs2, _, _, _, info = env.step(move(float(far[0]), float(far[1]), 0.0))
+    moved = np.hypot(obs2["pose"][0, 3] - x, obs2["pose"][1, 3] - y)
+    assert info["short"] and not info["blocked"] and 1.0 < moved <= 3.0 + 1e-6
 
 
 def test_a_bad_action_fails_in_one_line():

@@ -47,12 +47,12 @@ def test_the_example_agent_is_scored_by_eval_and_paired_with_the_default(vlm, tm
     assert run["method"] == METHOD and run["agent"]["name"] == "open-space-walker"
     assert run["agent"]["module"] == "your_agent" and len(run["agent"]["code_version"]) == 12
     (row,) = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
-    assert row["status"] == "done" and row["steps"] == 2 and row["answer"]
+    assert row["status"] == "done" and row["steps"] == 3 and row["answer"]  # start + 2 moves
     assert row["rule"]["score"] in (1, 5)  # graded by the rule judge
     prompts = [json.dumps(r.body) for r in vlm.requests if "What you saw" in json.dumps(r.body)]
     assert len(prompts) == 1 and row["question"] in prompts[0]
     episode = json.loads((episode_folder(out, row["id"]) / "episode.json").read_text())
-    assert episode["answer"] == row["answer"] and len(episode["poses"]) == row["steps"] + 1
+    assert episode["answer"] == row["answer"] and len(episode["poses"]) == row["steps"]
     paired = run_cli(["report", str(out), "--paired-against",
                       str(ROOT / "results" / "main-heldout" / "default")],
                      _env(tmp_path), capfd, monkeypatch)

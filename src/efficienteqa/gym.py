@@ -11,13 +11,14 @@ intrinsics, camera-to-world pose and the question. The action is a dict too: ``k
 to ``goal`` (x, y, yaw: a floor pose in the world frame), ``kind`` 1 answers with ``answer``
 and ends the episode (``envs.episode.move`` and ``answer`` build them).
 
-``info`` after a move holds what a robot would know of it: ``blocked``, ``short``, ``reached``
-(``envs.base.move_info``), the steps made and the budget (the benchmark's ``int(sqrt(floor
-area) * 3)``). Nothing of the simulator's truth appears while the episode runs. At its end (an
-answer: terminated; the budget spent: truncated) ``info["grade"]`` gives the rule judge's
-verdict, the reference answer, the steps and the oracle's fewest steps to a view of the
-evidence, and the reward is 1 for a right answer, else 0. Needs ``pip install
-'efficienteqa[gym]'``.
+A move follows the shortest free path to its goal, 3 m of it at most (``envs.synthetic.moves``:
+the step the oracle counts); ``info`` after it holds what a robot would know of it:
+``blocked``, ``short``, ``reached`` (``envs.base.move_info``), the steps made (the start view
+is step 1, as for the oracle) and the budget (the benchmark's ``int(sqrt(floor area) * 3)``).
+Nothing of the simulator's truth appears while the episode runs. At its end (an answer:
+terminated; the budget spent: truncated) ``info["grade"]`` gives the rule judge's verdict, the
+reference answer, the steps and the oracle's fewest steps to a view of the evidence, and the
+reward is 1 for a right answer, else 0. Needs ``pip install 'efficienteqa[gym]'``.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from gymnasium import spaces
 from efficienteqa.datasets import load_dataset
 from efficienteqa.datasets.base import EvalQuestion
 from efficienteqa.envs.episode import MAX_ANSWER_CHARS, QuestionEpisode
+from efficienteqa.envs.synthetic.moves import path_moves
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.geometry import CameraSpec, Pose2D
 
@@ -69,6 +71,7 @@ class SyntheticHouseEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         self.render_mode = render_mode
         self._scene: Any = None  # the open house, kept while questions stay in it
         self._spec: str | None = None  # its scene spec ("synthetic:SEED")
+        self._moves: Any = None  # its environment, moving as a mobile base does
         self._episode: QuestionEpisode | None = None
         self._question: EvalQuestion | None = None
         self._last: dict[str, Any] | None = None
@@ -87,7 +90,8 @@ class SyntheticHouseEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         from efficienteqa.stop.rules import env_step_budget
 
         start = Pose2D(*q.start) if q.start is not None else None
-        self._episode = QuestionEpisode(env, q.question, env_step_budget(env) or 1, start)
+        budget = env_step_budget(self._scene.env) or 1  # the house's own, not the wrapper's
+        self._episode = QuestionEpisode(env, q.question, budget, start)
         obs, info = self._episode.reset()
         self._last = obs
         return obs, {**info, "question_id": q.id}
@@ -121,7 +125,8 @@ class SyntheticHouseEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
 
             self.close()
             self._scene, self._spec = open_scene(name, oracle=False), name
-        return self._scene.env
+            self._moves = path_moves(self._scene.env)  # along free paths, 3 m a step at most
+        return self._moves
 
     def _grade(self) -> dict[str, Any]:
         """The end of an episode, graded by the rule judge (exact on these questions)."""

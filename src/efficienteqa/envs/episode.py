@@ -86,8 +86,10 @@ def parse_action(action: Any) -> Pose2D | str:
 @dataclass
 class QuestionEpisode:
     """An episode of ``question`` in ``env``: ``reset`` from ``start``, then ``step`` moves
-    until an answer, or until ``budget`` moves have been made (the answer is then ""). Counts
-    what a record needs: the moves made, the ones refused."""
+    until an answer, or until ``budget`` steps (the answer is then ""). ``steps`` counts the
+    views, the start's included, as the oracle's step counts and the project's agent do: an
+    answer at the start view takes 1 step, and ``budget`` steps allow ``budget - 1`` moves.
+    Counts what a record needs: the steps, the moves refused, the poses."""
 
     env: Environment
     question: str
@@ -104,7 +106,7 @@ class QuestionEpisode:
 
     def reset(self) -> tuple[dict[str, Any], dict[str, Any]]:
         obs, _ = self.env.reset(options={"start": self.start} if self.start is not None else None)
-        self.steps, self.refused, self.reply, self.poses = 0, 0, None, [obs.pose]
+        self.steps, self.refused, self.reply, self.poses = 1, 0, None, [obs.pose]
         return observation(obs, self.question), {"budget": self.budget}
 
     def step(self, action: Any) -> tuple[dict[str, Any] | None, dict[str, Any]]:

@@ -103,6 +103,7 @@ def run_agent(agent: EQAAgent, q: EvalQuestion, spec: RunSpec, out: Path) -> Out
     ``episode.json`` (the question, the answer, the poses the robot reached)."""
     from efficienteqa.envs.episode import QuestionEpisode
     from efficienteqa.envs.habitat.scenes import HabitatStart
+    from efficienteqa.envs.synthetic.moves import path_moves
     from efficienteqa.geometry import Pose2D
     from efficienteqa.scenes import open_scene
     from efficienteqa.stop.rules import env_step_budget
@@ -112,7 +113,7 @@ def run_agent(agent: EQAAgent, q: EvalQuestion, spec: RunSpec, out: Path) -> Out
     try:
         budget = env_step_budget(scene.env) or FALLBACK_BUDGET
         start = Pose2D(*q.start) if q.start is not None else None
-        episode = QuestionEpisode(scene.env, q.question, budget, start)
+        episode = QuestionEpisode(path_moves(scene.env), q.question, budget, start)
         first, info = episode.reset()
         agent.reset(q.question, {**info, "vlm": spec.stack.vlm})
         obs: dict[str, Any] | None = first
