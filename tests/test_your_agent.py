@@ -49,6 +49,7 @@ def test_the_example_agent_is_scored_by_eval_and_paired_with_the_default(vlm, tm
     (row,) = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
     assert row["status"] == "done" and row["steps"] == 3 and row["answer"]  # start + 2 moves
     assert row["rule"]["score"] in (1, 5)  # graded by the rule judge
+    assert row["evidence_first_seen_step"] is None  # three views from the start: not yet
     prompts = [json.dumps(r.body) for r in vlm.requests if "What you saw" in json.dumps(r.body)]
     assert len(prompts) == 1 and row["question"] in prompts[0]
     episode = json.loads((episode_folder(out, row["id"]) / "episode.json").read_text())
@@ -91,3 +92,36 @@ def test_an_installed_agent_is_found_by_its_entry_point_name(monkeypatch):
     assert agents.load_method("walker").__name__ == "OpenSpaceWalker"
     assert resolve("walker").__name__ == "OpenSpaceWalker"
     assert agents.agent_identity("walker")["name"] == "open-space-walker"
+
+
+class _ToTheOracle:
+    """Goes where the oracle sees the evidence (the test gives it the pose), then answers."""
+
+    goal: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def reset(self, question, info):
+        self.moved = False
+
+    def act(self, observation):
+        from efficienteqa.envs.episode import answer, move
+
+        if self.moved:
+            return answer("a coffee maker")
+        self.moved = True
+        return move(*self.goal)
+
+
+@needs_egl
+def test_a_user_agents_record_says_when_the_evidence_came_into_view(tmp_path):
+    """The method reads the question's evidence from the ground truth, as for the built-in
+    agent; the agent itself is given only the words."""
+    from efficienteqa.datasets import load_dataset
+    from efficienteqa.eval.agents import run_agent
+    from efficienteqa.eval.spec import RunSpec
+
+    q = load_dataset("synthetic")[0]
+    assert q.oracle_steps == 2  # the start view, then one move of at most 3 m
+    agent = _ToTheOracle()
+    agent.goal = tuple(q.source["oracle_pose"])
+    done = run_agent(agent, q, RunSpec.of("tests:_ToTheOracle", "synthetic"), tmp_path)
+    assert (done.steps, done.evidence_first_seen_step, done.answer) == (2, 2, "a coffee maker")

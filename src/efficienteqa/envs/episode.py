@@ -22,6 +22,7 @@ ended); the simulator's truth (navigability, labels, the evidence) never appears
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -95,6 +96,9 @@ class QuestionEpisode:
     question: str
     budget: int
     start: Pose2D | None = None
+    # Called with each view (its step, the frame with whatever the environment gives: the
+    # evaluation's ground truth reads instance ids there, after the agent has seen the frame).
+    on_view: Callable[[int, Observation], None] | None = None
     steps: int = 0
     refused: int = 0
     reply: str | None = None
@@ -107,6 +111,8 @@ class QuestionEpisode:
     def reset(self) -> tuple[dict[str, Any], dict[str, Any]]:
         obs, _ = self.env.reset(options={"start": self.start} if self.start is not None else None)
         self.steps, self.refused, self.reply, self.poses = 1, 0, None, [obs.pose]
+        if self.on_view is not None:
+            self.on_view(self.steps, obs)
         return observation(obs, self.question), {"budget": self.budget}
 
     def step(self, action: Any) -> tuple[dict[str, Any] | None, dict[str, Any]]:
@@ -121,6 +127,8 @@ class QuestionEpisode:
         self.steps += 1
         self.refused += bool(info.get("blocked"))
         self.poses.append(obs.pose)
+        if self.on_view is not None:
+            self.on_view(self.steps, obs)
         known = {k: info[k] for k in ROBOT_INFO if k in info}  # not a simulator's extras
         return observation(obs, self.question), {**known, "steps": self.steps,
                                                  "budget": self.budget}

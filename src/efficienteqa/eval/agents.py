@@ -35,6 +35,7 @@ from efficienteqa.eval.outcome import MethodFn, Outcome
 
 if TYPE_CHECKING:
     from efficienteqa.eval.spec import RunSpec
+    from efficienteqa.observation import Observation
 
 ENTRY_POINTS = "efficienteqa.agents"
 # The budget of an episode in a scene that knows none (a robot's): as ``ask`` without one.
@@ -91,7 +92,9 @@ def agent_identity(method: str) -> dict[str, Any]:
 
 
 def agent_method(cls: type) -> MethodFn:
-    """The runner's method for agent class ``cls``: one episode per question."""
+    """The runner's method for agent class ``cls``: one episode per question. The agent gets
+    the question's words and the observations only, so the method itself may read the whole
+    question: its evidence, for the record's ``evidence_first_seen_step``."""
     def run(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
         return run_agent(cls(), q, spec, out)
     run.__name__ = run.__qualname__ = getattr(cls, "__name__", "agent")
@@ -104,6 +107,7 @@ def run_agent(agent: EQAAgent, q: EvalQuestion, spec: RunSpec, out: Path) -> Out
     from efficienteqa.envs.episode import QuestionEpisode
     from efficienteqa.envs.habitat.scenes import HabitatStart
     from efficienteqa.envs.synthetic.moves import path_moves
+    from efficienteqa.envs.synthetic.questions import evidence_visible
     from efficienteqa.geometry import Pose2D
     from efficienteqa.scenes import open_scene
     from efficienteqa.stop.rules import env_step_budget
@@ -113,7 +117,16 @@ def run_agent(agent: EQAAgent, q: EvalQuestion, spec: RunSpec, out: Path) -> Out
     try:
         budget = env_step_budget(scene.env) or FALLBACK_BUDGET
         start = Pose2D(*q.start) if q.start is not None else None
-        episode = QuestionEpisode(path_moves(scene.env), q.question, budget, start)
+        evidence = [int(e) for e in q.source.get("evidence") or []]
+        seen: list[int] = []  # the steps whose frames show every evidence object
+
+        def watch(step: int, frame: Observation) -> None:
+            if evidence and frame.instance is not None \
+                    and evidence_visible(frame.instance, evidence):
+                seen.append(step)
+
+        episode = QuestionEpisode(path_moves(scene.env), q.question, budget, start,
+                                  on_view=watch)
         first, info = episode.reset()
         agent.reset(q.question, {**info, "vlm": spec.stack.vlm})
         obs: dict[str, Any] | None = first
@@ -132,4 +145,5 @@ def run_agent(agent: EQAAgent, q: EvalQuestion, spec: RunSpec, out: Path) -> Out
          "budget": budget, "poses": [[p.x, p.y, p.yaw] for p in episode.poses]}, indent=1))
     return Outcome(reply, confidence, episode.steps, budget,
                    "answered" if episode.reply is not None else "budget",
-                   refused_moves=episode.refused)
+                   refused_moves=episode.refused,
+                   evidence_first_seen_step=(min(seen) if seen else None) if evidence else None)

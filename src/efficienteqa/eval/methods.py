@@ -192,7 +192,7 @@ def resolve(method: str) -> MethodFn:
         return run_agent_method
     obj = load_method(method)
     if is_agent_class(obj):
-        return _blindfolded(agent_method(obj))
+        return agent_method(obj)  # the agent gets the question's words alone
     if callable(obj) and not isinstance(obj, type):
         return _blindfolded(obj)
     raise EfficientEQAError(f"method {method!r} is neither a function nor an agent class (with "
