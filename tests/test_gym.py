@@ -97,3 +97,32 @@ def test_a_bad_action_fails_in_one_line():
         parse_action((1.0, 2.0, 0.0))
     with pytest.raises(EfficientEQAError, match="three finite numbers"):
         parse_action({"kind": 0, "goal": [1.0, float("nan"), 0.0]})
+
+
+@needs_egl
+@pytest.mark.parametrize("noise", ["none", "robot"])
+def test_no_move_goes_farther_than_3_m_of_free_path_with_noise_or_without(noise):
+    """The path limit holds under a robot's noise too (the goal is given in the drifted frame
+    the robot reports; the path runs where the robot truly is)."""
+    from efficienteqa.envs.synthetic.env import SyntheticEnv
+    from efficienteqa.envs.synthetic.moves import path_moves
+    from efficienteqa.envs.synthetic.noise import NoisyEnv, profile
+    from efficienteqa.geometry import Pose2D
+
+    house = SyntheticEnv.from_seed(1, "builtin")
+    env = path_moves(NoisyEnv(house, profile(noise), seed=3) if noise != "none" else house)
+    try:
+        obs, _ = env.reset()
+        free = np.argwhere(house.grid.free)[::40]
+        rng = np.random.default_rng(0)
+        shortened = 0
+        for cell in rng.permutation(free)[:12]:
+            x, y = house.grid.spec.cell_to_world(cell)
+            before = house.pose
+            obs, _, _, _, info = env.step(Pose2D(float(x), float(y), 0.0))
+            moved = float(np.hypot(house.pose.x - before.x, house.pose.y - before.y))
+            assert moved <= 3.0 + 1e-6 and set(info) >= {"blocked", "short", "reached"}
+            shortened += moved > 2.9  # a goal farther off, cut at 3 m
+        assert shortened >= 2  # the houses are wider than a step: the limit was tested
+    finally:
+        env.close()
