@@ -105,15 +105,12 @@ def run_agent(agent: EQAAgent, q: EvalQuestion, spec: RunSpec, out: Path) -> Out
     """``agent`` answers ``q`` in its scene, opened as for the built-in methods; ``out`` gets
     ``episode.json`` (the question, the answer, the poses the robot reached)."""
     from efficienteqa.envs.episode import QuestionEpisode
-    from efficienteqa.envs.habitat.scenes import HabitatStart
     from efficienteqa.envs.synthetic.moves import path_moves
     from efficienteqa.envs.synthetic.questions import evidence_visible
     from efficienteqa.geometry import Pose2D
-    from efficienteqa.scenes import open_scene
     from efficienteqa.stop.rules import env_step_budget
 
-    scene = open_scene(q.scene, spec.assets, env=spec.env, hm3d_root=spec.hm3d_root,
-                       start=HabitatStart.from_source(q.source), oracle=False, noise=spec.noise)
+    scene = spec.open_scene(q)
     try:
         budget = env_step_budget(scene.env) or FALLBACK_BUDGET
         start = Pose2D(*q.start) if q.start is not None else None

@@ -96,13 +96,10 @@ def run_agent_method(q: EvalQuestion, spec: RunSpec, out: Path) -> Outcome:
     from efficienteqa.ask import ask
     from efficienteqa.datasets.questions_file import is_questions_file
     from efficienteqa.datasets.synthetic import check_question
-    from efficienteqa.envs.habitat.scenes import HabitatStart
     from efficienteqa.geometry import Pose2D
-    from efficienteqa.scenes import open_scene
 
     config = method_config(spec.method, spec.config)
-    scene = open_scene(q.scene, spec.assets, env=spec.env, hm3d_root=spec.hm3d_root,
-                       start=HabitatStart.from_source(q.source), oracle=False, noise=spec.noise)
+    scene = spec.open_scene(q)
     try:
         if q.scene.startswith("synthetic:") and not is_questions_file(q.dataset):
             check_question(scene, q)  # the generator's own (a user's question is the user's)

@@ -5,12 +5,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from efficienteqa.agent import AgentConfig
 from efficienteqa.config.backends import Stack
 from efficienteqa.config.run import EvalConfig, RunConfig, SceneConfig
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.eval.judge_prompts import DEFAULT_JUDGE, DEFAULT_JUDGE_MODE, judge_mode
+
+if TYPE_CHECKING:
+    from efficienteqa.datasets.base import EvalQuestion
+    from efficienteqa.scenes import Scene
 
 
 @dataclass(frozen=True)
@@ -100,3 +105,13 @@ class RunSpec:
     def hm3d_root(self) -> str | None:
         root = self.run.scene.hm3d_root
         return str(root) if root is not None else None
+
+    def open_scene(self, q: EvalQuestion) -> Scene:
+        """``q``'s scene as this run opens it for any method: its simulator, furniture, noise
+        and HM-EQA start; no oracle steps (the question carries its own)."""
+        from efficienteqa.envs.habitat.scenes import HabitatStart
+        from efficienteqa.scenes import open_scene
+
+        return open_scene(q.scene, self.assets, env=self.env, hm3d_root=self.hm3d_root,
+                          start=HabitatStart.from_source(q.source), oracle=False,
+                          noise=self.noise)
