@@ -11,8 +11,9 @@ import torch
 
 from efficienteqa.perception.pixels.batches import CropSampler, losses
 from efficienteqa.perception.pixels.frames import build_vocabulary
+from efficienteqa.perception.pixels.jobs import WIDE_WIDTHS
 from efficienteqa.perception.pixels.net import PixelNet
-from efficienteqa.perception.pixels.train import CROP, WIDE_WIDTHS
+from efficienteqa.perception.pixels.train import CROP
 
 device, batch, steps, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 if len(sys.argv) > 5 and sys.argv[5] == "old":  # the committed weights' recipe

@@ -195,3 +195,35 @@ def _json(text: str, leaf: Leaf) -> dict:
         raise click.BadParameter(f"give a JSON object, e.g. '{json.dumps(leaf.default)}'",
                                  param_hint=f"--{leaf.dotted}")
     return value
+
+
+def job_options(cls: type) -> Callable:
+    """Decorate a command ``f(job, **own)``: ``job`` becomes one option per field of the
+    dataclass ``cls`` (``--frames-per-house``), with its help and default (a field without one
+    is required; a bool is a flag), and ``f`` receives ``cls(**values)``."""
+    from dataclasses import MISSING
+
+    chosen = leaves(cls)
+
+    def decorate(command: Callable) -> Callable:
+        own = [p for p in inspect.signature(command, eval_str=True).parameters.values()
+               if p.name != "job"]
+        generated = [inspect.Parameter(
+            leaf.path[0], inspect.Parameter.KEYWORD_ONLY,
+            annotation=leaf.kind | None if leaf.optional else leaf.kind,
+            default=typer.Option(... if leaf.default is MISSING else leaf.default,
+                                 _flag(leaf.path[0]), help=leaf.help,
+                                 show_default=leaf.default is not None))
+            for leaf in chosen]
+
+        @functools.wraps(command)
+        def wrapper(**kwargs: Any) -> Any:
+            job = cls(**{leaf.path[0]: kwargs.pop(leaf.path[0]) for leaf in chosen})
+            return command(job=job, **kwargs)
+
+        params = [*own, *generated]
+        wrapper.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+        wrapper.__annotations__ = {p.name: p.annotation for p in params}
+        return wrapper
+
+    return decorate

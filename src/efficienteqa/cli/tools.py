@@ -8,9 +8,11 @@ from pathlib import Path
 import typer
 
 from efficienteqa.cli.app import console, models, perception, scenes
+from efficienteqa.cli.options import job_options
 from efficienteqa.envs.synthetic.house import DEFAULT_ASSETS
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.models.local.weights import DEFAULT_MODEL
+from efficienteqa.perception.pixels.jobs import DatasetJob, MeasureJob, ThresholdJob, TrainJob
 
 
 @scenes.command("generate")
@@ -104,77 +106,33 @@ def models_status() -> None:
 
 
 @perception.command("dataset")
-def perception_dataset(
-    seeds: str = typer.Option(..., help="House seeds, e.g. 3000-3199 (within 3000-3999, the "
-                              "houses reserved for perception; 3900-3909 validate)."),
-    out: Path = typer.Option(..., help="Output folder (shards and meta.json; runs merge)."),
-    frames_per_house: int = typer.Option(20, "--frames-per-house", help="Views per house."),
-    seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
-    workers: int = typer.Option(2, help="Rendering processes."),
-    recolour_share: float = typer.Option(0.5, "--recolour-share", help="Share of colourable "
-                                         "objects recoloured in training houses (3000-3899)."),
-    assets: str = typer.Option(DEFAULT_ASSETS, help="The houses' furniture: sh3d (the CC0 "
-                               "catalogue) or sh3d-all (every catalogue of the package; "
-                               "training houses then never show the KatorLegaz catalogue)."),
-) -> None:
+@job_options(DatasetJob)
+def perception_dataset(job: DatasetJob) -> None:
     """Render RGB-D frames with per-pixel category, colour and state labels at half size."""
     from efficienteqa.perception.pixels.dataset import render_dataset
     from efficienteqa.perception.pixels.houses import parse_seeds
 
-    houses = parse_seeds(seeds)
+    houses = parse_seeds(job.seeds)
     start = time.perf_counter()
-    meta = render_dataset(houses, out, frames_per_house, seed, workers=workers,
-                          assets=assets, recolour_share=recolour_share)
-    console.print(f"{len(houses)} houses, {len(houses) * frames_per_house} frames in "
-                  f"{(time.perf_counter() - start) / 60:.1f} min -> {out} ({meta['frames']} "
+    meta = render_dataset(houses, job.out, job.frames_per_house, job.seed, workers=job.workers,
+                          assets=job.assets, recolour_share=job.recolour_share)
+    console.print(f"{len(houses)} houses, {len(houses) * job.frames_per_house} frames in "
+                  f"{(time.perf_counter() - start) / 60:.1f} min -> {job.out} ({meta['frames']} "
                   "frames in all)", highlight=False, soft_wrap=True)
 
 
 @perception.command("train")
-def perception_train(
-    data: Path = typer.Option(..., help="A folder written by 'perception dataset'."),
-    out: Path = typer.Option(Path("src/efficienteqa/perception/pixels/weights/pixels.pt"),
-                             help="The weights file (.pt; its .json is written beside it)."),
-    steps: int = typer.Option(4000, help="Optimiser steps (fixes the result with --seed)."),
-    seed: int = typer.Option(0, help="Seed of initialisation and crops."),
-    batch: int = typer.Option(8, help="Crops per step."),
-    minutes: float = typer.Option(90.0, help="Stop early after this long (a guard; recorded)."),
-    threads: int = typer.Option(2, help="Torch CPU threads."),
-    widths: str = typer.Option("16,32,64,96,160", help="Channels of the 1/1 ... 1/16 levels."),
-    device: str = typer.Option("auto", help="auto (cuda where torch sees one) | cpu | cuda."),
-    resume: bool = typer.Option(False, "--resume", help="Continue from the checkpoint beside "
-                                "--out (same options and data)."),
-    checkpoint_every: int = typer.Option(250, "--checkpoint-every", help="Steps between "
-                                         "checkpoints (0: none)."),
-) -> None:
+@job_options(TrainJob)
+def perception_train(job: TrainJob) -> None:
     """Train the pixel network on rendered frames; validate on houses 3900-3909."""
     from efficienteqa.perception.pixels.train import train_as_asked, trained_line
 
-    record = train_as_asked(data, out, steps=steps, seed=seed, batch=batch, minutes=minutes,
-                            threads=threads, widths=widths, device=device, resume=resume,
-                            checkpoint_every=checkpoint_every)
-    console.print(trained_line(record, out), highlight=False, soft_wrap=True)
+    console.print(trained_line(train_as_asked(job), job.out), highlight=False, soft_wrap=True)
 
 
 @perception.command("evaluate")
-def perception_evaluate(
-    seeds: str = typer.Option("100-129", help="Houses to measure on, e.g. 100-129 (the "
-                              "evaluation split); never the network's training houses."),
-    frames_per_house: int = typer.Option(8, "--frames-per-house", help="Views per house."),
-    seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
-    weights: Path | None = typer.Option(None, help="Weights to measure (default: the "
-                                        "committed ones)."),
-    out: Path | None = typer.Option(None, help="Write the figures here as JSON."),
-    poses: Path | None = typer.Option(None, help="Measure at the poses of recorded walks (a "
-                                      "file of experiments/walk_poses.py), frames spread "
-                                      "evenly over each house's walk."),
-    assets: str = typer.Option(DEFAULT_ASSETS, help="The houses' furniture: sh3d (the CC0 "
-                               "catalogue the network trains on) or sh3d-all (with the CC-BY "
-                               "catalogues, whose objects are measured apart)."),
-    close_reads: int | None = typer.Option(None, "--close-reads", help="Supports read again "
-                                           "a frame, on a crop around each (default: the "
-                                           "pixel perception's own; 0 is off)."),
-) -> None:
+@job_options(MeasureJob)
+def perception_evaluate(job: MeasureJob) -> None:
     """Measure pixel perception against the semantic sensor on held-out houses: objects in view
     found and right per category, size and distance, recoloured objects, objects of meshes
     held out of training and (with --assets sh3d-all) of unseen catalogues apart; colour,
@@ -184,40 +142,29 @@ def perception_evaluate(
     from efficienteqa.perception.pixels.evaluate import measure, measured_lines
 
     try:
-        houses = parse_seeds(seeds)
+        houses = parse_seeds(job.seeds)
     except ValueError as exc:
-        raise EfficientEQAError(f"cannot read the house seeds {seeds!r} ({exc})",
+        raise EfficientEQAError(f"cannot read the house seeds {job.seeds!r} ({exc})",
                                 fix="give a range such as 100-129") from None
     with bar("frames") as progress:
-        figures = measure(houses, seeds=seeds, frames_per_house=frames_per_house, seed=seed,
-                          weights=weights, out=out, poses=poses, assets=assets,
-                          close_reads=close_reads, progress=progress)
-    for line in measured_lines(figures, seeds, out):
+        figures = measure(job, houses, progress=progress)
+    for line in measured_lines(figures, job.seeds, job.out):
         console.print(line, highlight=False, soft_wrap=True)
 
 
 @perception.command("thresholds")
-def perception_thresholds(
-    seeds: str = typer.Option("3900-3909", help="Validation houses to choose on (within "
-                              "3900-3909)."),
-    frames_per_house: int = typer.Option(10, "--frames-per-house", help="Views per house."),
-    seed: int = typer.Option(0, help="Seed of the views (with each house seed)."),
-    weights: Path | None = typer.Option(None, help="Weights to choose for (default: the "
-                                        "committed ones); their .json records the choice."),
-    write: bool = typer.Option(False, "--write", help="Record the thresholds in the weights' "
-                               ".json (else only print them)."),
-) -> None:
+@job_options(ThresholdJob)
+def perception_thresholds(job: ThresholdJob) -> None:
     """Choose each category's region threshold on validation houses (best F1 of objects found
     and regions right) and, with --write, record them with the weights."""
     from efficienteqa.cli.progress import bar
     from efficienteqa.perception.pixels.thresholds import choose_on
 
     with bar("frames") as progress:
-        done = choose_on(seeds, frames_per_house=frames_per_house, seed=seed, weights=weights,
-                         progress=progress)
+        done = choose_on(job, progress=progress)
     for line in done.lines():
         console.print(line, highlight=False, soft_wrap=True)
-    if write:
+    if job.write:
         console.print(f"recorded in {done.write()}", highlight=False)
 
 

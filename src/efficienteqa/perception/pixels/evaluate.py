@@ -41,6 +41,7 @@ from efficienteqa.perception.floor import FLOOR_TOLERANCE_M
 from efficienteqa.perception.pixels.backend import PixelPerception
 from efficienteqa.perception.pixels.frames import room_type_of
 from efficienteqa.perception.pixels.houses import HELDOUT_CATALOGUE, TRAIN_SEEDS
+from efficienteqa.perception.pixels.jobs import MeasureJob
 from efficienteqa.perception.visible import VisibleObject, visible_objects
 
 ORACLE_PIXELS = 250  # at 640x480: the oracle's "in view" (an evidence object this large)
@@ -317,46 +318,44 @@ def markdown_table(figures: dict[str, Any], min_objects: int = 10) -> str:
     return "\n".join(head + general + [row(k[len("category:"):], f) for k, f in categories])
 
 
-def measure(houses: Sequence[int], *, seeds: str, frames_per_house: int = 8, seed: int = 0,
-            weights: Path | None = None, out: Path | None = None, poses: Path | None = None,
-            assets: str = DEFAULT_ASSETS, close_reads: int | None = None,
+def measure(job: MeasureJob, houses: Sequence[int],
             progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
-    """``efficienteqa perception evaluate``: the figures of ``weights`` (default: the committed
-    ones) on ``frames_per_house`` views of each of ``houses`` (``seeds``, as the user wrote
-    them), posed as training frames or at the walks of ``poses``; written with how they were
-    made to ``out`` where given. The options are checked first, each in one line;
+    """``efficienteqa perception evaluate``: the figures of ``job.weights`` (default: the
+    committed ones) on ``job.frames_per_house`` views of each of ``houses`` (``job.seeds``, as
+    the user wrote them), posed as training frames or at the walks of ``job.poses``; written
+    with how they were made to ``job.out`` where given. The options are checked first, each in one line;
     ``progress(done, total)`` follows the frames."""
     from efficienteqa.perception.pixels.backend import CLOSE_READS
     from efficienteqa.records import check_writable, code_version
 
     check_heldout(houses)
-    if assets not in (DEFAULT_ASSETS, ALL_CATALOGUES):
-        raise EfficientEQAError(f"--assets {assets!r} is not furniture the network reads",
+    if job.assets not in (DEFAULT_ASSETS, ALL_CATALOGUES):
+        raise EfficientEQAError(f"--assets {job.assets!r} is not furniture the network reads",
                                 fix=f"use {DEFAULT_ASSETS} or {ALL_CATALOGUES}")
-    if frames_per_house < 1:
+    if job.frames_per_house < 1:
         raise EfficientEQAError("--frames-per-house must be at least 1")
-    if out is not None:
-        check_writable(out.parent)
-    if close_reads is not None and close_reads < 0:
+    if job.out is not None:
+        check_writable(job.out.parent)
+    if job.close_reads is not None and job.close_reads < 0:
         raise EfficientEQAError("--close-reads must be 0 or more")
-    walks = read_poses(poses) if poses is not None else None
+    walks = read_poses(job.poses) if job.poses is not None else None
     perception = PixelPerception.load(
-        weights, close_reads=CLOSE_READS if close_reads is None else close_reads)
+        job.weights, close_reads=CLOSE_READS if job.close_reads is None else job.close_reads)
     held_out = frozenset(perception.record.get("data", {}).get("heldout_model_keys", []))
     trained_on = perception.record.get("data", {}).get("assets", DEFAULT_ASSETS)
-    frames = heldout_frames(houses, frames_per_house, seed, walks, held_out, assets, trained_on)
-    total = len(houses) * frames_per_house
+    frames = heldout_frames(houses, job.frames_per_house, job.seed, walks, held_out, job.assets,
+                            trained_on)
+    total = len(houses) * job.frames_per_house
     if progress is not None:
         progress(0, total)
     scores = evaluate(frames, perception,
                       progress=None if progress is None else lambda n: progress(n, total))
-    if out is not None:
-        write_scores(scores, out, {"houses": seeds,
-                                   "frames_per_house": frames_per_house, "seed": seed,
-                                   "poses": "walks " + poses.name if poses else "training-style",
-                                   "weights": str(weights or "committed"), "assets": assets,
-                                   "close_reads": perception.close_reads.crops,
-                                   "code_version": code_version()})
+    if job.out is not None:
+        write_scores(scores, job.out, {
+            "houses": job.seeds, "frames_per_house": job.frames_per_house, "seed": job.seed,
+            "poses": "walks " + job.poses.name if job.poses else "training-style",
+            "weights": str(job.weights or "committed"), "assets": job.assets,
+            "close_reads": perception.close_reads.crops, "code_version": code_version()})
     return scores.to_json()
 
 

@@ -30,6 +30,7 @@ from efficienteqa.geometry import backproject
 from efficienteqa.observation import Observation
 from efficienteqa.perception.pixels.evaluate import COVER, ORACLE_PIXELS
 from efficienteqa.perception.pixels.fusion import ObjectEvidence
+from efficienteqa.perception.pixels.jobs import ThresholdJob
 from efficienteqa.perception.pixels.segment import (
     MIN_CONFIDENCE,
     PixelClasses,
@@ -206,18 +207,17 @@ class Choice:
         return write_thresholds(self.path, self.chosen, self.about)
 
 
-def choose_on(seeds: str, *, frames_per_house: int = 10, seed: int = 0,
-              weights: Path | None = None,
-              progress: Callable[[int, int], None] | None = None) -> Choice:
+def choose_on(job: ThresholdJob, progress: Callable[[int, int], None] | None = None) -> Choice:
     """``efficienteqa perception thresholds``: each category's threshold chosen on the
-    validation houses ``seeds`` for ``weights`` (default: the committed ones); ``Choice.write``
-    records them. ``progress(done, total)`` follows the frames."""
+    validation houses ``job.seeds`` for ``job.weights`` (default: the committed ones);
+    ``Choice.write`` records them. ``progress(done, total)`` follows the frames."""
     from dataclasses import replace
 
     from efficienteqa.perception.pixels.backend import WEIGHTS, PixelPerception
     from efficienteqa.perception.pixels.evaluate import heldout_frames
     from efficienteqa.perception.pixels.houses import VALIDATION_SEEDS, parse_seeds
 
+    seeds, frames_per_house, seed, weights = job.seeds, job.frames_per_house, job.seed, job.weights
     houses = parse_seeds(seeds)
     if houses.start not in VALIDATION_SEEDS or houses.stop - 1 not in VALIDATION_SEEDS:
         raise EfficientEQAError(f"houses {seeds} are not validation houses",

@@ -34,16 +34,11 @@ from efficienteqa.perception.pixels.batches import (
 )
 from efficienteqa.perception.pixels.dataset import code_version, load_shards
 from efficienteqa.perception.pixels.houses import VALIDATION_SEEDS
+from efficienteqa.perception.pixels.jobs import CHECKPOINT_EVERY, THREADS, WIDE_WIDTHS, TrainJob
 from efficienteqa.perception.pixels.net import PixelNet, Vocabulary, save_weights
 from efficienteqa.perception.pixels.validation import evaluate
 
-THREADS = 2  # the machine's cores; 1 does better when others load them
 CROP = (160, 224)  # (height, width) at half size: 2/3 x 0.7 of a 240x320 frame
-# Wider deep levels (DESIGN 9, learned perception: the earlier network underfit); the 1/1 and
-# 1/2 levels, which cost the most time per frame, keep their widths. Inference stays <= 100 ms
-# (benchmarks.pixels_bench).
-WIDE_WIDTHS = (16, 32, 64, 96, 160)
-CHECKPOINT_EVERY = 250  # steps between checkpoints (a few minutes on 2 cores)
 CHECKPOINT_FORMAT = 1
 
 
@@ -261,34 +256,34 @@ def _device_name(device: torch.device) -> str:
     return f"cpu ({torch.get_num_threads()} threads)"
 
 
-def train_as_asked(data: Path, out: Path, *, steps: int = 4000, seed: int = 0, batch: int = 8,
-                   minutes: float = 90.0, threads: int = THREADS, widths: str = "16,32,64,96,160",
-                   device: str = "auto", resume: bool = False,
-                   checkpoint_every: int = CHECKPOINT_EVERY) -> dict[str, Any]:
+def train_as_asked(job: TrainJob) -> dict[str, Any]:
     """``efficienteqa perception train``: the options checked first, each in one line (then
     the data and the output), and ``train`` run with the command that makes its result. That
     command names the data DATA (its houses are in the record's "data"; a path on this machine
     would mean nothing on another); --resume and --device do not change the recipe (the record
     says where it ran and whether it resumed)."""
-    if steps < 1 or batch < 1 or threads < 1 or checkpoint_every < 0:
+    if job.steps < 1 or job.batch < 1 or job.threads < 1 or job.checkpoint_every < 0:
         raise EfficientEQAError("--steps, --batch and --threads must be at least 1, "
                                 "--checkpoint-every at least 0")
     try:
-        width_list = tuple(int(w) for w in widths.split(","))
+        widths = tuple(int(w) for w in job.widths.split(","))
     except ValueError:
-        raise EfficientEQAError(f"cannot read --widths {widths!r}", fix="give 5 numbers such as "
-                                "16,32,64,96,160") from None
-    if len(width_list) != 5 or min(width_list) < 1:
-        raise EfficientEQAError(f"--widths needs 5 positive numbers, got {widths!r}")
-    check_data(data)
-    check_writable(out)
+        raise EfficientEQAError(f"cannot read --widths {job.widths!r}", fix="give 5 numbers such "
+                                "as 16,32,64,96,160") from None
+    if len(widths) != 5 or min(widths) < 1:
+        raise EfficientEQAError(f"--widths needs 5 positive numbers, got {job.widths!r}")
+    check_data(job.data)
+    check_writable(job.out)
     command = " ".join(["efficienteqa", "perception", "train", "--data", "DATA", "--out",
-                        str(out), "--steps", str(steps), "--seed", str(seed), "--batch",
-                        str(batch), "--minutes", f"{minutes:g}", "--threads", str(threads),
-                        "--widths", ",".join(map(str, width_list)), "--device", device])
-    return train(data, out, TrainConfig(steps=steps, seed=seed, batch=batch, minutes=minutes,
-                                        threads=threads, widths=width_list, device=device,
-                                        checkpoint_every=checkpoint_every, resume=resume),
+                        str(job.out), "--steps", str(job.steps), "--seed", str(job.seed),
+                        "--batch", str(job.batch), "--minutes", f"{job.minutes:g}", "--threads",
+                        str(job.threads), "--widths", ",".join(map(str, widths)), "--device",
+                        job.device])
+    return train(job.data, job.out,
+                 TrainConfig(steps=job.steps, seed=job.seed, batch=job.batch,
+                             minutes=job.minutes, threads=job.threads, widths=widths,
+                             device=job.device, checkpoint_every=job.checkpoint_every,
+                             resume=job.resume),
                  command=command)
 
 
