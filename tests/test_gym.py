@@ -126,3 +126,27 @@ def test_no_move_goes_farther_than_3_m_of_free_path_with_noise_or_without(noise)
         assert shortened >= 2  # the houses are wider than a step: the limit was tested
     finally:
         env.close()
+
+
+@needs_egl
+def test_a_robot_noise_profile_acts_and_an_unknown_one_is_refused():
+    """``noise="robot"``: the observed pose is the drifted one the robot believes (the house's
+    true pose is elsewhere after moves), and the depth has holes; a wrong name fails at once."""
+    import efficienteqa.gym  # noqa: F401
+    from efficienteqa.envs.episode import move
+    from efficienteqa.errors import EfficientEQAError
+
+    with pytest.raises(EfficientEQAError, match="unknown noise profile 'rbot'"):
+        gym.make("EfficientEQA/SyntheticHouse-v1", limit=1, noise="rbot")
+    noisy = gym.make("EfficientEQA/SyntheticHouse-v1", limit=1, noise="robot")
+    try:
+        obs, _ = noisy.reset(seed=0)
+        assert np.mean(obs["depth"] == 0) > 0.005  # the profile's depth holes
+        for dx in (1.0, -1.0, 1.0, -1.0):
+            x, y = float(obs["pose"][0, 3]), float(obs["pose"][1, 3])
+            obs, _, _, _, info = noisy.step(move(x + dx, y, 0.0))
+        true = noisy.unwrapped._scene.env.env.pose
+        believed = obs["pose"][:2, 3]
+        assert float(np.hypot(true.x - believed[0], true.y - believed[1])) > 1e-3
+    finally:
+        noisy.close()

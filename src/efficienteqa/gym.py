@@ -18,7 +18,10 @@ is step 1, as for the oracle) and the budget (the benchmark's ``int(sqrt(floor a
 Nothing of the simulator's truth appears while the episode runs. At its end (an answer:
 terminated; the budget spent: truncated) ``info["grade"]`` gives the rule judge's verdict, the
 reference answer, the steps and the oracle's fewest steps to a view of the evidence, and the
-reward is 1 for a right answer, else 0. Needs ``pip install 'efficienteqa[gym]'``.
+reward is 1 for a right answer, else 0. ``noise="robot"`` (or another of ``efficienteqa eval``'s
+``--scene.noise`` profiles) gives the robot depth noise, odometry drift and moves that fall
+short (``envs.synthetic.noise``; the pose observed is then the drifted one the robot believes).
+Needs ``pip install 'efficienteqa[gym]'``.
 """
 
 from __future__ import annotations
@@ -49,7 +52,13 @@ class SyntheticHouseEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"]}
 
     def __init__(self, split: str = "synthetic", limit: int | None = None,
-                 render_mode: str | None = None) -> None:
+                 render_mode: str | None = None, noise: str = "none") -> None:
+        from efficienteqa.config.run import NOISE_PROFILES
+
+        if noise not in NOISE_PROFILES:
+            raise EfficientEQAError(f"unknown noise profile {noise!r}",
+                                    fix=f"use one of {', '.join(NOISE_PROFILES)}")
+        self.noise = noise
         self.questions: list[EvalQuestion] = load_dataset(split, limit=limit)
         if not self.questions:
             raise EfficientEQAError(f"split {split!r} has no questions", fix="give another split")
@@ -124,7 +133,8 @@ class SyntheticHouseEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
             from efficienteqa.scenes import open_scene
 
             self.close()
-            self._scene, self._spec = open_scene(name, oracle=False), name
+            self._scene = open_scene(name, oracle=False, noise=self.noise)
+            self._spec = name
             self._moves = path_moves(self._scene.env)  # along free paths, 3 m a step at most
         return self._moves
 
