@@ -100,6 +100,24 @@ def test_a_synthetic_walk_reads_back_as_it_was_written(small_env, tmp_path, name
 
 
 @needs_egl
+def test_a_folder_keeps_instance_ids_as_16_bit_pngs_and_larger_ids_as_npy(small_env, tmp_path):
+    """Ids that fit 16 bits go to a PNG (a tenth of the .npy's size); a frame with a larger id
+    keeps its .npy; both read back exactly."""
+    from dataclasses import replace
+
+    frames = _walk(small_env, n=2)
+    big = replace(frames[1], instance=frames[1].instance.astype(np.int32) + 70_000)
+    with WalkRecorder(tmp_path / "walk", labels=small_env.scene_labels()) as recorder:
+        recorder.add(frames[0])
+        recorder.add(big)
+    rows = [json.loads(line) for line in (tmp_path / "walk" / "poses.jsonl").read_text().splitlines()]
+    assert [r["instance"] for r in rows] == ["instance/000000.png", "instance/000001.npy"]
+    got = _read(open_recording(str(tmp_path / "walk")))
+    assert np.array_equal(got[0].instance, frames[0].instance) and got[0].instance.dtype == np.int32
+    assert np.array_equal(got[1].instance, big.instance)
+
+
+@needs_egl
 def test_a_replayed_recording_gives_the_live_episodes_texts_and_answer(small_env, tmp_path):
     """The live episode, recorded through real encodings, replayed through the agent with the
     same stub models: the same perception texts on the same frames, the same Sims, the same

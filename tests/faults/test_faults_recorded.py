@@ -456,6 +456,24 @@ def _depth_8bit(folder: Path) -> None:
     _row(2, depth="depth/8bit.png")(folder)
 
 
+def _instance(make: Callable[[Path], None], suffix: str) -> Callable[[Path], None]:
+    """Frame 1's instance ids replaced by the file ``make`` writes, as instance/000000.SUFFIX."""
+    def damage(folder: Path) -> None:
+        for old in (folder / "instance").glob("000000.*"):
+            old.unlink()
+        make(folder / "instance" / f"000000.{suffix}")
+        _row(1, instance=f"instance/000000.{suffix}")(folder)
+    return damage
+
+
+def _png(array: Any) -> Callable[[Path], None]:
+    def make(path: Path) -> None:
+        from PIL import Image
+
+        Image.fromarray(array).save(path)
+    return make
+
+
 def _npy(array: Any) -> Callable[[Path], None]:
     def make(path: Path) -> None:
         np.save(path, array, allow_pickle=True)
@@ -510,9 +528,12 @@ FOLDERS = {  # trial, damage -> what the one line says
                     f"{L} 2: cannot read depth file depth/000001.npy: "),
     "npy cut": ("R6.21", _file("depth/000002.npy", _cut(0.5)),
                 f"{L} 3: cannot read depth file depth/000002.npy: "),
-    "instance floats": ("R6.21", _file("instance/000000.npy", _npy(np.zeros((480, 640)))),
+    "instance floats": ("R6.21", _instance(_npy(np.zeros((480, 640))), "npy"),
                         f"{L} 1: cannot read instance file instance/000000.npy: its array holds "
                         "float64, not integer ids"),
+    "instance 8-bit": ("R6.21", _instance(_png(np.zeros((480, 640), np.uint8)), "png"),
+                       f"{L} 1: cannot read instance file instance/000000.png: it is a L image, "
+                       "not 16-bit"),
     "not utf-8": ("R6.21", _line(2, b'{"rgb": "\xff"}'),
                   f"cannot read {{}}/{L} 2: UnicodeDecodeError"),
     "deep line": ("R6.21", _line(1, "[" * 100_000), f"cannot read {{}}/{L} 1: ValueError: nested too deep"),

@@ -6,7 +6,8 @@
       poses.jsonl        one JSON object a line, one line per frame, in the walk's order
       rgb/000000.png     8-bit RGB (RGBA: alpha dropped)
       depth/000000.png   16-bit PNG, millimetres (0: no depth); or depth/000000.npy, float32 metres
-      instance/000000.npy  optional: int32 instance ids (a simulated walk's truth)
+      instance/000000.png  optional: instance ids (a simulated walk's truth), a 16-bit PNG; or
+                         instance/000000.npy, integer ids (any above 65535)
       labels.json        optional: the simulator's labels (``labels.LABELS_FORMAT``)
 
 A line of ``poses.jsonl``::
@@ -14,7 +15,7 @@ A line of ``poses.jsonl``::
     {"rgb": "rgb/000000.png", "depth": "depth/000000.png",
      "cam_to_world": [[r00, r01, r02, x], [r10, r11, r12, y], [r20, r21, r22, z], [0, 0, 0, 1]],
      "fx": 525.0, "fy": 525.0, "cx": 319.5, "cy": 239.5, "stamp": 12.25,
-     "instance": "instance/000000.npy"}
+     "instance": "instance/000000.png"}
 
 File names are relative to the folder and stay inside it (``FolderSource._inside``).
 ``cam_to_world`` takes camera points to the world (the map frame: x, y on the floor, z up,
@@ -45,7 +46,7 @@ POSES_FILE = "poses.jsonl"
 LABELS_FILE = "labels.json"
 FIX_FOLDER = f"write {POSES_FILE} as efficienteqa.envs.recorded.folder describes"
 FIX_IMAGE = "write rgb as an 8-bit PNG, depth as a 16-bit PNG (millimetres) or a float32 .npy " \
-            "(metres), instance as an int32 .npy"
+            "(metres), instance as a 16-bit PNG or an int32 .npy"
 # What PIL and numpy raise on a damaged or foreign file (PIL's PNG reader raises SyntaxError on a
 # broken chunk, zlib.error on a broken stream; numpy, ValueError on a bad .npy header).
 _UNREADABLE = (OSError, ValueError, SyntaxError, EOFError, zlib.error, Image.DecompressionBombError)
@@ -82,10 +83,8 @@ def _header(path: Path, what: str) -> tuple[int, int]:
                              + ("numbers" if what == "depth" else "integer ids"))
         return int(shape[1]), int(shape[0])
     with Image.open(path) as image:
-        if what == "depth" and image.mode not in _DEPTH_MODES:
+        if what != "rgb" and image.mode not in _DEPTH_MODES:
             raise ValueError(f"it is a {image.mode} image, not 16-bit")
-        if what == "instance":
-            raise ValueError("instance ids are read from an int32 .npy, not an image")
         return image.size
 
 
@@ -242,6 +241,12 @@ def read_depth(path: Path) -> np.ndarray:
 
 
 def read_instance(path: Path) -> np.ndarray:
+    """Instance ids, int32: a 16-bit PNG or an integer .npy."""
+    if path.suffix != ".npy":
+        with Image.open(path) as image:
+            if image.mode not in _DEPTH_MODES:
+                raise ValueError(f"it is a {image.mode} image, not 16-bit")
+            return np.asarray(image, dtype=np.int32).copy()
     ids = np.load(path)
     if ids.ndim != 2 or ids.dtype.kind not in _NPY_KINDS["instance"]:
         raise ValueError(f"its array is {ids.ndim}-D {ids.dtype}, not 2-D integer ids")

@@ -286,10 +286,16 @@ class WalkRecorder:
         row: dict[str, Any] = {"rgb": f"rgb/{name}.png", "depth": depth,
                                "cam_to_world": obs.cam_to_world.tolist(),
                                "fx": fx, "fy": fy, "cx": cx, "cy": cy, "stamp": stamp / 1e9}
-        if obs.instance is not None:
+        if obs.instance is not None:  # a 16-bit PNG where the ids fit (a tenth of the .npy)
             (self.path / "instance").mkdir(exist_ok=True)
-            row["instance"] = f"instance/{name}.npy"
-            np.save(self.path / row["instance"], obs.instance.astype(np.int32))
+            ids = obs.instance
+            if ids.size and int(ids.min()) >= 0 and int(ids.max()) <= 0xFFFF:
+                row["instance"] = f"instance/{name}.png"
+                Image.fromarray(ids.astype(np.uint16)).save(self.path / row["instance"],
+                                                            compress_level=1)
+            else:
+                row["instance"] = f"instance/{name}.npy"
+                np.save(self.path / row["instance"], ids.astype(np.int32))
         assert self._poses is not None  # a folder's recorder, open
         self._poses.write(json.dumps(row) + "\n")
         self._poses.flush()
