@@ -325,6 +325,21 @@ def test_pixels_on_a_robots_recording_say_once_to_use_an_image_vlm(tmp_path, cap
     robot.close(), sim.close()
 
 
+def test_hm3d_scans_look_real_and_the_synthetic_houses_do_not(small_camera):
+    """HM3D's houses are textured from photographs: the pixel network's note is said there too."""
+    from efficienteqa.envs.base import looks_real
+    from efficienteqa.envs.habitat.env import HabitatEnv
+    from efficienteqa.envs.synthetic.env import SyntheticEnv
+
+    house = SyntheticEnv.from_seed(1, "builtin", camera=small_camera)
+    try:
+        assert not looks_real(house) and HabitatEnv.scanned
+        house.scanned = True  # a simulated scene that says it is a scan
+        assert looks_real(house)
+    finally:
+        house.close()
+
+
 def test_the_cli_asks_for_a_bag_folder_by_record_format(cli, tmp_path):
     help_text = " ".join(cli("ask", "--help").stdout.split())
     assert "--record-format" in help_text and "rosbag2" in help_text

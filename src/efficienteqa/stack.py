@@ -18,7 +18,7 @@ from typing import Any
 from efficienteqa.agent import Agent, AgentConfig
 from efficienteqa.answer.rag import RagAnswerer
 from efficienteqa.config.backends import IMAGE_FORMAT_AUTO, Stack
-from efficienteqa.envs.base import Environment, is_rendered
+from efficienteqa.envs.base import Environment, looks_real
 from efficienteqa.errors import EfficientEQAError
 from efficienteqa.explore.module import SemanticScorer
 from efficienteqa.explore.text_scorers import (
@@ -421,7 +421,7 @@ def build_agent(env: Environment, stack: Stack, config: AgentConfig, environment
     """``environment`` names the scene back-end for the record; ``model``/``relevancy`` replace
     the configured ones (tests pass stubs)."""
     perception = build_perception(stack.perception, env)
-    if perception.name == "pixels" and not is_rendered(env):
+    if perception.name == "pixels" and looks_real(env):
         from efficienteqa.perception.pixels.backend import REAL_FRAMES_NOTE
 
         say_once(REAL_FRAMES_NOTE)

@@ -143,3 +143,9 @@ def is_rendered(env: object) -> bool:
     """Whether ``env``'s frames are a simulator's renders: a simulated scene, or a recording
     that carries a simulator's labels. Not: a robot, a robot's recording."""
     return isinstance(env, SimulatedScene) or scene_labels(env) is not None
+
+
+def looks_real(env: object) -> bool:
+    """Whether ``env``'s frames look like a camera's: a robot's, a robot's recording, or a
+    simulated scene textured from photographs (``scanned``: HM3D in Habitat-Sim)."""
+    return not is_rendered(env) or bool(getattr(env, "scanned", False))

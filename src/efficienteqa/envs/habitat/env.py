@@ -74,6 +74,8 @@ class HabitatEnv:
     module's docstring.
     """
 
+    scanned = True  # textured from photographs: frames that look real (``envs.base.looks_real``)
+
     def __init__(self, files: SceneFiles, start: HabitatStart | None = None,
                  camera: CameraSpec | None = None, *, semantic: bool | None = None,
                  camera_mount: str = "body-tilt", moves: str = "unchecked",

@@ -38,11 +38,13 @@ from efficienteqa.perception.semantic import SemanticPerception
 if TYPE_CHECKING:
     from efficienteqa.envs.base import SceneLabels
 
-# Said once where the network reads frames no simulator rendered (a robot, a robot's recording):
+# Said once where the network reads frames that look real (a robot, a robot's recording, HM3D's
+# scans; ``envs.base.looks_real``):
 # on 50 real frames it named sofas, showers, beds and toilets in a kitchenette (docs/perception.md).
 REAL_FRAMES_NOTE = ("note: --backends.perception pixels was trained on synthetic renders only; on "
-                    "a real camera's frames it names objects and rooms that are not there. Use an "
-                    "image VLM: --backends.perception rgb --backends.vlm openai:gpt-4o")
+                    "a real camera's frames (or a scanned house's) it names objects and rooms "
+                    "that are not there. Use an image VLM: --backends.perception rgb "
+                    "--backends.vlm openai:gpt-4o")
 
 WEIGHTS = Path(__file__).resolve().parent / "weights" / "pixels.pt"
 CLOSE_READS = 2  # crops a frame (chosen on validation houses 3900-3909: DESIGN 9, close reads)
