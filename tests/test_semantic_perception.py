@@ -17,13 +17,13 @@ from efficienteqa.envs.synthetic.labels import HouseLabels
 from efficienteqa.explore.prompting import project_floor_points
 from efficienteqa.geometry import CameraSpec, Pose2D, camera_to_world
 from efficienteqa.observation import Observation, PromptPoint
-from efficienteqa.perception import (
-    NoiseConfig,
+from efficienteqa.perception.semantic import (
+    MAX_OBJECTS,
+    SemanticPerception,
     describe_directions,
     describe_frame,
 )
-from efficienteqa.perception.semantic import MAX_OBJECTS, SemanticPerception
-from efficienteqa.perception.visible import bearing_words, scaled_min_pixels
+from efficienteqa.perception.visible import NoiseConfig, bearing_words, scaled_min_pixels
 
 CAMERA = CameraSpec(width=64, height=48, hfov_deg=90.0, height_m=1.0, pitch_deg=0.0)
 POSE = Pose2D(1.0, 1.0, 0.0)

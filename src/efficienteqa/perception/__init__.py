@@ -1,13 +1,8 @@
 """Perception back-ends. ``semantic``: the offline default (DESIGN 5) that turns the environment's
-instance buffer into short factual text for a text-only language model."""
+instance buffer into short factual text for a text-only language model; ``pixels``: the
+project's own network over RGB-D; ``image``: the frames as images for an image VLM
+(``--backends.perception rgb``).
 
-from efficienteqa.perception.semantic import describe_directions, describe_frame
-from efficienteqa.perception.visible import FrameDescription, NoiseConfig, VisibleObject
-
-__all__ = [
-    "FrameDescription",
-    "NoiseConfig",
-    "VisibleObject",
-    "describe_directions",
-    "describe_frame",
-]
+The package imports nothing, so a light module under it (``pixels.jobs``, which the CLI reads
+to make its options) loads no mapping or scipy.
+"""
