@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import needs_egl
 from efficienteqa.agent import AgentConfig
 from efficienteqa.config import presets
 from efficienteqa.errors import EfficientEQAError
@@ -312,3 +313,44 @@ def test_a_format_5_run_records_the_tree_it_was_made_from_and_reads_back_as_it(t
     back = presets.resolve({}, config_file=tmp_path / RUN_FILE).run
     assert back.agent == run.agent and back.eval == run.eval and back.scene == run.scene
     assert back.backends.vlm == "openai:m@http://u:***@h/v1"  # as recorded, redacted
+
+
+def _default_model_missing() -> str | None:
+    import importlib.util
+
+    from efficienteqa.models import local
+
+    if importlib.util.find_spec("llama_cpp") is None:
+        return "llama_cpp is not installed (run scripts/setup.sh)"
+    if not local.is_installed("qwen2.5-coder-1.5b"):
+        return "Qwen2.5-Coder-1.5B is not installed (run: efficienteqa models install)"
+    return None
+
+
+@needs_egl
+@pytest.mark.skipif(_default_model_missing() is not None, reason=str(_default_model_missing()))
+def test_the_default_row_run_again_from_its_run_json_gives_its_answers(cli, tmp_path, monkeypatch):
+    """``eval --config results/main-heldout/default/run.json`` on the row's first 3 questions, on
+    the real default model with an empty response cache: the published answers, in the published
+    steps. (A change of behaviour fails here: the row is then to be run again.)"""
+    from efficienteqa.cache import cache_path
+
+    cache = tmp_path / "cache"  # the installed models and furniture, but no response cached
+    cache.mkdir()
+    for shared in ("models", "furniture", "datasets", "wheels"):
+        if cache_path(shared).exists():
+            (cache / shared).symlink_to(cache_path(shared))
+    monkeypatch.setenv("EFFICIENTEQA_CACHE", str(cache))
+    try:
+        result = cli("eval", "--config", str(PUBLISHED / "default" / RUN_FILE), "--eval.limit", "3",
+                     "--eval.judge", "rule", "--out", str(tmp_path / "again"))
+    finally:
+        cli("models", "stop")
+    assert result.returncode == 0, result.stdout + result.stderr
+
+    def answers(folder: Path) -> dict[str, tuple[str, int]]:
+        rows = [json.loads(line) for line in (folder / "episodes.jsonl").read_text().splitlines()]
+        return {r["id"]: (r["answer"], r["steps"]) for r in rows}
+
+    again, published = answers(tmp_path / "again"), answers(PUBLISHED / "default")
+    assert len(again) == 3 and again == {k: published[k] for k in again}
