@@ -23,20 +23,23 @@ def egl_available() -> bool:
         return False
 
 
-def small_model_missing() -> str | None:
-    """Why the real SmolLM2 server cannot run here, or None when it can."""
+def local_model_missing(name: str = "smollm2-135m") -> str | None:
+    """Why a real local model's server (``name``: SmolLM2 by default, the tests' fast one)
+    cannot run here, or None when it can."""
 
     from efficienteqa.models import local
 
     if importlib.util.find_spec("llama_cpp") is None:
         return "llama_cpp is not installed (run scripts/setup.sh or: efficienteqa models runtime)"
-    if not local.is_installed("smollm2-135m"):
-        return "SmolLM2 is not installed (run: efficienteqa models install smollm2-135m)"
+    if not local.is_installed(name):
+        return f"{name} is not installed (run: efficienteqa models install {name})"
     return None
 
 
-needs_small_model = pytest.mark.skipif(small_model_missing() is not None,
-                                       reason=str(small_model_missing()))
+needs_small_model = pytest.mark.skipif(local_model_missing() is not None,
+                                       reason=str(local_model_missing()))
+needs_default_model = pytest.mark.skipif(local_model_missing("qwen2.5-coder-1.5b") is not None,
+                                         reason=str(local_model_missing("qwen2.5-coder-1.5b")))
 
 @pytest.fixture
 def small_model_cache(tmp_path, monkeypatch):

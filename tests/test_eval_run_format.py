@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import needs_egl
+from conftest import needs_default_model, needs_egl
 from efficienteqa.agent import AgentConfig
 from efficienteqa.config import presets
 from efficienteqa.errors import EfficientEQAError
@@ -315,20 +315,8 @@ def test_a_format_5_run_records_the_tree_it_was_made_from_and_reads_back_as_it(t
     assert back.backends.vlm == "openai:m@http://u:***@h/v1"  # as recorded, redacted
 
 
-def _default_model_missing() -> str | None:
-    import importlib.util
-
-    from efficienteqa.models import local
-
-    if importlib.util.find_spec("llama_cpp") is None:
-        return "llama_cpp is not installed (run scripts/setup.sh)"
-    if not local.is_installed("qwen2.5-coder-1.5b"):
-        return "Qwen2.5-Coder-1.5B is not installed (run: efficienteqa models install)"
-    return None
-
-
 @needs_egl
-@pytest.mark.skipif(_default_model_missing() is not None, reason=str(_default_model_missing()))
+@needs_default_model
 def test_the_default_row_run_again_from_its_run_json_gives_its_answers(cli, tmp_path, monkeypatch):
     """``eval --config results/main-heldout/default/run.json`` on the row's first 3 questions, on
     the real default model with an empty response cache: the published answers, in the published
