@@ -53,11 +53,9 @@ class SyntheticHouseEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
 
     def __init__(self, split: str = "synthetic", limit: int | None = None,
                  render_mode: str | None = None, noise: str = "none") -> None:
-        from efficienteqa.config.run import NOISE_PROFILES
+        from efficienteqa.envs.synthetic.noise import profile
 
-        if noise not in NOISE_PROFILES:
-            raise EfficientEQAError(f"unknown noise profile {noise!r}",
-                                    fix=f"use one of {', '.join(NOISE_PROFILES)}")
+        profile(noise)  # an unknown profile fails here, in one line, before any house opens
         self.noise = noise
         self.questions: list[EvalQuestion] = load_dataset(split, limit=limit)
         if not self.questions:
