@@ -224,6 +224,14 @@ def read_rgb(path: Path) -> np.ndarray:
         return np.asarray(image.convert("RGB"), dtype=np.uint8).copy()
 
 
+def _read_16bit(path: Path, dtype: type) -> np.ndarray:
+    """A 16-bit image (depth in millimetres, instance ids) as a ``dtype`` array of its own."""
+    with Image.open(path) as image:
+        if image.mode not in _DEPTH_MODES:
+            raise ValueError(f"it is a {image.mode} image, not 16-bit")
+        return np.array(image, dtype=dtype)
+
+
 def read_depth(path: Path) -> np.ndarray:
     """Metres, float32, 0 where there is no depth: a 16-bit PNG in millimetres or a float32
     .npy in metres."""
@@ -232,10 +240,7 @@ def read_depth(path: Path) -> np.ndarray:
         if depth.ndim != 2:
             raise ValueError(f"its array is {depth.ndim}-D, not 2-D (height x width)")
     else:
-        with Image.open(path) as image:
-            if image.mode not in _DEPTH_MODES:
-                raise ValueError(f"it is a {image.mode} image, not 16-bit")
-            depth = np.asarray(image, dtype=np.float32) / np.float32(1000.0)
+        depth = _read_16bit(path, np.float32) / np.float32(1000.0)
     depth[~np.isfinite(depth) | (depth < 0)] = 0.0
     return depth
 
@@ -243,10 +248,7 @@ def read_depth(path: Path) -> np.ndarray:
 def read_instance(path: Path) -> np.ndarray:
     """Instance ids, int32: a 16-bit PNG or an integer .npy."""
     if path.suffix != ".npy":
-        with Image.open(path) as image:
-            if image.mode not in _DEPTH_MODES:
-                raise ValueError(f"it is a {image.mode} image, not 16-bit")
-            return np.asarray(image, dtype=np.int32).copy()
+        return _read_16bit(path, np.int32)
     ids = np.load(path)
     if ids.ndim != 2 or ids.dtype.kind not in _NPY_KINDS["instance"]:
         raise ValueError(f"its array is {ids.ndim}-D {ids.dtype}, not 2-D integer ids")
