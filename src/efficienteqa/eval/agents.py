@@ -118,9 +118,9 @@ def run_agent(agent: EQAAgent, q: EvalQuestion, spec: RunSpec, out: Path) -> Out
         seen: list[int] = []  # the steps whose frames show every evidence object
 
         def watch(step: int, frame: Observation) -> None:
-            if evidence and frame.instance is not None \
+            if evidence and not seen and frame.instance is not None \
                     and evidence_visible(frame.instance, evidence):
-                seen.append(step)
+                seen.append(step)  # the first such step: later frames are not read
 
         episode = QuestionEpisode(path_moves(scene.env), q.question, budget, start,
                                   on_view=watch)
@@ -143,4 +143,4 @@ def run_agent(agent: EQAAgent, q: EvalQuestion, spec: RunSpec, out: Path) -> Out
     return Outcome(reply, confidence, episode.steps, budget,
                    "answered" if episode.reply is not None else "budget",
                    refused_moves=episode.refused,
-                   evidence_first_seen_step=(min(seen) if seen else None) if evidence else None)
+                   evidence_first_seen_step=seen[0] if seen else None)
