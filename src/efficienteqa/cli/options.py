@@ -133,8 +133,6 @@ def run_options(sections: Iterable[str] | None = None,
     chosen = tree_leaves(sections, only)
 
     def decorate(command: Callable) -> Callable:
-        own = [p for p in inspect.signature(command, eval_str=True).parameters.values()
-               if p.name != "run"]
         named = [inspect.Parameter("preset", inspect.Parameter.KEYWORD_ONLY, annotation=str | None,
                                    default=typer.Option(None, help=PRESET_HELP, show_default=False,
                                                         rich_help_panel="Configuration")),
@@ -142,12 +140,18 @@ def run_options(sections: Iterable[str] | None = None,
                                    annotation=Path | None,
                                    default=typer.Option(None, "--config", metavar="FILE",
                                                         help=CONFIG_HELP, show_default=False,
-                                                        rich_help_panel="Configuration"))]
+                                                        rich_help_panel="Configuration")),
+                 inspect.Parameter(
+                     "help_all", inspect.Parameter.KEYWORD_ONLY, annotation=bool,
+                     default=typer.Option(False, "--help-all", is_eager=True, expose_value=False,
+                                          callback=_help_all, rich_help_panel="Configuration",
+                                          help="Show every option (the rarer ones, and the "
+                                               "explorer's and the steering's constants), and "
+                                               "exit."))]
         generated = [p for leaf in chosen for alias in (False, True)
                      if (p := _parameter(leaf, alias)) is not None]
 
-        @functools.wraps(command)
-        def wrapper(**kwargs: Any) -> Any:
+        def call(kwargs: dict[str, Any]) -> Any:
             from efficienteqa.config.presets import resolve
 
             kwargs.pop("help_all", None)  # acted already, eagerly (_help_all)
@@ -156,16 +160,7 @@ def run_options(sections: Iterable[str] | None = None,
                           by_method=by_method)
             return command(run=run, **kwargs)
 
-        named.append(inspect.Parameter(
-            "help_all", inspect.Parameter.KEYWORD_ONLY, annotation=bool,
-            default=typer.Option(False, "--help-all", is_eager=True, expose_value=False,
-                                 callback=_help_all, rich_help_panel="Configuration",
-                                 help="Show every option (the rarer ones, and the explorer's "
-                                      "and the steering's constants), and exit.")))
-        params = [*own, *named, *generated]
-        wrapper.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
-        wrapper.__annotations__ = {p.name: p.annotation for p in params}
-        return wrapper
+        return _with_parameters(command, "run", [*named, *generated], call)
 
     return decorate
 
@@ -206,8 +201,6 @@ def job_options(cls: type) -> Callable:
     chosen = leaves(cls)
 
     def decorate(command: Callable) -> Callable:
-        own = [p for p in inspect.signature(command, eval_str=True).parameters.values()
-               if p.name != "job"]
         generated = [inspect.Parameter(
             leaf.path[0], inspect.Parameter.KEYWORD_ONLY,
             annotation=leaf.kind | None if leaf.optional else leaf.kind,
@@ -216,14 +209,27 @@ def job_options(cls: type) -> Callable:
                                  show_default=leaf.default is not None))
             for leaf in chosen]
 
-        @functools.wraps(command)
-        def wrapper(**kwargs: Any) -> Any:
+        def call(kwargs: dict[str, Any]) -> Any:
             job = cls(**{leaf.path[0]: kwargs.pop(leaf.path[0]) for leaf in chosen})
             return command(job=job, **kwargs)
 
-        params = [*own, *generated]
-        wrapper.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
-        wrapper.__annotations__ = {p.name: p.annotation for p in params}
-        return wrapper
+        return _with_parameters(command, "job", generated, call)
 
     return decorate
+
+
+def _with_parameters(command: Callable, made: str, added: list[inspect.Parameter],
+                     call: Callable[[dict[str, Any]], Any]) -> Callable:
+    """``command`` as typer sees it: its own parameters but ``made`` (which ``call`` makes from
+    the others), then ``added``; typer's values go to ``call`` as one dict."""
+    own = [p for p in inspect.signature(command, eval_str=True).parameters.values()
+           if p.name != made]
+
+    @functools.wraps(command)
+    def wrapper(**kwargs: Any) -> Any:
+        return call(kwargs)
+
+    params = [*own, *added]
+    wrapper.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+    wrapper.__annotations__ = {p.name: p.annotation for p in params}
+    return wrapper
